@@ -1,0 +1,1 @@
+"""Virtual test campaign: vehicle manoeuvres -> damper strokes -> virtual rig -> measured force files."""

@@ -1,0 +1,1 @@
+"""Tuner: identification, validation, diagnosis and reports for damper models."""
