@@ -1,0 +1,210 @@
+"""Damper model equations: the single source used by the FMUs and every in-process engine.
+
+Sign convention: positions positive in extension (away from the frame), element elongation
+and elongation rate positive in extension, element forces positive in tension. The output
+force is the force the damper transmits at the actuator end, positive in tension.
+
+Lumped model (paper section 2.1, with physically consistent signs; the printed eqs. 1-3 are not):
+
+    actuator x1 --[block A: kB, cB]-- MP (x2) --[Fc,O(u)]-- MO (x3) --[Fk,O(e)]-- MC (x4) --[block B: kB, cB]-- frame
+
+    MP x2'' = FA - Fc(u)          FA = kB (x1 - x2) + cB (x1' - x2'),   u = x2' - x3'
+    MO x3'' = Fc(u) - Fk(e)       e  = x3 - x4
+    MC x4'' = Fk(e) - FB          FB = kB x4 + cB x4'
+    output F = FA                 (paper eq. 4)
+
+Maxwell model: spring k_s in series with a linear dashpot c; state xd = dashpot end position,
+F = k_s (x1 - xd) = c xd'. Table Maxwell model: same with the dashpot force Fc,O(xd').
+
+Each model exposes ``stage(yb, g, x1, v1)``: the solution y of the implicit stage equation
+``y = yb + g f(y; x1, v1)`` (one stage of an SDIRK scheme), solved exactly by Newton's method on
+the piecewise-linear characteristics (within the right pieces the equations are linear, so the
+iteration ends when the pieces stop changing).
+"""
+from __future__ import annotations
+
+from bisect import bisect_right as bisect_segment  # the lookup of PwlTable.segment, inlined
+
+from .parameters import check_values
+from .tables import PwlTable
+
+__all__ = ["ConvergenceError", "LumpedModel", "MaxwellModel", "MaxwellTableModel", "make_model"]
+
+_MAX_NEWTON = 40
+
+
+class ConvergenceError(RuntimeError):
+    """The implicit stage equation could not be solved (e.g. a non-monotonic table)."""
+
+
+def _table(params: dict, prefix: str, axis: str) -> PwlTable:
+    n = sum(1 for k in params if k.startswith(f"{prefix}_{axis}"))
+    xs = [params[f"{prefix}_{axis}{i:02d}"] for i in range(1, n + 1)]
+    fs = [params[f"{prefix}_{i:02d}"] for i in range(1, n + 1)]
+    return PwlTable(xs, fs)
+
+
+class LumpedModel:
+    """Nonlinear lumped damper model; state y = [x2, x3, x4, v2, v3, v4] in m and m/s."""
+
+    kind = "lumped"
+    n_state = 6
+
+    def __init__(self, params: dict[str, float] | None = None):
+        p = check_values("lumped", params or {})
+        self.params = p
+        self.mC, self.mO, self.mP = p["M_C"], p["M_O"], p["M_P"]
+        self.kB, self.cB = p["k_B"], p["c_B"]
+        self.fk = _table(p, "Fk", "x")
+        self.fc = _table(p, "Fc", "v")
+
+    def initial_state(self, x1: float, v1: float) -> list[float]:
+        """Force-free state at stroke x1 [m]: all elements unloaded, the dashpot carries the offset.
+
+        MP and MO move with the actuator velocity v1 [m/s], so the output force starts at zero.
+        """
+        return [x1, 0.0, 0.0, v1, v1, 0.0]
+
+    def force(self, y, x1: float, v1: float) -> float:
+        """Output force FA [N], positive in tension."""
+        return self.kB * (x1 - y[0]) + self.cB * (v1 - y[3])
+
+    def stage(self, yb, g: float, x1: float, v1: float) -> list[float]:
+        """Solve y = yb + g f(y) for the lumped model (x1 [m], v1 [m/s] at the stage time).
+
+        Positions are eliminated (x = xb + g v); the velocities solve a symmetric tridiagonal
+        system, linear within the current pieces of Fc,O and Fk,O.
+        """
+        x2b, x3b, x4b, v2b, v3b, v4b = yb
+        kB, cB = self.kB, self.cB
+        fc, fk = self.fc, self.fk
+        bc, bk = fc.breaks, fk.breaks
+        ia, sa = fc.intercept, fc.slope
+        ka, ks = fk.intercept, fk.slope
+        mP, mO, mC = self.mP / g, self.mO / g, self.mC / g
+        dxb = x3b - x4b
+        # Constant parts of the right-hand sides and diagonal.
+        r2 = mP * v2b + kB * (x1 - x2b) + cB * v1
+        r3 = mO * v3b
+        r4 = mC * v4b - kB * x4b
+        d2 = mP + kB * g + cB
+        d4 = mC + kB * g + cB
+        v2, v3, v4 = v2b, v3b, v4b
+        ic = fc.segment(v2 - v3)
+        ik = fk.segment(dxb + g * (v3 - v4))
+        for _ in range(_MAX_NEWTON):
+            sc, ac = sa[ic], ia[ic]
+            skg, ak = ks[ik] * g, ka[ik]
+            akx = ak + ks[ik] * dxb
+            # Tridiagonal system [d2+sc, -sc, 0; -sc, mO+sc+skg, -skg; 0, -skg, d4+skg] v = b.
+            a11 = d2 + sc
+            w1 = -sc / a11
+            y1 = (r2 - ac) / a11
+            a22 = mO + sc + skg + sc * w1
+            w2 = -skg / a22
+            y2 = (r3 + ac - akx + sc * y1) / a22
+            a33 = d4 + skg + skg * w2
+            if a11 <= 0.0 or a22 <= 0.0 or a33 <= 0.0:
+                raise ConvergenceError("stage Jacobian not positive definite (non-monotonic table?)")
+            v4 = (r4 + akx + skg * y2) / a33
+            v3 = y2 - w2 * v4
+            v2 = y1 - w1 * v3
+            jc = bisect_segment(bc, v2 - v3)
+            jk = bisect_segment(bk, dxb + g * (v3 - v4))
+            if jc == ic and jk == ik:
+                return [x2b + g * v2, x3b + g * v3, x4b + g * v4, v2, v3, v4]
+            ic, ik = jc, jk
+        raise ConvergenceError("lumped model stage: piecewise-linear Newton iteration did not settle")
+
+    def diagnostics(self, y, x1: float, v1: float) -> dict[str, float]:
+        """Internal elongations [m], rates [m/s] and element forces [N] (positive in tension)."""
+        x2, x3, x4, v2, v3, v4 = y
+        u, e = v2 - v3, x3 - x4
+        return {
+            "blockA_elongation": x1 - x2,
+            "blockA_rate": v1 - v2,
+            "damping_rate": u,
+            "damping_force": self.fc(u),
+            "elastic_elongation": e,
+            "elastic_force": self.fk(e),
+            "blockB_elongation": x4,
+            "blockB_force": self.kB * x4 + self.cB * v4,
+        }
+
+
+class MaxwellModel:
+    """Linear Maxwell model; state y = [xd] (dashpot end position [m])."""
+
+    kind = "maxwell"
+    n_state = 1
+
+    def __init__(self, params: dict[str, float] | None = None):
+        p = check_values("maxwell", params or {})
+        self.params = p
+        self.ks, self.c = p["k_s"], p["c"]
+
+    def initial_state(self, x1: float, v1: float) -> list[float]:
+        """Force-free state at stroke x1 [m] (spring unloaded)."""
+        return [x1]
+
+    def force(self, y, x1: float, v1: float) -> float:
+        return self.ks * (x1 - y[0])
+
+    def stage(self, yb, g: float, x1: float, v1: float) -> list[float]:
+        """Solve xd = xdb + g k_s (x1 - xd) / c (linear, exact)."""
+        a = g * self.ks / self.c
+        return [(yb[0] + a * x1) / (1.0 + a)]
+
+    def diagnostics(self, y, x1: float, v1: float) -> dict[str, float]:
+        return {"spring_elongation": x1 - y[0]}
+
+
+class MaxwellTableModel:
+    """Maxwell model with a piecewise-linear dashpot Fc,O; state y = [xd] [m]."""
+
+    kind = "maxwell_table"
+    n_state = 1
+
+    def __init__(self, params: dict[str, float] | None = None):
+        p = check_values("maxwell_table", params or {})
+        self.params = p
+        self.ks = p["k_s"]
+        self.fc = _table(p, "Fc", "v")
+
+    def initial_state(self, x1: float, v1: float) -> list[float]:
+        return [x1]
+
+    def force(self, y, x1: float, v1: float) -> float:
+        return self.ks * (x1 - y[0])
+
+    def stage(self, yb, g: float, x1: float, v1: float) -> list[float]:
+        """Solve Fc(vd) = k_s (x1 - xdb - g vd) for the dashpot rate vd, then xd = xdb + g vd."""
+        fc, ks = self.fc, self.ks
+        rhs = ks * (x1 - yb[0])
+        kg = ks * g
+        i = fc.segment(rhs / (fc.slope[len(fc.slope) // 2] + kg))
+        for _ in range(_MAX_NEWTON):
+            den = fc.slope[i] + kg
+            if den <= 0.0:
+                raise ConvergenceError("Maxwell table stage: non-monotonic dashpot table")
+            vd = (rhs - fc.intercept[i]) / den
+            j = bisect_segment(fc.breaks, vd)
+            if j == i:
+                return [yb[0] + g * vd]
+            i = j
+        raise ConvergenceError("Maxwell table stage: piecewise-linear Newton iteration did not settle")
+
+    def diagnostics(self, y, x1: float, v1: float) -> dict[str, float]:
+        return {"spring_elongation": x1 - y[0]}
+
+
+_MODELS = {"lumped": LumpedModel, "maxwell": MaxwellModel, "maxwell_table": MaxwellTableModel}
+
+
+def make_model(kind: str, params: dict[str, float] | None = None):
+    """Model instance of ``kind`` ('lumped', 'maxwell', 'maxwell_table') with ``params`` (SI)."""
+    try:
+        cls = _MODELS[kind]
+    except KeyError:
+        raise ValueError(f"unknown model '{kind}', expected one of {sorted(_MODELS)}") from None
+    return cls(params)

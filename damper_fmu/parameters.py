@@ -1,0 +1,168 @@
+"""Parameter definitions, reference presets and bounds of the damper models.
+
+Every parameter carries its SI unit, a description, the reference (default) value and the
+identification bounds. Sign convention (whole package): elongation and elongation rate
+positive in extension, element forces positive in tension.
+
+Lumped model (Isacchi, Ripamonti, Corsi 2023, section 2.1): 29 tunable parameters
+    M_C, M_O, M_P [kg], k_B [N/m], c_B [N s/m],
+    Fk_01..Fk_10 [N]  ordinates of the elastic table Fk,O at the fixed elongations Fk_x01..Fk_x10 [m],
+    Fc_01..Fc_14 [N]  ordinates of the damping table Fc,O at the fixed rates Fc_v01..Fc_v14 [m/s];
+both tables pass through F(0) = 0, so the zero abscissa carries no parameter. The abscissae are
+``fixed`` parameters (set before a run, not identified): the paper chooses them per damper.
+The reference preset is the paper's Table 2; the bounds are the paper's section 2.3 values.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = [
+    "Parameter",
+    "FK_ABSCISSAE",
+    "FC_ABSCISSAE",
+    "LUMPED_PARAMETERS",
+    "MAXWELL_PARAMETERS",
+    "MAXWELL_TABLE_PARAMETERS",
+    "MODEL_PARAMETERS",
+    "defaults",
+    "tunable_names",
+    "check_values",
+]
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One model parameter.
+
+    ``tunable``: identified by the tuner (else a fixed setting such as a table abscissa).
+    ``log_scale``: the bounds span decades; a tuner should search this parameter in log space.
+    """
+
+    name: str
+    unit: str
+    description: str
+    default: float
+    low: float
+    high: float
+    tunable: bool = True
+    log_scale: bool = False
+
+
+# Table 2 of the paper: elongation abscissae [mm] and ordinates [kN] of Fk,O (zero point omitted).
+_FK_X_MM = (-2.0, -1.0, -0.75, -0.5, -0.25, 0.25, 0.5, 0.75, 1.0, 2.0)
+_FK_KN = (-34.0, -17.0, -11.0, -7.7, -3.4, 3.6, 7.5, 11.0, 17.0, 36.0)
+# Rate abscissae [mm/s] and ordinates [kN] of Fc,O (zero point omitted).
+_FC_V_MMS = (-100.0, -30.0, -15.0, -10.0, -7.5, -5.0, -2.5, 2.5, 5.0, 7.5, 10.0, 15.0, 30.0, 100.0)
+_FC_KN = (-26.0, -20.0, -16.0, -12.0, -9.2, -6.1, -2.2, 2.3, 6.6, 9.1, 12.0, 16.0, 20.0, 25.0)
+
+FK_ABSCISSAE = tuple(x * 1e-3 for x in _FK_X_MM)  # [m]
+FC_ABSCISSAE = tuple(v * 1e-3 for v in _FC_V_MMS)  # [m/s]
+
+#: Linear spring the paper's Fk,O bounds are built around [N/m].
+FK_REFERENCE_STIFFNESS = 1.5e7
+#: Paper's force limit of the Fc,O ordinates [N].
+FC_FORCE_LIMIT = 3.0e4
+
+
+def _fk_bounds(x: float) -> tuple[float, float]:
+    """Bounds of an Fk,O ordinate at elongation x [m]: 0.2..3 times the 1.5e7 N/m spring force."""
+    a, b = 0.2 * FK_REFERENCE_STIFFNESS * x, 3.0 * FK_REFERENCE_STIFFNESS * x
+    return (min(a, b), max(a, b))
+
+
+def _fc_bounds(v: float) -> tuple[float, float]:
+    """Bounds of an Fc,O ordinate at rate v [m/s]: same sign as v, |F| <= 3e4 N (dissipative)."""
+    return (0.0, FC_FORCE_LIMIT) if v > 0 else (-FC_FORCE_LIMIT, 0.0)
+
+
+def _table_parameters(prefix: str, abscissae, ordinates_kn, xunit: str, what: str, bounds):
+    params = []
+    for i, (x, f) in enumerate(zip(abscissae, ordinates_kn), start=1):
+        lo, hi = bounds(x)
+        params.append(Parameter(
+            f"{prefix}_{i:02d}", "N",
+            f"{what} ordinate at {'elongation' if xunit == 'm' else 'elongation rate'} "
+            f"{prefix}_{'x' if xunit == 'm' else 'v'}{i:02d}", f * 1e3, lo, hi))
+    for i, x in enumerate(abscissae, start=1):
+        axis = "x" if xunit == "m" else "v"
+        params.append(Parameter(
+            f"{prefix}_{axis}{i:02d}", xunit,
+            f"{what} abscissa {i} ({'elongation' if xunit == 'm' else 'elongation rate'}, fixed)",
+            x, -10.0 if xunit == "m" else -100.0, 10.0 if xunit == "m" else 100.0, tunable=False))
+    return params
+
+
+_FK = _table_parameters("Fk", FK_ABSCISSAE, _FK_KN, "m", "Elastic force Fk,O", _fk_bounds)
+_FC = _table_parameters("Fc", FC_ABSCISSAE, _FC_KN, "m/s", "Damping force Fc,O", _fc_bounds)
+
+LUMPED_PARAMETERS: tuple[Parameter, ...] = (
+    Parameter("M_C", "kg", "Lumped mass C (cylinder side, next to silent block B)", 15.8, 1.0, 20.0),
+    Parameter("M_O", "kg", "Lumped mass O (oil, between Fc,O and Fk,O)", 16.5, 1.0, 20.0),
+    Parameter("M_P", "kg", "Lumped mass P (piston side, next to silent block A)", 17.3, 1.0, 20.0),
+    Parameter("k_B", "N/m", "Silent block stiffness (each end)", 4.08e8, 1e2, 1e9, log_scale=True),
+    Parameter("c_B", "N.s/m", "Silent block damping (each end)", 4.17e6, 1e2, 1e7, log_scale=True),
+    *[p for p in _FK if p.tunable],
+    *[p for p in _FC if p.tunable],
+    *[p for p in _FK if not p.tunable],
+    *[p for p in _FC if not p.tunable],
+)
+
+MAXWELL_PARAMETERS: tuple[Parameter, ...] = (
+    Parameter("k_s", "N/m", "Series stiffness of the Maxwell element", 1.4e7, 1e5, 1e9, log_scale=True),
+    Parameter("c", "N.s/m", "Linear damping of the Maxwell dashpot", 5.0e5, 1e3, 1e7, log_scale=True),
+)
+
+MAXWELL_TABLE_PARAMETERS: tuple[Parameter, ...] = (
+    Parameter("k_s", "N/m", "Series stiffness of the Maxwell element", 1.4e7, 1e5, 1e9, log_scale=True),
+    *_FC,
+)
+
+MODEL_PARAMETERS: dict[str, tuple[Parameter, ...]] = {
+    "lumped": LUMPED_PARAMETERS,
+    "maxwell": MAXWELL_PARAMETERS,
+    "maxwell_table": MAXWELL_TABLE_PARAMETERS,
+}
+
+
+def defaults(model: str) -> dict[str, float]:
+    """Reference preset of ``model`` ('lumped', 'maxwell', 'maxwell_table') as name -> SI value."""
+    return {p.name: p.default for p in MODEL_PARAMETERS[model]}
+
+
+def tunable_names(model: str) -> list[str]:
+    """Names of the identified parameters of ``model``, in the canonical order."""
+    return [p.name for p in MODEL_PARAMETERS[model] if p.tunable]
+
+
+def check_values(model: str, values: dict[str, float], *, bounds: bool = False) -> dict[str, float]:
+    """Complete ``values`` with the preset and check them.
+
+    Raises ValueError naming the parameter for unknown names, non-finite values, non-positive
+    masses/stiffness/damping, abscissae that are not strictly increasing or do not straddle zero,
+    and (with ``bounds=True``) values outside the identification bounds.
+    """
+    import math
+
+    spec = {p.name: p for p in MODEL_PARAMETERS[model]}
+    unknown = sorted(set(values) - set(spec))
+    if unknown:
+        raise ValueError(f"unknown parameter(s) for model '{model}': {', '.join(unknown)}")
+    full = defaults(model)
+    full.update({k: float(v) for k, v in values.items()})
+    for name, v in full.items():
+        if not math.isfinite(v):
+            raise ValueError(f"parameter {name} = {v} is not finite")
+        p = spec[name]
+        if p.unit in ("kg", "N/m", "N.s/m") and v <= 0.0:
+            raise ValueError(f"parameter {name} = {v} {p.unit} must be positive")
+        if bounds and p.tunable and not (p.low <= v <= p.high):
+            raise ValueError(f"parameter {name} = {v:g} {p.unit} outside its bounds [{p.low:g}, {p.high:g}]")
+    for prefix, axis in (("Fk", "x"), ("Fc", "v")):
+        xs = [full[n] for n in sorted(full) if n.startswith(f"{prefix}_{axis}")]
+        if not xs:
+            continue
+        if any(b <= a for a, b in zip(xs, xs[1:])):
+            raise ValueError(f"{prefix} abscissae must be strictly increasing, got {xs}")
+        if not (xs[0] < 0.0 < xs[-1]):
+            raise ValueError(f"{prefix} abscissae must have negative and positive values (F(0) = 0 is implied)")
+    return full

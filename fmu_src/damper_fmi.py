@@ -1,0 +1,190 @@
+"""Thin FMI 2.0 co-simulation wrapper (pythonfmu) shared by the damper FMUs.
+
+Bundled into every damper FMU next to the ``damper_fmu`` package, which holds all the physics.
+Interface of every damper FMU (SI units):
+
+* inputs ``stroke`` [m] (positive in extension) and ``stroke_velocity`` [m/s];
+* output ``force`` [N] (positive in tension) plus diagnostic outputs of the internal elements;
+* one tunable parameter per model parameter (start value = the reference preset, or the tuned
+  values when the FMU was exported by the tuner), fixed parameters for the table abscissae,
+  ``max_internal_step`` [s] and ``input_interpolation`` (0 = inputs are the values at the start of
+  the communication step, stroke extrapolated with the velocity: standard co-simulation;
+  1 = inputs are the values at the end of the step, interpolated from the previous ones: replay of
+  a known stroke history without input lag).
+
+Bad input (NaN stroke), invalid parameters or a failed implicit solve make ``fmi2DoStep`` refuse
+the step with a message logged in category ``logStatusError``; the FMU never outputs a NaN force.
+The refusal status is fmi2Discard: pythonfmu's C++ wrapper maps a Python step returning False to
+fmi2Discard and any Python exception to fmi2Fatal, so Discard is the strongest status a Python
+FMU can return without becoming unusable.
+"""
+from __future__ import annotations
+
+import json
+import os
+from xml.etree.ElementTree import Element, SubElement
+
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
+from pythonfmu.enums import Fmi2Initial, Fmi2Status
+
+from damper_fmu.integrator import DEFAULT_MAX_STEP, EXTRAPOLATE, REPLAY, Simulator
+from damper_fmu.models import ConvergenceError, make_model
+from damper_fmu.parameters import MODEL_PARAMETERS, check_values
+
+#: SI base-unit exponents for the UnitDefinitions of the model description.
+_UNITS = {
+    "m": {"m": 1}, "m/s": {"m": 1, "s": -1}, "s": {"s": 1}, "kg": {"kg": 1},
+    "N": {"kg": 1, "m": 1, "s": -2}, "N/m": {"kg": 1, "s": -2}, "N.s/m": {"kg": 1, "s": -1},
+    "K": {"K": 1},
+}
+START_VALUES_FILE = "start_values.json"
+
+
+class UnitReal(Real):
+    """pythonfmu Real variable that also writes its ``unit`` attribute."""
+
+    def __init__(self, name, unit=None, **kwargs):
+        super().__init__(name, **kwargs)
+        self.unit = unit
+
+    def to_xml(self):
+        node = super().to_xml()
+        if self.unit:
+            node.find("Real").set("unit", self.unit)
+        return node
+
+
+class DamperSlave(Fmi2Slave):
+    """Base class: subclasses set ``MODEL_KIND`` and ``DIAGNOSTICS`` (name -> (unit, description))."""
+
+    MODEL_KIND = ""
+    DIAGNOSTICS: dict[str, tuple[str, str]] = {}
+    author = "yaw-damper-toolchain"
+    license = "MIT"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        kind = self.MODEL_KIND
+        self.description = f"Railway hydraulic damper, {kind} model (SI units, force positive in tension)"
+        self._p = {p.name: p.default for p in MODEL_PARAMETERS[kind]}
+        self.max_internal_step = DEFAULT_MAX_STEP
+        self.input_interpolation = EXTRAPOLATE
+        start = os.path.join(self.resources or "", START_VALUES_FILE)
+        if self.resources and os.path.exists(start):
+            with open(start) as fh:
+                saved = json.load(fh)
+            settings = saved.pop("_settings", {})
+            self._p.update({k: float(v) for k, v in saved.items()})
+            self.max_internal_step = float(settings.get("max_internal_step", self.max_internal_step))
+            self.input_interpolation = int(settings.get("input_interpolation", self.input_interpolation))
+        self.stroke = 0.0
+        self.stroke_velocity = 0.0
+        self.force = 0.0
+        self._dirty = True
+        self._sim: Simulator | None = None
+        self._init_error: Exception | None = None
+
+        self.register_variable(UnitReal("stroke", unit="m", causality=Fmi2Causality.input,
+                                        variability=Fmi2Variability.continuous,
+                                        description="Damper stroke, positive in extension"))
+        self.register_variable(UnitReal("stroke_velocity", unit="m/s", causality=Fmi2Causality.input,
+                                        variability=Fmi2Variability.continuous,
+                                        description="Damper stroke velocity, positive in extension"))
+        self.register_variable(UnitReal("force", unit="N", causality=Fmi2Causality.output,
+                                        variability=Fmi2Variability.continuous, initial=Fmi2Initial.exact,
+                                        start=0.0, description="Damper force, positive in tension"))
+        for name, (unit, text) in self.DIAGNOSTICS.items():
+            self.register_variable(UnitReal(
+                name, unit=unit, causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
+                initial=Fmi2Initial.exact, start=0.0, description=text,
+                getter=(lambda n=name: self._diagnostic(n))))
+        for p in MODEL_PARAMETERS[kind]:
+            self.register_variable(UnitReal(
+                p.name, unit=p.unit, causality=Fmi2Causality.parameter,
+                variability=Fmi2Variability.tunable if p.tunable else Fmi2Variability.fixed,
+                description=(f"{p.description} [{p.unit}]; identification bounds [{p.low:g}, {p.high:g}]"
+                             if p.tunable else f"{p.description} [{p.unit}]"),
+                getter=(lambda n=p.name: self._p[n]), setter=(lambda v, n=p.name: self._set_param(n, v))))
+        self.register_variable(UnitReal(
+            "max_internal_step", unit="s", causality=Fmi2Causality.parameter,
+            variability=Fmi2Variability.fixed,
+            description="Largest internal integration step; communication steps are sub-stepped"))
+        self.register_variable(Integer(
+            "input_interpolation", causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
+            description=f"{EXTRAPOLATE}: inputs are start-of-step values, stroke extrapolated with the "
+                        f"velocity (co-simulation); {REPLAY}: inputs are end-of-step values, "
+                        f"interpolated from the previous step (replay of a known stroke)"))
+
+    # -- parameters and state -------------------------------------------------------------
+    def _set_param(self, name: str, value: float) -> None:
+        self._p[name] = float(value)
+        self._dirty = True
+
+    def _rebuild(self) -> None:
+        check_values(self.MODEL_KIND, self._p)
+        model = make_model(self.MODEL_KIND, self._p)
+        if self._sim is None:
+            self._sim = Simulator(model, self.max_internal_step, int(self.input_interpolation))
+        else:
+            self._sim.model = model
+        self._dirty = False
+
+    def _diagnostic(self, name: str) -> float:
+        sim = self._sim
+        if sim is None or not sim.y:
+            return 0.0
+        return float(sim.model.diagnostics(sim.y, sim.x1, sim.v1)[name])
+
+    def _fail(self, what: str, err: Exception) -> bool:
+        self.log(f"{self.instance_name}: {what}: {err}", Fmi2Status.error)
+        return False
+
+    # -- FMI calls ------------------------------------------------------------------------
+    def exit_initialization_mode(self):
+        # pythonfmu turns a Python exception into fmi2Fatal: never raise, log and refuse the steps.
+        try:
+            self._rebuild()
+            self.force = self._sim.initialize(float(self.stroke), float(self.stroke_velocity))
+            self._init_error = None
+        except (ValueError, ConvergenceError) as err:
+            self._init_error = err
+            self._fail("initialisation failed", err)
+        return True
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        """One communication step; False (fmi2Discard, message logged as error) on failure."""
+        if self._init_error is not None:
+            return self._fail("initialisation had failed", self._init_error)
+        try:
+            if self._dirty:
+                self._rebuild()
+            self.force = self._sim.step(step_size, self.stroke, self.stroke_velocity)
+        except (ValueError, ConvergenceError, FloatingPointError, ZeroDivisionError) as err:
+            return self._fail(f"step at t = {current_time:g} s failed", err)
+        return True
+
+    def _get_fmu_state(self):
+        state = super()._get_fmu_state()
+        state["_simulator_state"] = self._sim.get_state() if self._sim is not None else None
+        return state
+
+    def _set_fmu_state(self, state):
+        state = dict(state)
+        sim_state = state.pop("_simulator_state", None)
+        super()._set_fmu_state(state)
+        if sim_state is not None:
+            self._rebuild()
+            self._sim.set_state(sim_state)
+
+    # -- model description ----------------------------------------------------------------
+    def to_xml(self, model_options=dict()) -> Element:
+        root = super().to_xml(model_options)
+        units = SubElement(root, "UnitDefinitions")
+        root.remove(units)
+        used = sorted({v.unit for v in self.vars.values() if getattr(v, "unit", None)})
+        for name in used:
+            unit = SubElement(units, "Unit", {"name": name})
+            SubElement(unit, "BaseUnit", {k: str(e) for k, e in _UNITS[name].items()})
+        root.insert(1, units)  # after <CoSimulation>, before <LogCategories> (FMI 2.0 schema order)
+        return root
+

@@ -1,0 +1,197 @@
+"""Fast fmpy runner: simulate a damper FMU under a sampled stroke history.
+
+One FMU instance is extracted, loaded and instantiated once and reused across runs (FMI reset,
+then parameters re-applied: pythonfmu re-creates its slave on reset). The per-sample loop calls
+the raw FMI functions (fmi2SetReal / fmi2DoStep / fmi2GetReal through ctypes with preallocated
+buffers); nothing is re-read or re-extracted per run.
+
+Time convention: the FMU is stepped from sample k-1 to sample k with the stroke and velocity of
+sample k (``input_interpolation = 1``, replay of a known history, no input lag) unless
+``input_mode=0`` is asked for, in which case sample k-1 inputs are used (plain co-simulation).
+The returned force at sample 0 is the FMU's initial output.
+"""
+from __future__ import annotations
+
+import ctypes
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["FmuRunner", "SimulationError", "as_stroke_arrays"]
+
+_REPLAY = 1
+
+
+class SimulationError(RuntimeError):
+    """The FMU returned an error status; the message carries what the FMU logged."""
+
+
+def as_stroke_arrays(time=None, stroke=None, stroke_velocity=None, frame=None):
+    """Return (time [s], stroke [m], stroke_velocity [m/s]) float arrays from arrays or a frame.
+
+    A pandas frame must have columns ``time``, ``stroke`` and ``stroke_velocity`` (SI units).
+    """
+    if frame is not None:
+        missing = [c for c in ("time", "stroke", "stroke_velocity") if c not in frame.columns]
+        if missing:
+            raise ValueError(f"stroke frame lacks column(s) {missing}; has {list(frame.columns)}")
+        time, stroke, stroke_velocity = frame["time"], frame["stroke"], frame["stroke_velocity"]
+    t = np.ascontiguousarray(time, dtype=float)
+    x = np.ascontiguousarray(stroke, dtype=float)
+    v = np.ascontiguousarray(stroke_velocity, dtype=float)
+    if not (t.ndim == 1 and t.shape == x.shape == v.shape and t.size >= 2):
+        raise ValueError("time, stroke and stroke_velocity must be 1-D arrays of equal length >= 2")
+    if not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0)):
+        raise ValueError("time must be finite and strictly increasing")
+    return t, x, v
+
+
+class FmuRunner:
+    """Reusable runner for one damper FMU (``.fmu`` path) in this process.
+
+    ``input_mode``: 1 (default) replay with end-of-step inputs, 0 co-simulation convention.
+    ``max_internal_step``: optional override of the FMU's internal step [s].
+    """
+
+    def __init__(self, fmu_path, *, input_mode: int = _REPLAY, max_internal_step: float | None = None,
+                 instance_name: str = "damper"):
+        from fmpy import extract, read_model_description
+        from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, defaultCallbacks
+
+        self.path = Path(fmu_path)
+        if not self.path.is_file():
+            raise FileNotFoundError(f"FMU not found: {self.path} (build it with: python build_fmu.py)")
+        self.md = read_model_description(str(self.path))
+        self.variables = {v.name: v for v in self.md.modelVariables}
+        self.parameter_names = [v.name for v in self.md.modelVariables if v.causality == "parameter"]
+        self.output_names = [v.name for v in self.md.modelVariables if v.causality == "output"]
+        for name in ("stroke", "stroke_velocity", "force"):
+            if name not in self.variables:
+                raise ValueError(f"{self.path.name} is not a damper FMU: no variable '{name}'")
+        self.input_mode = int(input_mode)
+        self.max_internal_step = max_internal_step
+        self._unzip = extract(str(self.path), tempfile.mkdtemp(prefix="damper_runner_"))
+        self.messages: list[str] = []
+
+        def _log(env, instance, status, category, message):
+            self.messages.append(message.decode("utf-8", "replace") if message else "")
+
+        self._callbacks = fmi2CallbackFunctions()
+        self._callbacks.logger = fmi2CallbackLoggerTYPE(_log)
+        self._callbacks.allocateMemory = defaultCallbacks.allocateMemory
+        self._callbacks.freeMemory = defaultCallbacks.freeMemory
+        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self._unzip,
+                             modelIdentifier=self.md.coSimulation.modelIdentifier,
+                             instanceName=instance_name)
+        self.fmu.instantiate(callbacks=self._callbacks, loggingOn=True)
+        self._fresh = True
+        dll = self.fmu.dll
+        self._set_real, self._do_step, self._get_real = dll.fmi2SetReal, dll.fmi2DoStep, dll.fmi2GetReal
+        self._component = self.fmu.component
+        vr = lambda n: self.variables[n].valueReference  # noqa: E731
+        self._vr_in = (ctypes.c_uint * 2)(vr("stroke"), vr("stroke_velocity"))
+        self._in = (ctypes.c_double * 2)()
+
+    # -- helpers --------------------------------------------------------------------------
+    def _check(self, status, what):
+        if status > 1:  # worse than fmi2Warning
+            detail = "; ".join(m for m in self.messages[-5:] if m) or "no message logged"
+            raise SimulationError(f"{self.path.name}: {what} failed (FMI status {status}): {detail}")
+
+    def _apply_parameters(self, params: dict | None):
+        from fmpy.fmi2 import fmi2Integer
+        reals, ints = {}, {}
+        if self.max_internal_step is not None:
+            reals["max_internal_step"] = float(self.max_internal_step)
+        if "input_interpolation" in self.variables:
+            ints["input_interpolation"] = self.input_mode
+        for name, value in (params or {}).items():
+            var = self.variables.get(name)
+            if var is None or var.causality != "parameter":
+                raise ValueError(f"{self.path.name} has no parameter '{name}'")
+            if var.type == "Integer":
+                ints[name] = int(value)
+            else:
+                reals[name] = float(value)
+        if reals:
+            vrs = [self.variables[n].valueReference for n in reals]
+            self._check(self.fmu.fmi2SetReal(self._component, (ctypes.c_uint * len(vrs))(*vrs), len(vrs),
+                                             (ctypes.c_double * len(vrs))(*reals.values())), "setting parameters")
+        if ints:
+            vrs = [self.variables[n].valueReference for n in ints]
+            self._check(self.fmu.fmi2SetInteger(self._component, (ctypes.c_uint * len(vrs))(*vrs), len(vrs),
+                                                (fmi2Integer * len(vrs))(*ints.values())), "setting parameters")
+
+    # -- public ---------------------------------------------------------------------------
+    def run(self, time, stroke, stroke_velocity, params: dict | None = None,
+            outputs=("force",)) -> np.ndarray:
+        """Simulate and return the outputs at every sample: shape (n,) for one output, else (n, k).
+
+        time [s] strictly increasing, stroke [m], stroke_velocity [m/s]; params: FMU parameter
+        name -> SI value (the others keep their start values). Raises SimulationError if the FMU
+        reports an error (e.g. non-finite stroke, failed implicit solve).
+        """
+        t, x, v = as_stroke_arrays(time, stroke, stroke_velocity)
+        unknown = [o for o in outputs if o not in self.output_names]
+        if unknown:
+            raise ValueError(f"{self.path.name} has no output(s) {unknown}; outputs: {self.output_names}")
+        fmu, c = self.fmu, self._component
+        self.messages.clear()
+        if not self._fresh:
+            self._check(fmu.fmi2Reset(c), "reset")
+        self._fresh = False
+        self._check(fmu.fmi2SetupExperiment(c, 0, 0.0, float(t[0]), 0, 0.0), "setup experiment")
+        self._check(fmu.fmi2EnterInitializationMode(c), "enter initialization")
+        self._apply_parameters(params)
+        inp, vr_in = self._in, self._vr_in
+        inp[0], inp[1] = float(x[0]), float(v[0])
+        self._check(self._set_real(c, vr_in, 2, inp), "setting inputs")
+        self._check(fmu.fmi2ExitInitializationMode(c), "exit initialization")
+
+        nout = len(outputs)
+        vr_out = (ctypes.c_uint * nout)(*[self.variables[o].valueReference for o in outputs])
+        buf = (ctypes.c_double * nout)()
+        result = np.empty((t.size, nout))
+        set_real, do_step, get_real = self._set_real, self._do_step, self._get_real
+        self._check(get_real(c, vr_out, nout, buf), "reading outputs")
+        result[0] = buf[:]
+        tl, xl, vl = t.tolist(), x.tolist(), v.tolist()
+        shift = 0 if self.input_mode == _REPLAY else 1
+        for k in range(1, t.size):
+            j = k - shift
+            inp[0] = xl[j]
+            inp[1] = vl[j]
+            st = set_real(c, vr_in, 2, inp) | do_step(c, tl[k - 1], tl[k] - tl[k - 1], 1) \
+                | get_real(c, vr_out, nout, buf)
+            if st > 1:
+                self._check(st, f"step {k} (t = {tl[k - 1]:.6g} s)")
+            if nout == 1:
+                result[k, 0] = buf[0]
+            else:
+                result[k] = buf[:]
+        return result[:, 0] if nout == 1 else result
+
+    def close(self):
+        """Free the FMU instance and delete the extracted files."""
+        if getattr(self, "fmu", None) is not None:
+            try:
+                self.fmu.terminate()
+            except Exception:  # noqa: BLE001 - best effort on shutdown
+                pass
+            self.fmu.freeInstance()
+            self.fmu = None
+        shutil.rmtree(getattr(self, "_unzip", ""), ignore_errors=True)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:  # noqa: BLE001
+            pass
