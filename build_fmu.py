@@ -54,21 +54,33 @@ def build(kind: str, out: str | Path | None = None, *, start_values: dict | None
 
     ``start_values``: parameter name -> SI value used as start values (and as the values the
     FMU uses when the importer sets none), e.g. identified parameters; ``settings``: optional
-    ``max_internal_step`` [s] and ``input_interpolation`` (0 or 1). The file is written
-    atomically (temporary file, then rename).
+    ``max_internal_step`` [s] and ``input_interpolation`` (0 or 1). The build runs in a fresh
+    Python process (pythonfmu imports the slave script, which must not meet a slave module an
+    FMU already loaded in the caller); the file is written atomically.
     """
-    from pythonfmu.builder import FmuBuilder
+    import subprocess
 
     if kind not in SLAVES:
         raise ValueError(f"unknown FMU kind '{kind}', expected one of {sorted(SLAVES)}")
-    out = Path(out) if out is not None else default_dir()
-    out.mkdir(parents=True, exist_ok=True)
-    name = SLAVES[kind]
-    target = out / (filename or f"{name}.fmu")
     if kind != "empty" and start_values:
         from damper_fmu.parameters import check_values
 
         check_values(kind, start_values)
+    out = Path(out) if out is not None else default_dir()
+    out.mkdir(parents=True, exist_ok=True)
+    target = out / (filename or f"{SLAVES[kind]}.fmu")
+    spec = json.dumps({"kind": kind, "target": str(target), "start_values": start_values or {},
+                       "settings": settings or {}})
+    proc = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--build-spec", spec],
+                          capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"building {target.name} failed:\n{proc.stderr.strip()}")
+    return target
+
+
+def _build_here(kind: str, target: Path, start_values: dict, settings: dict) -> None:
+    from pythonfmu.builder import FmuBuilder
+
     with tempfile.TemporaryDirectory(prefix="damper_fmu_build_") as tmp:
         tmp = Path(tmp)
         project = []
@@ -76,20 +88,16 @@ def build(kind: str, out: str | Path | None = None, *, start_values: dict | None
             project = [PACKAGE, SRC / "damper_fmi.py"]
             if start_values or settings:
                 staged = tmp / "start_values.json"
-                data = {k: float(v) for k, v in (start_values or {}).items()}
-                data["_settings"] = dict(settings or {})
+                data = {k: float(v) for k, v in start_values.items()}
+                data["_settings"] = dict(settings)
                 staged.write_text(json.dumps(data, indent=1, sort_keys=True))
                 project.append(staged)
         sys.path.insert(0, str(SRC))
-        try:
-            built = FmuBuilder.build_FMU(SRC / f"{name}.py", dest=tmp / "out", project_files=project,
-                                         **BUILD_OPTIONS)
-        finally:
-            sys.path.remove(str(SRC))
+        built = FmuBuilder.build_FMU(SRC / f"{SLAVES[kind]}.py", dest=tmp / "out", project_files=project,
+                                     **BUILD_OPTIONS)
         part = target.with_suffix(".fmu.part")
         shutil.copyfile(built, part)
         os.replace(part, target)
-    return target
 
 
 def ensure_fmu(kind: str, out: str | Path | None = None) -> Path:
@@ -113,6 +121,11 @@ def validate(path: str | Path) -> list[str]:
 
 
 def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["--build-spec"]:  # internal: one build in this fresh process
+        spec = json.loads(argv[1])
+        _build_here(spec["kind"], Path(spec["target"]), spec["start_values"], spec["settings"])
+        return 0
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("kinds", nargs="*", default=["lumped", "maxwell", "maxwell_table"],
                     help=f"FMUs to build, from {sorted(SLAVES)} (default: the three damper models)")

@@ -1,6 +1,16 @@
 """FMU slave with the damper interface and no physics: measures the FMI boundary cost alone."""
+import ctypes
+import sys
+
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Initial
+
+
+def _pin():  # compensates pythonfmu 0.7.0's reference leak, see fmu_src/damper_fmi.py
+    ctypes.pythonapi.Py_IncRef(ctypes.py_object(sys.modules[__name__].__dict__))
+
+
+_pin()
 
 
 class EmptyDamper(Fmi2Slave):
@@ -8,6 +18,7 @@ class EmptyDamper(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
+        _pin()
         self.stroke = 0.0
         self.stroke_velocity = 0.0
         self.force = 0.0

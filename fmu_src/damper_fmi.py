@@ -20,8 +20,10 @@ FMU can return without becoming unusable.
 """
 from __future__ import annotations
 
+import ctypes
 import json
 import os
+import sys
 from xml.etree.ElementTree import Element, SubElement
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
@@ -38,6 +40,19 @@ _UNITS = {
     "K": {"K": 1},
 }
 START_VALUES_FILE = "start_values.json"
+
+
+def pin_module_namespace(module_name: str) -> None:
+    """Add one reference to a slave module's namespace dict.
+
+    pythonfmu 0.7.0's native constructor releases one reference of the slave module's
+    ``__dict__`` it does not own, once per fmi2Instantiate. Without compensation the second
+    instance of an FMU in one process finds a freed namespace and crashes. Pinning at class
+    creation covers the first instantiation, pinning in every ``__init__`` covers each later one
+    (resets also call ``__init__``: the extra references only keep the namespace alive, which a
+    loaded module's namespace is anyway).
+    """
+    ctypes.pythonapi.Py_IncRef(ctypes.py_object(sys.modules[module_name].__dict__))
 
 
 class UnitReal(Real):
@@ -62,8 +77,13 @@ class DamperSlave(Fmi2Slave):
     author = "yaw-damper-toolchain"
     license = "MIT"
 
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        pin_module_namespace(cls.__module__)
+
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
+        pin_module_namespace(type(self).__module__)
         kind = self.MODEL_KIND
         self.description = f"Railway hydraulic damper, {kind} model (SI units, force positive in tension)"
         self._p = {p.name: p.default for p in MODEL_PARAMETERS[kind]}

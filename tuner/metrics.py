@@ -1,0 +1,169 @@
+"""Validation metrics of the paper (Isacchi, Ripamonti, Corsi 2023, eq. 5, Table 3, Fig. 11).
+
+Forces are in N. For one test with measured force F_exp and simulated force F_num
+(N samples each): MSE = sum (F_exp - F_num)^2 / N [N^2], AME = sum |F_exp - F_num| / N [N],
+RMSE [N], NRMSE = RMSE / (max F_exp - min F_exp) [-], R^2 = 1 - SSE / SST [-],
+maximum absolute error [N], peak measured force max |F_exp| [N]. Fitness (eq. 5):
+G = N / SSE [1/N^2] over all samples of all identification tests, concatenated.
+"Variation vs Maxwell" (Table 3): (X_model - X_maxwell) / X_maxwell * 100 [%].
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+__all__ = ["ErrorMetrics", "error_metrics", "fitness", "variation_percent", "compare_to_maxwell",
+           "PolyOddEven", "polyfit_odd_even"]
+
+
+def _pair(measured, simulated, what: str = "force") -> tuple[np.ndarray, np.ndarray]:
+    a = np.asarray(measured, dtype=float)
+    b = np.asarray(simulated, dtype=float)
+    if a.ndim != 1 or b.ndim != 1:
+        raise ValueError(f"measured and simulated {what} must be 1-D arrays, got shapes {a.shape} and {b.shape}")
+    if a.size != b.size:
+        raise ValueError(f"measured and simulated {what} differ in length: {a.size} vs {b.size}")
+    if a.size == 0:
+        raise ValueError(f"measured and simulated {what} are empty")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"measured {what} contains non-finite values")
+    if not np.all(np.isfinite(b)):
+        raise ValueError(f"simulated {what} contains non-finite values")
+    return a, b
+
+
+@dataclass(frozen=True)
+class ErrorMetrics:
+    """Error indices of one test (forces in N). nrmse and r2 are NaN when the
+    measured force is constant (zero range / zero variance)."""
+
+    n: int                    # samples [-]
+    sse: float                # sum of squared errors [N^2]
+    mse: float                # mean squared error [N^2]
+    ame: float                # mean absolute error [N]
+    rmse: float               # root mean squared error [N]
+    nrmse: float              # RMSE / (max - min of measured) [-]
+    r2: float                 # coefficient of determination [-]
+    max_abs_error: float      # max |F_exp - F_num| [N]
+    peak_measured: float      # max |F_exp| [N]
+    fitness: float            # G = N / SSE [1/N^2]; inf for a perfect fit
+
+    def to_dict(self) -> dict[str, float]:
+        return asdict(self)
+
+
+def error_metrics(measured, simulated) -> ErrorMetrics:
+    """Metrics of one test. measured, simulated: 1-D force arrays [N] of equal length."""
+    f_exp, f_num = _pair(measured, simulated)
+    e = f_exp - f_num
+    n = e.size
+    sse = float(np.dot(e, e))
+    mse = sse / n
+    rmse = math.sqrt(mse)
+    span = float(f_exp.max() - f_exp.min())
+    dev = f_exp - f_exp.mean()
+    sst = float(np.dot(dev, dev))
+    return ErrorMetrics(
+        n=n, sse=sse, mse=mse, ame=float(np.mean(np.abs(e))), rmse=rmse,
+        nrmse=rmse / span if span > 0 else math.nan,
+        r2=1.0 - sse / sst if sst > 0 else math.nan,
+        max_abs_error=float(np.max(np.abs(e))),
+        peak_measured=float(np.max(np.abs(f_exp))),
+        fitness=n / sse if sse > 0 else math.inf,
+    )
+
+
+def fitness(measured, simulated) -> float:
+    """Paper eq. 5: G = N / sum (F_exp - F_num)^2 [1/N^2] over all samples.
+
+    measured, simulated: one 1-D force array [N] each, or equal-length sequences of
+    1-D arrays (one per test, concatenated). Returns inf for a perfect fit; the Firefly
+    treats non-finite fitness as worst, so objectives should not rely on exact zeros.
+    """
+    if _is_sequence_of_arrays(measured) or _is_sequence_of_arrays(simulated):
+        if not (_is_sequence_of_arrays(measured) and _is_sequence_of_arrays(simulated)):
+            raise ValueError("measured and simulated must both be arrays or both sequences of arrays")
+        if len(measured) != len(simulated) or len(measured) == 0:
+            raise ValueError(f"need the same non-zero number of tests, got {len(measured)} and {len(simulated)}")
+        pairs = [_pair(m, s, f"force of test {i}") for i, (m, s) in enumerate(zip(measured, simulated))]
+        a = np.concatenate([p[0] for p in pairs])
+        b = np.concatenate([p[1] for p in pairs])
+    else:
+        a, b = _pair(measured, simulated)
+    e = a - b
+    sse = float(np.dot(e, e))
+    return a.size / sse if sse > 0 else math.inf
+
+
+def _is_sequence_of_arrays(x) -> bool:
+    if isinstance(x, np.ndarray):
+        return False
+    return isinstance(x, (list, tuple)) and len(x) > 0 and all(np.ndim(item) == 1 for item in x)
+
+
+def variation_percent(x_model: float, x_maxwell: float) -> float:
+    """Table 3 variation: (x_model - x_maxwell) / x_maxwell * 100 [%]."""
+    xm, xr = float(x_model), float(x_maxwell)
+    if not (math.isfinite(xm) and math.isfinite(xr)):
+        raise ValueError(f"variation needs finite values, got {x_model!r} and {x_maxwell!r}")
+    if xr == 0:
+        raise ValueError("variation vs Maxwell undefined: Maxwell value is zero")
+    return (xm - xr) / xr * 100.0
+
+
+def compare_to_maxwell(model: ErrorMetrics, maxwell: ErrorMetrics) -> dict[str, float]:
+    """Variation of MSE and AME [%] of a model vs the Maxwell model on the same test."""
+    if model.n != maxwell.n:
+        raise ValueError(f"metrics come from tests of different length: {model.n} vs {maxwell.n}")
+    return {"mse": variation_percent(model.mse, maxwell.mse), "ame": variation_percent(model.ame, maxwell.ame)}
+
+
+@dataclass(frozen=True)
+class PolyOddEven:
+    """Least-squares polynomial and its parity split, evaluated on x.
+
+    coefficients[k] multiplies x^k (ascending order, units [y]/[x]^k). fit, odd, even:
+    arrays like x; even includes the constant term. asymmetry_index = rms(even) / rms(fit)
+    [-]: 0 for a symmetric (odd) characteristic.
+    """
+
+    coefficients: np.ndarray
+    fit: np.ndarray
+    odd: np.ndarray
+    even: np.ndarray
+    asymmetry_index: float
+
+
+def polyfit_odd_even(x, y, order: int = 5) -> PolyOddEven:
+    """Fit y(x) with a polynomial of the given order (paper Fig. 11, eqs. 9-10) and split it
+    into odd- and even-order parts. x, y: 1-D arrays of equal length (any units).
+
+    Solved in the scaled variable t = x / max|x|, which keeps the Vandermonde matrix well
+    conditioned for x ~ 1e-2 m and does not mix parities (a shift would).
+    """
+    if int(order) != order or order < 0:
+        raise ValueError(f"order must be a non-negative integer, got {order!r}")
+    order = int(order)
+    xa, ya = _pair(x, y, "data")
+    if xa.size < order + 1:
+        raise ValueError(f"need at least order + 1 = {order + 1} points, got {xa.size}")
+    scale = float(np.max(np.abs(xa)))
+    if scale == 0:
+        raise ValueError("x is all zero: nothing to fit")
+    t = xa / scale
+    V = np.vander(t, order + 1, increasing=True)
+    if np.linalg.matrix_rank(V) < order + 1:
+        raise ValueError(f"x has fewer than {order + 1} distinct values: order {order} fit is not determined")
+    c_t, *_ = np.linalg.lstsq(V, ya, rcond=None)
+    powers = np.arange(order + 1)
+    odd_mask = powers % 2 == 1
+    odd = V[:, odd_mask] @ c_t[odd_mask]
+    even = V[:, ~odd_mask] @ c_t[~odd_mask]
+    fit = odd + even
+    rms_fit = math.sqrt(float(np.mean(fit ** 2)))
+    if rms_fit == 0:
+        raise ValueError("fitted polynomial is identically zero on x: asymmetry index undefined")
+    return PolyOddEven(coefficients=c_t / scale ** powers, fit=fit, odd=odd, even=even,
+                       asymmetry_index=math.sqrt(float(np.mean(even ** 2))) / rms_fit)
