@@ -57,6 +57,7 @@ class LumpedModel:
         self.kB, self.cB = p["k_B"], p["c_B"]
         self.fk = _table(p, "Fk", "x")
         self.fc = _table(p, "Fc", "v")
+        self._consts: tuple | None = None
 
     def initial_state(self, x1: float, v1: float) -> list[float]:
         """Force-free state at stroke x1 [m]: all elements unloaded, the dashpot carries the offset.
@@ -69,33 +70,38 @@ class LumpedModel:
         """Output force FA [N], positive in tension."""
         return self.kB * (x1 - y[0]) + self.cB * (v1 - y[3])
 
+    def _stage_constants(self, g: float) -> tuple:
+        """Constants of the stage equations for the stage coefficient g [s] (cached: g rarely changes)."""
+        mP, mO, mC = self.mP / g, self.mO / g, self.mC / g
+        kBg = self.kB * g
+        c = (g, mP, mO, mC, mP + kBg + self.cB, mC + kBg + self.cB, self.kB, self.cB,
+             self.fc.breaks, self.fc.intercept, self.fc.slope, self.fk.breaks, self.fk.intercept, self.fk.slope)
+        self._consts = c
+        return c
+
     def stage(self, yb, g: float, x1: float, v1: float) -> list[float]:
         """Solve y = yb + g f(y) for the lumped model (x1 [m], v1 [m/s] at the stage time).
 
         Positions are eliminated (x = xb + g v); the velocities solve a symmetric tridiagonal
-        system, linear within the current pieces of Fc,O and Fk,O.
+        system, linear within the current pieces of Fc,O and Fk,O. The first pieces tried are
+        those of the base point yb.
         """
         x2b, x3b, x4b, v2b, v3b, v4b = yb
-        kB, cB = self.kB, self.cB
-        fc, fk = self.fc, self.fk
-        bc, bk = fc.breaks, fk.breaks
-        ia, sa = fc.intercept, fc.slope
-        ka, ks = fk.intercept, fk.slope
-        mP, mO, mC = self.mP / g, self.mO / g, self.mC / g
+        c = self._consts
+        if c is None or c[0] != g:
+            c = self._stage_constants(g)
+        _, mP, mO, mC, d2, d4, kB, cB, bc, ia, sa, bk, ka, ks = c
         dxb = x3b - x4b
-        # Constant parts of the right-hand sides and diagonal.
+        # Constant parts of the right-hand sides.
         r2 = mP * v2b + kB * (x1 - x2b) + cB * v1
         r3 = mO * v3b
         r4 = mC * v4b - kB * x4b
-        d2 = mP + kB * g + cB
-        d4 = mC + kB * g + cB
-        v2, v3, v4 = v2b, v3b, v4b
-        ic = fc.segment(v2 - v3)
-        ik = fk.segment(dxb + g * (v3 - v4))
+        ic = bisect_segment(bc, v2b - v3b)
+        ik = bisect_segment(bk, dxb + g * (v3b - v4b))
         for _ in range(_MAX_NEWTON):
             sc, ac = sa[ic], ia[ic]
-            skg, ak = ks[ik] * g, ka[ik]
-            akx = ak + ks[ik] * dxb
+            skg = ks[ik] * g
+            akx = ka[ik] + ks[ik] * dxb
             # Tridiagonal system [d2+sc, -sc, 0; -sc, mO+sc+skg, -skg; 0, -skg, d4+skg] v = b.
             a11 = d2 + sc
             w1 = -sc / a11
