@@ -30,7 +30,7 @@ from .tables import PwlTable
 
 __all__ = ["ConvergenceError", "LumpedModel", "MaxwellModel", "MaxwellTableModel", "make_model"]
 
-_MAX_NEWTON = 40
+_MAX_NEWTON = 12  # plain piecewise-linear Newton; then the damped fallback
 
 
 class ConvergenceError(RuntimeError):
@@ -120,7 +120,63 @@ class LumpedModel:
             if jc == ic and jk == ik:
                 return [x2b + g * v2, x3b + g * v3, x4b + g * v4, v2, v3, v4]
             ic, ik = jc, jk
-        raise ConvergenceError("lumped model stage: piecewise-linear Newton iteration did not settle")
+        return self._stage_damped(yb, g, x1, v1)
+
+    def _stage_damped(self, yb, g: float, x1: float, v1: float) -> list[float]:
+        """Fallback when plain Newton cycles between table pieces: damped Newton.
+
+        The stage residual is the gradient of the convex, C1, piecewise-quadratic potential
+        ``_potential`` (for monotone tables), so Newton steps with backtracking on it converge.
+        """
+        x2b, x3b, x4b, v2b, v3b, v4b = yb
+        c = self._consts if self._consts is not None and self._consts[0] == g else self._stage_constants(g)
+        _, mP, mO, mC, d2, d4, kB, cB, bc, ia, sa, bk, ka, ks = c
+        dxb = x3b - x4b
+        v = [v2b, v3b, v4b]
+        phi = self._potential(v, yb, g, x1, v1)
+        for _ in range(200):
+            v2, v3, v4 = v
+            u, e = v2 - v3, dxb + g * (v3 - v4)
+            ic, ik = bisect_segment(bc, u), bisect_segment(bk, e)
+            sc, skg = sa[ic], ks[ik] * g
+            fcu, fke = ia[ic] + sc * u, ka[ik] + ks[ik] * e
+            # residuals and Newton direction (same tridiagonal Jacobian as in ``stage``)
+            r = [mP * (v2 - v2b) - kB * (x1 - x2b - g * v2) - cB * (v1 - v2) + fcu,
+                 mO * (v3 - v3b) - fcu + fke,
+                 mC * (v4 - v4b) - fke + kB * (x4b + g * v4) + cB * v4]
+            a11, a22, a33 = d2 + sc, mO + sc + skg, d4 + skg
+            w1 = -sc / a11
+            a22 -= sc * sc / a11
+            w2 = -skg / a22
+            a33 -= skg * skg / a22
+            y1 = -r[0] / a11
+            y2 = (-r[1] + sc * y1) / a22
+            d3 = (-r[2] + skg * y2) / a33
+            d2_ = y2 - w2 * d3
+            d1 = y1 - w1 * d2_
+            scale = abs(d1) + abs(d2_) + abs(d3)
+            if scale <= 1e-15 * (1.0 + abs(v2) + abs(v3) + abs(v4)):
+                return [x2b + g * v2, x3b + g * v3, x4b + g * v4, v2, v3, v4]
+            alpha = 1.0
+            while True:
+                trial = [v2 + alpha * d1, v3 + alpha * d2_, v4 + alpha * d3]
+                phi_t = self._potential(trial, yb, g, x1, v1)
+                if phi_t <= phi or alpha < 1e-12:
+                    break
+                alpha *= 0.5
+            v, phi = trial, phi_t
+        raise ConvergenceError("lumped model stage: damped Newton did not converge (non-monotonic table?)")
+
+    def _potential(self, v, yb, g: float, x1: float, v1: float) -> float:
+        """Convex potential whose gradient is the stage residual (see ``stage``), in W."""
+        x2b, x3b, x4b, v2b, v3b, v4b = yb
+        v2, v3, v4 = v
+        kB, cB = self.kB, self.cB
+        e = x3b - x4b + g * (v3 - v4)
+        return (0.5 * (self.mP * (v2 - v2b) ** 2 + self.mO * (v3 - v3b) ** 2 + self.mC * (v4 - v4b) ** 2) / g
+                + 0.5 * kB / g * ((x1 - x2b - g * v2) ** 2 + (x4b + g * v4) ** 2)
+                + 0.5 * cB * ((v1 - v2) ** 2 + v4 * v4)
+                + self.fc.primitive(v2 - v3) + self.fk.primitive(e) / g)
 
     def diagnostics(self, y, x1: float, v1: float) -> dict[str, float]:
         """Internal elongations [m], rates [m/s] and element forces [N] (positive in tension)."""
@@ -198,7 +254,22 @@ class MaxwellTableModel:
             if j == i:
                 return [yb[0] + g * vd]
             i = j
-        raise ConvergenceError("Maxwell table stage: piecewise-linear Newton iteration did not settle")
+        # cycling between pieces: bisection on the monotone residual Fc(vd) + k_s g vd - rhs
+        h = lambda z: fc(z) + kg * z - rhs  # noqa: E731
+        lo, hi = -1.0, 1.0
+        while h(lo) > 0.0:
+            lo *= 2.0
+        while h(hi) < 0.0:
+            hi *= 2.0
+        for _ in range(200):
+            mid = 0.5 * (lo + hi)
+            if h(mid) > 0.0:
+                hi = mid
+            else:
+                lo = mid
+            if hi - lo <= 1e-15 * (1.0 + abs(mid)):
+                break
+        return [yb[0] + g * 0.5 * (lo + hi)]
 
     def diagnostics(self, y, x1: float, v1: float) -> dict[str, float]:
         return {"spring_elongation": x1 - y[0]}

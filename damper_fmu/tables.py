@@ -23,7 +23,7 @@ class PwlTable:
     ordinates : forces [N] at ``abscissae``.
     """
 
-    __slots__ = ("xs", "fs", "breaks", "intercept", "slope")
+    __slots__ = ("xs", "fs", "breaks", "intercept", "slope", "_p_anchor")
 
     def __init__(self, abscissae: Sequence[float], ordinates: Sequence[float]):
         if len(abscissae) != len(ordinates):
@@ -47,6 +47,14 @@ class PwlTable:
             s = (fs[i + 1] - fs[i]) / (xs[i + 1] - xs[i])
             self.slope.append(s)
             self.intercept.append(fs[i] - s * xs[i])
+        # primitive P(x) = integral of F from 0 to x at every node (exact: trapezoids)
+        k0 = xs.index(0.0)
+        p = [0.0] * len(xs)
+        for i in range(k0 + 1, len(xs)):
+            p[i] = p[i - 1] + 0.5 * (fs[i] + fs[i - 1]) * (xs[i] - xs[i - 1])
+        for i in range(k0 - 1, -1, -1):
+            p[i] = p[i + 1] - 0.5 * (fs[i] + fs[i + 1]) * (xs[i + 1] - xs[i])
+        self._p_anchor = p
 
     def segment(self, x: float) -> int:
         """Index of the linear piece that contains ``x``."""
@@ -55,6 +63,13 @@ class PwlTable:
     def __call__(self, x: float) -> float:
         i = bisect_right(self.breaks, x)
         return self.intercept[i] + self.slope[i] * x
+
+    def primitive(self, x: float) -> float:
+        """Integral of F from 0 to x (elastic energy [J] of a spring table, or the convex
+        potential of a dashpot table) -- continuous and piecewise quadratic."""
+        i = bisect_right(self.breaks, x)
+        x0 = self.xs[i]
+        return self._p_anchor[i] + self.intercept[i] * (x - x0) + 0.5 * self.slope[i] * (x * x - x0 * x0)
 
     def evaluate(self, x):
         """Vectorised evaluation for plotting and analysis (numpy array in, array out)."""

@@ -164,3 +164,28 @@ def test_non_finite_input_is_rejected():
 def test_fc_abscissae_are_the_papers():
     assert np.allclose(np.array(FC_ABSCISSAE) * 1e3,
                        [-100, -30, -15, -10, -7.5, -5, -2.5, 2.5, 5, 7.5, 10, 15, 30, 100])
+
+
+def test_damped_newton_fallback_agrees_with_plain_newton():
+    """Two solvers of the same stage equations (plain piecewise-linear Newton and the damped
+    fallback used when Newton cycles between table pieces) give the same solution."""
+    from damper_fmu.integrator import GAMMA
+
+    m = make_model("lumped")
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        yb = [rng.normal(0, 1e-3), rng.normal(0, 1e-3), rng.normal(0, 1e-3),
+              rng.normal(0, 0.05), rng.normal(0, 0.05), rng.normal(0, 0.02)]
+        g = GAMMA * rng.choice([1e-4, 1e-3, 5e-3])
+        x1, v1 = rng.normal(0, 2e-3), rng.normal(0, 0.05)
+        plain = m.stage(yb, g, x1, v1)
+        damped = m._stage_damped(yb, g, x1, v1)
+        np.testing.assert_allclose(damped, plain, rtol=1e-9, atol=1e-12)
+
+
+def test_table_primitive_is_the_integral():
+    from scipy.integrate import quad
+
+    tab = PwlTable([-2.0, -1.0, 1.0, 3.0], [-4.0, -1.0, 2.0, 4.0])
+    for x in (-3.0, -1.5, -0.2, 0.5, 2.0, 5.0):
+        assert tab.primitive(x) == pytest.approx(quad(tab, 0.0, x, points=[-2, -1, 0, 1, 3])[0], rel=1e-12)

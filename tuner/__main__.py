@@ -1,0 +1,219 @@
+"""Command line of the damper tuner.
+
+    python -m tuner                      identify lumped + Maxwell models on the bundled dataset,
+                                         validate, report (results/default[-N])
+    python -m tuner fit ...              the same on your own data (see --help)
+    python -m tuner generate --out DIR   virtual test campaign -> a six-test dataset
+    python -m tuner report DIR           rebuild the report of a fit output folder
+
+Exit status: 0 success, 2 bad input or arguments (message on stderr), 130 interrupted.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_DATASET = ROOT / "data" / "default"
+DEFAULT_RESULTS = ROOT / "results"
+
+
+def _log(msg: str) -> None:
+    print(msg, flush=True)
+
+
+def _free_folder(base: Path) -> Path:
+    """``base`` if free, else the first free ``base-2``, ``base-3``, ..."""
+    if not base.exists():
+        return base
+    k = 2
+    while Path(f"{base}-{k}").exists():
+        k += 1
+    return Path(f"{base}-{k}")
+
+
+def _prepare_out(out: Path, resume: bool, force: bool) -> Path:
+    if out.exists() and any(out.iterdir()):
+        if resume:
+            if not (out / "checkpoints").is_dir():
+                raise ValueError(f"--resume: {out} holds no checkpoints of an earlier run")
+            return out
+        if not force:
+            raise FileExistsError(f"output folder {out} exists and is not empty: use --resume to continue "
+                                  f"that run, --force to move it aside, or another --out")
+        backup = _free_folder(Path(f"{out}.old"))
+        out.rename(backup)
+        _log(f"moved the existing {out} to {backup}")
+    elif resume:
+        raise ValueError(f"--resume: {out} does not exist or is empty")
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def _add_fit_options(ap: argparse.ArgumentParser) -> None:
+    from .fit import FitSettings
+
+    d = FitSettings()
+    g = ap.add_argument_group("data")
+    g.add_argument("--dataset", type=Path, help="dataset folder with manifest.json (roles from the manifest)")
+    g.add_argument("--identification", nargs="+", type=Path, default=[], metavar="FILE",
+                   help="identification test files (CSV/Parquet)")
+    g.add_argument("--validation", nargs="+", type=Path, default=[], metavar="FILE",
+                   help="validation test files (held out)")
+    g.add_argument("--time-col", default="time")
+    g.add_argument("--stroke-col", default="stroke")
+    g.add_argument("--force-col", default="force")
+    g.add_argument("--time-unit", default="s", choices=["s", "ms"])
+    g.add_argument("--stroke-unit", default="m", choices=["m", "cm", "mm", "um"])
+    g.add_argument("--force-unit", default="N", choices=["N", "daN", "kN"])
+    g = ap.add_argument_group("identification")
+    g.add_argument("--models", default=",".join(d.models),
+                   help="comma-separated from lumped, maxwell, maxwell_table (default: %(default)s)")
+    g.add_argument("--population", type=int, default=d.population, help="fireflies (default %(default)s)")
+    g.add_argument("--iterations", type=int, default=d.iterations, help="max iterations (default %(default)s)")
+    g.add_argument("--workers", type=int, default=d.workers, help="worker processes (default %(default)s)")
+    g.add_argument("--seed", type=int, default=d.seed)
+    g.add_argument("--engine", default=d.engine, choices=["fmu", "inprocess"],
+                   help="fmu: the built FMU through fmpy (default); inprocess: same equations without FMI")
+    g.add_argument("--parametrization", default=d.parametrization, choices=["improved", "paper"])
+    g.add_argument("--init", default=d.init, choices=["seeded", "random"],
+                   help="seeded: data-driven guess and preset in the first population (default)")
+    g.add_argument("--fit-rate", type=float, default=d.fit_rate_hz, help="resample to this rate [Hz]")
+    g.add_argument("--warmup", type=float, default=d.warmup_s, help="seconds skipped at each test start")
+    g.add_argument("--force-limit", type=float, default=None,
+                   help="Fc,O ordinate limit [N] (default: 1.5 x peak measured force)")
+    g.add_argument("--no-stop", action="store_true", help="disable the paper's stagnation stopping rule")
+    g = ap.add_argument_group("output")
+    g.add_argument("--out", type=Path, help="output folder (default results/<dataset name>[-N])")
+    g.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
+    g.add_argument("--force", action="store_true", help="move an existing --out aside (never deleted)")
+
+
+def _load(args):
+    from .data import load_dataset, load_files
+
+    cols = dict(time_col=args.time_col, stroke_col=args.stroke_col, force_col=args.force_col,
+                time_unit=args.time_unit, stroke_unit=args.stroke_unit, force_unit=args.force_unit)
+    if args.dataset and (args.identification or args.validation):
+        raise ValueError("give either --dataset or --identification/--validation files, not both")
+    if args.dataset:
+        tests = load_dataset(args.dataset)
+        ident = [t for t in tests if t.role == "identification"]
+        valid = [t for t in tests if t.role == "validation"]
+        name = args.dataset.resolve().name
+    else:
+        if not args.identification:
+            raise ValueError("no data: give --dataset DIR or --identification FILE ...")
+        ident = load_files(args.identification, "identification", **cols)
+        valid = load_files(args.validation, "validation", **cols) if args.validation else []
+        name = "fit"
+    if not ident:
+        raise ValueError("the data holds no identification test")
+    names = [t.name for t in ident + valid]
+    if len(set(names)) != len(names):
+        raise ValueError(f"test names must be unique, got {names}")
+    return ident, valid, name
+
+
+def cmd_fit(args) -> int:
+    from .fit import FitSettings, fit
+
+    models = tuple(m.strip() for m in args.models.split(",") if m.strip())
+    bad = [m for m in models if m not in ("lumped", "maxwell", "maxwell_table")]
+    if bad or not models:
+        raise ValueError(f"unknown model(s) {bad}; choose from lumped, maxwell, maxwell_table")
+    for opt in ("population", "iterations"):
+        if getattr(args, opt) < 1:
+            raise ValueError(f"--{opt} must be >= 1")
+    if args.population < 2:
+        raise ValueError("--population must be >= 2")
+    ident, valid, name = _load(args)
+    out = args.out or _free_folder(DEFAULT_RESULTS / name)
+    out = _prepare_out(out, args.resume, args.force)
+    settings = FitSettings(models=models, fit_rate_hz=args.fit_rate, warmup_s=args.warmup,
+                           population=args.population, iterations=args.iterations, workers=args.workers,
+                           seed=args.seed, engine=args.engine, parametrization=args.parametrization,
+                           init=args.init, force_limit_n=args.force_limit,
+                           stop_tol=None if args.no_stop else 1e-3)
+    provenance = {"dataset": str(args.dataset) if args.dataset else None,
+                  "files": {t.name: str(t.source) for t in ident + valid},
+                  "command": " ".join(sys.argv)}
+    _log(f"output folder: {out}")
+    t0 = time.perf_counter()
+    metrics = fit(ident, valid, out, settings, provenance=provenance, log=_log)
+    _print_summary(metrics)
+    _log(f"total time {time.perf_counter() - t0:.0f} s; results in {out}")
+    if (out / "report.html").exists():
+        _log(f"open the report: {out / 'report.html'}")
+    return 0
+
+
+def _print_summary(metrics: dict) -> None:
+    t3 = metrics.get("table3") or {}
+    if not t3:
+        return
+    _log("\nTable 3 (validation)           MSE Maxwell   MSE lumped    var.    AME Maxwell  AME lumped   var.  AME/peak")
+    for name, r in t3.items():
+        _log(f"  {name:28s} {r['mse_maxwell']:11.3e} {r['mse_lumped']:11.3e} {r['mse_variation_pct']:7.1f}% "
+             f"{r['ame_maxwell']:10.0f} N {r['ame_lumped']:9.0f} N {r['ame_variation_pct']:6.1f}% "
+             f"{r['ame_lumped_pct_of_peak']:6.2f}%")
+
+
+def cmd_generate(args) -> int:
+    from campaign.generate import generate_dataset
+
+    effects = {}
+    for spec in args.effect or []:
+        from campaign.effects import parse_effect
+
+        name, value = parse_effect(spec)
+        effects[name] = value
+    out = generate_dataset(args.out, seed=args.seed, effects=effects, sample_rate=args.sample_rate,
+                           overwrite=args.overwrite, log=_log)
+    _log(f"dataset written to {out}")
+    return 0
+
+
+def cmd_report(args) -> int:
+    from .report import make_report
+
+    _log(f"report: {make_report(args.folder)}")
+    return 0
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    ap = argparse.ArgumentParser(prog="python -m tuner", description=__doc__.split("\n\n")[0])
+    sub = ap.add_subparsers(dest="command")
+    p_fit = sub.add_parser("fit", help="identify, validate and report on your data")
+    _add_fit_options(p_fit)
+    p_gen = sub.add_parser("generate", help="virtual test campaign -> dataset folder")
+    p_gen.add_argument("--out", type=Path, required=True)
+    p_gen.add_argument("--effect", action="append", metavar="NAME[=VALUE]",
+                       help="switch on a hidden effect (repeatable), e.g. friction=150")
+    p_gen.add_argument("--seed", type=int, default=2023)
+    p_gen.add_argument("--sample-rate", type=float, default=1000.0, help="rig sample rate [Hz]")
+    p_gen.add_argument("--overwrite", action="store_true", help="replace an existing dataset folder")
+    p_rep = sub.add_parser("report", help="rebuild the report of a fit output folder")
+    p_rep.add_argument("folder", type=Path)
+    if not argv:
+        argv = ["fit", "--dataset", str(DEFAULT_DATASET)]
+    args = ap.parse_args(argv)
+    if args.command is None:
+        ap.print_help()
+        return 2
+    handler = {"fit": cmd_fit, "generate": cmd_generate, "report": cmd_report}[args.command]
+    try:
+        return handler(args)
+    except KeyboardInterrupt:
+        print("\ninterrupted: run again with --resume and the same --out to continue", file=sys.stderr)
+        return 130
+    except (ValueError, FileExistsError, FileNotFoundError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

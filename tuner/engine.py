@@ -1,0 +1,143 @@
+"""Simulation engines for identification: the built FMU through fmpy (default) or in-process.
+
+Evaluations run in worker processes (``spawn``), each holding ONE FMU instance reused for every
+candidate (reset + parameters re-applied, see ``tuner.runner``) and the identification strokes,
+sent once at start-up. A generation is evaluated as one batch (``sse_batch``), so evaluations
+run in parallel and are counted exactly. The in-process engine runs the same equations
+(``damper_fmu``) without FMI; tests/test_fmu.py proves both give the same forces.
+
+Objective pieces per candidate: SSE [N^2] over all identification samples after the warm-up
+of each test, and N (number of samples): the paper's fitness is G = N / SSE (eq. 5).
+"""
+from __future__ import annotations
+
+import math
+import multiprocessing as mp
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Signals", "Engine", "ENGINES"]
+
+ENGINES = ("fmu", "inprocess")
+
+
+@dataclass
+class Signals:
+    """One test as the engine needs it: time [s], stroke [m], stroke_velocity [m/s], force [N],
+    and ``mask``: samples that count in the objective (False during the warm-up)."""
+
+    name: str
+    time: np.ndarray
+    stroke: np.ndarray
+    stroke_velocity: np.ndarray
+    force: np.ndarray
+    mask: np.ndarray
+
+
+class _Simulator:
+    """Per-process simulator of one model kind: an FmuRunner or the in-process engine."""
+
+    def __init__(self, model: str, engine: str, fmu_path: str | None, max_internal_step: float | None):
+        self.model, self.engine = model, engine
+        self.max_internal_step = max_internal_step
+        self.runner = None
+        if engine == "fmu":
+            from tuner.runner import FmuRunner
+
+            self.runner = FmuRunner(fmu_path, max_internal_step=max_internal_step)
+
+    def force(self, params: dict, s: Signals) -> np.ndarray:
+        if self.runner is not None:
+            return self.runner.run(s.time, s.stroke, s.stroke_velocity, params)
+        from damper_fmu import simulate
+        from damper_fmu.integrator import DEFAULT_MAX_STEP
+
+        return simulate(self.model, s.time, s.stroke, s.stroke_velocity, params=params,
+                        max_step=self.max_internal_step or DEFAULT_MAX_STEP)
+
+    def sse(self, params: dict, tests: list[Signals]) -> float:
+        total = 0.0
+        try:
+            for s in tests:
+                r = (s.force - self.force(params, s))[s.mask]
+                total += float(r @ r)
+        except Exception:  # noqa: BLE001 - a failed candidate (bad parameters, failed solve) is worst
+            return math.inf
+        return total if math.isfinite(total) else math.inf
+
+    def close(self):
+        if self.runner is not None:
+            self.runner.close()
+
+
+_WORKER: dict = {}
+
+
+def _init_worker(model, engine, fmu_path, max_internal_step, tests):
+    _WORKER["sim"] = _Simulator(model, engine, fmu_path, max_internal_step)
+    _WORKER["tests"] = tests
+
+
+def _worker_sse(params):
+    return _WORKER["sim"].sse(params, _WORKER["tests"])
+
+
+class Engine:
+    """Evaluates candidates of one model on the identification tests.
+
+    model: 'lumped' | 'maxwell' | 'maxwell_table'; engine: 'fmu' | 'inprocess'; workers: number
+    of worker processes (0: evaluate in this process); fmu_path: the model's FMU (engine 'fmu').
+    """
+
+    def __init__(self, model: str, tests: list[Signals], *, engine: str = "fmu", workers: int = 2,
+                 fmu_path=None, max_internal_step: float | None = None):
+        if engine not in ENGINES:
+            raise ValueError(f"unknown engine '{engine}', expected one of {ENGINES}")
+        if engine == "fmu" and fmu_path is None:
+            from build_fmu import ensure_fmu
+
+            fmu_path = ensure_fmu(model)
+        if workers < 0:
+            raise ValueError("workers must be >= 0")
+        self.model, self.engine, self.workers = model, engine, int(workers)
+        self.tests = tests
+        self.n_samples = int(sum(int(s.mask.sum()) for s in tests))
+        self.evaluations = 0
+        args = (model, engine, str(fmu_path) if fmu_path else None, max_internal_step, tests)
+        if self.workers == 0:
+            self._local = _Simulator(*args[:4])
+            self._pool = None
+        else:
+            self._local = None
+            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"),
+                                             initializer=_init_worker, initargs=args)
+
+    def sse_batch(self, candidates: list[dict]) -> np.ndarray:
+        """SSE [N^2] of each candidate parameter set (inf for a failed simulation)."""
+        self.evaluations += len(candidates)
+        if self._pool is None:
+            return np.array([self._local.sse(p, self.tests) for p in candidates])
+        return np.array(list(self._pool.map(_worker_sse, candidates, chunksize=1)))
+
+    def fitness_batch(self, candidates: list[dict]) -> np.ndarray:
+        """Paper's fitness G = N / SSE [1/N^2] of each candidate (0 for a failed one)."""
+        sse = self.sse_batch(candidates)
+        with np.errstate(divide="ignore"):
+            g = np.where(np.isfinite(sse), self.n_samples / np.maximum(sse, 1e-300), 0.0)
+        return g
+
+    def close(self):
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+        if self._local is not None:
+            self._local.close()
+            self._local = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()

@@ -1,0 +1,297 @@
+"""Identification pipeline: prepare data, run the Firefly algorithm per model, validate, write results.
+
+Output folder (SI units everywhere):
+    parameters.json        identified values, units, bounds, parametrization per model
+    metrics.json           settings/provenance, metrics per test and model, the paper's Table 3
+    history_<model>.json   mean/best fitness per generation, initial and final populations
+    simulations.npz        per test: time, stroke, measured force, simulated force per model
+    fmu/<Model>_tuned.fmu  FMUs with the identified values as start values
+    checkpoints/<model>.json  Firefly state after every iteration (``--resume`` continues from it)
+    report.html, figures/  the report (tuner.report)
+
+Objective: G = N / SSE over the identification tests at the fit rate (paper eq. 5), skipping the
+first ``warmup_s`` of each test (the model starts force-free; the damper may not). Validation
+metrics are computed at each file's own sample rate with the default internal step.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from damper_fmu.parameters import FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS, defaults
+
+from . import firefly
+from .data import RigTest, prepare
+from .engine import Engine, Signals
+from .metrics import compare_to_maxwell, error_metrics
+from .parametrization import Parametrization
+
+__all__ = ["FitSettings", "fit", "initial_guess", "to_signals"]
+
+MODEL_FMU = {"lumped": "DamperLumped", "maxwell": "DamperMaxwell", "maxwell_table": "DamperMaxwellTable"}
+
+
+@dataclass
+class FitSettings:
+    """Run settings (units in the names). Defaults: the paper's Firefly budget."""
+
+    models: tuple = ("lumped", "maxwell")
+    fit_rate_hz: float = 200.0
+    warmup_s: float = 0.5
+    population: int = 20
+    iterations: int = 150
+    workers: int = 2
+    seed: int = 0
+    engine: str = "fmu"
+    parametrization: str = "improved"
+    init: str = "seeded"
+    force_limit_n: float | None = None
+    spring_reference_n_per_m: float = FK_REFERENCE_STIFFNESS
+    stop_tol: float | None = 1e-3
+    extra: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        d = dict(self.__dict__)
+        d["models"] = list(self.models)
+        return d
+
+
+def to_signals(p, warmup_s: float) -> Signals:
+    """Engine input from a PreparedTest; samples before time[0] + warmup_s do not count."""
+    mask = (p.time - p.time[0]) >= warmup_s
+    if mask.sum() < 10:
+        raise ValueError(f"test {p.name!r}: warm-up of {warmup_s} s leaves fewer than 10 samples")
+    return Signals(p.name, p.time, p.stroke, p.stroke_velocity, p.force, mask)
+
+
+def initial_guess(model: str, tests: list[Signals], par: Parametrization) -> dict:
+    """Data-driven starting individual: quasi-static force-velocity table and a Maxwell fit.
+
+    Fc,O ordinates: median measured force among samples whose stroke velocity lies within
+    +-15 % of each abscissa (monotone envelope; abscissae without samples extrapolated with the
+    outermost slope). Maxwell: least-squares dashpot c from F ~ c v. Other parameters: preset.
+    """
+    v = np.concatenate([s.stroke_velocity[s.mask] for s in tests])
+    f = np.concatenate([s.force[s.mask] for s in tests])
+    guess = defaults(model)
+    if model == "maxwell":
+        c = float(np.dot(v, f) / max(np.dot(v, v), 1e-30))
+        lo, hi = par.bounds["c"]
+        guess["c"] = min(max(c, lo), hi)
+        return guess
+    if "Fc_01" not in guess:
+        return guess
+    names = [n for n in par.names if n.startswith("Fc_")]
+    for side_sign in (1.0, -1.0):
+        side = sorted([(abs(guess[n.replace("Fc_", "Fc_v")]), n) for n in names
+                       if np.sign(guess[n.replace("Fc_", "Fc_v")]) == side_sign])
+        prev_v, prev_f, slope = 0.0, 0.0, None
+        for vx, n in side:
+            sel = np.abs(side_sign * v - vx) <= 0.15 * vx
+            if sel.sum() >= 5:
+                fx = max(abs(float(np.median(f[sel]))), prev_f)
+                slope = (fx - prev_f) / (vx - prev_v)
+            elif slope is not None:
+                fx = prev_f + slope * (vx - prev_v)
+            else:
+                fx = abs(guess[n])
+            fx = min(fx, par.force_limit)
+            guess[n] = side_sign * fx
+            prev_v, prev_f = vx, fx
+    return guess
+
+
+def _settings_hash(settings: FitSettings, data_digest: str, model: str) -> str:
+    keep = {k: v for k, v in settings.to_dict().items() if k not in ("workers", "extra")}
+    return hashlib.sha256(json.dumps([keep, data_digest, model], sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def _data_digest(tests: list[RigTest]) -> str:
+    h = hashlib.sha256()
+    for t in tests:
+        h.update(t.name.encode())
+        for a in (t.time, t.stroke, t.force):
+            h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
+
+
+def _identify(model: str, signals: list[Signals], settings: FitSettings, par: Parametrization,
+              ckpt: Path, digest: str, log) -> tuple[dict, dict]:
+    """Run Firefly for one model; return (best parameters, history dict)."""
+    opts = firefly.FireflyOptions(population=settings.population, max_iterations=settings.iterations,
+                                  stop_tol=settings.stop_tol)
+    key = _settings_hash(settings, digest, model)
+    state = None
+    if ckpt.exists():
+        saved = json.loads(ckpt.read_text())
+        if saved.get("key") != key:
+            raise ValueError(f"{ckpt} was written with other settings or data; start a new output folder")
+        state = firefly.FireflyState.from_dict(saved["state"])
+        log(f"[{model}] resuming from iteration {state.iteration} ({state.evaluations} evaluations)")
+    initial = None
+    if settings.init == "seeded":
+        initial = np.array([par.from_params(initial_guess(model, signals, par)),
+                            par.from_params(defaults(model))])
+    engine_path = None
+    if settings.engine == "fmu":
+        from build_fmu import ensure_fmu
+
+        engine_path = ensure_fmu(model)
+    fit_step = 1.0 / settings.fit_rate_hz
+    t_start = time.perf_counter()
+    evals_start = state.evaluations if state else 0
+    first_population = {}
+
+    with Engine(model, signals, engine=settings.engine, workers=settings.workers, fmu_path=engine_path,
+                max_internal_step=fit_step) as eng:
+        def evaluate(Z):
+            return eng.fitness_batch([par.to_params(z) for z in Z])
+
+        def callback(st: firefly.FireflyState):
+            if st.iteration == 0 and "pop" not in first_population:
+                first_population["pop"] = st.population.copy()
+            tmp = ckpt.with_suffix(".tmp")
+            tmp.write_text(json.dumps({"key": key, "state": st.to_dict(),
+                                       "initial_population": (first_population.get("pop", st.population)).tolist()}))
+            tmp.replace(ckpt)
+            el = time.perf_counter() - t_start
+            rate = (st.evaluations - evals_start) / el if el > 0 else float("nan")
+            best = st.best_fitness
+            rmse = 1.0 / math.sqrt(best) if best > 0 else float("inf")
+            left = (settings.iterations - st.iteration) * settings.population / rate if rate > 0 else float("nan")
+            log(f"[{model}] iter {st.iteration:3d}/{settings.iterations}  best G {best:.4e} (RMSE {rmse:7.1f} N)"
+                f"  mean G {st.history_mean[-1]:.4e}  {rate:5.1f} eval/s  ~{left / 60:4.1f} min left")
+            return False
+
+        if state is not None and ckpt.exists():
+            first_population["pop"] = np.array(json.loads(ckpt.read_text()).get("initial_population"))
+        result = firefly.run(evaluate, par.dimension, options=opts, seed=settings.seed, state=state,
+                             callback=callback, initial=initial)
+    elapsed = time.perf_counter() - t_start
+    best = par.to_params(result.x_best)
+    st = result.state
+    history = {
+        "mean_fitness": list(map(float, st.history_mean)),
+        "best_fitness": list(map(float, st.history_best)),
+        "generation_best_fitness": list(map(float, st.history_generation_best)),
+        "evaluations": list(map(int, st.history_evaluations)),
+        "initial_population": [par.to_params(z) for z in first_population.get("pop", st.population)],
+        "final_population": [par.to_params(z) for z in st.population],
+        "stop_reason": result.stop_reason,
+        "iterations": int(result.iterations),
+        "evaluation_count": int(result.evaluations),
+        "elapsed_s": elapsed,
+        "parametrization": par.describe(),
+    }
+    log(f"[{model}] done: {result.stop_reason} after {result.iterations} iterations, "
+        f"{result.evaluations} evaluations, {elapsed:.0f} s; identification RMSE "
+        f"{1 / math.sqrt(result.fitness_best):.1f} N")
+    return best, history
+
+
+def _simulate(model: str, params: dict, p, engine: str) -> np.ndarray:
+    if engine == "fmu":
+        from build_fmu import ensure_fmu
+        from tuner.runner import FmuRunner
+
+        with FmuRunner(ensure_fmu(model)) as r:
+            return r.run(p.time, p.stroke, p.stroke_velocity, params)
+    from damper_fmu import simulate
+
+    return simulate(model, p.time, p.stroke, p.stroke_velocity, params=params)
+
+
+def fit(identification: list[RigTest], validation: list[RigTest], out: Path, settings: FitSettings,
+        *, provenance: dict | None = None, log=print) -> dict:
+    """Identify every model in ``settings.models``, validate, write the output folder.
+
+    Returns the metrics dict (also written to metrics.json). ``out`` must exist (the CLI decides
+    about overwriting); checkpoints in ``out/checkpoints`` are resumed when present.
+    """
+    if not identification:
+        raise ValueError("no identification test given")
+    out = Path(out)
+    (out / "checkpoints").mkdir(parents=True, exist_ok=True)
+    digest = _data_digest(identification)
+    prep_id = [prepare(t, settings.fit_rate_hz) for t in identification]
+    signals = [to_signals(p, settings.warmup_s) for p in prep_id]
+    peak = max(float(np.abs(s.force[s.mask]).max()) for s in signals)
+    force_limit = settings.force_limit_n or float(f"{1.5 * peak:.2g}")
+    log(f"identification: {len(signals)} tests, {sum(int(s.mask.sum()) for s in signals)} samples at "
+        f"{settings.fit_rate_hz:g} Hz; peak force {peak:.0f} N -> Fc,O limit {force_limit:.3g} N")
+
+    params, histories = {}, {}
+    for model in settings.models:
+        par = Parametrization(model, settings.parametrization, force_limit=force_limit,
+                              spring_reference=settings.spring_reference_n_per_m)
+        best, hist = _identify(model, signals, settings, par, out / "checkpoints" / f"{model}.json", digest, log)
+        params[model] = {"values": best, "units": dict(par.units),
+                         "bounds": {n: list(par.bounds[n]) for n in par.names},
+                         "parametrization": settings.parametrization}
+        histories[model] = hist
+        (out / f"history_{model}.json").write_text(json.dumps(hist, indent=1))
+    (out / "parameters.json").write_text(json.dumps(params, indent=2, sort_keys=True))
+
+    log("validating (each test at its own sample rate) ...")
+    tests_out, arrays = {}, {}
+    for t in [*identification, *validation]:
+        p = prepare(t, t.sample_rate)
+        mask = (p.time - p.time[0]) >= settings.warmup_s
+        arrays[f"{t.name}__time"], arrays[f"{t.name}__stroke"] = p.time, p.stroke
+        arrays[f"{t.name}__force"] = p.force
+        models_m = {}
+        for model in settings.models:
+            sim = _simulate(model, params[model]["values"], p, settings.engine)
+            arrays[f"{t.name}__{model}"] = sim
+            models_m[model] = error_metrics(p.force[mask], sim[mask]).to_dict()
+        tests_out[t.name] = {"role": t.role, "scenario": t.scenario, "models": models_m,
+                             "sample_rate_hz": t.sample_rate}
+    np.savez_compressed(out / "simulations.npz", **arrays)
+
+    table3 = {}
+    if "lumped" in settings.models and "maxwell" in settings.models:
+        for t in validation:
+            m = tests_out[t.name]["models"]
+            mx, lp = m["maxwell"], m["lumped"]
+            table3[t.name] = {"mse_maxwell": mx["mse"], "mse_lumped": lp["mse"],
+                              "mse_variation_pct": 100 * (lp["mse"] - mx["mse"]) / mx["mse"],
+                              "ame_maxwell": mx["ame"], "ame_lumped": lp["ame"],
+                              "ame_variation_pct": 100 * (lp["ame"] - mx["ame"]) / mx["ame"],
+                              "ame_lumped_pct_of_peak": 100 * lp["ame"] / lp["peak_measured"]}
+    settings_out = settings.to_dict()
+    settings_out.update({
+        "force_limit_n_used": force_limit,
+        "preprocessing": [p.describe() for p in prep_id],
+        "evaluations": {m: histories[m]["evaluation_count"] for m in settings.models},
+        "elapsed_s": {m: histories[m]["elapsed_s"] for m in settings.models},
+        "stop_reason": {m: histories[m]["stop_reason"] for m in settings.models},
+        "parametrization_text": {m: histories[m]["parametrization"] for m in settings.models},
+        "fit_internal_step_s": 1.0 / settings.fit_rate_hz,
+        "identification_tests": [t.name for t in identification],
+        "validation_tests": [t.name for t in validation],
+        **(provenance or {}),
+    })
+    metrics = {"settings": settings_out, "tests": tests_out, "table3": table3}
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, sort_keys=True, default=str))
+
+    log("exporting tuned FMUs ...")
+    from build_fmu import build
+
+    for model in settings.models:
+        build(model, out / "fmu", start_values={k: v for k, v in params[model]["values"].items()
+                                                 if k in {p.name for p in MODEL_PARAMETERS[model]}},
+              filename=f"{MODEL_FMU[model]}_tuned.fmu")
+    try:
+        from .report import make_report
+    except ImportError:
+        make_report = None
+    if make_report is not None:
+        path = make_report(out)
+        log(f"report: {path}")
+    return metrics
