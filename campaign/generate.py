@@ -59,5 +59,9 @@ def generate_dataset(out, *, seed: int = DEFAULT_SEED, effects: dict | None = No
                  "effect_units": {n: EFFECTS[n].unit for n in sorted(eff)}, "t_end_s": t_end,
                  "vehicle": "campaign.vehicle (7 bodies, linear creep), front-right yaw damper",
                  "rig": "campaign.rig (physical twin-tube damper, sensor chain)"}
-    return write_dataset(out, tests, description="Virtual test campaign: the six manoeuvres of the paper's "
+    path = write_dataset(out, tests, description="Virtual test campaign: the six manoeuvres of the paper's "
                          "Table 1 replayed on a virtual damper rig", generator=generator, overwrite=overwrite)
+    from .plots import plot_dataset
+
+    log(f"  overview figure: {plot_dataset(path)}")
+    return path

@@ -85,6 +85,9 @@ def _add_fit_options(ap: argparse.ArgumentParser) -> None:
     g.add_argument("--force-limit", type=float, default=None,
                    help="Fc,O ordinate limit [N] (default: 1.5 x peak measured force)")
     g.add_argument("--no-stop", action="store_true", help="disable the paper's stagnation stopping rule")
+    g.add_argument("--polish", type=int, default=d.polish_jacobians, metavar="N",
+                   help="local least-squares refinement after Firefly, at most N Jacobians "
+                        "(default %(default)s; 0 = the paper's Firefly result as is)")
     g = ap.add_argument_group("output")
     g.add_argument("--out", type=Path, help="output folder (default results/<dataset name>[-N])")
     g.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
@@ -136,7 +139,7 @@ def cmd_fit(args) -> int:
                            population=args.population, iterations=args.iterations, workers=args.workers,
                            seed=args.seed, engine=args.engine, parametrization=args.parametrization,
                            init=args.init, force_limit_n=args.force_limit,
-                           stop_tol=None if args.no_stop else 1e-3)
+                           stop_tol=None if args.no_stop else 1e-3, polish_jacobians=args.polish)
     provenance = {"dataset": str(args.dataset) if args.dataset else None,
                   "files": {t.name: str(t.source) for t in ident + valid},
                   "command": " ".join(sys.argv)}

@@ -57,15 +57,18 @@ class _Simulator:
         return simulate(self.model, s.time, s.stroke, s.stroke_velocity, params=params,
                         max_step=self.max_internal_step or DEFAULT_MAX_STEP)
 
-    def sse(self, params: dict, tests: list[Signals]) -> float:
-        total = 0.0
+    def residuals(self, params: dict, tests: list[Signals]) -> np.ndarray | None:
+        """Measured minus simulated force [N] over the counted samples of all tests, or None
+        when the simulation fails (bad parameters, failed implicit solve)."""
         try:
-            for s in tests:
-                r = (s.force - self.force(params, s))[s.mask]
-                total += float(r @ r)
-        except Exception:  # noqa: BLE001 - a failed candidate (bad parameters, failed solve) is worst
-            return math.inf
-        return total if math.isfinite(total) else math.inf
+            r = np.concatenate([(s.force - self.force(params, s))[s.mask] for s in tests])
+        except Exception:  # noqa: BLE001 - a failed candidate is reported as None
+            return None
+        return r if np.all(np.isfinite(r)) else None
+
+    def sse(self, params: dict, tests: list[Signals]) -> float:
+        r = self.residuals(params, tests)
+        return math.inf if r is None else float(r @ r)
 
     def close(self):
         if self.runner is not None:
@@ -82,6 +85,10 @@ def _init_worker(model, engine, fmu_path, max_internal_step, tests):
 
 def _worker_sse(params):
     return _WORKER["sim"].sse(params, _WORKER["tests"])
+
+
+def _worker_residuals(params):
+    return _WORKER["sim"].residuals(params, _WORKER["tests"])
 
 
 class Engine:
@@ -120,6 +127,13 @@ class Engine:
         if self._pool is None:
             return np.array([self._local.sse(p, self.tests) for p in candidates])
         return np.array(list(self._pool.map(_worker_sse, candidates, chunksize=1)))
+
+    def residuals_batch(self, candidates: list[dict]) -> list[np.ndarray | None]:
+        """Residual vector [N] of each candidate (None for a failed simulation)."""
+        self.evaluations += len(candidates)
+        if self._pool is None:
+            return [self._local.residuals(p, self.tests) for p in candidates]
+        return list(self._pool.map(_worker_residuals, candidates, chunksize=1))
 
     def fitness_batch(self, candidates: list[dict]) -> np.ndarray:
         """Paper's fitness G = N / SSE [1/N^2] of each candidate (0 for a failed one)."""

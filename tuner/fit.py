@@ -31,6 +31,7 @@ from .data import RigTest, prepare
 from .engine import Engine, Signals
 from .metrics import compare_to_maxwell, error_metrics
 from .parametrization import Parametrization
+from .polish import polish
 
 __all__ = ["FitSettings", "fit", "initial_guess", "to_signals"]
 
@@ -54,6 +55,7 @@ class FitSettings:
     force_limit_n: float | None = None
     spring_reference_n_per_m: float = FK_REFERENCE_STIFFNESS
     stop_tol: float | None = 1e-3
+    polish_jacobians: int = 15
     extra: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
@@ -73,12 +75,16 @@ def to_signals(p, warmup_s: float) -> Signals:
 def initial_guess(model: str, tests: list[Signals], par: Parametrization) -> dict:
     """Data-driven starting individual: quasi-static force-velocity table and a Maxwell fit.
 
-    Fc,O ordinates: median measured force among samples whose stroke velocity lies within
-    +-15 % of each abscissa (monotone envelope; abscissae without samples extrapolated with the
-    outermost slope). Maxwell: least-squares dashpot c from F ~ c v. Other parameters: preset.
+    Fc,O ordinates: median measured force among quasi-static samples whose stroke velocity lies
+    within +-15 % of each abscissa (monotone envelope; abscissae without samples extrapolated
+    with the outermost slope). Quasi-static: the series spring's deflection rate |dF/dt| / k_ref
+    is below 20 % of |v|, so the dashpot moves with the stroke. Maxwell: least-squares dashpot c
+    from F ~ c v. Other parameters: preset.
     """
     v = np.concatenate([s.stroke_velocity[s.mask] for s in tests])
     f = np.concatenate([s.force[s.mask] for s in tests])
+    dfdt = np.concatenate([np.gradient(s.force, s.time)[s.mask] for s in tests])
+    quasi_static = np.abs(dfdt) / par.spring_reference < 0.2 * np.abs(v)
     guess = defaults(model)
     if model == "maxwell":
         c = float(np.dot(v, f) / max(np.dot(v, v), 1e-30))
@@ -93,7 +99,7 @@ def initial_guess(model: str, tests: list[Signals], par: Parametrization) -> dic
                        if np.sign(guess[n.replace("Fc_", "Fc_v")]) == side_sign])
         prev_v, prev_f, slope = 0.0, 0.0, None
         for vx, n in side:
-            sel = np.abs(side_sign * v - vx) <= 0.15 * vx
+            sel = (np.abs(side_sign * v - vx) <= 0.15 * vx) & quasi_static
             if sel.sum() >= 5:
                 fx = max(abs(float(np.median(f[sel]))), prev_f)
                 slope = (fx - prev_f) / (vx - prev_v)
@@ -108,7 +114,9 @@ def initial_guess(model: str, tests: list[Signals], par: Parametrization) -> dic
 
 
 def _settings_hash(settings: FitSettings, data_digest: str, model: str) -> str:
-    keep = {k: v for k, v in settings.to_dict().items() if k not in ("workers", "extra")}
+    # options that may change when a run is resumed: budget, stopping rule, refinement, workers
+    free = ("workers", "extra", "iterations", "stop_tol", "polish_jacobians")
+    keep = {k: v for k, v in settings.to_dict().items() if k not in free}
     return hashlib.sha256(json.dumps([keep, data_digest, model], sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
@@ -135,7 +143,7 @@ def _identify(model: str, signals: list[Signals], settings: FitSettings, par: Pa
         state = firefly.FireflyState.from_dict(saved["state"])
         log(f"[{model}] resuming from iteration {state.iteration} ({state.evaluations} evaluations)")
     initial = None
-    if settings.init == "seeded":
+    if settings.init == "seeded" and state is None:
         initial = np.array([par.from_params(initial_guess(model, signals, par)),
                             par.from_params(defaults(model))])
     engine_path = None
@@ -173,8 +181,14 @@ def _identify(model: str, signals: list[Signals], settings: FitSettings, par: Pa
             first_population["pop"] = np.array(json.loads(ckpt.read_text()).get("initial_population"))
         result = firefly.run(evaluate, par.dimension, options=opts, seed=settings.seed, state=state,
                              callback=callback, initial=initial)
+        z_best, g_best, polish_evals, polish_hist = result.x_best, result.fitness_best, 0, []
+        if settings.polish_jacobians > 0:
+            log(f"[{model}] local refinement (least squares, up to {settings.polish_jacobians} Jacobians "
+                f"of {par.dimension + 1} parallel simulations)")
+            z_best, g_best, polish_evals, polish_hist = polish(eng, par, result.x_best,
+                                                              max_jacobians=settings.polish_jacobians, log=log)
     elapsed = time.perf_counter() - t_start
-    best = par.to_params(result.x_best)
+    best = par.to_params(z_best)
     st = result.state
     history = {
         "mean_fitness": list(map(float, st.history_mean)),
@@ -185,13 +199,18 @@ def _identify(model: str, signals: list[Signals], settings: FitSettings, par: Pa
         "final_population": [par.to_params(z) for z in st.population],
         "stop_reason": result.stop_reason,
         "iterations": int(result.iterations),
-        "evaluation_count": int(result.evaluations),
+        "firefly_evaluations": int(result.evaluations),
+        "firefly_best_fitness": float(result.fitness_best),
+        "polish_fitness": list(map(float, polish_hist)),
+        "polish_evaluations": int(polish_evals),
+        "evaluation_count": int(result.evaluations + polish_evals),
+        "best_fitness_final": float(g_best),
         "elapsed_s": elapsed,
         "parametrization": par.describe(),
     }
-    log(f"[{model}] done: {result.stop_reason} after {result.iterations} iterations, "
-        f"{result.evaluations} evaluations, {elapsed:.0f} s; identification RMSE "
-        f"{1 / math.sqrt(result.fitness_best):.1f} N")
+    log(f"[{model}] done: Firefly {result.stop_reason} after {result.iterations} iterations "
+        f"(RMSE {1 / math.sqrt(result.fitness_best):.1f} N), {result.evaluations + polish_evals} evaluations, "
+        f"{elapsed:.0f} s; identification RMSE {1 / math.sqrt(g_best):.1f} N")
     return best, history
 
 

@@ -10,10 +10,13 @@ Two schemes:
   tables (a dashpot whose force falls with speed, an elastic element that softens to negative
   stiffness), which are unphysical and make the model's implicit solve ill-posed.
 * ``improved`` (default): the same bounds, but parameters flagged ``log_scale`` are searched in
-  log space, and the tables are monotone by construction. Fc,O: on each side, going outward from
-  zero, F_k = F_{k-1} + z_k (F_max - F_{k-1}) (every monotone table within the limit has one
-  representation). Fk,O: each piece's stiffness s_k is searched log-uniformly within 0.2-3 times
-  the reference spring, and F_k = F_{k-1} + s_k (x_k - x_{k-1}) outward from zero.
+  log space, and the tables are monotone by construction, parametrised by the slope of each
+  piece, going outward from zero on each side: F_k = F_{k-1} + s_k (x_k - x_{k-1}).
+  Fc,O: damping slopes s_k log-uniform in [1e-3, 1] x F_max / |v_1| (v_1: the abscissa nearest
+  to zero; the upper end reaches the limit within the first piece), ordinates capped at F_max.
+  Fk,O: stiffnesses s_k log-uniform within 0.2-3 times the reference spring.
+  Random tables are then diverse shapes (blow-off knees anywhere) rather than tables that hit the
+  limit within two pieces, which is what independent fractions of the headroom produce.
 
 The force limit F_max [N] and the reference spring k_ref [N/m] come from the caller (the tuner
 derives F_max from the measured forces; the paper used 3e4 N and 1.5e7 N/m for its yaw damper).
@@ -91,17 +94,13 @@ class Parametrization:
             else:
                 out[n] = lo + zi[n] * (hi - lo)
         if self.scheme == "improved":
-            for side in self._sides("Fc", "v"):
-                f = 0.0
-                for _, n in side:
-                    f = f + zi[n] * (self.force_limit - f)
-                    out[n] = f if self.bounds[n][1] > 0 else -f
-            for side in self._sides("Fk", "x"):
-                f, x0 = 0.0, 0.0
-                lo, hi = math.log(_K_LOW * self.spring_reference), math.log(_K_HIGH * self.spring_reference)
-                for x, n in side:
-                    f += math.exp(lo + zi[n] * (hi - lo)) * (x - x0)
-                    out[n], x0 = f, x
+            for prefix, axis, (lo, hi), cap in (("Fc", "v", self._fc_slopes(), self.force_limit),
+                                                ("Fk", "x", self._fk_slopes(), math.inf)):
+                for side in self._sides(prefix, axis):
+                    f, x0 = 0.0, 0.0
+                    for x, n in side:
+                        f = min(f + math.exp(lo + zi[n] * (hi - lo)) * abs(x - x0), cap)
+                        out[n], x0 = math.copysign(f, x), x
         return out
 
     def from_params(self, params: dict) -> np.ndarray:
@@ -119,31 +118,37 @@ class Parametrization:
             else:
                 z[n] = (p[n] - lo) / (hi - lo)
         if self.scheme == "improved":
-            for side in self._sides("Fc", "v"):
-                f = 0.0
-                for _, n in side:
-                    target = min(max(abs(p[n]), f), self.force_limit)
-                    room = self.force_limit - f
-                    z[n] = (target - f) / room if room > 0 else 0.0
-                    f = f + z[n] * room
-            lo, hi = math.log(_K_LOW * self.spring_reference), math.log(_K_HIGH * self.spring_reference)
-            for side in self._sides("Fk", "x"):
-                f, x0 = 0.0, 0.0
-                for x, n in side:
-                    s = (p[n] - f) / (x - x0)
-                    s = min(max(s, math.exp(lo)), math.exp(hi))
-                    z[n] = (math.log(s) - lo) / (hi - lo)
-                    f += s * (x - x0)
-                    x0 = x
+            for prefix, axis, (lo, hi), cap in (("Fc", "v", self._fc_slopes(), self.force_limit),
+                                                ("Fk", "x", self._fk_slopes(), math.inf)):
+                for side in self._sides(prefix, axis):
+                    f, x0 = 0.0, 0.0
+                    for x, n in side:
+                        slope = (min(abs(p[n]), cap) - f) / abs(x - x0)
+                        slope = min(max(slope, math.exp(lo)), math.exp(hi))
+                        z[n] = (math.log(slope) - lo) / (hi - lo)
+                        f, x0 = min(f + slope * abs(x - x0), cap), x
         return np.clip(np.array([z[n] for n in self.names]), 0.0, 1.0)
+
+    def _fc_slopes(self) -> tuple[float, float]:
+        """log bounds of the Fc,O piece slopes [N s/m] (improved scheme)."""
+        v1 = min(abs(self.fixed[n.replace("Fc_", "Fc_v")]) for n in self.names if n.startswith("Fc_")) \
+            if any(n.startswith("Fc_") for n in self.names) else 1.0
+        top = self.force_limit / v1
+        return math.log(1e-3 * top), math.log(top)
+
+    def _fk_slopes(self) -> tuple[float, float]:
+        """log bounds of the Fk,O piece stiffnesses [N/m] (improved scheme)."""
+        return math.log(_K_LOW * self.spring_reference), math.log(_K_HIGH * self.spring_reference)
 
     def describe(self) -> str:
         if self.scheme == "paper":
             return ("paper: every parameter scaled linearly between its bounds "
                     f"(Fc,O limit {self.force_limit:.3g} N, Fk,O around {self.spring_reference:.3g} N/m)")
-        return ("improved: log-scaled stiffness/damping, monotone Fc,O (outward fractions of the "
-                f"remaining headroom to {self.force_limit:.3g} N) and monotone Fk,O (piece stiffness "
-                f"log-uniform in {_K_LOW:g}-{_K_HIGH:g} x {self.spring_reference:.3g} N/m)")
+        lo, hi = self._fc_slopes() if any(n.startswith("Fc_") for n in self.names) else (0.0, 0.0)
+        return ("improved: log-scaled stiffness/damping; monotone tables parametrised by piece slopes: "
+                f"Fc,O slopes log-uniform in {math.exp(lo):.3g}-{math.exp(hi):.3g} N s/m, capped at "
+                f"{self.force_limit:.3g} N; Fk,O stiffnesses log-uniform in {_K_LOW:g}-{_K_HIGH:g} x "
+                f"{self.spring_reference:.3g} N/m")
 
 
 def preset(model: str) -> dict[str, float]:

@@ -1,0 +1,274 @@
+"""Tests of tuner.report on a small synthetic fit output folder (no fit is run).
+
+The folder is fake but consistent: metrics are computed from the stored arrays with
+tuner.metrics, Table 3 from those metrics, populations lie within the bounds.
+"""
+import json
+import math
+import re
+import struct
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from damper_fmu.parameters import MODEL_PARAMETERS, defaults
+from tuner.metrics import error_metrics, variation_percent
+from tuner.report import bound_position, eng, make_report
+
+RATE = 100.0      # [Hz]
+N = 500           # samples per test
+WARMUP = 0.5      # [s]
+K_LIN = 1.5e7     # [N/m] slope of the synthetic (exactly linear, odd) Fk,O table
+TESTS = {"val_curve": ("validation", "86 km/h, R 500 m"), "val_straight": ("validation", "250 km/h straight"),
+         "id_switch": ("identification", "43 km/h switch")}
+MODELS = ("lumped", "maxwell", "maxwell_table")
+
+
+def _lumped_values():
+    """Preset with M_C at its upper bound, Fk,O = K_LIN x exactly and an odd Fc,O."""
+    v = defaults("lumped")
+    v["M_C"] = 20.0
+    for i in range(1, 11):
+        v[f"Fk_{i:02d}"] = K_LIN * v[f"Fk_x{i:02d}"]
+    for i in range(1, 8):             # Fc_v01..07 are -(Fc_v14..08): mirror the positive side
+        v[f"Fc_{i:02d}"] = -v[f"Fc_{15 - i:02d}"]
+    return v
+
+
+def _bounds(model):
+    return {p.name: [p.low, p.high] for p in MODEL_PARAMETERS[model] if p.tunable}
+
+
+def _population(model, rng, spread):
+    """Individuals in the bounds: uniform (spread None) or around the preset (relative spread)."""
+    pop = []
+    for _ in range(6):
+        ind = defaults(model)
+        for p in MODEL_PARAMETERS[model]:
+            if not p.tunable:
+                continue
+            if spread is None:
+                ind[p.name] = (10 ** rng.uniform(math.log10(p.low), math.log10(p.high)) if p.log_scale
+                               else rng.uniform(p.low, p.high))
+            else:
+                ind[p.name] = min(max(p.default * (1 + spread * rng.standard_normal()), p.low), p.high)
+        pop.append(ind)
+    return pop
+
+
+def _write_folder(path, *, lumped_error=(150.0, 150.0, 150.0), models=MODELS, histories=True, npz=True):
+    """Synthetic fit output. lumped_error: noise std [N] of the lumped model per test."""
+    rng = np.random.default_rng(42)
+    path.mkdir(parents=True, exist_ok=True)
+    params = {}
+    for m in models:
+        vals = _lumped_values() if m == "lumped" else defaults(m)
+        params[m] = {"values": vals, "units": {p.name: p.unit for p in MODEL_PARAMETERS[m]},
+                     "bounds": _bounds(m), "parametrization": "improved"}
+    (path / "parameters.json").write_text(json.dumps(params))
+    arrays, tests = {}, {}
+    t = np.arange(N) / RATE
+    keep = t >= WARMUP
+    for j, (name, (role, scen)) in enumerate(TESTS.items()):
+        x = 2e-3 * np.sin(2 * np.pi * 1.3 * t + j) + 5e-4 * np.sin(2 * np.pi * 4.1 * t)
+        v = np.gradient(x, t)
+        force = 1.8e4 * np.tanh(v / 0.02) + 2e6 * x + 50 * rng.standard_normal(N)
+        sims = {"lumped": force + lumped_error[j] * rng.standard_normal(N),
+                "maxwell": 0.8 * force + 600 * rng.standard_normal(N),
+                "maxwell_table": 0.95 * force + 300 * rng.standard_normal(N)}
+        arrays.update({f"{name}__time": t, f"{name}__stroke": x, f"{name}__force": force})
+        tests[name] = {"role": role, "scenario": scen, "models": {}}
+        for m in models:
+            arrays[f"{name}__{m}"] = sims[m]
+            tests[name]["models"][m] = error_metrics(force[keep], sims[m][keep]).to_dict()
+    table3 = {}
+    for name, (role, _) in TESTS.items():
+        if role == "validation":
+            mx, lp = tests[name]["models"]["maxwell"], tests[name]["models"]["lumped"]
+            table3[name] = {"mse_maxwell": mx["mse"], "mse_lumped": lp["mse"],
+                            "mse_variation_pct": variation_percent(lp["mse"], mx["mse"]),
+                            "ame_maxwell": mx["ame"], "ame_lumped": lp["ame"],
+                            "ame_variation_pct": variation_percent(lp["ame"], mx["ame"])}
+    settings = {"dataset": "synthetic-unit-test", "fit_rate_hz": RATE, "warmup_s": WARMUP, "population": 6,
+                "iterations": 12, "seed": 1, "workers": 1, "engine": "python",
+                "elapsed_s": {m: 1.5 for m in models}, "evaluations": {m: 78 for m in models},
+                "preprocessing": ["Savitzky-Golay differentiator, window 11 samples " * 3]}
+    metrics = {"settings": settings, "tests": tests, "table3": table3}
+    (path / "metrics.json").write_text(json.dumps(metrics))
+    if npz:
+        np.savez_compressed(path / "simulations.npz", **arrays)
+    if histories:
+        for m in models:
+            mean = (1e-7 * 1.3 ** np.arange(13)).tolist()
+            hist = {"mean_fitness": mean, "best_fitness": np.maximum.accumulate(np.array(mean) * 1.5).tolist(),
+                    "evaluations": (6 * np.arange(1, 14)).tolist(),
+                    "initial_population": _population(m, rng, None),
+                    "final_population": _population(m, rng, 0.01), "stop_reason": "max_iterations"}
+            (path / f"history_{m}.json").write_text(json.dumps(hist))
+    return metrics
+
+
+def _images(html_text, out):
+    srcs = re.findall(r'<img src="([^"]+)"', html_text)
+    for s in srcs:
+        p = out / s
+        assert p.is_file(), s
+        data = p.read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n", s
+        w, h = struct.unpack(">II", data[16:24])
+        assert w > 200 and h > 200, s
+        img = imread(p)               # decodes the whole file
+        assert img.shape[:2] == (h, w)
+    return srcs
+
+
+def _spans(html_text, cls):
+    """{test: (value, text)} of the summary spans with class ``cls``."""
+    out = {}
+    for item in re.findall(r'<li data-test="([^"]+)">(.*?)</li>', html_text, re.S):
+        m = re.search(rf'class="{cls}"><span class="num" data-value="([^"]+)">([^<]+)</span>', item[1])
+        out[item[0]] = (float(m.group(1)), m.group(2))
+    return out
+
+
+@pytest.fixture(scope="module")
+def full_report(tmp_path_factory):
+    out = tmp_path_factory.mktemp("fit_full")
+    metrics = _write_folder(out)
+    path = make_report(out, dpi=60)
+    return out, path.read_text(encoding="utf-8"), metrics
+
+
+def test_report_names_every_test_and_model_and_figures_are_png(full_report):
+    out, text, _ = full_report
+    assert (out / "report.html").is_file()
+    for name in TESTS:
+        assert name in text
+    for m in MODELS:
+        assert f"<code>{m}</code>" in text
+    srcs = _images(text, out)
+    names = {s.split("/")[-1] for s in srcs}
+    # Figs 6, 7, 8, 11; forces of the 3 tests; loops of the 2 validation tests.
+    assert {"fig06_fitness.png", "fig07_constants.png", "fig08_tables.png", "fig11_polyfit.png",
+            "fig09_10_val_curve.png", "fig09_10_val_straight.png", "fit_id_switch.png",
+            "loops_val_curve.png", "loops_val_straight.png"} <= names
+    assert "skipped" not in text.lower()
+
+
+def test_summary_numbers_equal_metrics_json(full_report):
+    _, text, metrics = full_report
+    summary = text.split('id="summary"')[1].split("</section>")[0]
+    mse = _spans(summary, "mse-var")
+    ame = _spans(summary, "ame-pct")
+    assert set(mse) == set(ame) == {n for n, (r, _) in TESTS.items() if r == "validation"}
+    for name in mse:
+        expected = metrics["table3"][name]["mse_variation_pct"]
+        assert mse[name][0] == expected
+        assert mse[name][1] == f"{expected:.1f} %"
+        lp = metrics["tests"][name]["models"]["lumped"]
+        pct = 100 * lp["ame"] / lp["peak_measured"]
+        assert ame[name][0] == pytest.approx(pct, rel=1e-12)
+        assert ame[name][1] == f"{pct:.1f} %"
+    # Lumped error 150 N against Maxwell's 20 % gain error: lumped better everywhere, AME ~1 % of peak.
+    assert "use it in place of the linear Maxwell element" in summary
+
+
+def test_identification_tests_marked_and_bound_flags(full_report):
+    _, text, _ = full_report
+    assert "identification (fit data)" in text
+    flags = dict(re.findall(r'<span class="flag" data-param="([^"]+)">([^<]*)</span>', text))
+    assert flags["M_C"] == "AT UPPER BOUND"          # set to exactly 20 kg, the upper bound
+    assert flags["M_O"] == ""                         # 16.5 kg within [1, 20] kg
+    assert flags["k_B"] == ""                         # 4.08e8 N/m: 94 % of the log range
+    assert flags["k_s"] == ""
+
+
+def test_polynomial_fit_of_odd_linear_tables(full_report):
+    """Fk,O = K_LIN x exactly: c1 = K_LIN, asymmetry 0; the mirrored Fc,O is odd too."""
+    _, text, _ = full_report
+    poly = text.split("id='poly'")[1].split("</section>")[0]
+    asym = [float(v) for v in re.findall(r'<span class="num" data-value="([^"]+)">', poly)]
+    assert len(asym) == 2 and all(abs(a) < 1e-9 for a in asym)
+    fk = poly.split("<h3>Fk,O</h3>")[1].split("<h3>")[0]
+    c1 = re.search(r"<td>c<sub>1</sub></td><td>([^<]+)</td>", fk).group(1)
+    assert float(c1) == pytest.approx(K_LIN, rel=1e-4)
+
+
+def test_missing_optional_model_and_histories(tmp_path):
+    out = tmp_path / "fit"
+    _write_folder(out, models=("lumped", "maxwell"), histories=False)
+    text = make_report(out, dpi=50).read_text(encoding="utf-8")
+    assert "maxwell_table" not in text
+    for name in TESTS:
+        assert name in text
+    srcs = _images(text, out)
+    assert not any(s.split("/")[-1].startswith(("fig06", "fig07", "fig08")) for s in srcs)
+    assert text.count("Figure skipped") >= 3
+    assert "history_lumped.json not found" in text
+    assert any(s.endswith("fig11_polyfit.png") for s in srcs)   # needs parameters only
+
+
+def test_verdict_when_lumped_is_worse_and_no_simulations(tmp_path):
+    out = tmp_path / "fit"
+    metrics = _write_folder(out, lumped_error=(150.0, 3000.0, 150.0), models=("lumped", "maxwell"),
+                            histories=False, npz=False)
+    assert metrics["table3"]["val_straight"]["mse_variation_pct"] > 0
+    text = make_report(out, dpi=50).read_text(encoding="utf-8")
+    assert "does not beat the Maxwell model on val_straight" in text
+    assert "simulations.npz not found" in text
+    _images(text, out)
+
+
+def test_bad_folders_raise_value_error(tmp_path):
+    with pytest.raises(ValueError, match="does not exist"):
+        make_report(tmp_path / "nothing")
+    out = tmp_path / "fit"
+    _write_folder(out, models=("lumped", "maxwell"), histories=False)
+    (out / "metrics.json").unlink()
+    with pytest.raises(ValueError, match="metrics.json"):
+        make_report(out)
+    _write_folder(out, models=("lumped", "maxwell"), histories=False)
+    with np.load(out / "simulations.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["val_curve__lumped"] = arrays["val_curve__lumped"][:-1]
+    np.savez(out / "simulations.npz", **arrays)
+    with pytest.raises(ValueError, match="val_curve__lumped"):
+        make_report(out)
+
+
+def test_engineering_format():
+    assert eng(0.00125, "m") == "1.25 mm"
+    assert eng(18e3, "N") == "18.0 kN"
+    assert eng(346.4, "N") == "346 N"
+    assert eng(999.7, "N") == "1.00 kN"          # rounding carries into the next prefix
+    assert eng(4.08e8, "N/m") == "408 MN/m"
+    assert eng(4.17e6, "N.s/m") == "4.17 MN·s/m"
+    assert eng(-0.0025, "m/s") == "-2.50 mm/s"
+    assert eng(5.88e6, "N^2") == "5.88×10⁶ N²"
+    assert eng(2.18e5, "N^2") == "218×10³ N²"
+    assert eng(15.8, "kg") == "15.8 kg"
+    assert eng(-96.34, "%") == "-96.3 %"
+    assert eng(0.98765, "-", 4) == "0.9877"
+    assert eng(float("nan"), "N") == "n/a"
+    assert eng(0.0, "N") == "0 N"
+
+
+def test_bound_position():
+    assert bound_position(1e5, 1e2, 1e8, log=True) == pytest.approx(0.5)
+    assert bound_position(15.0, 10.0, 20.0) == pytest.approx(0.5)
+    assert bound_position(-3e4, -3e4, 0.0) == 0.0
+
+
+def test_loop_velocity_exact_for_cubic_stroke():
+    """The Savitzky-Golay cubic derivative is exact for a cubic stroke (interior samples);
+    the end samples use second-order differences, exact for a quadratic."""
+    from tuner.report import _velocity
+
+    t = np.arange(400) / 200.0
+    x = 1e-3 * (0.5 - 2.0 * t + 1.5 * t ** 2 - 0.7 * t ** 3)
+    v = _velocity(t, x)
+    exact = 1e-3 * (-2.0 + 3.0 * t - 2.1 * t ** 2)
+    assert np.max(np.abs(v[5:-5] - exact[5:-5])) < 1e-12
+    quad = 1e-3 * (0.5 - 2.0 * t + 1.5 * t ** 2)
+    assert np.max(np.abs(_velocity(t, quad) - 1e-3 * (-2.0 + 3.0 * t))) < 1e-12
