@@ -34,7 +34,10 @@ def plot_dataset(folder, filename: str = "overview.png") -> Path:
     axes[-1][0].set_xlabel("time [s]")
     axes[-1][1].set_xlabel("time [s]")
     axes[-1][2].set_xlabel("stroke velocity [mm/s]")
-    fig.suptitle(f"Dataset {Path(folder).name}: strokes (extension +) and forces (tension +)", fontsize=10)
+    from tuner.data import read_manifest
+
+    title = read_manifest(folder).get("description", "dataset")
+    fig.suptitle(f"{title}\nstrokes (extension +) and forces (tension +)", fontsize=9)
     fig.tight_layout()
     out = Path(folder) / filename
     fig.savefig(out, dpi=90, metadata={"Software": None})

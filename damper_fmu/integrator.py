@@ -21,6 +21,7 @@ import math
 
 import numpy as np
 
+from .effects import Effects
 from .models import make_model
 
 __all__ = ["EXTRAPOLATE", "REPLAY", "GAMMA", "DEFAULT_MAX_STEP", "Simulator", "simulate"]
@@ -47,6 +48,18 @@ class Simulator:
         self.y: list[float] = []
         self.x1 = self.v1 = 0.0
         self.force = 0.0
+        #: effect elements (lumped model only); None or inactive: the base model alone
+        self.effects = Effects(model.params, model) if model.kind == "lumped" else None
+        #: measured oil temperature [degC] for the thermal drift element (None: internal balance)
+        self.temperature_input: float | None = None
+
+    def set_model(self, model) -> None:
+        """Replace the model (new parameter values) keeping the state, effect states included."""
+        old = self.effects
+        self.model = model
+        self.effects = Effects(model.params, model) if model.kind == "lumped" else None
+        if old is not None and old.active and self.effects is not None and self.effects.active:
+            self.effects.set_state(old.get_state())
 
     def initialize(self, x1: float, v1: float) -> float:
         """Start in the model's force-free state at stroke x1 [m], velocity v1 [m/s]."""
@@ -54,6 +67,10 @@ class Simulator:
         self.y = self.model.initial_state(x1, v1)
         self.x1, self.v1 = x1, v1
         self.force = self.model.force(self.y, x1, v1)
+        e = self.effects
+        if e is not None and e.active:
+            e.initialize(x1, self.force)
+            self.force += e.f0 + (e.ff * math.tanh(v1 / e.v_eps) if e.ff else 0.0)
         return self.force
 
     def step(self, h: float, x1: float, v1: float) -> float:
@@ -66,6 +83,8 @@ class Simulator:
             xa, va, xe, ve = x1, v1, x1 + v1 * h, v1
         else:
             xa, va, xe, ve = self.x1, self.v1, x1, v1
+        if self.effects is not None and self.effects.active:
+            return self._step_with_effects(h, xa, va, xe, ve)
         stage = self.model.stage
         y = self.y
         if h <= self.max_step:  # the usual case: one sub-step
@@ -87,16 +106,45 @@ class Simulator:
             raise FloatingPointError("damper force became non-finite")
         return f
 
+    def _step_with_effects(self, h: float, xa: float, va: float, xe: float, ve: float) -> float:
+        """Step with the effect elements of ``damper_fmu.effects`` (same SDIRK2 scheme)."""
+        e, model = self.effects, self.model
+        model.damping_scale = e.damping_scale()
+        stage, play = model.stage, e.play
+        y = self.y
+        n = max(1, math.ceil(h / self.max_step - 1e-9))
+        g = GAMMA * h / n
+        dx, dv = (xe - xa) / n, (ve - va) / n
+        xs = vs = 0.0
+        for k in range(n):
+            x0, u0 = xa + k * dx, va + k * dv
+            y1 = stage(y, g, *play(x0 + GAMMA * dx, u0 + GAMMA * dv))
+            xs, vs = play(x0 + dx, u0 + dv)
+            y = stage([a + _C21 * (b - a) for a, b in zip(y, y1)], g, xs, vs)
+        self.y = y
+        self.x1, self.v1 = xe, ve
+        f = e.output(model.force(y, xs, vs), h, vs, (ve - va) / h,
+                     model.valve_gain(vs) if e.tau else 0.0, self.temperature_input)
+        if not math.isfinite(f):
+            raise FloatingPointError("damper force became non-finite")
+        self.force = f
+        return f
+
     def get_state(self) -> list[float]:
-        """Complete integrator state (model state, last inputs, force) as a flat float list."""
-        return [*self.y, self.x1, self.v1, self.force]
+        """Complete integrator state (model state, last inputs, force, effect states) as floats."""
+        extra = self.effects.get_state() if self.effects is not None and self.effects.active else []
+        return [*self.y, self.x1, self.v1, self.force, *extra]
 
     def set_state(self, state) -> None:
         n = self.model.n_state
-        if len(state) != n + 3:
-            raise ValueError(f"state of length {len(state)}, expected {n + 3}")
+        extra = len(state) - (n + 3)
+        active = self.effects is not None and self.effects.active
+        if extra < 0 or (extra > 0) != active:
+            raise ValueError(f"state of length {len(state)} does not fit this model and its effects")
         self.y = [float(v) for v in state[:n]]
-        self.x1, self.v1, self.force = (float(v) for v in state[n:])
+        self.x1, self.v1, self.force = (float(v) for v in state[n:n + 3])
+        if active:
+            self.effects.set_state(state[n + 3:])
 
 
 def _check_input(x1: float, v1: float) -> None:

@@ -58,6 +58,8 @@ class LumpedModel:
         self.fk = _table(p, "Fk", "x")
         self.fc = _table(p, "Fc", "v")
         self._consts: tuple | None = None
+        #: factor on the damping characteristic Fc,O (thermal drift effect; 1 = base model)
+        self.damping_scale = 1.0
 
     def initial_state(self, x1: float, v1: float) -> list[float]:
         """Force-free state at stroke x1 [m]: all elements unloaded, the dashpot carries the offset.
@@ -71,11 +73,16 @@ class LumpedModel:
         return self.kB * (x1 - y[0]) + self.cB * (v1 - y[3])
 
     def _stage_constants(self, g: float) -> tuple:
-        """Constants of the stage equations for the stage coefficient g [s] (cached: g rarely changes)."""
+        """Constants of the stage equations for the stage coefficient g [s] and the current
+        damping scale (cached: both rarely change)."""
         mP, mO, mC = self.mP / g, self.mO / g, self.mC / g
         kBg = self.kB * g
+        ds = self.damping_scale
+        fi, fs = self.fc.intercept, self.fc.slope
+        if ds != 1.0:
+            fi, fs = [ds * a for a in fi], [ds * b for b in fs]
         c = (g, mP, mO, mC, mP + kBg + self.cB, mC + kBg + self.cB, self.kB, self.cB,
-             self.fc.breaks, self.fc.intercept, self.fc.slope, self.fk.breaks, self.fk.intercept, self.fk.slope)
+             self.fc.breaks, fi, fs, self.fk.breaks, self.fk.intercept, self.fk.slope, ds)
         self._consts = c
         return c
 
@@ -88,9 +95,9 @@ class LumpedModel:
         """
         x2b, x3b, x4b, v2b, v3b, v4b = yb
         c = self._consts
-        if c is None or c[0] != g:
+        if c is None or c[0] != g or c[14] != self.damping_scale:
             c = self._stage_constants(g)
-        _, mP, mO, mC, d2, d4, kB, cB, bc, ia, sa, bk, ka, ks = c
+        _, mP, mO, mC, d2, d4, kB, cB, bc, ia, sa, bk, ka, ks, _ = c
         dxb = x3b - x4b
         # Constant parts of the right-hand sides.
         r2 = mP * v2b + kB * (x1 - x2b) + cB * v1
@@ -129,8 +136,10 @@ class LumpedModel:
         ``_potential`` (for monotone tables), so Newton steps with backtracking on it converge.
         """
         x2b, x3b, x4b, v2b, v3b, v4b = yb
-        c = self._consts if self._consts is not None and self._consts[0] == g else self._stage_constants(g)
-        _, mP, mO, mC, d2, d4, kB, cB, bc, ia, sa, bk, ka, ks = c
+        c = self._consts
+        if c is None or c[0] != g or c[14] != self.damping_scale:
+            c = self._stage_constants(g)
+        _, mP, mO, mC, d2, d4, kB, cB, bc, ia, sa, bk, ka, ks, _ = c
         dxb = x3b - x4b
         v = [v2b, v3b, v4b]
         phi = self._potential(v, yb, g, x1, v1)
@@ -176,7 +185,16 @@ class LumpedModel:
         return (0.5 * (self.mP * (v2 - v2b) ** 2 + self.mO * (v3 - v3b) ** 2 + self.mC * (v4 - v4b) ** 2) / g
                 + 0.5 * kB / g * ((x1 - x2b - g * v2) ** 2 + (x4b + g * v4) ** 2)
                 + 0.5 * cB * ((v1 - v2) ** 2 + v4 * v4)
-                + self.fc.primitive(v2 - v3) + self.fk.primitive(e) / g)
+                + self.damping_scale * self.fc.primitive(v2 - v3) + self.fk.primitive(e) / g)
+
+    def valve_gain(self, u: float) -> float:
+        """c0 - Fc'(u) [N s/m]: the valve-closed resistance c0 (steepest slope of Fc,O on the side
+        of u) minus the local slope at the rate u [m/s] (valve lag effect: zero where the
+        characteristic is at its steepest, largest beyond the blow-off knee)."""
+        fc = self.fc
+        k0 = fc.segment(0.0)  # first piece with positive abscissae
+        side = fc.slope[k0:] if u >= 0.0 else fc.slope[:k0]
+        return self.damping_scale * (max(side) - fc.slope[fc.segment(u)])
 
     def diagnostics(self, y, x1: float, v1: float) -> dict[str, float]:
         """Internal elongations [m], rates [m/s] and element forces [N] (positive in tension)."""
@@ -186,7 +204,7 @@ class LumpedModel:
             "blockA_elongation": x1 - x2,
             "blockA_rate": v1 - v2,
             "damping_rate": u,
-            "damping_force": self.fc(u),
+            "damping_force": self.damping_scale * self.fc(u),
             "elastic_elongation": e,
             "elastic_force": self.fk(e),
             "blockB_elongation": x4,

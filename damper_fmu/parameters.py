@@ -18,6 +18,8 @@ from dataclasses import dataclass
 
 __all__ = [
     "Parameter",
+    "EFFECT_PARAMETERS",
+    "EFFECT_IDENTIFIED",
     "FK_ABSCISSAE",
     "FC_ABSCISSAE",
     "LUMPED_PARAMETERS",
@@ -34,8 +36,9 @@ __all__ = [
 class Parameter:
     """One model parameter.
 
-    ``tunable``: identified by the tuner (else a fixed setting such as a table abscissa).
+    ``tunable``: identified by the base fit (else a fixed setting such as a table abscissa).
     ``log_scale``: the bounds span decades; a tuner should search this parameter in log space.
+    ``effect``: name of the optional effect element the parameter belongs to (off at its default).
     """
 
     name: str
@@ -46,6 +49,7 @@ class Parameter:
     high: float
     tunable: bool = True
     log_scale: bool = False
+    effect: str | None = None
 
 
 # Table 2 of the paper: elongation abscissae [mm] and ordinates [kN] of Fk,O (zero point omitted).
@@ -95,6 +99,41 @@ def _table_parameters(prefix: str, abscissae, ordinates_kn, xunit: str, what: st
 _FK = _table_parameters("Fk", FK_ABSCISSAE, _FK_KN, "m", "Elastic force Fk,O", _fk_bounds)
 _FC = _table_parameters("Fc", FC_ABSCISSAE, _FC_KN, "m/s", "Damping force Fc,O", _fc_bounds)
 
+#: Optional effect elements of the lumped model (damper_fmu.effects); every one is off at its
+#: default, so the base model is unchanged. Bounds: what the tuner may identify (wider than the
+#: typical ranges of the design notes' catalogue).
+EFFECT_PARAMETERS: tuple[Parameter, ...] = (
+    Parameter("friction_force", "N", "Coulomb friction in parallel (seals, guides): Ff tanh(v / v_eps)",
+              0.0, 0.0, 2000.0, tunable=False, effect="friction"),
+    Parameter("friction_velocity", "m/s", "Velocity scale v_eps of the smoothed friction",
+              5e-4, 1e-5, 1e-2, tunable=False, effect="friction"),
+    Parameter("preload_force", "N", "Constant force offset (un-tared gas force, load-cell offset); tension +",
+              0.0, -2000.0, 2000.0, tunable=False, effect="preload"),
+    Parameter("free_play", "m", "Total clearance (dead band) in series at the actuator end",
+              0.0, 0.0, 3e-3, tunable=False, effect="free_play"),
+    Parameter("thermal_beta", "1/K", "Damping scaled by exp(-beta (T - T_ref)) with the oil temperature T",
+              0.0, 0.0, 0.05, tunable=False, effect="thermal_drift"),
+    Parameter("thermal_capacity", "J/K", "Heat capacity of the damper (internal thermal balance)",
+              4000.0, 100.0, 1e5, tunable=False, effect="thermal_drift"),
+    Parameter("thermal_conductance", "W/K", "Heat loss to ambient per kelvin (internal thermal balance)",
+              5.0, 0.1, 1000.0, tunable=False, effect="thermal_drift"),
+    Parameter("thermal_reference", "degC", "Reference (and ambient) temperature T_ref",
+              20.0, -40.0, 150.0, tunable=False, effect="thermal_drift"),
+    Parameter("valve_tau", "s", "Valve opening time constant: force lead beyond the blow-off knee",
+              0.0, 0.0, 0.05, tunable=False, effect="valve_lag"),
+    Parameter("time_delay", "s", "Pure delay of the force channel relative to the stroke channel",
+              0.0, 0.0, 0.05, tunable=False, effect="time_delay"),
+    Parameter("inertia_mass", "kg", "Equivalent inertia seen by the load cell: m_eq x1''",
+              0.0, 0.0, 500.0, tunable=False, effect="inertia"),
+)
+
+#: effect name -> its identified parameters (the others of the effect stay at their defaults)
+EFFECT_IDENTIFIED: dict[str, tuple[str, ...]] = {
+    "friction": ("friction_force",), "preload": ("preload_force",), "free_play": ("free_play",),
+    "thermal_drift": ("thermal_beta",), "valve_lag": ("valve_tau",), "time_delay": ("time_delay",),
+    "inertia": ("inertia_mass",),
+}
+
 LUMPED_PARAMETERS: tuple[Parameter, ...] = (
     Parameter("M_C", "kg", "Lumped mass C (cylinder side, next to silent block B)", 15.8, 1.0, 20.0),
     Parameter("M_O", "kg", "Lumped mass O (oil, between Fc,O and Fk,O)", 16.5, 1.0, 20.0),
@@ -105,6 +144,7 @@ LUMPED_PARAMETERS: tuple[Parameter, ...] = (
     *[p for p in _FC if p.tunable],
     *[p for p in _FK if not p.tunable],
     *[p for p in _FC if not p.tunable],
+    *EFFECT_PARAMETERS,
 )
 
 MAXWELL_PARAMETERS: tuple[Parameter, ...] = (
@@ -153,7 +193,10 @@ def check_values(model: str, values: dict[str, float], *, bounds: bool = False) 
         if not math.isfinite(v):
             raise ValueError(f"parameter {name} = {v} is not finite")
         p = spec[name]
-        if p.unit in ("kg", "N/m", "N.s/m") and v <= 0.0:
+        if p.effect is not None:
+            if not (p.low <= v <= p.high):
+                raise ValueError(f"effect parameter {name} = {v:g} {p.unit} outside [{p.low:g}, {p.high:g}]")
+        elif p.unit in ("kg", "N/m", "N.s/m") and v <= 0.0:
             raise ValueError(f"parameter {name} = {v} {p.unit} must be positive")
         if bounds and p.tunable and not (p.low <= v <= p.high):
             raise ValueError(f"parameter {name} = {v:g} {p.unit} outside its bounds [{p.low:g}, {p.high:g}]")

@@ -37,7 +37,8 @@ from damper_fmu.parameters import MODEL_PARAMETERS, check_values
 _UNITS = {
     "m": {"m": 1}, "m/s": {"m": 1, "s": -1}, "s": {"s": 1}, "kg": {"kg": 1},
     "N": {"kg": 1, "m": 1, "s": -2}, "N/m": {"kg": 1, "s": -2}, "N.s/m": {"kg": 1, "s": -1},
-    "K": {"K": 1},
+    "K": {"K": 1}, "1/K": {"K": -1}, "J/K": {"kg": 1, "m": 2, "s": -2, "K": -1},
+    "W/K": {"kg": 1, "m": 2, "s": -3, "K": -1}, "degC": {"K": 1, "offset": 273.15},
 }
 START_VALUES_FILE = "start_values.json"
 
@@ -99,6 +100,8 @@ class DamperSlave(Fmi2Slave):
             self.input_interpolation = int(settings.get("input_interpolation", self.input_interpolation))
         self.stroke = 0.0
         self.stroke_velocity = 0.0
+        self.oil_temperature = 20.0
+        self.thermal_source = 0
         self.force = 0.0
         self._dirty = True
         self._sim: Simulator | None = None
@@ -113,6 +116,12 @@ class DamperSlave(Fmi2Slave):
         self.register_variable(UnitReal("force", unit="N", causality=Fmi2Causality.output,
                                         variability=Fmi2Variability.continuous, initial=Fmi2Initial.exact,
                                         start=0.0, description="Damper force, positive in tension"))
+        if kind == "lumped":
+            self.register_variable(UnitReal(
+                "oil_temperature", unit="degC", causality=Fmi2Causality.input,
+                variability=Fmi2Variability.continuous,
+                description="Measured oil temperature; used by the thermal drift element when "
+                            "thermal_source = 1"))
         for name, (unit, text) in self.DIAGNOSTICS.items():
             self.register_variable(UnitReal(
                 name, unit=unit, causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
@@ -121,14 +130,21 @@ class DamperSlave(Fmi2Slave):
         for p in MODEL_PARAMETERS[kind]:
             self.register_variable(UnitReal(
                 p.name, unit=p.unit, causality=Fmi2Causality.parameter,
-                variability=Fmi2Variability.tunable if p.tunable else Fmi2Variability.fixed,
+                variability=Fmi2Variability.tunable if (p.tunable or p.effect) else Fmi2Variability.fixed,
                 description=(f"{p.description} [{p.unit}]; identification bounds [{p.low:g}, {p.high:g}]"
-                             if p.tunable else f"{p.description} [{p.unit}]"),
+                             if p.tunable else
+                             f"Effect '{p.effect}' (off at 0): {p.description} [{p.unit}], range "
+                             f"[{p.low:g}, {p.high:g}]" if p.effect else f"{p.description} [{p.unit}]"),
                 getter=(lambda n=p.name: self._p[n]), setter=(lambda v, n=p.name: self._set_param(n, v))))
         self.register_variable(UnitReal(
             "max_internal_step", unit="s", causality=Fmi2Causality.parameter,
             variability=Fmi2Variability.fixed,
             description="Largest internal integration step; communication steps are sub-stepped"))
+        if kind == "lumped":
+            self.register_variable(Integer(
+                "thermal_source", causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
+                description="Oil temperature of the thermal drift element: 0 internal thermal balance, "
+                            "1 the oil_temperature input"))
         self.register_variable(Integer(
             "input_interpolation", causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
             description=f"{EXTRAPOLATE}: inputs are start-of-step values, stroke extrapolated with the "
@@ -146,7 +162,7 @@ class DamperSlave(Fmi2Slave):
         if self._sim is None:
             self._sim = Simulator(model, self.max_internal_step, int(self.input_interpolation))
         else:
-            self._sim.model = model
+            self._sim.set_model(model)
         self._dirty = False
 
     def _diagnostic(self, name: str) -> float:
@@ -178,6 +194,8 @@ class DamperSlave(Fmi2Slave):
         try:
             if self._dirty:
                 self._rebuild()
+            if self.thermal_source:
+                self._sim.temperature_input = float(self.oil_temperature)
             self.force = self._sim.step(step_size, self.stroke, self.stroke_velocity)
         except (ValueError, ConvergenceError, FloatingPointError, ZeroDivisionError) as err:
             return self._fail(f"step at t = {current_time:g} s failed", err)

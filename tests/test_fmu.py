@@ -40,7 +40,7 @@ def test_every_parameter_is_an_fmu_variable_with_unit_and_preset_start(fmu_paths
     for p in MODEL_PARAMETERS[kind]:
         var = variables[p.name]
         assert var.causality == "parameter"
-        assert var.variability == ("tunable" if p.tunable else "fixed")
+        assert var.variability == ("tunable" if (p.tunable or p.effect) else "fixed")
         assert var.unit == p.unit and var.description
         assert float(var.start) == p.default
     assert variables["stroke"].causality == "input" and variables["stroke"].unit == "m"
@@ -188,3 +188,14 @@ def test_cosimulation_with_the_lumped_damper_dissipates_and_comes_to_rest(fmu_pa
     # the largest energy in each successive 0.25 s window decreases
     envelope = energy[: 3000].reshape(12, 250).max(axis=1)
     assert np.all(np.diff(envelope) < 0.0)
+
+
+@pytest.mark.parametrize("effect,value", [("friction_force", 150.0), ("free_play", 4e-4), ("time_delay", 4e-3),
+                                          ("thermal_beta", 0.02), ("valve_tau", 4e-3), ("inertia_mass", 80.0),
+                                          ("preload_force", -250.0)])
+def test_effect_elements_through_the_fmu_match_in_process_and_state_restores(runners, fmu_paths, effect, value):
+    t, x, v = stroke()
+    p = {effect: value}
+    f = runners["lumped"].run(t, x, v, params=p)
+    np.testing.assert_allclose(f, simulate("lumped", t, x, v, params=p), rtol=0, atol=1e-9)
+    assert np.abs(f - runners["lumped"].run(t, x, v)).max() > 10.0  # the effect acts

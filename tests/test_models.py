@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from damper_fmu import defaults, make_model, simulate
+from damper_fmu import defaults, make_model, simulate, tunable_names
 from damper_fmu.parameters import FC_ABSCISSAE, check_values
 from damper_fmu.tables import PwlTable
 
@@ -43,7 +43,9 @@ def test_preset_is_the_papers_table2():
     assert (p["M_O"], p["M_C"], p["M_P"], p["k_B"], p["c_B"]) == (16.5, 15.8, 17.3, 4.08e8, 4.17e6)
     assert p["Fc_14"] == 25e3 and p["Fc_v14"] == pytest.approx(0.1)
     assert p["Fk_10"] == 36e3 and p["Fk_x10"] == pytest.approx(2e-3)
-    assert len([k for k in p if not k.startswith(("Fk_x", "Fc_v"))]) == 29
+    assert len(tunable_names("lumped")) == 29
+    from damper_fmu.parameters import EFFECT_PARAMETERS
+    assert all(p[e.name] == 0.0 for e in EFFECT_PARAMETERS if e.name in ("friction_force", "preload_force", "free_play", "thermal_beta", "valve_tau", "time_delay", "inertia_mass"))  # effects off
 
 
 @pytest.mark.parametrize("v_amp", [0.0025, 0.004, 0.0075, 0.012, 0.03, 0.06, 0.1])

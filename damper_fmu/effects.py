@@ -1,0 +1,124 @@
+"""Optional effect elements around the lumped damper model (all off at their defaults).
+
+They extend the base model with the physics a real damper (or rig) shows and the base model
+lacks, for the diagnosis (design notes' catalogue). Sign convention: forces tension +, stroke
+extension +, SI units; temperatures in degC.
+
+* ``friction``: F += Ff tanh(v_eff / v_eps), in parallel (seals and guides; v_eff: the stroke
+  velocity the damper sees, after the free play).
+* ``preload``: F += F0 (un-tared reservoir gas force or load-cell offset; F0 < 0 for a gas force
+  pushing the rod out).
+* ``free_play``: dead band of total width g in series at the actuator end (backlash operator on
+  the stroke): while the actuator crosses the gap the damper sees no motion and the load cell
+  reads no damper force.
+* ``thermal_drift``: the damping characteristic is scaled by exp(-beta (T - T_ref)); T is the
+  measured oil temperature (input, ``thermal_source = 1``) or follows the thermal balance
+  C dT/dt = F v - G (T - T_ref) (``thermal_source = 0``).
+* ``valve_lag``: the valve opening lags the flow by tau; with the opening frozen, extra flow meets
+  the valve-closed resistance c0 (the steepest slope of Fc,O) instead of the local slope Fc'(v):
+  to first order
+  F += tau (c0 - Fc'(v)) a, with the stroke velocity v and acceleration a the damper sees (the
+  damping element's own rate moves much faster than the stroke beyond the knee, where its
+  derivative would amplify every internal transient). Zero below the blow-off knee, a force lead
+  beyond it (a late-opening valve overshoots).
+* ``time_delay``: the force channel is delayed by d relative to the stroke: F_out(t) = F(t - d)
+  (a DAQ skew, not damper physics: keep it out of a co-simulation model).
+* ``inertia``: F += m_eq x1'' (fluid and rod inertia seen by the load cell).
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+
+__all__ = ["Effects"]
+
+
+class Effects:
+    """Effect elements of one simulation run; ``active`` is False when all are off."""
+
+    def __init__(self, params: dict, model):
+        p = params
+        self.ff, self.v_eps = p.get("friction_force", 0.0), p.get("friction_velocity", 5e-4)
+        self.f0 = p.get("preload_force", 0.0)
+        self.gap = p.get("free_play", 0.0)
+        self.beta = p.get("thermal_beta", 0.0)
+        self.heat_c, self.heat_g = p.get("thermal_capacity", 4000.0), p.get("thermal_conductance", 5.0)
+        self.t_ref = p.get("thermal_reference", 20.0)
+        self.tau = p.get("valve_tau", 0.0)
+        self.delay = p.get("time_delay", 0.0)
+        self.m_eq = p.get("inertia_mass", 0.0)
+        self.model = model
+        self.active = any(v != 0.0 for v in (self.ff, self.f0, self.gap, self.beta, self.tau, self.delay,
+                                              self.m_eq))
+        # state
+        self.x_eff = 0.0
+        self.engaged = True
+        self.temperature = self.t_ref
+        self.time = 0.0
+        self.history: deque = deque()
+
+    # -- state ------------------------------------------------------------------------------
+    def initialize(self, x1: float, force: float) -> None:
+        self.x_eff, self.engaged, self.temperature, self.time = x1, True, self.t_ref, 0.0
+        self.history = deque([(0.0, force)])
+
+    def get_state(self) -> list:
+        flat = [v for pair in self.history for v in pair]
+        return [self.x_eff, float(self.engaged), self.temperature, self.time, *flat]
+
+    def set_state(self, s) -> None:
+        self.x_eff, engaged, self.temperature, self.time = (float(v) for v in s[:4])
+        self.engaged = engaged != 0.0
+        rest = [float(v) for v in s[4:]]
+        self.history = deque(zip(rest[0::2], rest[1::2]))
+
+    # -- pieces used by the simulator ---------------------------------------------------------
+    def damping_scale(self) -> float:
+        return math.exp(-self.beta * (self.temperature - self.t_ref)) if self.beta else 1.0
+
+    def play(self, x1: float, v1: float) -> tuple[float, float]:
+        """Stroke and velocity the damper sees through the free play (updates the gap state)."""
+        if not self.gap:
+            return x1, v1
+        half = 0.5 * self.gap
+        if x1 - self.x_eff >= half:  # pulling on the tension side of the gap
+            self.x_eff, self.engaged = x1 - half, True
+        elif x1 - self.x_eff <= -half:  # pushing on the compression side
+            self.x_eff, self.engaged = x1 + half, True
+        else:  # crossing the gap
+            self.engaged = False
+        return (self.x_eff, v1) if self.engaged else (self.x_eff, 0.0)
+
+    def output(self, f_model: float, h: float, v_eff: float, a1: float, valve_gain: float,
+               temperature_input: float | None) -> float:
+        """Measured force [N] at the end of a step of h [s] from the model force f_model [N].
+
+        v_eff [m/s]: velocity the damper sees; a1 [m/s^2]: stroke acceleration; valve_gain
+        [N s/m]: c0 - Fc'(v_eff); temperature_input [degC] or None.
+        """
+        f = f_model if (self.engaged or not self.gap) else 0.0
+        if self.ff:
+            f += self.ff * math.tanh(v_eff / self.v_eps)
+        if self.tau and (self.engaged or not self.gap):
+            f += self.tau * valve_gain * a1
+        if self.m_eq:
+            f += self.m_eq * a1
+        f += self.f0
+        if self.beta:
+            if temperature_input is not None:
+                self.temperature = temperature_input
+            else:  # explicit thermal balance: time constant C/G of minutes
+                power = f_model * v_eff
+                self.temperature += h * (power - self.heat_g * (self.temperature - self.t_ref)) / self.heat_c
+        self.time += h
+        if not self.delay:
+            return f
+        hist = self.history
+        hist.append((self.time, f))
+        target = self.time - self.delay
+        while len(hist) > 2 and hist[1][0] <= target:
+            hist.popleft()
+        (t0, f0), (t1, f1) = hist[0], hist[1] if len(hist) > 1 else hist[0]
+        if target <= t0 or t1 == t0:
+            return f0
+        return f0 + (f1 - f0) * (target - t0) / (t1 - t0)
