@@ -18,6 +18,10 @@ import numpy as np
 __all__ = ["polish"]
 
 
+class _Done(Exception):
+    """Budget spent or converged (raised from the Jacobian callback)."""
+
+
 def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 15, step: float = 1e-4, log=print):
     """Refine the scaled point z0; return (z_best, fitness_best, evaluations_used, history).
 
@@ -51,6 +55,10 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 15, step: float 
         return big if r is None else r
 
     def jac(z):
+        if len(history) > max_jacobians:
+            raise _Done
+        if len(history) >= 4 and history[-1] <= history[-4] * (1.0 + 1e-4):
+            raise _Done  # three Jacobians without a relative gain of 1e-4: converged
         z = np.clip(z, 0.0, 1.0)
         steps = np.where(z + step <= 1.0, step, -step)
         pts = [z] + [z + np.eye(len(z))[i] * steps[i] for i in range(len(z))]
@@ -63,11 +71,21 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 15, step: float 
             log(f"    polish: Jacobian {len(history) - 1}/{max_jacobians}, RMSE {math.sqrt(best / n):.1f} N")
         return np.column_stack(cols)
 
-    sol = least_squares(fun, np.clip(z0, 0.0, 1.0), jac=jac, bounds=(0.0, 1.0), method="trf",
-                        x_scale="jac", max_nfev=max_jacobians * 3, xtol=1e-10, ftol=1e-10, gtol=1e-10)
-    z = np.clip(sol.x, 0.0, 1.0)
-    r = residual_batch([z])[0]
-    g = 0.0 if r is None else n / float(r @ r)
+    try:
+        sol = least_squares(fun, np.clip(z0, 0.0, 1.0), jac=jac, bounds=(0.0, 1.0), method="trf",
+                            x_scale="jac", max_nfev=max_jacobians * 3, xtol=1e-10, ftol=1e-10, gtol=1e-10)
+        candidates = [np.clip(sol.x, 0.0, 1.0)]
+    except _Done:
+        candidates = []
+    # best point seen (every evaluated point is cached)
+    z, g = np.asarray(z0, float), 0.0
+    for key, r in cache.items():
+        if r is not None and n / float(r @ r) > g:
+            z, g = np.frombuffer(key, dtype=float).copy(), n / float(r @ r)
+    for c in candidates:
+        r = residual_batch([c])[0]
+        if r is not None and n / float(r @ r) > g:
+            z, g = c, n / float(r @ r)
     g0 = n / float(r0 @ r0)
     if g <= g0:
         return np.asarray(z0, float), g0, used["evals"], history
