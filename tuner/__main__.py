@@ -4,6 +4,7 @@
                                          validate, report (results/default[-N])
     python -m tuner fit ...              the same on your own data (see --help)
     python -m tuner generate --out DIR   virtual test campaign -> a six-test dataset
+    python -m tuner diagnose ...         what the fitted model gets wrong and why (see --help)
     python -m tuner report DIR           rebuild the report of a fit output folder
 
 Exit status: 0 success, 2 bad input or arguments (message on stderr), 130 interrupted.
@@ -11,6 +12,7 @@ Exit status: 0 success, 2 bad input or arguments (message on stderr), 130 interr
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
@@ -85,6 +87,8 @@ def _add_fit_options(ap: argparse.ArgumentParser) -> None:
     g.add_argument("--force-limit", type=float, default=None,
                    help="Fc,O ordinate limit [N] (default: 1.5 x peak measured force)")
     g.add_argument("--no-stop", action="store_true", help="disable the paper's stagnation stopping rule")
+    g.add_argument("--no-diagnose", action="store_true",
+                   help="skip the diagnosis that follows the fit (it needs validation tests)")
     g.add_argument("--polish", type=int, default=d.polish_jacobians, metavar="N",
                    help="local least-squares refinement after Firefly, at most N Jacobians "
                         "(default %(default)s; 0 = the paper's Firefly result as is)")
@@ -147,7 +151,53 @@ def cmd_fit(args) -> int:
     t0 = time.perf_counter()
     metrics = fit(ident, valid, out, settings, provenance=provenance, log=_log)
     _print_summary(metrics)
+    if not args.no_diagnose and valid and "lumped" in models:
+        _run_diagnosis(ident, valid, out, args, json.loads((out / "parameters.json").read_text())["lumped"]["values"])
     _log(f"total time {time.perf_counter() - t0:.0f} s; results in {out}")
+    if (out / "report.html").exists():
+        _log(f"open the report: {out / 'report.html'}")
+    return 0
+
+
+def _run_diagnosis(ident, valid, out, args, base_params=None) -> dict:
+    from .diagnose import DiagnosisSettings, diagnose
+
+    settings = DiagnosisSettings(fit_rate_hz=args.fit_rate, warmup_s=args.warmup, workers=args.workers,
+                                 engine=args.engine, seed=args.seed)
+    _log("\ndiagnosis: refitting the lumped model extended by each candidate effect ...")
+    result = diagnose(ident, valid, out, settings, base_params=base_params, log=_log)
+    from .report import make_report
+
+    make_report(out)
+    return result
+
+
+def cmd_diagnose(args) -> int:
+    if not args.dataset and not args.identification:
+        args.dataset = DEFAULT_DATASET  # by default the bundled dataset
+    ident, valid, name = _load(args)
+    if not valid:
+        raise ValueError("the diagnosis needs validation tests: its decision is the held-out gain")
+    base = None
+    if args.from_fit:
+        pj = args.from_fit / "parameters.json"
+        if not pj.exists():
+            raise ValueError(f"--from {args.from_fit}: no parameters.json (not a fit output folder)")
+        base = json.loads(pj.read_text()).get("lumped", {}).get("values")
+        if base is None:
+            raise ValueError(f"--from {args.from_fit}: no lumped model in parameters.json")
+    out = args.out or _free_folder(DEFAULT_RESULTS / f"{name}-diagnosis")
+    if out.exists() and any(out.iterdir()):
+        raise FileExistsError(f"output folder {out} exists and is not empty: choose another --out")
+    out.mkdir(parents=True, exist_ok=True)
+    if base is not None and args.from_fit.resolve() != out.resolve():
+        for f in ("parameters.json", "metrics.json", "simulations.npz", "history_lumped.json",
+                  "history_maxwell.json"):
+            if (args.from_fit / f).exists():
+                (out / f).write_bytes((args.from_fit / f).read_bytes())
+    _log(f"output folder: {out}")
+    result = _run_diagnosis(ident, valid, out, args, base)
+    _log(f"\n{result['verdict']}")
     if (out / "report.html").exists():
         _log(f"open the report: {out / 'report.html'}")
     return 0
@@ -199,6 +249,10 @@ def main(argv=None) -> int:
     p_gen.add_argument("--seed", type=int, default=2023)
     p_gen.add_argument("--sample-rate", type=float, default=1000.0, help="rig sample rate [Hz]")
     p_gen.add_argument("--overwrite", action="store_true", help="replace an existing dataset folder")
+    p_diag = sub.add_parser("diagnose", help="what the fitted model gets wrong, the cause, the gain")
+    _add_fit_options(p_diag)
+    p_diag.add_argument("--from", dest="from_fit", type=Path, help="output folder of an earlier fit (its "
+                        "lumped parameters are the base model; otherwise the base model is identified here)")
     p_rep = sub.add_parser("report", help="rebuild the report of a fit output folder")
     p_rep.add_argument("folder", type=Path)
     if not argv:
@@ -207,7 +261,7 @@ def main(argv=None) -> int:
     if args.command is None:
         ap.print_help()
         return 2
-    handler = {"fit": cmd_fit, "generate": cmd_generate, "report": cmd_report}[args.command]
+    handler = {"fit": cmd_fit, "generate": cmd_generate, "report": cmd_report, "diagnose": cmd_diagnose}[args.command]
     try:
         return handler(args)
     except KeyboardInterrupt:

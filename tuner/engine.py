@@ -34,6 +34,7 @@ class Signals:
     stroke_velocity: np.ndarray
     force: np.ndarray
     mask: np.ndarray
+    temperature: np.ndarray | None = None  # measured oil temperature [degC], if the data has it
 
 
 class _Simulator:
@@ -49,13 +50,15 @@ class _Simulator:
             self.runner = FmuRunner(fmu_path, max_internal_step=max_internal_step)
 
     def force(self, params: dict, s: Signals) -> np.ndarray:
+        # the measured temperature drives the thermal drift element when that element is on
+        temp = s.temperature if params.get("thermal_beta", 0.0) and s.temperature is not None else None
         if self.runner is not None:
-            return self.runner.run(s.time, s.stroke, s.stroke_velocity, params)
+            return self.runner.run(s.time, s.stroke, s.stroke_velocity, params, temperature=temp)
         from damper_fmu import simulate
         from damper_fmu.integrator import DEFAULT_MAX_STEP
 
         return simulate(self.model, s.time, s.stroke, s.stroke_velocity, params=params,
-                        max_step=self.max_internal_step or DEFAULT_MAX_STEP)
+                        max_step=self.max_internal_step or DEFAULT_MAX_STEP, temperature=temp)
 
     def residuals(self, params: dict, tests: list[Signals]) -> np.ndarray | None:
         """Measured minus simulated force [N] over the counted samples of all tests, or None

@@ -69,7 +69,9 @@ def to_signals(p, warmup_s: float) -> Signals:
     mask = (p.time - p.time[0]) >= warmup_s
     if mask.sum() < 10:
         raise ValueError(f"test {p.name!r}: warm-up of {warmup_s} s leaves fewer than 10 samples")
-    return Signals(p.name, p.time, p.stroke, p.stroke_velocity, p.force, mask)
+    temp = p.channels.get("temperature")
+    return Signals(p.name, p.time, p.stroke, p.stroke_velocity, p.force, mask,
+                   None if temp is None else np.asarray(temp, dtype=float))
 
 
 def initial_guess(model: str, tests: list[Signals], par: Parametrization) -> dict:

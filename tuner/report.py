@@ -878,7 +878,7 @@ def make_report(out_dir, *, dpi: int = 110) -> Path:
     title = "Damper model identification report"
     ds = run.settings.get("dataset")
     toc = "".join(f"<li><a href='#{a}'>{t}</a></li>" for a, t in (
-        ("summary", "Summary"), ("metrics", "Accuracy tables"), ("time", "Force time histories and loops"),
+        ("summary", "Summary"), ("diagnosis", "Diagnosis"), ("metrics", "Accuracy tables"), ("time", "Force time histories and loops"),
         ("fitness", "Fitness evolution"), ("constants", "Constant parameters"), ("tables", "Oil characteristics"),
         ("poly", "Polynomial fits"), ("params", "Identified parameters"), ("provenance", "Provenance")))
     intro = (f"<p>Identification of a hydraulic damper model (lumped nonlinear model of Isacchi, Ripamonti "
@@ -887,7 +887,10 @@ def make_report(out_dir, *, dpi: int = 110) -> Path:
              f"identification tests: {_e(', '.join(run.identification) or 'none')}; validation tests: "
              f"{_e(', '.join(run.validation) or 'none')}. Sign convention: stroke positive in extension, "
              "force positive in tension. SI units with engineering prefixes.</p>")
-    body = [f"<h1>{title}</h1>", intro, f"<ol class='toc'>{toc}</ol>", _summary(run), _metrics_section(run),
+    from .diagnose import diagnosis_section_html
+
+    body = [f"<h1>{title}</h1>", intro, f"<ol class='toc'>{toc}</ol>", _summary(run),
+            diagnosis_section_html(out), _metrics_section(run),
             _timeseries_section(run, fdir, dpi), _fitness_section(run, fdir, dpi),
             _population_sections(run, fdir, dpi), _poly_section(run, fdir, dpi), _params_section(run),
             _provenance_section(run)]

@@ -126,14 +126,23 @@ class FmuRunner:
 
     # -- public ---------------------------------------------------------------------------
     def run(self, time, stroke, stroke_velocity, params: dict | None = None,
-            outputs=("force",)) -> np.ndarray:
+            outputs=("force",), temperature=None) -> np.ndarray:
         """Simulate and return the outputs at every sample: shape (n,) for one output, else (n, k).
 
         time [s] strictly increasing, stroke [m], stroke_velocity [m/s]; params: FMU parameter
-        name -> SI value (the others keep their start values). Raises SimulationError if the FMU
-        reports an error (e.g. non-finite stroke, failed implicit solve).
+        name -> SI value (the others keep their start values); temperature [degC]: optional
+        measured oil temperature, fed to the ``oil_temperature`` input with ``thermal_source = 1``.
+        Raises SimulationError if the FMU reports an error (e.g. non-finite stroke, failed solve).
         """
         t, x, v = as_stroke_arrays(time, stroke, stroke_velocity)
+        if temperature is not None:
+            if "oil_temperature" not in self.variables:
+                raise ValueError(f"{self.path.name} has no oil_temperature input")
+            temp = np.ascontiguousarray(temperature, dtype=float)
+            if temp.shape != t.shape:
+                raise ValueError("temperature must have the length of time")
+            params = {**(params or {}), "thermal_source": 1}
+            return self._run3(t, x, v, temp, params, outputs)
         unknown = [o for o in outputs if o not in self.output_names]
         if unknown:
             raise ValueError(f"{self.path.name} has no output(s) {unknown}; outputs: {self.output_names}")
@@ -171,6 +180,37 @@ class FmuRunner:
                 result[k, 0] = buf[0]
             else:
                 result[k] = buf[:]
+        return result[:, 0] if nout == 1 else result
+
+    def _run3(self, t, x, v, temp, params, outputs) -> np.ndarray:
+        """``run`` with the oil temperature as a third input (thermal drift element)."""
+        fmu, c = self.fmu, self._component
+        self.messages.clear()
+        if not self._fresh:
+            self._check(fmu.fmi2Reset(c), "reset")
+        self._fresh = False
+        self._check(fmu.fmi2SetupExperiment(c, 0, 0.0, float(t[0]), 0, 0.0), "setup experiment")
+        self._check(fmu.fmi2EnterInitializationMode(c), "enter initialization")
+        self._apply_parameters(params)
+        vr_in = (ctypes.c_uint * 3)(self._vr_in[0], self._vr_in[1], self.variables["oil_temperature"].valueReference)
+        inp = (ctypes.c_double * 3)(float(x[0]), float(v[0]), float(temp[0]))
+        self._check(self._set_real(c, vr_in, 3, inp), "setting inputs")
+        self._check(fmu.fmi2ExitInitializationMode(c), "exit initialization")
+        nout = len(outputs)
+        vr_out = (ctypes.c_uint * nout)(*[self.variables[o].valueReference for o in outputs])
+        buf = (ctypes.c_double * nout)()
+        result = np.empty((t.size, nout))
+        self._check(self._get_real(c, vr_out, nout, buf), "reading outputs")
+        result[0] = buf[:]
+        shift = 0 if self.input_mode == _REPLAY else 1
+        for k in range(1, t.size):
+            j = k - shift
+            inp[0], inp[1], inp[2] = x[j], v[j], temp[j]
+            st = self._set_real(c, vr_in, 3, inp) | self._do_step(c, t[k - 1], t[k] - t[k - 1], 1) \
+                | self._get_real(c, vr_out, nout, buf)
+            if st > 1:
+                self._check(st, f"step {k} (t = {t[k - 1]:.6g} s)")
+            result[k] = buf[:]
         return result[:, 0] if nout == 1 else result
 
     def close(self):

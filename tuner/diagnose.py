@@ -1,0 +1,316 @@
+"""Diagnosis: what the fitted lumped model gets wrong, which physical effect causes it, the model
+extended by that effect, and the gain measured on held-out data.
+
+Procedure (``diagnose``):
+1. Base model: the lumped model identified on the identification tests (taken from an earlier fit
+   or identified here: seeded Firefly + least-squares polish, as ``tuner.fit``).
+2. Residuals (measured - simulated force) of the base model on every test: evidence numbers and
+   figures (``tuner.residuals``): in time, against velocity and stroke, around velocity reversals,
+   against frequency, drift over the test and against the temperature channel.
+3. For every candidate of the catalogue (``damper_fmu.effects``): extend the model by that effect,
+   refit on the identification tests (a grid line search on the effect parameter with the base
+   fixed, then a joint least-squares polish of base and effect parameters), and measure the
+   validation MSE. Score = -ln(MSE_ext / MSE_base) - 0.02 x (extra parameters), pooled over the
+   validation tests. The cause is the best-scoring extension if its score exceeds 0.05 (at least
+   ~7 % held-out MSE reduction for one parameter), else ``none``. The decision rests on held-out
+   gain, not on residual shape: residual evidence is reported alongside as explanation.
+4. Output: ``diagnosis.json`` (cause, ranking, effect parameters with units and plausible ranges,
+   validation MSE/AME before and after per test, evidence), figures, and the extended model as a
+   tuned FMU (``fmu/DamperLumped_<cause>_tuned.fmu``).
+
+Search bounds come from the data where they are force scales (friction and preload up to 10 %
+of the peak measured force) and are generic time and mass scales otherwise, so the procedure is
+not tied to one damper.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from damper_fmu.parameters import EFFECT_IDENTIFIED, EFFECT_PARAMETERS, defaults
+
+from .data import RigTest, prepare
+from .engine import Engine
+from .metrics import error_metrics
+from .parametrization import Parametrization
+from .polish import polish
+
+__all__ = ["DiagnosisSettings", "diagnose", "CANDIDATES", "ExtendedParametrization"]
+
+CANDIDATES = tuple(EFFECT_IDENTIFIED)
+PENALTY_PER_PARAMETER = 0.02
+ACCEPT_SCORE = 0.05
+#: typical magnitudes (design notes' catalogue), reported next to the fitted values
+PLAUSIBLE = {"friction_force": (50.0, 300.0), "preload_force": (30.0, 400.0), "free_play": (1e-4, 1e-3),
+             "thermal_beta": (0.002, 0.02), "valve_tau": (1e-3, 1e-2), "time_delay": (1e-3, 1e-2),
+             "inertia_mass": (20.0, 200.0)}
+UNITS = {p.name: p.unit for p in EFFECT_PARAMETERS}
+NOTES = {"time_delay": "a skew between the force and stroke channels (DAQ, filters): fix the acquisition; "
+                       "the exported co-simulation model should not contain it",
+         "preload": "an un-tared gas force or load-cell offset: check the rig's zero before the test"}
+
+
+def search_bounds(name: str, peak_force: float) -> tuple[float, float]:
+    """Refit bounds of an effect parameter (SI), force scales from the measured peak force [N]."""
+    f = 0.1 * peak_force
+    return {"friction_force": (0.0, f), "preload_force": (-f, f), "free_play": (0.0, 2e-3),
+            "thermal_beta": (0.0, 0.05), "valve_tau": (0.0, 0.02), "time_delay": (0.0, 0.02),
+            "inertia_mass": (0.0, 400.0)}[name]
+
+
+class ExtendedParametrization:
+    """The base design vector followed by the identified parameters of one effect (linear)."""
+
+    def __init__(self, base: Parametrization, effect: str, peak_force: float):
+        self.base, self.effect = base, effect
+        self.extra = list(EFFECT_IDENTIFIED[effect])
+        self.extra_bounds = [search_bounds(n, peak_force) for n in self.extra]
+        self.dimension = base.dimension + len(self.extra)
+        self.names = base.names + self.extra
+
+    def to_params(self, z) -> dict:
+        z = np.clip(np.asarray(z, dtype=float), 0.0, 1.0)
+        p = self.base.to_params(z[: self.base.dimension])
+        for i, (n, (lo, hi)) in enumerate(zip(self.extra, self.extra_bounds)):
+            p[n] = lo + z[self.base.dimension + i] * (hi - lo)
+        return p
+
+    def from_params(self, params: dict) -> np.ndarray:
+        zb = self.base.from_params(params)
+        ze = [(params.get(n, 0.0) - lo) / (hi - lo) for n, (lo, hi) in zip(self.extra, self.extra_bounds)]
+        return np.concatenate([zb, np.clip(ze, 0.0, 1.0)])
+
+    def describe(self) -> str:
+        return f"{self.base.describe()}; plus {', '.join(self.extra)} (linear within the search bounds)"
+
+
+@dataclass
+class DiagnosisSettings:
+    """Settings of a diagnosis run (units in the names)."""
+
+    fit_rate_hz: float = 200.0
+    warmup_s: float = 0.5
+    workers: int = 2
+    engine: str = "fmu"
+    seed: int = 0
+    base_iterations: int = 30
+    base_polish_jacobians: int = 15
+    polish_jacobians: int = 8
+    grid_points: int = 7
+    candidates: tuple = CANDIDATES
+    extra: dict = field(default_factory=dict)
+
+
+def _split_mse(residual: np.ndarray | None, lengths: list[int]) -> list[tuple[float, float]]:
+    """(MSE [N^2], AME [N]) per test from a concatenated residual vector."""
+    if residual is None:
+        return [(math.inf, math.inf)] * len(lengths)
+    out, k = [], 0
+    for n in lengths:
+        r = residual[k:k + n]
+        out.append((float(r @ r) / n, float(np.mean(np.abs(r)))))
+        k += n
+    return out
+
+
+def _grid(lo: float, hi: float, n: int) -> list[float]:
+    """Candidate values for the line search: both signs when the range straddles zero."""
+    if lo < 0.0 < hi:
+        return list(np.linspace(lo, hi, 2 * (n // 2) + 1))
+    return [lo + (hi - lo) * f for f in np.geomspace(0.02, 1.0, n)]
+
+
+def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path,
+             settings: DiagnosisSettings | None = None, *, base_params: dict | None = None, log=print) -> dict:
+    """Run the diagnosis and write ``diagnosis.json`` (and figures, extended FMU) into ``out``."""
+    from .fit import FitSettings, _identify, _data_digest, to_signals
+
+    settings = settings or DiagnosisSettings()
+    if not identification or not validation:
+        raise ValueError("the diagnosis needs identification AND validation tests (the decision is held-out gain)")
+    out = Path(out)
+    (out / "checkpoints").mkdir(parents=True, exist_ok=True)
+    t_start = time.perf_counter()
+    prep_id = [prepare(t, settings.fit_rate_hz) for t in identification]
+    prep_val = [prepare(t, settings.fit_rate_hz) for t in validation]
+    sig_id = [to_signals(p, settings.warmup_s) for p in prep_id]
+    sig_val = [to_signals(p, settings.warmup_s) for p in prep_val]
+    peak = max(float(np.abs(s.force[s.mask]).max()) for s in sig_id)
+    par = Parametrization("lumped", "improved", force_limit=float(f"{1.5 * peak:.2g}"))
+    engine_path = None
+    if settings.engine == "fmu":
+        from build_fmu import ensure_fmu
+
+        engine_path = ensure_fmu("lumped")
+
+    if base_params is None:
+        log("diagnosis: identifying the base lumped model ...")
+        fs = FitSettings(models=("lumped",), fit_rate_hz=settings.fit_rate_hz, warmup_s=settings.warmup_s,
+                         iterations=settings.base_iterations, workers=settings.workers, seed=settings.seed,
+                         engine=settings.engine, polish_jacobians=settings.base_polish_jacobians)
+        base_params, _ = _identify("lumped", sig_id, fs, par, out / "checkpoints" / "diagnosis_base.json",
+                                   _data_digest(identification), log)
+    base = defaults("lumped")
+    base.update({k: v for k, v in base_params.items() if k in base})
+    for p in EFFECT_PARAMETERS:  # the base model has every effect off
+        base[p.name] = p.default
+
+    kw = dict(engine=settings.engine, workers=settings.workers, fmu_path=engine_path,
+              max_internal_step=1.0 / settings.fit_rate_hz)
+    lengths = [int(s.mask.sum()) for s in sig_val]
+    n_val = sum(lengths)
+    ranking, fitted = [], {}
+    with Engine("lumped", sig_id, **kw) as eid, Engine("lumped", sig_val, **kw) as ev:
+        r_base_val = ev.residuals_batch([base])[0]
+        base_val = _split_mse(r_base_val, lengths)
+        mse_base = float(r_base_val @ r_base_val) / n_val
+        sse_base_id = eid.sse_batch([base])[0]
+        log(f"diagnosis: base model RMSE identification {math.sqrt(sse_base_id / eid.n_samples):.1f} N, "
+            f"validation {math.sqrt(mse_base):.1f} N")
+        for effect in settings.candidates:
+            ext = ExtendedParametrization(par, effect, peak)
+            z0 = ext.from_params(base)
+            # 1. line search on the effect parameter(s) with the base fixed (batch, parallel)
+            pts = []
+            for i, (lo, hi) in enumerate(ext.extra_bounds):
+                for val in _grid(lo, hi, settings.grid_points):
+                    z = z0.copy()
+                    z[par.dimension + i] = (val - lo) / (hi - lo)
+                    pts.append(z)
+            sse = eid.sse_batch([ext.to_params(z) for z in pts])
+            z_start = pts[int(np.argmin(sse))] if np.min(sse) < sse_base_id else z0
+            # 2. joint refit of base and effect parameters
+            z, g, evals, _ = polish(eid, ext, z_start, max_jacobians=settings.polish_jacobians, log=lambda m: None)
+            params = ext.to_params(z)
+            # 3. held-out gain
+            r_val = ev.residuals_batch([params])[0]
+            per_test = _split_mse(r_val, lengths)
+            mse = math.inf if r_val is None else float(r_val @ r_val) / n_val
+            ratio = mse / mse_base
+            score = -math.log(ratio) - PENALTY_PER_PARAMETER * len(ext.extra) if math.isfinite(ratio) else -math.inf
+            values = {n: params[n] for n in ext.extra}
+            fitted[effect] = params
+            ranking.append({"effect": effect, "score": score, "validation_mse_change_pct": 100 * (ratio - 1),
+                            "identification_rmse_n": 1 / math.sqrt(g) if g > 0 else math.inf,
+                            "parameters": values, "units": {n: UNITS[n] for n in values},
+                            "validation": {s.name: {"mse": m, "ame": a} for s, (m, a) in zip(sig_val, per_test)},
+                            "evaluations": int(len(pts) + evals)})
+            log(f"  {effect:14s} " + ", ".join(f"{n} = {v:.4g} {UNITS[n]}" for n, v in values.items())
+                + f"  validation MSE {100 * (ratio - 1):+6.1f} %  score {score:+.3f}")
+    ranking.sort(key=lambda r: -r["score"])
+    best = ranking[0]
+    cause = best["effect"] if best["score"] > ACCEPT_SCORE else "none"
+    after = best["validation"] if cause != "none" else {s.name: {"mse": m, "ame": a}
+                                                        for s, (m, a) in zip(sig_val, base_val)}
+    validation = {s.name: {"mse_before": m, "ame_before": a, "mse_after": after[s.name]["mse"],
+                           "ame_after": after[s.name]["ame"],
+                           "mse_change_pct": 100 * (after[s.name]["mse"] / m - 1)}
+                  for s, (m, a) in zip(sig_val, base_val)}
+    effect_parameters = {}
+    if cause != "none":
+        for n, v in best["parameters"].items():
+            lo, hi = PLAUSIBLE[n]
+            effect_parameters[n] = {"value": v, "unit": UNITS[n], "plausible_range": [lo, hi],
+                                    "plausible": lo <= abs(v) <= hi}
+
+    # residual analysis of the base model (evidence and figures)
+    evidence, figures = {}, []
+    try:
+        from .fit import _simulate
+        from .residuals import TestResidual, evidence as residual_evidence, residual_figures
+
+        tr = [TestResidual(p.name, p.role or "", p.time, p.stroke, p.stroke_velocity, p.force,
+                           _simulate("lumped", base, p, settings.engine), s.mask, s.temperature)
+              for p, s in zip([*prep_id, *prep_val], [*sig_id, *sig_val])]
+        evidence = residual_evidence(tr)
+        figures = [str(Path(f).relative_to(out)) for f in residual_figures(tr, out / "figures")]
+    except ImportError:  # residual analysis module not available
+        pass
+
+    pooled_change = 100 * (math.exp(-(best["score"] + PENALTY_PER_PARAMETER * len(best["parameters"]))) - 1) \
+        if cause != "none" else 0.0
+    verdict = "cause: none (no extension earns its parameters on held-out data)" if cause == "none" else (
+        f"cause: {cause} (" + ", ".join(f"{n} = {_fmt(v, UNITS[n])}" for n, v in best["parameters"].items())
+        + f"); validation MSE {pooled_change:+.0f} %")
+    result = {"cause": cause, "verdict": verdict, "ranking": ranking, "effect_parameters": effect_parameters,
+              "validation": validation, "evidence": evidence, "figures": figures,
+              "note": NOTES.get(cause, ""),
+              "settings": {**{k: v for k, v in settings.__dict__.items() if k != "extra"},
+                           "penalty_per_parameter": PENALTY_PER_PARAMETER, "accept_score": ACCEPT_SCORE,
+                           "elapsed_s": time.perf_counter() - t_start},
+              "base_parameters": {k: base[k] for k in par.names}}
+    (out / "diagnosis.json").write_text(json.dumps(result, indent=2, default=_json_default))
+    if cause != "none":
+        from build_fmu import build
+
+        path = build("lumped", out / "fmu", start_values=fitted[cause],
+                     filename=f"DamperLumped_{cause}_tuned.fmu")
+        log(f"extended model exported: {path}")
+    log(verdict)
+    return result
+
+
+def _fmt(v: float, unit: str) -> str:
+    if unit == "m":
+        return f"{v * 1e3:.3g} mm"
+    if unit == "s":
+        return f"{v * 1e3:.3g} ms"
+    return f"{v:.3g} {unit}"
+
+
+def _json_default(o):
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, tuple):
+        return list(o)
+    return str(o)
+
+
+def diagnosis_section_html(out_dir) -> str:
+    """HTML section of the report for ``out_dir/diagnosis.json`` ('' when there is none)."""
+    import html
+
+    path = Path(out_dir) / "diagnosis.json"
+    if not path.exists():
+        return ""
+    d = json.loads(path.read_text())
+    e = html.escape
+    rows = "".join(
+        f"<tr{' class=\"winner\"' if r['effect'] == d['cause'] else ''}><td>{e(r['effect'])}</td>"
+        f"<td>{', '.join(e(f'{n} = {_fmt(v, r['units'][n])}') for n, v in r['parameters'].items())}</td>"
+        f"<td>{r['validation_mse_change_pct']:+.1f} %</td><td>{r['score']:+.3f}</td></tr>"
+        for r in d["ranking"])
+    val = "".join(f"<tr><td>{e(n)}</td><td>{v['mse_before']:.3e}</td><td>{v['mse_after']:.3e}</td>"
+                  f"<td>{v['mse_change_pct']:+.1f} %</td><td>{v['ame_before']:.0f}</td><td>{v['ame_after']:.0f}</td></tr>"
+                  for n, v in d["validation"].items())
+    eff = "".join(f"<tr><td>{e(n)}</td><td>{e(_fmt(p['value'], p['unit']))}</td><td>"
+                  f"{e(_fmt(p['plausible_range'][0], p['unit']))} - {e(_fmt(p['plausible_range'][1], p['unit']))}</td>"
+                  f"<td>{'yes' if p['plausible'] else 'NO'}</td></tr>" for n, p in d["effect_parameters"].items())
+    ev = (d.get("evidence") or {}).get("effects", {})
+    ev_rows = "".join(f"<li><b>{e(k)}</b> (explains {100 * v.get('r2', 0):.0f} % of the residual power): "
+                      f"{e(str(v.get('sentence', '')))}</li>" for k, v in ev.items()
+                      if isinstance(v, dict) and v.get("sentence"))
+    figs = "".join(f"<figure><img src='{e(f)}' alt='{e(f)}'></figure>" for f in d.get("figures", []))
+    s = d["settings"]
+    return (
+        "<section id='diagnosis'><h2>Diagnosis: what the model gets wrong, and why</h2>"
+        f"<p class='verdict'>{e(d['verdict'])}{'. ' + e(d['note']) if d.get('note') else ''}</p>"
+        "<p>Each candidate effect was added to the lumped model and the extended model refitted on the "
+        "identification tests; the decision rests on the validation (held-out) MSE: score = -ln(MSE_ext / "
+        f"MSE_base) - {s['penalty_per_parameter']} per extra parameter, a cause is named when its score exceeds "
+        f"{s['accept_score']}.</p>"
+        "<table><tr><th>candidate</th><th>fitted parameters</th><th>validation MSE change</th><th>score</th></tr>"
+        f"{rows}</table>"
+        + (f"<h3>Effect parameters vs plausible ranges</h3><table><tr><th>parameter</th><th>fitted</th>"
+           f"<th>typical range</th><th>plausible</th></tr>{eff}</table>" if eff else "")
+        + "<h3>Validation before and after</h3><table><tr><th>test</th><th>MSE before [N&sup2;]</th>"
+          f"<th>MSE after [N&sup2;]</th><th>change</th><th>AME before [N]</th><th>AME after [N]</th></tr>{val}</table>"
+        + (f"<h3>Residual evidence (base model)</h3><ul>{ev_rows}</ul>" if ev_rows else "")
+        + figs + "</section>")

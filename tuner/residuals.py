@@ -1,0 +1,474 @@
+"""Residual analysis for the diagnosis: evidence numbers per catalogue effect, and figures.
+
+Residual r = measured - simulated force [N]; stroke [m] + in extension, force [N] + in tension,
+time [s], temperature [degC]. Catalogue and signatures: design.md, "Effects a real damper shows
+that the base model lacks". ``evidence`` fits r (masked samples, identification and validation
+pooled, and per test) by one signature regressor g per effect, least squares without intercept;
+the explained fraction is the uncentred R^2 = (g.r)^2 / (g.g r.r), i.e. the share of residual
+power (mean square) the term removes (for ``preload`` that is mean(r)^2 / mean(r^2)).
+Regressors: friction tanh(v / 0.5 mm/s); preload 1; inertia x''; time_delay -dF_sim/dt (value =
+delay, > 0 when the measured force lags); valve_lag -dF_sim/dt beyond the blow-off knee (tau, same
+sign; the coefficient below the knee is reported too); free_play -F_sim in the apparent gap after
+velocity reversals; thermal_drift the law m ~ g exp(-b x) F_sim with a free gain g, x = time since
+the test start or temperature (its r2 includes the constant gain: see r2_gain_only, r2_drift_only).
+
+Derivatives use Savitzky-Golay filters over ~20 ms (as ``tuner.data`` does for the velocity):
+dF_sim/dt cubic (polyorder 3), stroke acceleration polyorder 4 (for a symmetric window that is the
+second-derivative counterpart of the cubic first derivative: error O(f^4)). Samples within half a
+window of either end are left out of every regression.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from scipy import optimize, signal
+
+__all__ = ["TestResidual", "evidence", "residual_figures", "EFFECTS"]
+
+EFFECTS = ("friction", "preload", "free_play", "thermal_drift", "valve_lag", "time_delay", "inertia")
+ROLES = ("identification", "validation")
+V_EPS = 0.5e-3                   # friction regressor velocity scale [m/s]
+DIFF_WINDOW_S = 0.020            # Savitzky-Golay window [s]
+KNEE_FALLBACK = 0.015            # blow-off knee velocity when the F-v scatter shows none [m/s]
+GAP_WINDOW_S = 0.050             # free-play window after a velocity reversal [s]
+REVERSAL_SPAN_S = (-0.100, 0.200)  # reversal-average figure span [s]
+REVERSAL_ACC = 0.2               # reversal counts if |a| > 0.2 x rms acceleration
+BANDS_HZ = {"<1 Hz": (0.0, 1.0), "1-5 Hz": (1.0, 5.0), "5-20 Hz": (5.0, 20.0), ">20 Hz": (20.0, np.inf)}
+DRIFT_WINDOW_S = 1.0             # windows of the drift figure [s]
+MIN_T_SPAN_K = 0.5               # temperature span needed for the beta regression [K]
+
+
+@dataclass
+class TestResidual:
+    """One rig test on a uniform time grid: time [s], stroke [m], velocity [m/s], measured and
+    simulated (base model) force [N], mask (bool, samples that count: warm-up excluded),
+    optional temperature [degC]; role "identification" or "validation"."""
+    __test__ = False  # not a pytest test class
+
+    name: str
+    role: str
+    time: np.ndarray
+    stroke: np.ndarray
+    velocity: np.ndarray
+    measured: np.ndarray
+    simulated: np.ndarray
+    mask: np.ndarray
+    temperature: np.ndarray | None = None
+
+    def __post_init__(self):
+        def bad(msg):
+            raise ValueError(f"test {self.name!r}: {msg}")
+        if self.role not in ROLES:
+            bad(f"role must be one of {ROLES}, got {self.role!r}")
+        n = np.size(self.time)
+        for k in ("time", "stroke", "velocity", "measured", "simulated", "temperature"):
+            a = getattr(self, k)
+            if a is None and k == "temperature":
+                continue
+            a = np.asarray(a, dtype=float)
+            if a.shape != (n,):
+                bad(f"{k} must be a 1-D array of {n} samples (as time), got shape {a.shape}")
+            if not np.all(np.isfinite(a)):
+                bad(f"{k} has non-finite values")
+            setattr(self, k, a)
+        m = np.asarray(self.mask)
+        if m.dtype != bool or m.shape != (n,):
+            bad(f"mask must be a boolean array of {n} samples")
+        self.mask = m
+        if n < 20:
+            bad(f"{n} samples, at least 20 needed")
+        dt = np.diff(self.time)
+        if np.any(dt <= 0) or np.ptp(dt) > 0.01 * dt.mean():
+            bad("time must be strictly increasing and uniformly sampled (1 % tolerance)")
+        if m.sum() < 10:
+            bad("mask selects fewer than 10 samples")
+
+
+class _Prep:
+    """Derived signals of one test: residual r [N], acceleration [m/s^2], dF_sim/dt [N/s],
+    usable samples (mask without the filter edges), velocity reversals."""
+
+    def __init__(self, t: TestResidual):
+        self.t, n = t, t.time.size
+        self.dt = float(np.mean(np.diff(t.time)))
+        self.fs = 1.0 / self.dt
+        w = max(5, int(round(DIFF_WINDOW_S * self.fs)) | 1)
+        w = min(w, n - 1 + n % 2)
+        self.acc = signal.savgol_filter(t.stroke, w, 4, deriv=2, delta=self.dt)
+        self.dF = signal.savgol_filter(t.simulated, w, 3, deriv=1, delta=self.dt)
+        self.r = t.measured - t.simulated
+        self.use = t.mask.copy()
+        self.use[:w // 2] = self.use[n - w // 2:] = False
+        if self.use.sum() < 10:
+            raise ValueError(f"test {t.name!r}: fewer than 10 masked samples away from the ends")
+        v, a = t.velocity, self.acc
+        i = np.flatnonzero(np.signbit(v[:-1]) != np.signbit(v[1:])) + 1   # first sample after
+        thr = REVERSAL_ACC * np.sqrt(np.mean(a[self.use] ** 2))
+        i = i[(np.abs(a[i]) > thr) & self.use[i]]
+        keep, last = [], -np.inf
+        for k in i:                           # one reversal per free-play window
+            if k - last >= GAP_WINDOW_S * self.fs:
+                keep.append(k)
+                last = k
+        self.rev = np.array(keep, dtype=int)
+        self.rev_sign = np.where(np.signbit(v[self.rev]), -1.0, 1.0)
+
+    def stack(self, tau):
+        """Sample indices (reversals x tau [s]) fully inside the usable samples, and the sign of v after."""
+        idx = self.rev[:, None] + np.rint(np.asarray(tau) * self.fs).astype(int)[None, :]
+        ok = (idx.min(1) >= 0) & (idx.max(1) < self.t.time.size)
+        ok[ok] = self.use[idx[ok]].all(1)
+        return idx[ok], self.rev_sign[ok]
+
+
+def _dot(a, b) -> float:
+    return float(np.einsum("i,i", a, b))   # not BLAS: its threads stall on a loaded machine
+
+
+def _cat(preps, fn):
+    """fn(prep) (full-length array or scalar) on the usable samples, concatenated over preps."""
+    return np.concatenate([np.broadcast_to(fn(p), p.r.shape)[p.use] for p in preps])
+
+
+def _fit(y, g):
+    """y ~ c g without intercept: (c, uncentred R^2 in [0, 1])."""
+    gg, yy, gy = _dot(g, g), _dot(y, y), _dot(g, y)
+    return (gy / gg, gy * gy / (gg * yy)) if gg > 0 and yy > 0 else (0.0, 0.0)
+
+
+def _regress(preps, fn):
+    """Pooled fit of r on the regressor fn(prep) over the usable samples: (c, R^2)."""
+    return _fit(_cat(preps, lambda p: p.r), _cat(preps, fn))
+
+
+def knee_velocity(preps) -> float:
+    """Blow-off knee [m/s]: first |v| where the slope of the binned median of sign(v) x measured
+    force falls below 1/3 of its low-speed slope (origin to the first 3 of 20 bins up to the 98th
+    percentile of |v|); KNEE_FALLBACK when no such point is found."""
+    v = _cat(preps, lambda p: np.abs(p.t.velocity))
+    f = _cat(preps, lambda p: np.sign(p.t.velocity) * p.t.measured)
+    vmax = np.percentile(v, 98)
+    if not vmax > 0:
+        return KNEE_FALLBACK
+    edges = np.linspace(0.0, vmax, 21)
+    b, c = np.digitize(v, edges) - 1, 0.5 * (edges[1:] + edges[:-1])
+    med = np.array([np.median(f[b == j]) if np.sum(b == j) >= 10 else np.nan for j in range(20)])
+    if np.isnan(med).any():
+        return KNEE_FALLBACK
+    low = _dot(c[:3], med[:3]) / _dot(c[:3], c[:3])
+    slope = np.convolve(np.gradient(med, c), np.ones(3) / 3, mode="same")
+    j = np.flatnonzero(slope[3:-1] < low / 3)
+    return float(c[3 + j[0]]) if low > 0 and j.size else KNEE_FALLBACK
+
+
+def _free_play(preps):
+    """r on -F_sim per lag (1 ms grid) 0-50 ms after reversals, and elsewhere: apparent gap time
+    [s] = integral of the excess coefficient, gap [m] = gap time x mean |v| within it."""
+    tau = np.arange(int(round(GAP_WINDOW_S * 1e3))) * 1e-3
+    num, den, num_e, den_e, vabs = np.zeros(tau.size), np.zeros(tau.size), 0.0, 0.0, []
+    for p in preps:
+        idx, _ = p.stack(tau)
+        F = p.t.simulated[idx]
+        num += (-p.r[idx] * F).sum(0)
+        den += (F * F).sum(0)
+        vabs.append(np.abs(p.t.velocity[idx]))
+        win = np.zeros(p.r.size + 1)
+        np.add.at(win, p.rev, 1.0)
+        np.add.at(win, np.minimum(p.rev + int(round(GAP_WINDOW_S * p.fs)), p.r.size), -1.0)
+        el = p.use & (np.cumsum(win)[:-1] <= 0)
+        num_e -= _dot(p.r[el], p.t.simulated[el])
+        den_e += _dot(p.t.simulated[el], p.t.simulated[el])
+    n_rev = sum(len(a) for a in vabs)
+    ok = den > 1e-9 * den.max(initial=0.0)
+    if n_rev == 0 or not ok.any():
+        return {"value": 0.0, "r2": 0.0, "gap_time": 0.0, "reversals": n_rev}
+    rho = np.interp(tau, tau[ok], num[ok] / den[ok])
+    rho_e = num_e / den_e if den_e > 0 else 0.0
+    t_gap = float(np.clip(np.sum(rho - rho_e) * 1e-3, 0.0, GAP_WINDOW_S))
+    span = max(t_gap, 1e-3)
+    vbar = float(np.concatenate(vabs)[:, tau < span].mean())
+
+    def reg(p):   # -F_sim during the apparent gap after each reversal
+        g = np.zeros(p.r.size)
+        for k in p.rev:
+            g[k:k + max(1, int(round(span * p.fs)))] = 1.0
+        return -p.t.simulated * g
+    return {"value": t_gap * vbar, "r2": _regress(preps, reg)[1], "gap_time": t_gap, "reversals": n_rev,
+            "coef_window": float(np.sum(num) / np.sum(den)), "coef_elsewhere": rho_e,
+            "mean_speed_after_reversal": vbar}
+
+
+def _gain_law(m, f, x):
+    """Fit m ~ g exp(-b x) f (variable projection: g in closed form, b by bounded Brent):
+    (b [1/unit of x], R^2 of the law, R^2 of a constant gain alone), R^2 relative to r = m - f."""
+    xs, rr = max(float(np.ptp(x)), 1e-12), _dot(m - f, m - f) or 1.0
+
+    def sse(b):
+        e = np.exp(-b * x) * f
+        res = m - _dot(e, m) / _dot(e, e) * e
+        return _dot(res, res)
+    b = optimize.minimize_scalar(sse, bounds=(-3 / xs, 3 / xs), method="bounded",
+                                 options={"xatol": 1e-7 / xs}).x
+    return float(b), max(1 - sse(b) / rr, 0.0), max(1 - sse(0.0) / rr, 0.0)
+
+
+def _thermal(preps):
+    """Gain drift: exp law in time since each test's first usable sample and, where the
+    temperature spans > 0.5 K, in temperature; gain of the second vs first half of every test."""
+    m, f = _cat(preps, lambda p: p.t.measured), _cat(preps, lambda p: p.t.simulated)
+    b, r2t, r2g = _gain_law(m, f, _cat(preps, lambda p: p.t.time - p.t.time[p.use][0]))
+    out = {"gain_change_per_100s": float(np.expm1(-100 * b)), "r2_time": r2t, "r2_gain_only": r2g,
+           "beta": None, "r2_temperature": None, "temperature_span": None}
+    gains = []
+    for h in (0, 1):
+        ii = [np.array_split(np.flatnonzero(p.use), 2)[h] for p in preps]
+        mm, ff = (np.concatenate([getattr(p.t, k)[i] for p, i in zip(preps, ii)]) for k in ("measured", "simulated"))
+        gains.append(_dot(mm, ff) / _dot(ff, ff))
+    out["half_gain_change"] = gains[1] / gains[0] - 1
+    hot = [p for p in preps if p.t.temperature is not None]
+    if hot:
+        T = _cat(hot, lambda p: p.t.temperature)
+        out["temperature_span"] = float(np.ptp(T))
+        if np.ptp(T) > MIN_T_SPAN_K:
+            m, f = _cat(hot, lambda p: p.t.measured), _cat(hot, lambda p: p.t.simulated)
+            out["beta"], out["r2_temperature"], out["r2_gain_only"] = _gain_law(m, f, T - T[0])
+    out["value"] = out["beta"] if out["beta"] is not None else out["gain_change_per_100s"]
+    out["r2"] = out["r2_temperature"] if out["beta"] is not None else r2t
+    out["r2_drift_only"] = max(out["r2"] - out["r2_gain_only"], 0.0)
+    return out
+
+
+def _effects(preps, knee):
+    """Every catalogue effect on the pooled usable samples of ``preps``: {name: {value, r2, ...}}."""
+    one = {e: dict(zip(("value", "r2"), _regress(preps, fn))) for e, fn in (
+        ("friction", lambda p: np.tanh(p.t.velocity / V_EPS)), ("preload", lambda p: 1.0),
+        ("inertia", lambda p: p.acc), ("time_delay", lambda p: -p.dF),
+        ("valve_lag", lambda p: -p.dF * (np.abs(p.t.velocity) > knee)),
+        ("below", lambda p: -p.dF * (np.abs(p.t.velocity) <= knee)))}   # -dF: coefficient = lag
+    below = one.pop("below")
+    one["valve_lag"].update(tau_below_knee=below["value"], r2_below_knee=below["r2"], knee_velocity=knee)
+    one["preload"]["mean_to_rms"] = np.sign(one["preload"]["value"]) * np.sqrt(one["preload"]["r2"])
+    return {**one, "free_play": _free_play(preps), "thermal_drift": _thermal(preps)}
+
+
+UNITS = {"friction": ("Ff", "N"), "preload": ("F0", "N"), "free_play": ("gap", "m"),
+         "valve_lag": ("tau", "s"), "time_delay": ("delay", "s"), "inertia": ("m_eq", "kg")}
+
+
+def _sentence(e, d):
+    """One line of evidence for effect e from its pooled numbers."""
+    x = f"explains {100 * d['r2']:.0f} % of the residual power"
+    if e == "free_play" and not d["reversals"]:
+        return "no velocity reversal with enough acceleration: no free-play evidence"
+    if e == "thermal_drift":
+        s = (f"force gain changes {100 * d['gain_change_per_100s']:+.1f} % per 100 s, second vs first "
+             f"half {100 * d['half_gain_change']:+.1f} %")
+        if d["beta"] is not None:
+            s += f"; gain ~ exp(-beta (T - T0)), beta = {d['beta']:.4f} 1/K over {d['temperature_span']:.1f} K"
+        return s + f"; the drift law {x} ({100 * d['r2_gain_only']:.0f} % by a constant gain alone)"
+    return {"friction": lambda: f"r ~ Ff tanh(v / 0.5 mm/s) with Ff = {d['value']:.0f} N",
+            "preload": lambda: f"constant residual F0 = {d['value']:.0f} N (mean / rms {d['mean_to_rms']:+.2f})",
+            "inertia": lambda: f"r ~ m_eq x'' with m_eq = {d['value']:.1f} kg",
+            "time_delay": lambda: f"r ~ -delay dF_sim/dt with delay = {1e3 * d['value']:.2f} ms",
+            "valve_lag": lambda: (
+                f"beyond the knee (|v| > {1e3 * d['knee_velocity']:.1f} mm/s) r ~ -tau dF_sim/dt with tau = "
+                f"{1e3 * d['value']:.2f} ms, below it {1e3 * d['tau_below_knee']:.2f} ms (a valve effect "
+                "lives beyond the knee, a delay shifts both alike)"),
+            "free_play": lambda: (
+                f"{d['reversals']} reversals: r follows -F_sim for {1e3 * d['gap_time']:.1f} ms after them "
+                f"(coefficient on -F_sim {d['coef_window']:.2f} in the first 50 ms vs {d['coef_elsewhere']:.2f} "
+                f"elsewhere), apparent gap {1e3 * d['value']:.2f} mm"),
+            }[e]() + f"; {x}"
+
+
+def _runs(b):
+    """(start, stop) index pairs of the True runs of a boolean array."""
+    d = np.diff(np.concatenate([[0], b.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
+
+
+def _spectra(p):
+    """Welch PSDs [N^2/Hz] of residual and measured force on the longest usable run (4 s Hann
+    segments, no detrending, so a mean offset counts below 1 Hz): (f [Hz], P_r, P_F) or None."""
+    a, b = max(_runs(p.use), key=lambda ab: ab[1] - ab[0])
+    if b - a < 16:
+        return None
+    kw = dict(fs=p.fs, nperseg=min(b - a, int(round(4 * p.fs))), detrend=False)
+    return (*signal.welch(p.r[a:b], **kw), signal.welch(p.t.measured[a:b], **kw)[1])
+
+
+def _summary(ps):
+    """rms and mean residual [N], % of force rms, band shares of residual power and residual / force
+    power per band (band powers of several tests weighted by their sample counts)."""
+    r, m = _cat(ps, lambda p: p.r), _cat(ps, lambda p: p.t.measured)
+    d = {"samples": int(r.size), "rms_residual": float(np.sqrt(np.mean(r ** 2))),
+         "rms_measured": float(np.sqrt(np.mean(m ** 2))), "mean_residual": float(r.mean())}
+    d["residual_pct"] = 100 * d["rms_residual"] / d["rms_measured"] if d["rms_measured"] > 0 else None
+    pw = np.zeros((2, len(BANDS_HZ)))
+    for p, s in ((p, _spectra(p)) for p in ps):
+        if s is not None:
+            pw += p.use.sum() * np.array([[P[(s[0] >= lo) & (s[0] < hi)].sum() * s[0][1]
+                                           for lo, hi in BANDS_HZ.values()] for P in s[1:]])
+    if pw[0].sum() > 0:
+        d["band_fraction"] = dict(zip(BANDS_HZ, (pw[0] / pw[0].sum()).tolist()))
+        d["band_residual_to_force_power"] = {k: float(a / b) if b > 0 else None
+                                             for k, a, b in zip(BANDS_HZ, *pw)}
+    return d
+
+
+def _clean(v):
+    """JSON-friendly value: finite float, int, str, None."""
+    if v is None or isinstance(v, (str, int)):
+        return v
+    return float(v) if np.isfinite(v) else None
+
+
+def evidence(tests: list[TestResidual]) -> dict:
+    """Residual evidence for every effect of the catalogue (see module docstring).
+
+    Returns {"effects": {name: {"quantity", "unit", "value" [unit], "r2" (0-1: share of residual
+    power explained by that regressor), "sentence", extra numbers (SI), "per_test": {test: same
+    numbers}}}, "ranking_by_r2": [names], "knee_velocity" [m/s], "general": {"per_test": {test:
+    {role, rms_residual [N], residual_pct [%], band_fraction, ...}}, "pooled": {...}}}.
+    time_delay delay and valve_lag tau [s] > 0 when the measured force lags the simulated one;
+    thermal beta [1/K] > 0 and gain changes < 0 when the damping falls as the oil heats."""
+    if not tests:
+        raise ValueError("no tests given")
+    names = [t.name for t in tests]
+    if len(set(names)) != len(names):
+        raise ValueError(f"test names must be unique, got {names}")
+    preps = [_Prep(t) for t in tests]
+    knee = knee_velocity(preps)
+    pooled, per = _effects(preps, knee), {p.t.name: _effects([p], knee) for p in preps}
+    effects = {}
+    for e in EFFECTS:
+        d = pooled[e]
+        q, u = UNITS.get(e) or (("beta", "1/K") if d["beta"] is not None else ("gain_change_per_100s", "1/(100 s)"))
+        effects[e] = {"quantity": q, "unit": u, **{k: _clean(v) for k, v in d.items()},
+                      "sentence": _sentence(e, d),
+                      "per_test": {n: {k: _clean(v) for k, v in per[n][e].items()} for n in per}}
+    return {"effects": effects, "ranking_by_r2": sorted(EFFECTS, key=lambda e: -effects[e]["r2"]),
+            "knee_velocity": knee, "general": {"per_test": {p.t.name: {"role": p.t.role, **_summary([p])}
+                                                            for p in preps}, "pooled": _summary(preps)}}
+
+
+# --------------------------------------------------------------------------- figures
+
+def _finish(ax, xlabel, ylabel, title="", legend=False):
+    ax.set(xlabel=xlabel, ylabel=ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3, which="both")
+    if legend:
+        ax.legend(fontsize=7)
+
+
+def _drift_windows(p):
+    """Per DRIFT_WINDOW_S window (>= half usable): mid time [s], rms r [N], gain m/F_sim, mean T [degC]."""
+    k, t, rows = max(1, int(round(DRIFT_WINDOW_S * p.fs))), p.t, []
+    for a in range(0, t.time.size, k):
+        u = np.flatnonzero(p.use[a:a + k]) + a
+        ff = t.simulated[u]
+        if u.size >= k / 2 and _dot(ff, ff) > 0:
+            rows.append((t.time[u].mean(), np.sqrt(np.mean(p.r[u] ** 2)), _dot(t.measured[u], ff) / _dot(ff, ff),
+                         np.mean(t.temperature[u]) if t.temperature is not None else np.nan))
+    return np.array(rows).reshape(-1, 4).T
+
+
+def residual_figures(tests: list[TestResidual], out_dir: Path, prefix: str = "diag") -> list[Path]:
+    """Write five PNGs to ``out_dir`` (identification solid, validation dashed) and return their
+    paths: residual [N] in time over the measured force (grey: outside the mask); residual vs
+    velocity and stroke; residual x sign(v after) averaged around velocity reversals with -F_sim;
+    Welch spectra of residual and force; windowed rms residual and gain vs time and temperature."""
+    if not tests:
+        raise ValueError("no tests given")
+    preps, out_dir, paths = [_Prep(t) for t in tests], Path(out_dir), []
+    out_dir.mkdir(parents=True, exist_ok=True)
+    sty = [{"color": f"C{i % 10}", "ls": "-" if p.t.role == "identification" else "--",
+            "label": f"{p.t.name} ({p.t.role[:5]}.)"} for i, p in enumerate(preps)]
+
+    def save(fig, topic):
+        FigureCanvasAgg(fig)
+        fig.savefig(out_dir / f"{prefix}_residual_{topic}.png", dpi=110)
+        paths.append(out_dir / f"{prefix}_residual_{topic}.png")
+
+    fig = Figure(figsize=(10, 1.2 + 2.0 * len(preps)), layout="constrained")
+    for p, st, ax in zip(preps, sty, fig.subplots(len(preps), 1, squeeze=False)[:, 0]):
+        t, g, bx = p.t, _summary([p]), ax.twinx()
+        bx.plot(t.time, t.measured / 1e3, color="0.75", lw=0.6)
+        bx.set_ylabel("measured [kN]", color="0.6", fontsize=8)
+        ax.set_zorder(bx.get_zorder() + 1)
+        ax.patch.set_visible(False)
+        ax.plot(t.time, p.r, lw=0.7, **st)
+        for a, b in _runs(~t.mask):
+            ax.axvspan(t.time[a], t.time[b - 1], color="0.9", lw=0, zorder=0)
+        _finish(ax, "time [s]", "residual [N]", f"{t.name} ({t.role}): rms residual {g['rms_residual']:.0f} N "
+                f"= {g['residual_pct'] or 0:.1f} % of the force rms")
+    save(fig, "time")
+
+    fig = Figure(figsize=(11, 4.5), layout="constrained")
+    axs = fig.subplots(1, 2, sharey=True)
+    for p, st in zip(preps, sty):
+        for ax, x in zip(axs, (p.t.velocity, p.t.stroke)):
+            ax.plot(np.where(p.use, x, np.nan) * 1e3, p.r, lw=0.4, alpha=0.8, **st)
+    _finish(axs[0], "damper velocity [mm/s] (+ extension)", "residual measured - simulated [N] (+ tension)",
+            "residual vs velocity (F-v residual loop)", legend=True)
+    _finish(axs[1], "stroke [mm] (+ extension)", "", "residual vs stroke (F-x residual loop)")
+    save(fig, "loops")
+
+    tau = np.arange(*np.rint(np.array(REVERSAL_SPAN_S) * 1e3 + [0, 1]).astype(int)) * 1e-3
+    fig = Figure(figsize=(9, 4.8), layout="constrained")
+    ax, rr, ff = fig.subplots(), [], []
+    for p, st in zip(preps, sty):
+        idx, s = p.stack(tau)
+        if len(idx):
+            rr.append(s[:, None] * p.r[idx])
+            ff.append(-s[:, None] * p.t.simulated[idx])
+            ax.plot(tau * 1e3, rr[-1].mean(0), lw=1.0, **{**st, "label": st["label"] + f", {len(idx)} reversals"})
+    if rr:
+        ax.plot(tau * 1e3, np.concatenate(rr).mean(0), color="k", lw=2, label="residual, all tests")
+        ax.plot(tau * 1e3, np.concatenate(ff).mean(0), color="0.5", lw=2, ls=":",
+                label="-F_sim, all tests (free play: the residual follows it)")
+        ax.set_ylim(np.array([-1.4, 1.4]) * max(np.abs(r.mean(0)).max() for r in rr) + [-1, 1])
+    ax.axvspan(0, GAP_WINDOW_S * 1e3, color="tab:blue", alpha=0.07, lw=0)
+    _finish(ax, "time from velocity reversal [ms]", "force x sign(v after reversal) [N]",
+            "residual averaged around velocity reversals (shaded: free-play window)"
+            + ("" if rr else ": no reversals in the masked samples"), legend=bool(rr))
+    save(fig, "reversals")
+
+    fig = Figure(figsize=(11, 4.5), layout="constrained")
+    a1, a2 = fig.subplots(1, 2, sharex=True)
+    top = 0.0
+    for p, st in zip(preps, sty):
+        if (s := _spectra(p)) is not None:
+            f, pr, pf = (x[1:] for x in s)
+            a1.loglog(f, pr, lw=0.9, **st)
+            a1.loglog(f, pf, lw=0.6, alpha=0.3, color=st["color"])
+            a2.loglog(f, pr / np.maximum(pf, 1e-300), lw=0.9, **st)
+            top = max(top, pr.max(), pf.max())
+    for ax in (a1, a2):
+        for lo, _ in list(BANDS_HZ.values())[1:]:
+            ax.axvline(lo, color="k", lw=0.6, ls=":")
+    if top > 0:
+        a1.set_ylim(1e-9 * top, 3 * top)
+    _finish(a1, "frequency [Hz]", "PSD [N^2/Hz]", "residual (lines) and measured force (faint), Welch", True)
+    _finish(a2, "frequency [Hz]", "residual / force PSD [-]", "residual-to-force spectral ratio")
+    save(fig, "spectra")
+
+    hot = any(p.t.temperature is not None for p in preps)
+    fig = Figure(figsize=(5 + 4 * hot, 6), layout="constrained")
+    axs = fig.subplots(2, 1 + hot, squeeze=False)
+    for p, st in zip(preps, sty):
+        w = _drift_windows(p)
+        for j in range(1 + (p.t.temperature is not None)):
+            for i in (0, 1):
+                axs[i, j].plot(w[3 * j], w[1 + i], marker=".", ms=3, lw=0.8, **st)
+    for j, xl in enumerate(["time [s]", "temperature [degC]"][:1 + hot]):
+        _finish(axs[0, j], "", f"rms residual per {DRIFT_WINDOW_S:g} s [N]",
+                "drift (thermal signature)" if j == 0 else "", legend=j == 0)
+        _finish(axs[1, j], xl, "force gain measured / simulated [-]")
+    save(fig, "drift")
+    return paths
