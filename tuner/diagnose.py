@@ -282,11 +282,13 @@ def diagnosis_section_html(out_dir) -> str:
         return ""
     d = json.loads(path.read_text())
     e = html.escape
-    rows = "".join(
-        f"<tr{' class=\"winner\"' if r['effect'] == d['cause'] else ''}><td>{e(r['effect'])}</td>"
-        f"<td>{', '.join(e(f'{n} = {_fmt(v, r['units'][n])}') for n, v in r['parameters'].items())}</td>"
-        f"<td>{r['validation_mse_change_pct']:+.1f} %</td><td>{r['score']:+.3f}</td></tr>"
-        for r in d["ranking"])
+    rows = []
+    for r in d["ranking"]:
+        cls = " class='winner'" if r["effect"] == d["cause"] else ""
+        fitted = ", ".join(f"{n} = {_fmt(v, r['units'][n])}" for n, v in r["parameters"].items())
+        rows.append(f"<tr{cls}><td>{e(r['effect'])}</td><td>{e(fitted)}</td>"
+                    f"<td>{r['validation_mse_change_pct']:+.1f} %</td><td>{r['score']:+.3f}</td></tr>")
+    rows = "".join(rows)
     val = "".join(f"<tr><td>{e(n)}</td><td>{v['mse_before']:.3e}</td><td>{v['mse_after']:.3e}</td>"
                   f"<td>{v['mse_change_pct']:+.1f} %</td><td>{v['ame_before']:.0f}</td><td>{v['ame_after']:.0f}</td></tr>"
                   for n, v in d["validation"].items())
