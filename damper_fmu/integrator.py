@@ -153,10 +153,11 @@ def _check_input(x1: float, v1: float) -> None:
 
 
 def simulate(model, time, stroke, stroke_velocity, *, params=None, max_step=DEFAULT_MAX_STEP,
-             input_mode=REPLAY) -> np.ndarray:
+             input_mode=REPLAY, temperature=None) -> np.ndarray:
     """In-process run of ``model`` (instance or kind name) under a sampled stroke.
 
-    time [s] (strictly increasing), stroke [m], stroke_velocity [m/s]: arrays of equal length.
+    time [s] (strictly increasing), stroke [m], stroke_velocity [m/s]: arrays of equal length;
+    temperature [degC]: optional measured oil temperature for the thermal drift element.
     Returns the force [N] at every sample; sample 0 is the initial (force-free) state. With the
     default REPLAY mode, this is exactly what the FMU computes when driven by ``tuner.runner``.
     """
@@ -170,6 +171,18 @@ def simulate(model, time, stroke, stroke_velocity, *, params=None, max_step=DEFA
     sim = Simulator(model, max_step=max_step, input_mode=input_mode)
     out = np.empty(t.size)
     tl, xl, vl = t.tolist(), x.tolist(), v.tolist()
+    if temperature is not None:
+        temp = np.asarray(temperature, dtype=float)
+        if temp.shape != t.shape:
+            raise ValueError("temperature must have the length of time")
+        tk = temp.tolist()
+        sim.temperature_input = tk[0]
+        out[0] = sim.initialize(xl[0], vl[0])
+        for k in range(1, t.size):
+            j = k if input_mode == REPLAY else k - 1
+            sim.temperature_input = tk[j]
+            out[k] = sim.step(tl[k] - tl[k - 1], xl[j], vl[j])
+        return out
     out[0] = sim.initialize(xl[0], vl[0])
     step = sim.step
     for k in range(1, t.size):

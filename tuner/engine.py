@@ -81,7 +81,21 @@ class _Simulator:
 _WORKER: dict = {}
 
 
+def _exit_with_parent(parent: int) -> None:
+    """Daemon thread of a worker: end the worker when the parent process is gone (killed run)."""
+    import os
+    import time
+
+    while os.getppid() == parent:
+        time.sleep(2.0)
+    os._exit(0)
+
+
 def _init_worker(model, engine, fmu_path, max_internal_step, tests):
+    import os
+    import threading
+
+    threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
     _WORKER["sim"] = _Simulator(model, engine, fmu_path, max_internal_step)
     _WORKER["tests"] = tests
 
