@@ -56,8 +56,14 @@ class SimulateFmuWay:
         if not self.first:
             self.fmu.reset()
         self.first = False
-        signals = np.zeros(t.size, dtype=[("time", float), ("stroke", float), ("stroke_velocity", float)])
+        names = [("time", float), ("stroke", float), ("stroke_velocity", float)]
+        inputs = {v.name for v in self.md.modelVariables if v.causality == "input"}
+        if "oil_temperature" in inputs:
+            names.append(("oil_temperature", float))
+        signals = np.zeros(t.size, dtype=names)
         signals["time"], signals["stroke"], signals["stroke_velocity"] = t, x, v
+        if "oil_temperature" in inputs:
+            signals["oil_temperature"] = 20.0  # unused unless thermal_source = 1
         h = float(t[1] - t[0])
         res = simulate_fmu(self.unzip, model_description=self.md, fmu_instance=self.fmu, start_time=float(t[0]),
                            stop_time=float(t[-1]), step_size=h, output_interval=h, input=signals,
