@@ -124,6 +124,27 @@ class FmuRunner:
             self._check(self.fmu.fmi2SetInteger(self._component, (ctypes.c_uint * len(vrs))(*vrs), len(vrs),
                                                 (fmi2Integer * len(vrs))(*ints.values())), "setting parameters")
 
+    def _start(self, t0: float, params: dict | None, vr_in, inp) -> None:
+        """Reset (after the first run), set up, apply parameters and initial inputs, initialise."""
+        fmu, c = self.fmu, self._component
+        self.messages.clear()
+        if not self._fresh:
+            self._check(fmu.fmi2Reset(c), "reset")
+        self._fresh = False
+        self._check(fmu.fmi2SetupExperiment(c, 0, 0.0, t0, 0, 0.0), "setup experiment")
+        self._check(fmu.fmi2EnterInitializationMode(c), "enter initialization")
+        self._apply_parameters(params)
+        self._check(self._set_real(c, vr_in, len(inp), inp), "setting inputs")
+        self._check(fmu.fmi2ExitInitializationMode(c), "exit initialization")
+
+    def _outputs(self, outputs):
+        unknown = [o for o in outputs if o not in self.output_names]
+        if unknown:
+            raise ValueError(f"{self.path.name} has no output(s) {unknown}; outputs: {self.output_names}")
+        nout = len(outputs)
+        return nout, (ctypes.c_uint * nout)(*[self.variables[o].valueReference for o in outputs]), \
+            (ctypes.c_double * nout)()
+
     # -- public ---------------------------------------------------------------------------
     def run(self, time, stroke, stroke_velocity, params: dict | None = None,
             outputs=("force",), temperature=None) -> np.ndarray:
@@ -143,25 +164,11 @@ class FmuRunner:
                 raise ValueError("temperature must have the length of time")
             params = {**(params or {}), "thermal_source": 1}
             return self._run3(t, x, v, temp, params, outputs)
-        unknown = [o for o in outputs if o not in self.output_names]
-        if unknown:
-            raise ValueError(f"{self.path.name} has no output(s) {unknown}; outputs: {self.output_names}")
-        fmu, c = self.fmu, self._component
-        self.messages.clear()
-        if not self._fresh:
-            self._check(fmu.fmi2Reset(c), "reset")
-        self._fresh = False
-        self._check(fmu.fmi2SetupExperiment(c, 0, 0.0, float(t[0]), 0, 0.0), "setup experiment")
-        self._check(fmu.fmi2EnterInitializationMode(c), "enter initialization")
-        self._apply_parameters(params)
+        nout, vr_out, buf = self._outputs(outputs)
+        c = self._component
         inp, vr_in = self._in, self._vr_in
         inp[0], inp[1] = float(x[0]), float(v[0])
-        self._check(self._set_real(c, vr_in, 2, inp), "setting inputs")
-        self._check(fmu.fmi2ExitInitializationMode(c), "exit initialization")
-
-        nout = len(outputs)
-        vr_out = (ctypes.c_uint * nout)(*[self.variables[o].valueReference for o in outputs])
-        buf = (ctypes.c_double * nout)()
+        self._start(float(t[0]), params, vr_in, inp)
         result = np.empty((t.size, nout))
         set_real, do_step, get_real = self._set_real, self._do_step, self._get_real
         self._check(get_real(c, vr_out, nout, buf), "reading outputs")
@@ -184,21 +191,11 @@ class FmuRunner:
 
     def _run3(self, t, x, v, temp, params, outputs) -> np.ndarray:
         """``run`` with the oil temperature as a third input (thermal drift element)."""
-        fmu, c = self.fmu, self._component
-        self.messages.clear()
-        if not self._fresh:
-            self._check(fmu.fmi2Reset(c), "reset")
-        self._fresh = False
-        self._check(fmu.fmi2SetupExperiment(c, 0, 0.0, float(t[0]), 0, 0.0), "setup experiment")
-        self._check(fmu.fmi2EnterInitializationMode(c), "enter initialization")
-        self._apply_parameters(params)
+        nout, vr_out, buf = self._outputs(outputs)
+        c = self._component
         vr_in = (ctypes.c_uint * 3)(self._vr_in[0], self._vr_in[1], self.variables["oil_temperature"].valueReference)
         inp = (ctypes.c_double * 3)(float(x[0]), float(v[0]), float(temp[0]))
-        self._check(self._set_real(c, vr_in, 3, inp), "setting inputs")
-        self._check(fmu.fmi2ExitInitializationMode(c), "exit initialization")
-        nout = len(outputs)
-        vr_out = (ctypes.c_uint * nout)(*[self.variables[o].valueReference for o in outputs])
-        buf = (ctypes.c_double * nout)()
+        self._start(float(t[0]), params, vr_in, inp)
         result = np.empty((t.size, nout))
         self._check(self._get_real(c, vr_out, nout, buf), "reading outputs")
         result[0] = buf[:]

@@ -1,0 +1,104 @@
+"""Confusion matrix of the diagnosis: hidden effects on the virtual rig vs the cause it names.
+
+    python benchmarks/confusion_matrix.py [--seeds 3] [--t-end 6] [--out results/confusion]
+
+For every catalogue effect and for clean data, ``--seeds`` datasets are generated with the virtual
+rig (a new dataset seed each time; the effect magnitude drawn uniformly inside its documented
+range with a seeded generator and never passed to the diagnosis), the diagnosis runs blind
+(in-process engine: the same equations as the FMU), and the named cause is recorded. Prints the
+confusion matrix, the detection rate per effect, the false-cause rate on clean data and the
+magnitude error of correct detections. Writes confusion.json.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from campaign.effects import EFFECTS  # noqa: E402
+from campaign.generate import generate_dataset  # noqa: E402
+from tuner.data import load_dataset  # noqa: E402
+from tuner.diagnose import CANDIDATES, DiagnosisSettings, diagnose  # noqa: E402
+
+#: rig effect -> the diagnosis parameter that measures it, and the factor rig value -> that parameter
+MEASURE = {"friction": ("friction_force", 1.0), "preload": ("preload_force", -1.0), "free_play": ("free_play", 1.0),
+           "thermal_drift": ("thermal_beta", 1.0), "valve_lag": ("valve_tau", 1.0),
+           "time_delay": ("time_delay", 1.0), "inertia": ("inertia_mass", 1.0)}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--t-end", type=float, default=6.0, help="duration of each scenario [s] (None: full)")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--effects", default=",".join(["none", *CANDIDATES]))
+    ap.add_argument("--out", type=Path, default=ROOT / "results" / "confusion")
+    a = ap.parse_args(argv)
+    a.out.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(20231121)
+    truths = [e.strip() for e in a.effects.split(",")]
+    rows = []
+    for truth in truths:
+        for k in range(a.seeds):
+            effects = {}
+            if truth != "none":
+                spec = EFFECTS[truth]
+                effects[truth] = float(rng.uniform(spec.low, spec.high))
+            tmp = Path(tempfile.mkdtemp(prefix="confusion_"))
+            try:
+                t0 = time.perf_counter()
+                data = generate_dataset(tmp / "data", seed=1000 + 17 * k + 3 * len(rows), effects=effects,
+                                        t_end=a.t_end, log=lambda m: None)
+                tests = load_dataset(data)
+                res = diagnose([t for t in tests if t.role == "identification"],
+                               [t for t in tests if t.role == "validation"], tmp / "out",
+                               DiagnosisSettings(engine="inprocess", workers=a.workers, base_iterations=0),
+                               log=lambda m: None)
+            finally:
+                shutil.rmtree(tmp, ignore_errors=True)
+            row = {"truth": truth, "magnitude": effects.get(truth), "named": res["cause"],
+                   "score": res["ranking"][0]["score"], "elapsed_s": time.perf_counter() - t0}
+            if truth != "none":
+                name, factor = MEASURE[truth]
+                ext = next(r for r in res["ranking"] if r["effect"] == truth)
+                row["fitted"] = ext["parameters"][name]
+                row["relative_error"] = ext["parameters"][name] / (factor * effects[truth]) - 1.0
+                row["mse_change_pct"] = ext["validation_mse_change_pct"]
+            rows.append(row)
+            print(f"{truth:14s} {row['magnitude'] if row['magnitude'] is not None else '':>12}  -> "
+                  f"{row['named']:14s} score {row['score']:+.3f}" +
+                  (f"  fitted {row['fitted']:.4g} ({100 * row['relative_error']:+.0f} %), "
+                   f"MSE {row['mse_change_pct']:+.1f} %" if truth != "none" else "")
+                  + f"  [{row['elapsed_s']:.0f} s]", flush=True)
+    labels = ["none", *CANDIDATES]
+    matrix = {t: {n: sum(1 for r in rows if r["truth"] == t and r["named"] == n) for n in labels} for t in truths}
+    print("\nconfusion matrix (rows: hidden effect, columns: named cause)")
+    print(" " * 15 + "".join(f"{n[:9]:>10}" for n in labels))
+    for t in truths:
+        print(f"{t:15s}" + "".join(f"{matrix[t][n]:10d}" for n in labels))
+    print("\ndetection rate per effect (target >= 95 %), false causes on clean data (target 0):")
+    summary = {}
+    for t in truths:
+        n = sum(matrix[t].values())
+        ok = matrix[t][t]
+        errs = [abs(r["relative_error"]) for r in rows if r["truth"] == t and r["named"] == t]
+        summary[t] = {"runs": n, "correct": ok, "rate": ok / n if n else float("nan"),
+                      "median_magnitude_error": float(np.median(errs)) if errs else None}
+        extra = f", median |magnitude error| {100 * np.median(errs):.0f} %" if errs else ""
+        label = "clean (no false cause)" if t == "none" else t
+        print(f"  {label:24s} {ok}/{n} = {100 * ok / n:.0f} %{extra}")
+    (a.out / "confusion.json").write_text(json.dumps({"rows": rows, "matrix": matrix, "summary": summary}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
