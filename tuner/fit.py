@@ -35,8 +35,6 @@ from .polish import polish
 
 __all__ = ["FitSettings", "fit", "initial_guess", "to_signals"]
 
-MODEL_FMU = {"lumped": "DamperLumped", "maxwell": "DamperMaxwell", "maxwell_table": "DamperMaxwellTable"}
-
 
 @dataclass
 class FitSettings:
@@ -302,12 +300,12 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2, sort_keys=True, default=str))
 
     log("exporting tuned FMUs ...")
-    from build_fmu import build
+    from build_fmu import SLAVES, build
 
     for model in settings.models:
         build(model, out / "fmu", start_values={k: v for k, v in params[model]["values"].items()
                                                  if k in {p.name for p in MODEL_PARAMETERS[model]}},
-              filename=f"{MODEL_FMU[model]}_tuned.fmu")
+              filename=f"{SLAVES[model]}_tuned.fmu")
     try:
         from .report import make_report
     except ImportError:
