@@ -79,6 +79,7 @@ def main(argv=None) -> int:
                   (f"  fitted {row['fitted']:.4g} ({100 * row['relative_error']:+.0f} %), "
                    f"MSE {row['mse_change_pct']:+.1f} %" if truth != "none" else "")
                   + f"  [{row['elapsed_s']:.0f} s]", flush=True)
+    (a.out / "confusion.json").write_text(json.dumps({"rows": rows}, indent=1))
     labels = ["none", *CANDIDATES]
     matrix = {t: {n: sum(1 for r in rows if r["truth"] == t and r["named"] == n) for n in labels} for t in truths}
     print("\nconfusion matrix (rows: hidden effect, columns: named cause)")
@@ -90,7 +91,7 @@ def main(argv=None) -> int:
     for t in truths:
         n = sum(matrix[t].values())
         ok = matrix[t][t]
-        errs = [abs(r["relative_error"]) for r in rows if r["truth"] == t and r["named"] == t]
+        errs = [abs(r["relative_error"]) for r in rows if r["truth"] == t and r["named"] == t and t != "none"]
         summary[t] = {"runs": n, "correct": ok, "rate": ok / n if n else float("nan"),
                       "median_magnitude_error": float(np.median(errs)) if errs else None}
         extra = f", median |magnitude error| {100 * np.median(errs):.0f} %" if errs else ""
