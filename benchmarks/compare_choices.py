@@ -68,13 +68,19 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         best, hist = _identify("lumped", sig, settings, par, ckpt, "compare", lambda m: None)
         firefly_best = hist["firefly_best_fitness"]
-        results[name] = {"history": hist["best_fitness"], "firefly_rmse": 1 / math.sqrt(firefly_best),
-                         "polished_rmse": 1 / math.sqrt(hist["best_fitness_final"]),
-                         "validation_rmse": validation_rmse(best, valid, 0.5),
+        failed = sum(1 for g in hist["mean_fitness"] if g == 0.0)
+        results[name] = {"history": hist["best_fitness"],
+                         "firefly_rmse": 1 / math.sqrt(firefly_best) if firefly_best > 0 else math.inf,
+                         "polished_rmse": (1 / math.sqrt(hist["best_fitness_final"])
+                                           if hist["best_fitness_final"] > 0 else math.inf),
+                         "generations_without_any_simulable_candidate": failed,
+                         "validation_rmse": (validation_rmse(best, valid, 0.5) if firefly_best > 0
+                                             else [math.inf] * len(valid)),
                          "elapsed_s": time.perf_counter() - t0}
         r = results[name]
         print(f"{name:10s} Firefly RMSE {r['firefly_rmse']:7.1f} N -> polished {r['polished_rmse']:7.1f} N; "
-              f"validation RMSE " + " / ".join(f"{e:.0f}" for e in r["validation_rmse"]) + f" N ({r['elapsed_s']:.0f} s)",
+              f"validation RMSE " + " / ".join(f"{e:.0f}" for e in r["validation_rmse"]) + f" N ({r['elapsed_s']:.0f} s)"
+              f"; generations with no simulable candidate: {r['generations_without_any_simulable_candidate']}",
               flush=True)
     (a.out / "compare_choices.json").write_text(json.dumps(results, indent=1))
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -84,7 +90,11 @@ def main(argv=None) -> int:
     FigureCanvasAgg(fig)
     ax1, ax2 = fig.subplots(1, 2)
     for name, r in results.items():
-        ax1.semilogy(1 / np.sqrt(np.asarray(r["history"])), label=name)
+        h = np.asarray(r["history"])
+        if np.any(h > 0):
+            ax1.semilogy(np.where(h > 0, 1 / np.sqrt(np.maximum(h, 1e-300)), np.nan), label=name)
+        else:
+            ax1.plot([], [], label=f"{name}: no candidate could be simulated")
     ax1.set_xlabel("Firefly generation")
     ax1.set_ylabel("best identification RMSE [N] (= 1/sqrt(G))")
     ax1.set_title("Firefly search, same budget and seed")
@@ -94,7 +104,8 @@ def main(argv=None) -> int:
     x = np.arange(len(valid))
     w = 0.8 / len(names)
     for i, name in enumerate(names):
-        ax2.bar(x + i * w, results[name]["validation_rmse"], w, label=f"{name} (+ polish)")
+        vals = [v if np.isfinite(v) else 0.0 for v in results[name]["validation_rmse"]]
+        ax2.bar(x + i * w, vals, w, label=f"{name} (+ polish)" + ("" if any(vals) else ": failed"))
     ax2.set_xticks(x + 0.4 - w / 2, [t.name for t in valid], fontsize=8)
     ax2.set_ylabel("validation RMSE [N]")
     ax2.set_title("After the least-squares polish")

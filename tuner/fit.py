@@ -188,6 +188,13 @@ def _identify(model: str, signals: list[Signals], settings: FitSettings, par: Pa
             z_best, g_best, polish_evals, polish_hist = polish(eng, par, result.x_best,
                                                               max_jacobians=settings.polish_jacobians, log=log)
     elapsed = time.perf_counter() - t_start
+
+    def rmse(g):
+        return 1.0 / math.sqrt(g) if g > 0 else math.inf
+
+    if g_best <= 0.0:
+        log(f"[{model}] WARNING: no candidate could be simulated (every table non-monotonic or every "
+            f"implicit solve failed); try --parametrization improved")
     best = par.to_params(z_best)
     st = result.state
     history = {
@@ -209,8 +216,8 @@ def _identify(model: str, signals: list[Signals], settings: FitSettings, par: Pa
         "parametrization": par.describe(),
     }
     log(f"[{model}] done: Firefly {result.stop_reason} after {result.iterations} iterations "
-        f"(RMSE {1 / math.sqrt(result.fitness_best):.1f} N), {result.evaluations + polish_evals} evaluations, "
-        f"{elapsed:.0f} s; identification RMSE {1 / math.sqrt(g_best):.1f} N")
+        f"(RMSE {rmse(result.fitness_best):.1f} N), {result.evaluations + polish_evals} evaluations, "
+        f"{elapsed:.0f} s; identification RMSE {rmse(g_best):.1f} N")
     return best, history
 
 
