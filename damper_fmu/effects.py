@@ -36,7 +36,7 @@ __all__ = ["Effects"]
 class Effects:
     """Effect elements of one simulation run; ``active`` is False when all are off."""
 
-    def __init__(self, params: dict, model):
+    def __init__(self, params: dict):
         p = params
         self.ff, self.v_eps = p.get("friction_force", 0.0), p.get("friction_velocity", 5e-4)
         self.f0 = p.get("preload_force", 0.0)
@@ -47,7 +47,6 @@ class Effects:
         self.tau = p.get("valve_tau", 0.0)
         self.delay = p.get("time_delay", 0.0)
         self.m_eq = p.get("inertia_mass", 0.0)
-        self.model = model
         self.active = any(v != 0.0 for v in (self.ff, self.f0, self.gap, self.beta, self.tau, self.delay,
                                               self.m_eq))
         # state

@@ -49,7 +49,7 @@ class Simulator:
         self.x1 = self.v1 = 0.0
         self.force = 0.0
         #: effect elements (lumped model only); None or inactive: the base model alone
-        self.effects = Effects(model.params, model) if model.kind == "lumped" else None
+        self.effects = Effects(model.params) if model.kind == "lumped" else None
         #: measured oil temperature [degC] for the thermal drift element (None: internal balance)
         self.temperature_input: float | None = None
 
@@ -57,7 +57,7 @@ class Simulator:
         """Replace the model (new parameter values) keeping the state, effect states included."""
         old = self.effects
         self.model = model
-        self.effects = Effects(model.params, model) if model.kind == "lumped" else None
+        self.effects = Effects(model.params) if model.kind == "lumped" else None
         if old is not None and old.active and self.effects is not None and self.effects.active:
             self.effects.set_state(old.get_state())
 

@@ -212,16 +212,12 @@ class LumpedModel:
         }
 
 
-class MaxwellModel:
-    """Linear Maxwell model; state y = [xd] (dashpot end position [m])."""
+class _SeriesSpringModel:
+    """Shared part of the Maxwell models: a spring k_s [N/m] in series with a dashpot;
+    state y = [xd], the dashpot end position [m]; F = k_s (x1 - xd)."""
 
-    kind = "maxwell"
     n_state = 1
-
-    def __init__(self, params: dict[str, float] | None = None):
-        p = check_values("maxwell", params or {})
-        self.params = p
-        self.ks, self.c = p["k_s"], p["c"]
+    ks: float
 
     def initial_state(self, x1: float, v1: float) -> list[float]:
         """Force-free state at stroke x1 [m] (spring unloaded)."""
@@ -230,32 +226,36 @@ class MaxwellModel:
     def force(self, y, x1: float, v1: float) -> float:
         return self.ks * (x1 - y[0])
 
+    def diagnostics(self, y, x1: float, v1: float) -> dict[str, float]:
+        return {"spring_elongation": x1 - y[0]}
+
+
+class MaxwellModel(_SeriesSpringModel):
+    """Linear Maxwell model: spring k_s in series with a linear dashpot c."""
+
+    kind = "maxwell"
+
+    def __init__(self, params: dict[str, float] | None = None):
+        p = check_values("maxwell", params or {})
+        self.params = p
+        self.ks, self.c = p["k_s"], p["c"]
+
     def stage(self, yb, g: float, x1: float, v1: float) -> list[float]:
         """Solve xd = xdb + g k_s (x1 - xd) / c (linear, exact)."""
         a = g * self.ks / self.c
         return [(yb[0] + a * x1) / (1.0 + a)]
 
-    def diagnostics(self, y, x1: float, v1: float) -> dict[str, float]:
-        return {"spring_elongation": x1 - y[0]}
 
-
-class MaxwellTableModel:
-    """Maxwell model with a piecewise-linear dashpot Fc,O; state y = [xd] [m]."""
+class MaxwellTableModel(_SeriesSpringModel):
+    """Maxwell model with a piecewise-linear dashpot Fc,O."""
 
     kind = "maxwell_table"
-    n_state = 1
 
     def __init__(self, params: dict[str, float] | None = None):
         p = check_values("maxwell_table", params or {})
         self.params = p
         self.ks = p["k_s"]
         self.fc = _table(p, "Fc", "v")
-
-    def initial_state(self, x1: float, v1: float) -> list[float]:
-        return [x1]
-
-    def force(self, y, x1: float, v1: float) -> float:
-        return self.ks * (x1 - y[0])
 
     def stage(self, yb, g: float, x1: float, v1: float) -> list[float]:
         """Solve Fc(vd) = k_s (x1 - xdb - g vd) for the dashpot rate vd, then xd = xdb + g vd."""
@@ -288,9 +288,6 @@ class MaxwellTableModel:
             if hi - lo <= 1e-15 * (1.0 + abs(mid)):
                 break
         return [yb[0] + g * 0.5 * (lo + hi)]
-
-    def diagnostics(self, y, x1: float, v1: float) -> dict[str, float]:
-        return {"spring_elongation": x1 - y[0]}
 
 
 _MODELS = {"lumped": LumpedModel, "maxwell": MaxwellModel, "maxwell_table": MaxwellTableModel}

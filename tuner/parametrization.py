@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from damper_fmu.parameters import MODEL_PARAMETERS, check_values, defaults
+from damper_fmu.parameters import MODEL_PARAMETERS, check_values
 
 __all__ = ["Parametrization", "SCHEMES"]
 
@@ -150,7 +150,3 @@ class Parametrization:
                 f"{self.force_limit:.3g} N; Fk,O stiffnesses log-uniform in {_K_LOW:g}-{_K_HIGH:g} x "
                 f"{self.spring_reference:.3g} N/m")
 
-
-def preset(model: str) -> dict[str, float]:
-    """The reference preset of ``model`` (paper Table 2 for the lumped model)."""
-    return defaults(model)
