@@ -14,7 +14,8 @@ preload        F0        N      30 - 400     300      un-tared reservoir gas for
 free_play      gap       m      1e-4 - 1e-3  3e-4     total clearance (dead band) in the actuator-side
                                                       end mount, in series
 thermal_drift  beta      1/K    2e-3 - 2e-2  1e-2     bleed and blow-off pressure drops scaled by
-                                                      ``exp(-beta (T - T_amb))``; oil temperature from
+                                                      ``exp(-beta (T - T_ref))``, T_ref = 20 degC; oil
+                                                      temperature from
                                                       ``C dT/dt = P_diss - hA (T - T_amb)``
                                                       (C = 4000 J/K, hA = 5 W/K)
 valve_lag      tau       s      1e-3 - 1e-2  3e-3     first-order lag of the blow-off valve openings;
@@ -52,7 +53,8 @@ from campaign.rig_damper import DamperConfig
 @dataclass(frozen=True)
 class EffectSpec:
     """One hidden effect: name, parameter name, unit, realistic range [low, high],
-    default value and a one-line description."""
+    default value, a one-line description, and the lumped-model effect parameter that
+    measures it (``model_parameter`` = ``model_sign`` x the rig value, same unit)."""
 
     name: str
     parameter: str
@@ -61,28 +63,32 @@ class EffectSpec:
     high: float
     default: float
     description: str
+    model_parameter: str
+    model_sign: float = 1.0
 
 
 EFFECTS: dict[str, EffectSpec] = {
     s.name: s for s in (
         EffectSpec("friction", "Ff", "N", 50.0, 300.0, 150.0,
-                   "seal/guide Coulomb friction Ff tanh(v / 0.5 mm/s) in parallel"),
+                   "seal/guide Coulomb friction Ff tanh(v / 0.5 mm/s) in parallel", "friction_force"),
         EffectSpec("preload", "F0", "N", 30.0, 400.0, 300.0,
-                   "un-tared reservoir gas force / load-cell offset: force reads -F0 more"),
+                   "un-tared reservoir gas force / load-cell offset: force reads -F0 more", "preload_force", -1.0),
         EffectSpec("free_play", "gap", "m", 1e-4, 1e-3, 3e-4,
-                   "clearance (total dead band) in the actuator-side end mount"),
+                   "clearance (total dead band) in the actuator-side end mount", "free_play"),
         EffectSpec("thermal_drift", "beta", "1/K", 2e-3, 2e-2, 1e-2,
-                   "oil heats with dissipated power; damping x exp(-beta (T - T_amb))"),
+                   "damping x exp(-beta (T - 20 degC)); the oil heats with dissipated power", "thermal_beta"),
         EffectSpec("valve_lag", "tau", "s", 1e-3, 1e-2, 3e-3,
-                   "first-order lag of the blow-off valve openings"),
+                   "first-order lag of the blow-off valve openings", "valve_tau"),
         EffectSpec("time_delay", "delay", "s", 1e-3, 1e-2, 3e-3,
-                   "force channel lags the stroke channel by a pure delay"),
+                   "force channel lags the stroke channel by a pure delay", "time_delay"),
         EffectSpec("inertia", "m_eq", "kg", 20.0, 200.0, 60.0,
-                   "equivalent fluid/rod inertia seen by the load cell"),
+                   "equivalent fluid/rod inertia seen by the load cell", "inertia_mass"),
     )
 }
 
 DEFAULT_EFFECTS: dict[str, float] = {}  # nothing on by default (see module docstring)
+#: effects on the force channel after the damper (``apply_channel_effects``), not damper physics
+CHANNEL_EFFECTS = ("preload", "time_delay")
 
 
 def parse_effect(text: str) -> tuple[str, float]:

@@ -134,7 +134,8 @@ class DamperParams:
     body_mass: float = 20.0  # kg, tubes + oil + eye
     heat_capacity: float = 4000.0  # J/K, oil + inner tube
     heat_transfer: float = 5.0  # W/K, to ambient
-    ambient_temperature: float = 20.0  # degC
+    ambient_temperature: float = 20.0  # degC, also the oil temperature at the start of a test
+    viscosity_reference_temperature: float = 20.0  # degC, where the valve characteristics apply as given
 
     @property
     def area_piston(self) -> float:
@@ -167,7 +168,7 @@ class DamperConfig:
 
     friction_force [N] (Coulomb, ``Ff tanh(v / friction_v_eps)``, v_eps [m/s]),
     free_play [m] (total dead band width in mount A), thermal_beta [1/K] (valve pressure
-    drops scaled by ``exp(-beta (T - T_amb))``, thermal balance on), valve_tau [s]
+    drops scaled by ``exp(-beta (T - T_ref))``, thermal balance on), valve_tau [s]
     (first-order lag of the blow-off valve openings), extra_mass [kg] (equivalent
     fluid/rod inertia added to the rod)."""
 
@@ -462,7 +463,7 @@ class RigDamper:
         th = pR * aa - pC * ap + P_ATM * ar + th_f
         pres, dpres = self._p_res(dv)
         beta = c.thermal_beta
-        phi = math.exp(-beta * (temp - p.ambient_temperature)) if beta > 0 else 1.0
+        phi = math.exp(-beta * (temp - p.viscosity_reference_temperature)) if beta > 0 else 1.0
         lag = c.valve_tau > 0
         dpp, dpf = pR - pC, pC - pres
         qp, gp, hp, jp = valve_flow(p.piston_valve, dpp, phi, p.oil_density, yp if lag else None)
@@ -573,7 +574,7 @@ class RigDamper:
         gap = c.free_play
         hgap, wgap = 0.5 * gap, c.free_play_smoothing
         ff, veps = c.friction_force, c.friction_v_eps
-        beta, tamb = c.thermal_beta, p.ambient_temperature
+        beta, tamb, tref = c.thermal_beta, p.ambient_temperature, p.viscosity_reference_temperature
         hc, hA = p.heat_capacity, p.heat_transfer
         tau = c.valve_tau
         lag = tau > 0
@@ -638,7 +639,7 @@ class RigDamper:
             thf = ff * tanh(xd / veps) if ff > 0.0 else 0.0
             th = pR * aa - pC * ap + P_ATM * ar + thf
             pres = pg0 * (vg0 / (vg0 - dv)) ** ngas
-            phi = exp(-beta * (temp - tamb)) if beta > 0.0 else 1.0
+            phi = exp(-beta * (temp - tref)) if beta > 0.0 else 1.0
             dpp, dpf = pR - pC, pC - pres
             qp = flow(cp, dpp, phi, yp if lag else None)
             qf = flow(cf_, dpf, phi, yf if lag else None)

@@ -347,3 +347,68 @@ def test_measured_stroke_matches_imposed_stroke_within_noise():
     q_s = chain.lsb(chain.stroke_range)
     assert np.std(err) == pytest.approx(math.hypot(2e-6, q_s / math.sqrt(12)), rel=0.15)
     assert abs(np.mean(err)) < 0.5e-6
+
+
+# ---------------------------------------------------------------- lumped damper, climatic chamber
+def test_lumped_damper_on_the_rig_is_the_model_and_its_effects_obey_their_laws():
+    """damper="lumped": ideal sensors reproduce damper_fmu.simulate on the same stroke (up to the
+    anti-alias filter), friction adds Ff tanh(v / v_eps) and preload reads -F0."""
+    from damper_fmu import simulate
+
+    t, s = sine(2.0, 0.004, 3.0)
+    kw = dict(sensors=IDEAL, damper="lumped")
+    clean = measure(t, s, **kw)
+    tt = clean["time"].to_numpy()
+    x = clean["stroke"].to_numpy()
+    v = np.gradient(x, tt)
+    ref = simulate("lumped", tt, x, v, max_step=2.5e-4)
+    steady = (tt > 1.0) & (tt < tt[-1] - 0.1)  # FIR filter and np.gradient edges excluded
+    err = np.abs(clean["force"].to_numpy() - ref)[steady]
+    assert err.max() < 0.01 * np.abs(ref[steady]).max()
+    ff, f0 = 200.0, 150.0
+    fric = measure(t, s, {"friction": ff}, **kw)
+    fast = steady & (np.abs(v) > 0.01)
+    extra = (fric["force"] - clean["force"]).to_numpy()[fast]
+    np.testing.assert_allclose(extra, ff * np.sign(v[fast]), rtol=0.05)
+    pre = measure(t, s, {"preload": f0}, **kw)
+    np.testing.assert_allclose((pre["force"] - clean["force"]).to_numpy()[steady], -f0,
+                               atol=2 * IDEAL.lsb(IDEAL.force_range))  # ADC quantisation
+    assert clean.attrs["damper"] == "lumped"
+
+
+def test_oil_temperature_scales_the_damping_only_when_it_depends_on_temperature():
+    """A damper conditioned to 40 degC: no change without thermal drift (both dampers); with it,
+    the lumped damper's slow-stroke force (damping-dominated) scales by exp(-beta (T - 20 degC)),
+    and the oil temperature channel obeys the heat balance C dT = (F v - hA (T - T_amb)) dt."""
+    beta = 0.01
+    t, s = sine(0.5, 0.01, 6.0)
+    for damper in ("lumped", "twin-tube"):
+        cold = measure(t, s, damper=damper, sensors=IDEAL)
+        warm = measure(t, s, damper=damper, sensors=IDEAL, oil_temperature=40.0)
+        # equal up to the twin-tube integrator's tolerance (the temperature is one of its states)
+        tol = 0.0 if damper == "lumped" else 1e-4 * cold["force"].abs().max()
+        np.testing.assert_allclose(cold["force"], warm["force"], rtol=0.0, atol=tol)
+        assert warm["temperature"].iloc[0] == 40.0
+    ref = measure(t, s, {"thermal_drift": beta}, damper="lumped", sensors=IDEAL, oil_temperature=20.0)
+    warm = measure(t, s, {"thermal_drift": beta}, damper="lumped", sensors=IDEAL, oil_temperature=40.0)
+    tt, temp = warm["time"].to_numpy(), warm["temperature"].to_numpy()
+    speed = np.abs(np.gradient(warm["stroke"].to_numpy(), tt))
+    fast = (tt > 2.0) & (speed > 0.8 * speed.max())  # away from reversals, where compliance acts
+    ratio = warm["force"].to_numpy()[fast] / ref["force"].to_numpy()[fast]
+    expected = np.exp(-beta * (temp[fast] - ref["temperature"].to_numpy()[fast]))
+    np.testing.assert_allclose(ratio, expected, rtol=0.02)
+    work = np.trapezoid(warm["force"] * np.gradient(warm["stroke"], tt), tt)
+    heat = PAR.heat_capacity * (temp[-1] - temp[0]) + PAR.heat_transfer * np.trapezoid(temp - 40.0, tt)
+    assert heat == pytest.approx(work, rel=0.02)
+    tw = measure(t, s, {"thermal_drift": beta}, sensors=IDEAL, oil_temperature=40.0)
+    tw_ref = measure(t, s, {"thermal_drift": beta}, sensors=IDEAL)
+    assert tw["force"].abs().max() < 0.95 * tw_ref["force"].abs().max()
+
+
+def test_rig_rejects_an_unknown_damper_and_an_absurd_oil_temperature():
+    t, s = sine(1.0, 0.001, 1.0)
+    with pytest.raises(ValueError, match="unknown damper"):
+        measure(t, s, damper="monotube")
+    for bad in (float("nan"), 500.0, "hot"):
+        with pytest.raises(ValueError, match="oil_temperature"):
+            measure(t, s, oil_temperature=bad)

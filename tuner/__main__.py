@@ -214,6 +214,13 @@ def _print_summary(metrics: dict) -> None:
              f"{r['ame_lumped_pct_of_peak']:6.2f}%")
 
 
+def _float_list(text: str) -> list[float]:
+    try:
+        return [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
+
+
 def cmd_generate(args) -> int:
     from campaign.generate import generate_dataset
 
@@ -224,7 +231,8 @@ def cmd_generate(args) -> int:
         name, value = parse_effect(spec)
         effects[name] = value
     out = generate_dataset(args.out, seed=args.seed, effects=effects, sample_rate=args.sample_rate,
-                           overwrite=args.overwrite, log=_log)
+                           overwrite=args.overwrite, damper=args.damper, t_end=args.t_end,
+                           oil_temperatures=args.oil_temperatures, log=_log)
     _log(f"dataset written to {out}")
     return 0
 
@@ -248,6 +256,13 @@ def main(argv=None) -> int:
                        help="switch on a hidden effect (repeatable), e.g. friction=150")
     p_gen.add_argument("--seed", type=int, default=2023)
     p_gen.add_argument("--sample-rate", type=float, default=1000.0, help="rig sample rate [Hz]")
+    p_gen.add_argument("--damper", choices=("twin-tube", "lumped"), default="twin-tube",
+                       help="damper on the rig: the physical twin-tube (default) or one whose hydraulics are "
+                            "the lumped model with the paper's Table 2 (no model-form error)")
+    p_gen.add_argument("--t-end", type=float, default=None, help="shorter manoeuvres: duration [s] of each")
+    p_gen.add_argument("--oil-temperatures", type=_float_list, default=None, metavar="T1,T2,...",
+                       help="oil temperature [degC] the damper is conditioned to before each test, one per "
+                            "scenario in order (default 20 degC for all)")
     p_gen.add_argument("--overwrite", action="store_true", help="replace an existing dataset folder")
     p_diag = sub.add_parser("diagnose", help="what the fitted model gets wrong, the cause, the gain")
     _add_fit_options(p_diag)
