@@ -12,8 +12,9 @@ Two dampers can be mounted (``damper``):
   with the effects as physics of its own. The static reservoir gas force is tared at the
   start, as on a real rig. The lumped model cannot represent it exactly: fitted to it, a
   model-form error of about 3 % of the peak force remains.
-* ``"lumped"``: a damper whose hydraulics ARE the lumped model with the paper's Table 2
-  parameters (``damper_fmu``), its damper-side effects (friction, free play, thermal drift,
+* ``"lumped"``: a damper whose hydraulics ARE the lumped model (``damper_fmu``), with
+  parameters of the paper's Table 2 family but not the preset the tuner starts from
+  (``lumped_parameters``: asymmetric, softer valves, a stiffer oil column), its damper-side effects (friction, free play, thermal drift,
   valve lag, inertia) realised by the model's own effect elements, the channel effects
   (preload, time delay) and the sensor chain by the rig as for the twin-tube. With no
   model-form error, this isolates what the diagnosis can resolve from what the model form
@@ -114,14 +115,20 @@ def measure(t, stroke, effects: Mapping[str, float | None] | None = None, seed: 
 
 
 def lumped_parameters(effects: Mapping[str, float], params: DamperParams | None = None) -> dict:
-    """Parameters of the lumped damper under test: the paper's Table 2 preset plus the
-    damper-side effects mapped onto the model's effect elements (SI units). The oil
-    temperature is the rig's (``_run_lumped``), fed to the model as a measured input."""
+    """Parameters of the lumped damper under test (SI units): the paper's Table 2 with the
+    damping table scaled by 0.8 in extension and 0.9 in compression, the elastic table by 1.3
+    and the silent blocks by 0.6 (so the tuner's preset start is not the answer), plus the
+    damper-side effects mapped onto the model's effect elements. The oil temperature is the
+    rig's (``_run_lumped``), fed to the model as a measured input."""
     from damper_fmu import defaults
 
     e = fx.validate_effects(effects)
     par = params or DamperParams()
     p = defaults("lumped")
+    for name in [n for n in p if n[:3] in ("Fc_", "Fk_") and n[3:4].isdigit()]:
+        p[name] *= 1.3 if name.startswith("Fk_") else (0.8 if p[name] > 0 else 0.9)
+    p["k_B"] *= 0.6
+    p["c_B"] *= 0.6
     p.update({"friction_velocity": DamperConfig().friction_v_eps,
               "thermal_reference": par.viscosity_reference_temperature})
     for name, value in e.items():

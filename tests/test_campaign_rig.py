@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from campaign import effects as fx
-from campaign.rig import measure
+from campaign.rig import lumped_parameters, measure
 from campaign.rig_damper import (DamperConfig, DamperParams, RigDamper, StrokeInput,
                                  quasi_static_force, series_stiffness)
 from campaign.sensors import SensorChain
@@ -361,7 +361,7 @@ def test_lumped_damper_on_the_rig_is_the_model_and_its_effects_obey_their_laws()
     tt = clean["time"].to_numpy()
     x = clean["stroke"].to_numpy()
     v = np.gradient(x, tt)
-    ref = simulate("lumped", tt, x, v, max_step=2.5e-4)
+    ref = simulate("lumped", tt, x, v, params=lumped_parameters({}), max_step=2.5e-4)
     steady = (tt > 1.0) & (tt < tt[-1] - 0.1)  # FIR filter and np.gradient edges excluded
     err = np.abs(clean["force"].to_numpy() - ref)[steady]
     assert err.max() < 0.01 * np.abs(ref[steady]).max()
