@@ -75,7 +75,7 @@ def generate_dataset(out, *, seed: int = DEFAULT_SEED, effects: dict | None = No
                  "damper": damper,
                  **({"oil_temperatures_degC": temps} if temps else {}),
                  "rig": "campaign.rig (" + ("physical twin-tube damper" if damper == "twin-tube" else
-                                            "lumped damper, the paper's Table 2") + ", sensor chain)"}
+                                            "lumped-model damper, Table 2 family") + ", sensor chain)"}
     path = write_dataset(out, tests, description="Virtual test campaign: the six manoeuvres of the paper's "
                          "Table 1 replayed on a virtual damper rig", generator=generator, overwrite=overwrite)
     from .plots import plot_dataset

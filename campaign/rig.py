@@ -14,9 +14,10 @@ Two dampers can be mounted (``damper``):
   model-form error of about 3 % of the peak force remains.
 * ``"lumped"``: a damper whose hydraulics ARE the lumped model (``damper_fmu``), with
   parameters of the paper's Table 2 family but not the preset the tuner starts from
-  (``lumped_parameters``: asymmetric, softer valves, a stiffer oil column), its damper-side effects (friction, free play, thermal drift,
-  valve lag, inertia) realised by the model's own effect elements, the channel effects
-  (preload, time delay) and the sensor chain by the rig as for the twin-tube. With no
+  (``lumped_parameters``: asymmetric, softer valves, a stiffer oil column). Its damper-side
+  effects (friction, free play, thermal drift, valve lag, inertia) are the model's own
+  effect elements; the channel effects (preload, time delay), the oil heat balance and
+  the sensor chain are the rig's, as for the twin-tube. With no
   model-form error, this isolates what the diagnosis can resolve from what the model form
   hides (an identifiability check, like fitting a model to data it generated).
 """
@@ -78,7 +79,8 @@ def measure(t, stroke, effects: Mapping[str, float | None] | None = None, seed: 
     75 mm); effects: {name: value or None (= default)} from ``campaign.effects.EFFECTS``;
     seed: noise seed; sample_rate [Hz] of the recorded channels (time starts at t[0]).
     Keyword-only: sensors (default ``SensorChain()``), params (damper, default
-    ``DamperParams()``, twin-tube only), rtol (integrator tolerance, twin-tube only),
+    ``DamperParams()``; for the lumped damper only its thermal data are used), rtol
+    (integrator tolerance, twin-tube only),
     damper (``DAMPERS``, see the module docstring), oil_temperature [degC] (the damper
     conditioned to this temperature before the test, as in a climatic chamber, which is
     then the ambient temperature; default 20). Returns a DataFrame with columns
