@@ -98,11 +98,6 @@ def _oil_temperatures(spec, chosen: list[str]) -> dict[str, float]:
         if len(spec) != len(chosen):
             raise ValueError(f"{len(spec)} oil temperatures for {len(chosen)} scenarios; give one per scenario")
         temps = dict(zip(chosen, spec))
-    for k, v in temps.items():
-        try:
-            temps[k] = float(v)
-        except (TypeError, ValueError):
-            raise ValueError(f"oil temperature of {k!r} is not a number: {v!r}") from None
-        if not -40.0 <= temps[k] <= 120.0:
-            raise ValueError(f"oil temperature of {k!r} = {temps[k]} degC outside [-40, 120] degC")
-    return temps
+    from .rig import check_oil_temperature
+
+    return {k: check_oil_temperature(v, f"oil temperature of {k!r}") for k, v in temps.items()}

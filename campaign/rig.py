@@ -90,9 +90,8 @@ def measure(t, stroke, effects: Mapping[str, float | None] | None = None, seed: 
     t, stroke, fs, seed = _check_inputs(t, stroke, sample_rate, seed)
     if damper not in DAMPERS:
         raise ValueError(f"unknown damper {damper!r}; known: {', '.join(DAMPERS)}")
-    if oil_temperature is not None and not (isinstance(oil_temperature, (int, float, np.number))
-                                            and -40.0 <= oil_temperature <= 120.0):
-        raise ValueError(f"oil_temperature must be a number in [-40, 120] degC, got {oil_temperature!r}")
+    if oil_temperature is not None:
+        oil_temperature = check_oil_temperature(oil_temperature)
     eff = fx.validate_effects(effects)
     chain = sensors or SensorChain()
     n_out = int(math.floor((t[-1] - t[0]) * fs + 1e-9)) + 1
@@ -114,6 +113,17 @@ def measure(t, stroke, effects: Mapping[str, float | None] | None = None, seed: 
     df.attrs.update({"effects": dict(eff), "seed": seed, "sample_rate": fs, "damper": damper,
                      "oil_temperature": params.ambient_temperature})
     return df
+
+
+def check_oil_temperature(value, what: str = "oil_temperature") -> float:
+    """``value`` as a float in [-40, 120] degC, or ValueError naming ``what``."""
+    try:
+        t = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be a number [degC], got {value!r}") from None
+    if not -40.0 <= t <= 120.0:  # also rejects NaN
+        raise ValueError(f"{what} = {value!r} degC outside [-40, 120] degC")
+    return t
 
 
 def lumped_parameters(effects: Mapping[str, float], params: DamperParams | None = None) -> dict:

@@ -166,16 +166,12 @@ def _run_diagnosis(ident, valid, out, args, base_params=None) -> dict:
                                  engine=args.engine, seed=args.seed)
     _log("\ndiagnosis: refitting the lumped model extended by each candidate effect ...")
     result = diagnose(ident, valid, out, settings, base_params=base_params, log=_log)
+    from .report import make_diagnosis_report, make_report
+
     if (out / "parameters.json").exists():  # a fit's folder: the full report with the diagnosis
-        from .report import make_report
-
         make_report(out)
-    else:  # a diagnosis on its own: a report of the diagnosis section alone
-        from .diagnose import diagnosis_section_html
-
-        (out / "report.html").write_text(
-            "<!doctype html><html><head><meta charset='utf-8'><title>Damper diagnosis</title></head><body>"
-            f"<h1>Damper diagnosis: {out.name}</h1>{diagnosis_section_html(out)}</body></html>")
+    else:
+        make_diagnosis_report(out)
     return result
 
 

@@ -241,7 +241,7 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
               max_internal_step=1.0 / settings.fit_rate_hz)
     lengths = [int(s.mask.sum()) for s in sig_val]
     n_val = sum(lengths)
-    ranking, fitted = [], {}
+    ranking = []
     with Engine("lumped", sig_id, **kw) as eid, Engine("lumped", sig_val, **kw) as ev:
         r_base_val = ev.residuals_batch([base])[0]
         base_val = _split_mse(r_base_val, lengths)
@@ -259,7 +259,6 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
             ratio = mse / mse_base
             score = -math.log(ratio) - PENALTY_PER_PARAMETER * len(ext.extra) if math.isfinite(ratio) else -math.inf
             values = {n: params[n] for n in ext.extra}
-            fitted[effect] = params
             return {"effect": effect, "score": score, "validation_mse_change_pct": 100 * (ratio - 1),
                     "identification_rmse_n": 1 / math.sqrt(g) if g > 0 else math.inf,
                     "parameters": values, "units": {n: UNITS[n] for n in values},
@@ -291,6 +290,7 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
         if lead["score"] > ACCEPT_SCORE and settings.final_jacobians > 0:
             ext, z, evals = refits[lead["effect"]]
             z, g, n, _ = polish(eid, ext, z, max_jacobians=settings.final_jacobians, log=lambda m: None)
+            refits[lead["effect"]] = (ext, z, evals + n)
             ranking[ranking.index(lead)] = row = _held_out(lead["effect"], ext, z, g, evals + n)
             log(f"  {lead['effect']:14s} refined: " + ", ".join(
                 f"{k} = {v:.4g} {UNITS[k]}" for k, v in row["parameters"].items())
@@ -341,7 +341,8 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     if cause != "none":
         from build_fmu import build
 
-        path = build("lumped", out / "fmu", start_values=fitted[cause],
+        ext, z, _ = refits[cause]
+        path = build("lumped", out / "fmu", start_values=ext.to_params(z),
                      filename=f"DamperLumped_{cause}_tuned.fmu")
         log(f"extended model exported: {path}")
     log(verdict)

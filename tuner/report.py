@@ -894,11 +894,25 @@ def make_report(out_dir, *, dpi: int = 110) -> Path:
             _timeseries_section(run, fdir, dpi), _fitness_section(run, fdir, dpi),
             _population_sections(run, fdir, dpi), _poly_section(run, fdir, dpi), _params_section(run),
             _provenance_section(run)]
+    return _write_page(out, title, body)
+
+
+def _write_page(out: Path, title: str, body: list[str]) -> Path:
     page = (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>{title}</title>"
             f"<style>{_CSS}</style></head><body>" + "\n".join(body) + "</body></html>\n")
     path = out / "report.html"
     path.write_text(page, encoding="utf-8")
     return path
+
+
+def make_diagnosis_report(out_dir) -> Path:
+    """``out_dir/report.html`` for a diagnosis run on its own (no fit in the folder): the
+    diagnosis section of the full report. Returns its path."""
+    from .diagnose import diagnosis_section_html
+
+    out = Path(out_dir)
+    title = "Damper diagnosis report"
+    return _write_page(out, title, [f"<h1>{title}</h1>", diagnosis_section_html(out)])
 
 
 def main(argv=None) -> int:
