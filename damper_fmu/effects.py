@@ -75,18 +75,22 @@ class Effects:
     def damping_scale(self) -> float:
         return math.exp(-self.beta * (self.temperature - self.t_ref)) if self.beta else 1.0
 
-    def play(self, x1: float, v1: float) -> tuple[float, float]:
-        """Stroke and velocity the damper sees through the free play (updates the gap state)."""
+    def play(self, state: tuple[float, bool], x1: float, v1: float) -> tuple[tuple[float, bool], float, float]:
+        """Backlash operator of the free play: from the gap state (x_eff [m], engaged) and the
+        actuator stroke x1 [m] / velocity v1 [m/s], the new state and the stroke and velocity the
+        damper sees. Pure (no state change here): the integrator commits the state of an
+        accepted step only."""
+        x_eff, engaged = state
         if not self.gap:
-            return x1, v1
+            return state, x1, v1
         half = 0.5 * self.gap
-        if x1 - self.x_eff >= half:  # pulling on the tension side of the gap
-            self.x_eff, self.engaged = x1 - half, True
-        elif x1 - self.x_eff <= -half:  # pushing on the compression side
-            self.x_eff, self.engaged = x1 + half, True
+        if x1 - x_eff >= half:  # pulling on the tension side of the gap
+            x_eff, engaged = x1 - half, True
+        elif x1 - x_eff <= -half:  # pushing on the compression side
+            x_eff, engaged = x1 + half, True
         else:  # crossing the gap
-            self.engaged = False
-        return (self.x_eff, v1) if self.engaged else (self.x_eff, 0.0)
+            engaged = False
+        return (x_eff, engaged), x_eff, (v1 if engaged else 0.0)
 
     def output(self, f_model: float, h: float, v_eff: float, a1: float, valve_gain: float,
                temperature_input: float | None) -> float:

@@ -1,17 +1,34 @@
-"""Time integration of the damper models: L-stable SDIRK2 with internal sub-stepping.
+"""Time integration of the damper models: L-stable SDIRK2 with error-controlled sub-steps.
+
+This is the readable reference of the integrator. The C kernel (``damper_fmu/c/damper_kernel.c``,
+used by the native FMU and by ``simulate`` when it is compiled) implements the same algorithm
+operation for operation; tests/test_native.py holds the two equal to 1e-9 relative.
 
 Scheme: Alexander's two-stage, second-order, stiffly accurate SDIRK (gamma = 1 - 1/sqrt(2)),
 which is L-stable: the microsecond modes of the silent blocks (m / c_B ~ 4 us with the paper's
 Table 2) are damped out at any step, while the slow dynamics is second-order accurate.
-A communication step h is split into ceil(h / max_step) equal sub-steps.
 
-Inputs within a communication step (``input_mode``):
+Internal steps (``tolerance`` > 0, the default): step doubling. Each trial sub-step H is taken
+once whole and once as two halves; their difference, measured as the silent-block forces it
+implies [N], must stay below ``tolerance`` x the model's force scale (largest |Fc,O| ordinate),
+else H shrinks; the next H follows the usual third-root rule (local error ~ H^3), capped by
+``max_step``. The two-halves result is kept. ``tolerance = 0`` gives fixed sub-steps of at most
+``max_step`` (used for step-refinement studies).
+
+Inputs within a communication step [t, t + h] (``input_mode``): the stroke the damper sees is a
+cubic Hermite curve (stroke and velocity consistent, the stroke continuous across communication
+points) from the stroke at the end of the previous step to a target at t + h:
 
 * ``EXTRAPOLATE`` (0, FMI co-simulation default): the stroke x1 [m] and velocity v1 [m/s] set
-  before ``step`` are the values at the start of the step; x1 is extrapolated with v1, v1 is held.
-* ``REPLAY`` (1): the values set before ``step`` are those at the END of the step (a known
-  stroke history being replayed, as on a rig); x1 and v1 are interpolated linearly from the
-  previous step's values. This removes the one-step input lag of EXTRAPOLATE.
+  before ``step`` are the values at t (start of the step), as a multibody master sets them. The
+  target is x1 + v1 h + a h^2/2, v1 + a h with the stroke acceleration a [m/s^2] given by the
+  master (``accel``, from fmi2SetRealInputDerivatives) or estimated from the last three velocity
+  samples (``velocity_extrapolation``: a cubic through the last four where they are smooth, else
+  a limited difference, so a velocity jump is not extrapolated into an overshoot). The curve
+  starts with the master's velocity: a jump in it is a kink in the stroke.
+* ``REPLAY`` (1): the values set before ``step`` are those at t + h (a known stroke history being
+  replayed, as on a rig or by ``tuner.runner``): the target is (x1, v1) itself, no input lag;
+  the curve starts with the velocity reached at the end of the previous step.
 
 The force returned by ``step`` is the output force at the end of the step [N], tension positive.
 """
@@ -22,32 +39,84 @@ import math
 import numpy as np
 
 from .effects import Effects
-from .models import make_model
+from .models import ConvergenceError, make_model
 
-__all__ = ["EXTRAPOLATE", "REPLAY", "GAMMA", "DEFAULT_MAX_STEP", "Simulator", "simulate"]
+__all__ = ["EXTRAPOLATE", "REPLAY", "GAMMA", "DEFAULT_MAX_STEP", "DEFAULT_TOLERANCE", "INPUT_INTERPOLATION_DESCRIPTION", "Simulator",
+           "simulate", "velocity_extrapolation"]
 
 EXTRAPOLATE = 0
 REPLAY = 1
 GAMMA = 1.0 - 1.0 / math.sqrt(2.0)
 _C21 = (1.0 - GAMMA) / GAMMA
-#: Default largest internal step [s] (accuracy vs step refinement: see tests/test_integrator.py).
+#: Default largest internal step [s].
 DEFAULT_MAX_STEP = 1e-3
+#: Default local error tolerance of the internal steps, relative to the model's force scale.
+DEFAULT_TOLERANCE = 1e-4
+#: What the FMU parameter ``input_interpolation`` means (shared by the Python and native FMUs).
+INPUT_INTERPOLATION_DESCRIPTION = (
+    "0 (co-simulation, default): stroke and stroke_velocity are the values at the START of each "
+    "communication step, as a multibody master or fmpy's simulate_fmu sets them; the stroke is "
+    "extrapolated over the step with the acceleration given by fmi2SetRealInputDerivatives or "
+    "estimated from the last velocity samples. 1 (replay): the values are those at the END of the "
+    "step, for a runner that sets them ahead (tuner.runner); with simulate_fmu it lags one step.")
+#: Smallest internal step [s] before the integrator gives up.
+MIN_STEP = 1e-12
+
+
+def velocity_extrapolation(samples) -> tuple[float, float, float]:
+    """Taylor coefficients (a [m/s^2], j [m/s^3], s [m/s^4]) of the stroke velocity after the
+    newest sample, v(t0 + tau) = v0 + a tau + j tau^2 / 2 + s tau^3, from the master's velocity
+    samples ``[(t0, v0), (t1, v1), ...]`` (newest first, up to four).
+
+    With four samples whose third differences agree (a smooth signal): the cubic through them.
+    Otherwise (fewer samples, a velocity jump, noise): the smaller of the last two backward
+    differences as the acceleration if they agree in sign, else zero -- never an overshoot.
+    """
+    if len(samples) < 3:
+        return 0.0, 0.0, 0.0
+    (t0, v0), (t1, v1), (t2, v2) = samples[:3]
+    d01 = (v0 - v1) / (t0 - t1)
+    d12 = (v1 - v2) / (t1 - t2)
+    if len(samples) == 4:
+        t3, v3 = samples[3]
+        d23 = (v2 - v3) / (t2 - t3)
+        j1, j2 = d01 - d12, d12 - d23
+        if j1 * j2 > 0.0 and abs(j1 - j2) <= 0.5 * max(abs(j1), abs(j2)):
+            d012 = (d01 - d12) / (t0 - t2)
+            d0123 = (d012 - (d12 - d23) / (t1 - t3)) / (t0 - t3)
+            a = d01 + d012 * (t0 - t1) + d0123 * (t0 - t1) * (t0 - t2)
+            j = 2.0 * d012 + 2.0 * d0123 * ((t0 - t1) + (t0 - t2))
+            return a, j, d0123
+    if d01 * d12 <= 0.0:
+        return 0.0, 0.0, 0.0
+    return (d01 if abs(d01) <= abs(d12) else d12), 0.0, 0.0
 
 
 class Simulator:
-    """Steps one damper model in time; the engine behind the FMUs and the in-process runs."""
+    """Steps one damper model in time; the engine behind the Python FMUs and in-process runs.
 
-    def __init__(self, model, max_step: float = DEFAULT_MAX_STEP, input_mode: int = EXTRAPOLATE):
+    max_step [s]: largest internal step; input_mode: EXTRAPOLATE or REPLAY (module docstring);
+    tolerance [-]: local error tolerance relative to the model's force scale (0: fixed steps).
+    """
+
+    def __init__(self, model, max_step: float = DEFAULT_MAX_STEP, input_mode: int = EXTRAPOLATE,
+                 tolerance: float = DEFAULT_TOLERANCE):
         if not (max_step > 0.0 and math.isfinite(max_step)):
             raise ValueError(f"max_step must be a positive number of seconds, got {max_step}")
         if input_mode not in (EXTRAPOLATE, REPLAY):
             raise ValueError(f"input_mode must be {EXTRAPOLATE} (extrapolate) or {REPLAY} (replay)")
+        if not (tolerance >= 0.0 and math.isfinite(tolerance)):
+            raise ValueError(f"tolerance must be a non-negative number, got {tolerance}")
         self.model = model
         self.max_step = float(max_step)
         self.input_mode = input_mode
+        self.tolerance = float(tolerance)
         self.y: list[float] = []
-        self.x1 = self.v1 = 0.0
+        self.x1 = self.v1 = 0.0  # stroke [m] and velocity [m/s] the integrator reached
         self.force = 0.0
+        self.time = 0.0
+        self.h_next = self.max_step
+        self.samples: list[tuple[float, float]] = []  # master's (time, velocity), newest first
         #: effect elements (lumped model only); None or inactive: the base model alone
         self.effects = Effects(model.params) if model.kind == "lumped" else None
         #: measured oil temperature [degC] for the thermal drift element (None: internal balance)
@@ -61,11 +130,14 @@ class Simulator:
         if old is not None and old.active and self.effects is not None and self.effects.active:
             self.effects.set_state(old.get_state())
 
-    def initialize(self, x1: float, v1: float) -> float:
-        """Start in the model's force-free state at stroke x1 [m], velocity v1 [m/s]."""
+    def initialize(self, x1: float, v1: float, t0: float = 0.0) -> float:
+        """Start in the model's force-free state at stroke x1 [m], velocity v1 [m/s], time t0 [s]."""
         _check_input(x1, v1)
         self.y = self.model.initial_state(x1, v1)
         self.x1, self.v1 = x1, v1
+        self.time = t0
+        self.h_next = self.max_step
+        self.samples = []
         self.force = self.model.force(self.y, x1, v1)
         e = self.effects
         if e is not None and e.active:
@@ -73,78 +145,122 @@ class Simulator:
             self.force += e.f0 + (e.ff * math.tanh(v1 / e.v_eps) if e.ff else 0.0)
         return self.force
 
-    def step(self, h: float, x1: float, v1: float) -> float:
-        """Advance by h [s] with inputs x1 [m], v1 [m/s] (meaning per ``input_mode``); return F [N]."""
-        if not (math.isfinite(x1) and math.isfinite(v1)):
-            raise ValueError(f"non-finite input: stroke={x1}, stroke_velocity={v1}")
+    def step(self, h: float, x1: float, v1: float, accel: float | None = None) -> float:
+        """Advance by h [s] with inputs x1 [m], v1 [m/s] (meaning per ``input_mode``) and, in
+        EXTRAPOLATE mode, the optional stroke acceleration accel [m/s^2]; return the force [N]."""
+        _check_input(x1, v1)
         if not (h > 0.0):
             raise ValueError(f"step size must be positive, got {h}")
         if self.input_mode == EXTRAPOLATE:
-            xa, va, xe, ve = x1, v1, x1 + v1 * h, v1
+            self.samples = [(self.time, v1), *self.samples[:3]]
+            if accel is not None and math.isfinite(accel):
+                a, j, sn = accel, 0.0, 0.0
+            else:
+                a, j, sn = velocity_extrapolation(self.samples)
+            xh = x1 + h * (v1 + h * (0.5 * a + h * (j / 6.0 + 0.25 * sn * h)))
+            vh = v1 + h * (a + h * (0.5 * j + sn * h))
         else:
-            xa, va, xe, ve = self.x1, self.v1, x1, v1
-        if self.effects is not None and self.effects.active:
-            return self._step_with_effects(h, xa, va, xe, ve)
-        stage = self.model.stage
-        y = self.y
-        if h <= self.max_step:  # the usual case: one sub-step
-            g = GAMMA * h
-            y1 = stage(y, g, xa + GAMMA * (xe - xa), va + GAMMA * (ve - va))
-            y = stage([a + _C21 * (b - a) for a, b in zip(y, y1)], g, xe, ve)
+            xh, vh = x1, v1
+        # cubic Hermite stroke from (x0, v0) at 0 to (xh, vh) at h: the stroke is continuous; in
+        # EXTRAPOLATE mode the velocity starts at the master's (a jump in its velocity is a kink in
+        # the stroke, not an overshoot of the velocity)
+        x0, v0 = self.x1, (v1 if self.input_mode == EXTRAPOLATE else self.v1)
+        d = (xh - x0) / h
+        c2 = (3.0 * d - 2.0 * v0 - vh) / h
+        c3 = (v0 + vh - 2.0 * d) / (h * h)
+        e = self.effects
+        with_effects = e is not None and e.active
+        if with_effects:
+            self.model.damping_scale = e.damping_scale()
+            pstate = (e.x_eff, e.engaged)
+            play = e.play
         else:
-            n = math.ceil(h / self.max_step - 1e-9)
-            g = GAMMA * h / n
-            dx, dv = (xe - xa) / n, (ve - va) / n
-            for k in range(n):
-                x0, u0 = xa + k * dx, va + k * dv
-                y1 = stage(y, g, x0 + GAMMA * dx, u0 + GAMMA * dv)
-                y = stage([a + _C21 * (b - a) for a, b in zip(y, y1)], g, x0 + dx, u0 + dv)
-        self.y = y
-        self.x1, self.v1 = xe, ve
-        self.force = f = self.model.force(y, xe, ve)
-        if not math.isfinite(f):
-            raise FloatingPointError("damper force became non-finite")
-        return f
+            pstate, play = None, None
+        stage, model = self.model.stage, self.model
 
-    def _step_with_effects(self, h: float, xa: float, va: float, xe: float, ve: float) -> float:
-        """Step with the effect elements of ``damper_fmu.effects`` (same SDIRK2 scheme)."""
-        e, model = self.effects, self.model
-        model.damping_scale = e.damping_scale()
-        stage, play = model.stage, e.play
+        def sdirk(y, ps, tau, H):
+            """One SDIRK2 step of size H from tau; returns (y, play state, x, v seen at the end)."""
+            g = GAMMA * H
+            t1 = tau + g
+            xa, va = x0 + t1 * (v0 + t1 * (c2 + t1 * c3)), v0 + t1 * (2.0 * c2 + 3.0 * c3 * t1)
+            if play is not None:
+                ps, xa, va = play(ps, xa, va)
+            y1 = stage(y, g, xa, va)
+            t2 = tau + H
+            xb, vb = x0 + t2 * (v0 + t2 * (c2 + t2 * c3)), v0 + t2 * (2.0 * c2 + 3.0 * c3 * t2)
+            if play is not None:
+                ps, xb, vb = play(ps, xb, vb)
+            return stage([a + _C21 * (b - a) for a, b in zip(y, y1)], g, xb, vb), ps, xb, vb
+
         y = self.y
-        n = max(1, math.ceil(h / self.max_step - 1e-9))
-        g = GAMMA * h / n
-        dx, dv = (xe - xa) / n, (ve - va) / n
-        xs = vs = 0.0
-        for k in range(n):
-            x0, u0 = xa + k * dx, va + k * dv
-            y1 = stage(y, g, *play(x0 + GAMMA * dx, u0 + GAMMA * dv))
-            xs, vs = play(x0 + dx, u0 + dv)
-            y = stage([a + _C21 * (b - a) for a, b in zip(y, y1)], g, xs, vs)
+        xs, vs = xh, vh
+        if self.tolerance == 0.0:
+            n = max(1, math.ceil(h / self.max_step - 1e-9))
+            H = h / n
+            for k in range(n):
+                y, pstate, xs, vs = sdirk(y, pstate, k * H, H)
+        else:
+            tol = self.tolerance * model.force_scale()
+            tau = 0.0
+            H = min(self.h_next, self.max_step)
+            while True:
+                proposed = H
+                last = tau + H >= h * (1.0 - 1e-12)
+                if last:
+                    H = h - tau
+                yf, _, _, _ = sdirk(y, pstate, tau, H)
+                ym, pm, _, _ = sdirk(y, pstate, tau, 0.5 * H)
+                y2, p2, x2, v2 = sdirk(ym, pm, tau + 0.5 * H, 0.5 * H)
+                err = model.error_norm(yf, y2)
+                fac = 4.0 if err == 0.0 else min(4.0, max(0.2, 0.9 * (tol / err) ** (1.0 / 3.0)))
+                if err <= tol:
+                    y, pstate, xs, vs = y2, p2, x2, v2
+                    if last:
+                        self.h_next = min(self.max_step, max(H * fac, proposed))
+                        break
+                    tau += H
+                    H = min(self.max_step, H * fac)
+                else:
+                    H *= fac
+                    if H < MIN_STEP:
+                        raise ConvergenceError(f"internal step fell below {MIN_STEP:g} s at t = "
+                                               f"{self.time + tau:.9g} s (error {err:.3g} N, tolerance {tol:.3g} N)")
         self.y = y
-        self.x1, self.v1 = xe, ve
-        f = e.output(model.force(y, xs, vs), h, vs, (ve - va) / h,
-                     model.valve_gain(vs) if e.tau else 0.0, self.temperature_input)
+        self.time += h
+        self.x1, self.v1 = xh, vh
+        if with_effects:
+            e.x_eff, e.engaged = pstate
+            f = e.output(model.force(y, xs, vs), h, vs, (vh - v0) / h,
+                         model.valve_gain(vs) if e.tau else 0.0, self.temperature_input)
+        else:
+            f = model.force(y, xs, vs)
         if not math.isfinite(f):
             raise FloatingPointError("damper force became non-finite")
         self.force = f
         return f
 
     def get_state(self) -> list[float]:
-        """Complete integrator state (model state, last inputs, force, effect states) as floats."""
+        """Complete integrator state (model state, stroke, force, time, step, velocity samples,
+        effect states) as floats."""
+        s = [*self.samples, *[(0.0, 0.0)] * 4][:4]
         extra = self.effects.get_state() if self.effects is not None and self.effects.active else []
-        return [*self.y, self.x1, self.v1, self.force, *extra]
+        return [*self.y, self.x1, self.v1, self.force, self.time, self.h_next, float(len(self.samples)),
+                *[v for pair in s for v in pair], *extra]
 
     def set_state(self, state) -> None:
         n = self.model.n_state
-        extra = len(state) - (n + 3)
+        base = n + 14
+        extra = len(state) - base
         active = self.effects is not None and self.effects.active
         if extra < 0 or (extra > 0) != active:
             raise ValueError(f"state of length {len(state)} does not fit this model and its effects")
-        self.y = [float(v) for v in state[:n]]
-        self.x1, self.v1, self.force = (float(v) for v in state[n:n + 3])
+        st = [float(v) for v in state]
+        self.y = st[:n]
+        self.x1, self.v1, self.force, self.time, self.h_next = st[n:n + 5]
+        count = int(st[n + 5])
+        self.samples = [(st[n + 6 + 2 * i], st[n + 7 + 2 * i]) for i in range(count)]
         if active:
-            self.effects.set_state(state[n + 3:])
+            self.effects.set_state(st[base:])
 
 
 def _check_input(x1: float, v1: float) -> None:
@@ -153,13 +269,16 @@ def _check_input(x1: float, v1: float) -> None:
 
 
 def simulate(model, time, stroke, stroke_velocity, *, params=None, max_step=DEFAULT_MAX_STEP,
-             input_mode=REPLAY, temperature=None) -> np.ndarray:
+             input_mode=REPLAY, temperature=None, tolerance=DEFAULT_TOLERANCE,
+             backend: str = "auto") -> np.ndarray:
     """In-process run of ``model`` (instance or kind name) under a sampled stroke.
 
     time [s] (strictly increasing), stroke [m], stroke_velocity [m/s]: arrays of equal length;
     temperature [degC]: optional measured oil temperature for the thermal drift element.
     Returns the force [N] at every sample; sample 0 is the initial (force-free) state. With the
-    default REPLAY mode, this is exactly what the FMU computes when driven by ``tuner.runner``.
+    default REPLAY mode, this is what the FMU computes when driven by ``tuner.runner``.
+    backend: 'python' (this module), 'native' (the C kernel; error if not compiled) or 'auto'
+    (native when available).
     """
     if isinstance(model, str):
         model = make_model(model, params)
@@ -168,26 +287,30 @@ def simulate(model, time, stroke, stroke_velocity, *, params=None, max_step=DEFA
     v = np.asarray(stroke_velocity, dtype=float)
     if not (t.shape == x.shape == v.shape and t.ndim == 1 and t.size >= 2):
         raise ValueError("time, stroke and stroke_velocity must be 1-D arrays of equal length >= 2")
-    sim = Simulator(model, max_step=max_step, input_mode=input_mode)
-    out = np.empty(t.size)
-    tl, xl, vl = t.tolist(), x.tolist(), v.tolist()
+    temp = None
     if temperature is not None:
         temp = np.asarray(temperature, dtype=float)
         if temp.shape != t.shape:
             raise ValueError("temperature must have the length of time")
-        tk = temp.tolist()
+    if backend not in ("auto", "python", "native"):
+        raise ValueError(f"backend must be 'auto', 'python' or 'native', got {backend!r}")
+    if backend != "python":
+        from . import native
+
+        if native.available() or backend == "native":
+            return native.simulate(model.kind, model.params, t, x, v, max_step=max_step,
+                                   input_mode=input_mode, temperature=temp, tolerance=tolerance)
+    sim = Simulator(model, max_step=max_step, input_mode=input_mode, tolerance=tolerance)
+    out = np.empty(t.size)
+    tl, xl, vl = t.tolist(), x.tolist(), v.tolist()
+    tk = temp.tolist() if temp is not None else None
+    if tk is not None:
         sim.temperature_input = tk[0]
-        out[0] = sim.initialize(xl[0], vl[0])
-        for k in range(1, t.size):
-            j = k if input_mode == REPLAY else k - 1
-            sim.temperature_input = tk[j]
-            out[k] = sim.step(tl[k] - tl[k - 1], xl[j], vl[j])
-        return out
-    out[0] = sim.initialize(xl[0], vl[0])
+    out[0] = sim.initialize(xl[0], vl[0], tl[0])
     step = sim.step
     for k in range(1, t.size):
-        if input_mode == REPLAY:
-            out[k] = step(tl[k] - tl[k - 1], xl[k], vl[k])
-        else:
-            out[k] = step(tl[k] - tl[k - 1], xl[k - 1], vl[k - 1])
+        j = k if input_mode == REPLAY else k - 1
+        if tk is not None:
+            sim.temperature_input = tk[j]
+        out[k] = step(tl[k] - tl[k - 1], xl[j], vl[j])
     return out

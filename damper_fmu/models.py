@@ -28,9 +28,26 @@ from bisect import bisect_right as bisect_segment  # the lookup of PwlTable.segm
 from .parameters import check_values
 from .tables import PwlTable
 
-__all__ = ["ConvergenceError", "LumpedModel", "MaxwellModel", "MaxwellTableModel", "make_model"]
+__all__ = ["ConvergenceError", "DIAGNOSTICS", "LumpedModel", "MaxwellModel", "MaxwellTableModel", "make_model"]
 
 _MAX_NEWTON = 12  # plain piecewise-linear Newton; then the damped fallback
+
+#: Internal element outputs of each model (``diagnostics``, FMU outputs): name -> (unit, text),
+#: in the order of ``diagnostics``.
+DIAGNOSTICS: dict[str, dict[str, tuple[str, str]]] = {
+    "lumped": {
+        "blockA_elongation": ("m", "Silent block A elongation x1 - x2"),
+        "blockA_rate": ("m/s", "Silent block A elongation rate"),
+        "damping_rate": ("m/s", "Damping element Fc,O elongation rate x2' - x3'"),
+        "damping_force": ("N", "Damping element force Fc,O"),
+        "elastic_elongation": ("m", "Elastic element Fk,O elongation x3 - x4"),
+        "elastic_force": ("N", "Elastic element force Fk,O"),
+        "blockB_elongation": ("m", "Silent block B elongation x4"),
+        "blockB_force": ("N", "Silent block B force (frame reaction)"),
+    },
+    "maxwell": {"spring_elongation": ("m", "Series spring elongation")},
+    "maxwell_table": {"spring_elongation": ("m", "Series spring elongation")},
+}
 
 
 class ConvergenceError(RuntimeError):
@@ -71,6 +88,16 @@ class LumpedModel:
     def force(self, y, x1: float, v1: float) -> float:
         """Output force FA [N], positive in tension."""
         return self.kB * (x1 - y[0]) + self.cB * (v1 - y[3])
+
+    def force_scale(self) -> float:
+        """Force scale [N] of the integrator's error tolerance: the largest |Fc,O| ordinate."""
+        return max(abs(f) for f in self.fc.fs)
+
+    def error_norm(self, ya, yb) -> float:
+        """Difference [N] between two states, as the silent-block forces they imply
+        (the output force and the frame force at equal inputs)."""
+        return max(abs(self.kB * (yb[0] - ya[0]) + self.cB * (yb[3] - ya[3])),
+                   abs(self.kB * (yb[2] - ya[2]) + self.cB * (yb[5] - ya[5])))
 
     def _stage_constants(self, g: float) -> tuple:
         """Constants of the stage equations for the stage coefficient g [s] and the current
@@ -226,6 +253,10 @@ class _SeriesSpringModel:
     def force(self, y, x1: float, v1: float) -> float:
         return self.ks * (x1 - y[0])
 
+    def error_norm(self, ya, yb) -> float:
+        """Difference [N] between two states, as the spring forces they imply."""
+        return abs(self.ks * (yb[0] - ya[0]))
+
     def diagnostics(self, y, x1: float, v1: float) -> dict[str, float]:
         return {"spring_elongation": x1 - y[0]}
 
@@ -239,6 +270,10 @@ class MaxwellModel(_SeriesSpringModel):
         p = check_values("maxwell", params or {})
         self.params = p
         self.ks, self.c = p["k_s"], p["c"]
+
+    def force_scale(self) -> float:
+        """Force scale [N] of the integrator's error tolerance: the dashpot force at 0.1 m/s."""
+        return self.c * 0.1
 
     def stage(self, yb, g: float, x1: float, v1: float) -> list[float]:
         """Solve xd = xdb + g k_s (x1 - xd) / c (linear, exact)."""
@@ -256,6 +291,10 @@ class MaxwellTableModel(_SeriesSpringModel):
         self.params = p
         self.ks = p["k_s"]
         self.fc = _table(p, "Fc", "v")
+
+    def force_scale(self) -> float:
+        """Force scale [N] of the integrator's error tolerance: the largest |Fc,O| ordinate."""
+        return max(abs(f) for f in self.fc.fs)
 
     def stage(self, yb, g: float, x1: float, v1: float) -> list[float]:
         """Solve Fc(vd) = k_s (x1 - xdb - g vd) for the dashpot rate vd, then xd = xdb + g vd."""

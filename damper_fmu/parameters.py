@@ -29,7 +29,16 @@ __all__ = [
     "defaults",
     "tunable_names",
     "check_values",
+    "UNIT_DEFINITIONS",
 ]
+
+#: SI base-unit exponents of every unit used (FMU UnitDefinitions).
+UNIT_DEFINITIONS: dict[str, dict[str, float]] = {
+    "m": {"m": 1}, "m/s": {"m": 1, "s": -1}, "s": {"s": 1}, "kg": {"kg": 1},
+    "N": {"kg": 1, "m": 1, "s": -2}, "N/m": {"kg": 1, "s": -2}, "N.s/m": {"kg": 1, "s": -1},
+    "K": {"K": 1}, "1/K": {"K": -1}, "J/K": {"kg": 1, "m": 2, "s": -2, "K": -1},
+    "W/K": {"kg": 1, "m": 2, "s": -3, "K": -1}, "degC": {"K": 1, "offset": 273.15},
+}
 
 
 @dataclass(frozen=True)
@@ -179,6 +188,7 @@ def check_values(model: str, values: dict[str, float], *, bounds: bool = False) 
 
     Raises ValueError naming the parameter for unknown names, non-finite values, non-positive
     masses/stiffness/damping, abscissae that are not strictly increasing or do not straddle zero,
+    tables whose force falls anywhere (a passive element is non-decreasing),
     and (with ``bounds=True``) values outside the identification bounds.
     """
     import math
@@ -208,4 +218,10 @@ def check_values(model: str, values: dict[str, float], *, bounds: bool = False) 
             raise ValueError(f"{prefix} abscissae must be strictly increasing, got {xs}")
         if not (xs[0] < 0.0 < xs[-1]):
             raise ValueError(f"{prefix} abscissae must have negative and positive values (F(0) = 0 is implied)")
+        fs = [full[n] for n in sorted(full) if n.startswith(f"{prefix}_") and n[len(prefix) + 1:].isdigit()]
+        pts = sorted([*zip(xs, fs), (0.0, 0.0)])
+        for (xa, fa), (xb, fb) in zip(pts, pts[1:]):
+            if fb < fa:
+                raise ValueError(f"{prefix} table is not monotone: the force falls between abscissae {xa:g} and "
+                                 f"{xb:g} (a passive element needs non-decreasing ordinates)")
     return full

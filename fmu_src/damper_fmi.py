@@ -29,17 +29,11 @@ from xml.etree.ElementTree import Element, SubElement
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
-from damper_fmu.integrator import DEFAULT_MAX_STEP, EXTRAPOLATE, REPLAY, Simulator
+from damper_fmu.integrator import (DEFAULT_MAX_STEP, DEFAULT_TOLERANCE, EXTRAPOLATE,
+                                   INPUT_INTERPOLATION_DESCRIPTION, Simulator)
 from damper_fmu.models import ConvergenceError, make_model
-from damper_fmu.parameters import MODEL_PARAMETERS, check_values
+from damper_fmu.parameters import MODEL_PARAMETERS, UNIT_DEFINITIONS, check_values
 
-#: SI base-unit exponents for the UnitDefinitions of the model description.
-_UNITS = {
-    "m": {"m": 1}, "m/s": {"m": 1, "s": -1}, "s": {"s": 1}, "kg": {"kg": 1},
-    "N": {"kg": 1, "m": 1, "s": -2}, "N/m": {"kg": 1, "s": -2}, "N.s/m": {"kg": 1, "s": -1},
-    "K": {"K": 1}, "1/K": {"K": -1}, "J/K": {"kg": 1, "m": 2, "s": -2, "K": -1},
-    "W/K": {"kg": 1, "m": 2, "s": -3, "K": -1}, "degC": {"K": 1, "offset": 273.15},
-}
 START_VALUES_FILE = "start_values.json"
 
 
@@ -89,6 +83,7 @@ class DamperSlave(Fmi2Slave):
         self.description = f"Railway hydraulic damper, {kind} model (SI units, force positive in tension)"
         self._p = {p.name: p.default for p in MODEL_PARAMETERS[kind]}
         self.max_internal_step = DEFAULT_MAX_STEP
+        self.internal_tolerance = DEFAULT_TOLERANCE
         self.input_interpolation = EXTRAPOLATE
         start = os.path.join(self.resources or "", START_VALUES_FILE)
         if self.resources and os.path.exists(start):
@@ -97,6 +92,7 @@ class DamperSlave(Fmi2Slave):
             settings = saved.pop("_settings", {})
             self._p.update({k: float(v) for k, v in saved.items()})
             self.max_internal_step = float(settings.get("max_internal_step", self.max_internal_step))
+            self.internal_tolerance = float(settings.get("internal_tolerance", self.internal_tolerance))
             self.input_interpolation = int(settings.get("input_interpolation", self.input_interpolation))
         self.stroke = 0.0
         self.stroke_velocity = 0.0
@@ -140,6 +136,10 @@ class DamperSlave(Fmi2Slave):
             "max_internal_step", unit="s", causality=Fmi2Causality.parameter,
             variability=Fmi2Variability.fixed,
             description="Largest internal integration step; communication steps are sub-stepped"))
+        self.register_variable(UnitReal(
+            "internal_tolerance", causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
+            description="Local error tolerance of the internal steps, relative to the damper's force scale "
+                        "(largest |Fc,O| ordinate); 0: fixed steps of max_internal_step"))
         if kind == "lumped":
             self.register_variable(Integer(
                 "thermal_source", causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
@@ -147,9 +147,7 @@ class DamperSlave(Fmi2Slave):
                             "1 the oil_temperature input"))
         self.register_variable(Integer(
             "input_interpolation", causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
-            description=f"{EXTRAPOLATE}: inputs are start-of-step values, stroke extrapolated with the "
-                        f"velocity (co-simulation); {REPLAY}: inputs are end-of-step values, "
-                        f"interpolated from the previous step (replay of a known stroke)"))
+            description=INPUT_INTERPOLATION_DESCRIPTION))
 
     # -- parameters and state -------------------------------------------------------------
     def _set_param(self, name: str, value: float) -> None:
@@ -160,7 +158,8 @@ class DamperSlave(Fmi2Slave):
         check_values(self.MODEL_KIND, self._p)
         model = make_model(self.MODEL_KIND, self._p)
         if self._sim is None:
-            self._sim = Simulator(model, self.max_internal_step, int(self.input_interpolation))
+            self._sim = Simulator(model, self.max_internal_step, int(self.input_interpolation),
+                                  float(self.internal_tolerance))
         else:
             self._sim.set_model(model)
         self._dirty = False
@@ -222,7 +221,7 @@ class DamperSlave(Fmi2Slave):
         used = sorted({v.unit for v in self.vars.values() if getattr(v, "unit", None)})
         for name in used:
             unit = SubElement(units, "Unit", {"name": name})
-            SubElement(unit, "BaseUnit", {k: str(e) for k, e in _UNITS[name].items()})
+            SubElement(unit, "BaseUnit", {k: str(e) for k, e in UNIT_DEFINITIONS[name].items()})
         root.insert(1, units)  # after <CoSimulation>, before <LogCategories> (FMI 2.0 schema order)
         return root
 

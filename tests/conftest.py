@@ -13,4 +13,6 @@ if str(ROOT) not in sys.path:
 def fmu_paths():
     from build_fmu import ensure_fmu
 
-    return {kind: ensure_fmu(kind) for kind in ("lumped", "maxwell", "maxwell_table", "empty")}
+    paths = {kind: ensure_fmu(kind) for kind in ("lumped", "maxwell", "maxwell_table", "empty")}
+    paths.update({f"{kind}_py": ensure_fmu(kind, flavour="python") for kind in ("lumped", "maxwell", "maxwell_table")})
+    return paths

@@ -115,7 +115,7 @@ def test_get_and_set_fmu_state_resumes_identically(fmu_paths):
 def test_nan_stroke_gives_an_fmi_error_status_with_a_message_not_a_nan_force(runners):
     t, x, v = stroke()
     x[300] = np.nan
-    with pytest.raises(SimulationError, match=r"non-finite input: stroke=nan"):
+    with pytest.raises(SimulationError, match=r"non-finite input.*stroke ?= ?nan"):
         runners["lumped"].run(t, x, v)
     t, x, v = stroke()
     assert np.all(np.isfinite(runners["lumped"].run(t, x, v)))  # usable again after the error

@@ -77,8 +77,10 @@ def _add_fit_options(ap: argparse.ArgumentParser) -> None:
     g.add_argument("--iterations", type=int, default=d.iterations, help="max iterations (default %(default)s)")
     g.add_argument("--workers", type=int, default=d.workers, help="worker processes (default %(default)s)")
     g.add_argument("--seed", type=int, default=d.seed)
-    g.add_argument("--engine", default=d.engine, choices=["fmu", "inprocess"],
-                   help="fmu: the built FMU through fmpy (default); inprocess: same equations without FMI")
+    g.add_argument("--engine", default=d.engine, choices=["fmu", "native", "inprocess"],
+                   help="fmu: the built FMU through fmpy (default; the native FMU where a C compiler is "
+                        "found); native: the same C kernel called once per test, without FMI (faster, "
+                        "equal results); inprocess: the Python reference (slow)")
     g.add_argument("--parametrization", default=d.parametrization, choices=["improved", "paper"])
     g.add_argument("--init", default=d.init, choices=["seeded", "random"],
                    help="seeded: data-driven guess and preset in the first population (default)")
@@ -124,8 +126,21 @@ def _load(args):
     return ident, valid, name
 
 
+def _check_engine(args) -> None:
+    """Say once when the fast (native) path is off, and refuse ``--engine native`` without it."""
+    from build_fmu import fast_path_note, native_reason
+
+    if args.engine == "native" and native_reason():
+        raise ValueError(f"--engine native needs the C kernel: {native_reason()}; use --engine fmu or inprocess")
+    note = fast_path_note()
+    if note:
+        _log(note)
+
+
 def cmd_fit(args) -> int:
     from .fit import FitSettings, fit
+
+    _check_engine(args)
 
     models = tuple(m.strip() for m in args.models.split(",") if m.strip())
     bad = [m for m in models if m not in ("lumped", "maxwell", "maxwell_table")]
@@ -176,6 +191,7 @@ def _run_diagnosis(ident, valid, out, args, base_params=None) -> dict:
 
 
 def cmd_diagnose(args) -> int:
+    _check_engine(args)
     if not args.dataset and not args.identification:
         args.dataset = DEFAULT_DATASET  # by default the bundled dataset
     ident, valid, name = _load(args)

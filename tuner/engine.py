@@ -1,10 +1,12 @@
-"""Simulation engines for identification: the built FMU through fmpy (default) or in-process.
+"""Simulation engines for identification: the built FMU through fmpy (default), the C kernel
+directly (``native``: one call per test, the same code the native FMU runs), or the Python
+reference in-process (``inprocess``).
 
 Evaluations run in worker processes (``spawn``), each holding ONE FMU instance reused for every
 candidate (reset + parameters re-applied, see ``tuner.runner``) and the identification strokes,
 sent once at start-up. A generation is evaluated as one batch (``sse_batch``), so evaluations
-run in parallel and are counted exactly. The in-process engine runs the same equations
-(``damper_fmu``) without FMI; tests/test_fmu.py proves both give the same forces.
+run in parallel and are counted exactly. The other engines run the same equations without FMI;
+tests/test_fmu.py and tests/test_native.py prove all give the same forces.
 
 Objective pieces per candidate: SSE [N^2] over all identification samples after the warm-up
 of each test, and N (number of samples): the paper's fitness is G = N / SSE (eq. 5).
@@ -20,7 +22,7 @@ import numpy as np
 
 __all__ = ["Signals", "Engine", "ENGINES"]
 
-ENGINES = ("fmu", "inprocess")
+ENGINES = ("fmu", "native", "inprocess")
 
 
 @dataclass
@@ -58,7 +60,8 @@ class _Simulator:
         from damper_fmu.integrator import DEFAULT_MAX_STEP
 
         return simulate(self.model, s.time, s.stroke, s.stroke_velocity, params=params,
-                        max_step=self.max_internal_step or DEFAULT_MAX_STEP, temperature=temp)
+                        max_step=self.max_internal_step or DEFAULT_MAX_STEP, temperature=temp,
+                        backend="native" if self.engine == "native" else "python")
 
     def residuals(self, params: dict, tests: list[Signals]) -> np.ndarray | None:
         """Measured minus simulated force [N] over the counted samples of all tests, or None

@@ -230,7 +230,8 @@ def _simulate(model: str, params: dict, p, engine: str) -> np.ndarray:
             return r.run(p.time, p.stroke, p.stroke_velocity, params)
     from damper_fmu import simulate
 
-    return simulate(model, p.time, p.stroke, p.stroke_velocity, params=params)
+    return simulate(model, p.time, p.stroke, p.stroke_velocity, params=params,
+                    backend="python" if engine == "inprocess" else "native")
 
 
 def fit(identification: list[RigTest], validation: list[RigTest], out: Path, settings: FitSettings,

@@ -117,25 +117,26 @@ class FmuRunner:
                 reals[name] = float(value)
         if reals:
             vrs = [self.variables[n].valueReference for n in reals]
-            self._check(self.fmu.fmi2SetReal(self._component, (ctypes.c_uint * len(vrs))(*vrs), len(vrs),
+            self._check(self.fmu.dll.fmi2SetReal(self._component, (ctypes.c_uint * len(vrs))(*vrs), len(vrs),
                                              (ctypes.c_double * len(vrs))(*reals.values())), "setting parameters")
         if ints:
             vrs = [self.variables[n].valueReference for n in ints]
-            self._check(self.fmu.fmi2SetInteger(self._component, (ctypes.c_uint * len(vrs))(*vrs), len(vrs),
+            self._check(self.fmu.dll.fmi2SetInteger(self._component, (ctypes.c_uint * len(vrs))(*vrs), len(vrs),
                                                 (fmi2Integer * len(vrs))(*ints.values())), "setting parameters")
 
     def _start(self, t0: float, params: dict | None, vr_in, inp) -> None:
         """Reset (after the first run), set up, apply parameters and initial inputs, initialise."""
-        fmu, c = self.fmu, self._component
+        dll, c = self.fmu.dll, self._component  # raw calls: statuses come back, messages are ours
         self.messages.clear()
         if not self._fresh:
-            self._check(fmu.fmi2Reset(c), "reset")
+            self._check(dll.fmi2Reset(c), "reset")
         self._fresh = False
-        self._check(fmu.fmi2SetupExperiment(c, 0, 0.0, t0, 0, 0.0), "setup experiment")
-        self._check(fmu.fmi2EnterInitializationMode(c), "enter initialization")
+        self._check(dll.fmi2SetupExperiment(c, 0, ctypes.c_double(0.0), ctypes.c_double(t0), 0,
+                                            ctypes.c_double(0.0)), "setup experiment")
+        self._check(dll.fmi2EnterInitializationMode(c), "enter initialization")
         self._apply_parameters(params)
         self._check(self._set_real(c, vr_in, len(inp), inp), "setting inputs")
-        self._check(fmu.fmi2ExitInitializationMode(c), "exit initialization")
+        self._check(dll.fmi2ExitInitializationMode(c), "exit initialization")
 
     def _outputs(self, outputs):
         unknown = [o for o in outputs if o not in self.output_names]

@@ -1,0 +1,723 @@
+/* Damper models and their integrator in C (see damper_kernel.h). Mirrors, operation for
+ * operation, damper_fmu/models.py, effects.py and integrator.py: read those for the physics. */
+#include "damper_kernel.h"
+#include "damper_params.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define MAX_NEWTON 12
+#define MIN_STEP 1e-12
+
+static double GAMMA_, C21_;
+
+static void constants(void) {
+    if (GAMMA_ == 0.0) {
+        GAMMA_ = 1.0 - 1.0 / sqrt(2.0);
+        C21_ = (1.0 - GAMMA_) / GAMMA_;
+    }
+}
+
+static const DkParamSpec *specs(int kind, int *n) {
+    switch (kind) {
+    case DK_LUMPED: *n = DK_PARAMS_LUMPED_N; return DK_PARAMS_LUMPED;
+    case DK_MAXWELL: *n = DK_PARAMS_MAXWELL_N; return DK_PARAMS_MAXWELL;
+    case DK_MAXWELL_TABLE: *n = DK_PARAMS_MAXWELL_TABLE_N; return DK_PARAMS_MAXWELL_TABLE;
+    default: *n = 0; return NULL;
+    }
+}
+
+int dk_parameter_count(int kind) {
+    int n;
+    specs(kind, &n);
+    return n;
+}
+
+const char *dk_parameter_names(int kind) {
+    static char buf[4096];
+    int n, i;
+    const DkParamSpec *sp = specs(kind, &n);
+    buf[0] = 0;
+    for (i = 0; i < n; i++) {
+        if (i) strcat(buf, ",");
+        strcat(buf, sp[i].name);
+    }
+    return buf;
+}
+
+/* ---- piecewise-linear tables (tables.py) ---------------------------------------------------- */
+
+static int bisect_right(const double *a, int n, double x) {
+    int lo = 0, hi = n;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (x < a[mid]) hi = mid; else lo = mid + 1;
+    }
+    return lo;
+}
+
+static int table_init(DkTable *t, const double *xs_in, const double *fs_in, int n, const char *name,
+                      char *msg, size_t msglen) {
+    int i, k = -1, j;
+    for (i = 0; i < n; i++) {
+        if (!isfinite(xs_in[i]) || !isfinite(fs_in[i])) {
+            snprintf(msg, msglen, "%s table: abscissa %d or its ordinate is not finite", name, i + 1);
+            return DK_ERROR;
+        }
+        if (i && !(xs_in[i] > xs_in[i - 1])) {
+            snprintf(msg, msglen, "%s abscissae must be strictly increasing (abscissa %d = %g after %g)",
+                     name, i + 1, xs_in[i], xs_in[i - 1]);
+            return DK_ERROR;
+        }
+    }
+    if (!(xs_in[0] < 0.0 && 0.0 < xs_in[n - 1])) {
+        snprintf(msg, msglen, "%s abscissae must have negative and positive values (F(0) = 0 is implied)", name);
+        return DK_ERROR;
+    }
+    for (i = 0; i < n; i++)
+        if (xs_in[i] > 0.0) { k = i; break; }
+    for (i = 0, j = 0; i <= n; i++) {
+        if (i == k) { t->xs[i] = 0.0; t->fs[i] = 0.0; }
+        else { t->xs[i] = xs_in[j]; t->fs[i] = fs_in[j]; j++; }
+    }
+    t->n = n + 1;
+    for (i = 0; i + 1 < t->n; i++) {
+        double s = (t->fs[i + 1] - t->fs[i]) / (t->xs[i + 1] - t->xs[i]);
+        if (s < 0.0) {
+            snprintf(msg, msglen, "%s table is not monotone: the force falls between abscissae %g and %g "
+                     "(a passive element needs non-decreasing ordinates)", name, t->xs[i], t->xs[i + 1]);
+            return DK_ERROR;
+        }
+        t->slope[i] = s;
+        t->intercept[i] = t->fs[i] - s * t->xs[i];
+    }
+    t->nbreaks = t->n - 2;
+    for (i = 0; i < t->nbreaks; i++) t->breaks[i] = t->xs[i + 1];
+    t->anchor[k] = 0.0;
+    for (i = k + 1; i < t->n; i++)
+        t->anchor[i] = t->anchor[i - 1] + 0.5 * (t->fs[i] + t->fs[i - 1]) * (t->xs[i] - t->xs[i - 1]);
+    for (i = k - 1; i >= 0; i--)
+        t->anchor[i] = t->anchor[i + 1] - 0.5 * (t->fs[i] + t->fs[i + 1]) * (t->xs[i + 1] - t->xs[i]);
+    return DK_OK;
+}
+
+static int segment(const DkTable *t, double x) { return bisect_right(t->breaks, t->nbreaks, x); }
+
+static double table_eval(const DkTable *t, double x) {
+    int i = segment(t, x);
+    return t->intercept[i] + t->slope[i] * x;
+}
+
+static double table_primitive(const DkTable *t, double x) {
+    int i = segment(t, x);
+    double x0 = t->xs[i];
+    return t->anchor[i] + t->intercept[i] * (x - x0) + 0.5 * t->slope[i] * (x * x - x0 * x0);
+}
+
+/* ---- parameters and models ------------------------------------------------------------------- */
+
+int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg, size_t msglen) {
+    int np, i;
+    const DkParamSpec *sp = specs(kind, &np);
+    memset(m, 0, sizeof(*m));
+    if (!sp) { snprintf(msg, msglen, "unknown model kind %d", kind); return DK_ERROR; }
+    if (n != np) { snprintf(msg, msglen, "expected %d parameters, got %d", np, n); return DK_ERROR; }
+    for (i = 0; i < np; i++) {
+        double v = p[i];
+        if (!isfinite(v)) {
+            snprintf(msg, msglen, "parameter %s = %g is not finite", sp[i].name, v);
+            return DK_ERROR;
+        }
+        if (sp[i].check == DK_CHECK_RANGE && !(sp[i].low <= v && v <= sp[i].high)) {
+            snprintf(msg, msglen, "effect parameter %s = %g %s outside [%g, %g]", sp[i].name, v, sp[i].unit,
+                     sp[i].low, sp[i].high);
+            return DK_ERROR;
+        }
+        if (sp[i].check == DK_CHECK_POSITIVE && !(v > 0.0)) {
+            snprintf(msg, msglen, "parameter %s = %g %s must be positive", sp[i].name, v, sp[i].unit);
+            return DK_ERROR;
+        }
+        m->p[i] = v;
+    }
+    m->kind = kind;
+    m->damping_scale = 1.0;
+    if (kind == DK_LUMPED) {
+        m->mC = p[0]; m->mO = p[1]; m->mP = p[2]; m->kB = p[3]; m->cB = p[4];
+        if (table_init(&m->fk, p + 5 + DK_NFK + DK_NFC,
+                       p + 5, DK_NFK, "Fk", msg, msglen)) return DK_ERROR;
+        if (table_init(&m->fc, p + 5 + 2 * DK_NFK + DK_NFC, p + 5 + DK_NFK, DK_NFC, "Fc", msg, msglen))
+            return DK_ERROR;
+        {
+            const double *e = p + 5 + 2 * DK_NFK + 2 * DK_NFC;
+            m->ff = e[0]; m->v_eps = e[1]; m->f0 = e[2]; m->gap = e[3]; m->beta = e[4];
+            m->heat_c = e[5]; m->heat_g = e[6]; m->t_ref = e[7]; m->tau = e[8]; m->delay = e[9];
+            m->m_eq = e[10];
+            m->effects_active = m->ff != 0.0 || m->f0 != 0.0 || m->gap != 0.0 || m->beta != 0.0 ||
+                                m->tau != 0.0 || m->delay != 0.0 || m->m_eq != 0.0;
+        }
+    } else if (kind == DK_MAXWELL) {
+        m->ks = p[0]; m->c = p[1];
+    } else {
+        m->ks = p[0];
+        if (table_init(&m->fc, p + 1 + DK_NFC, p + 1, DK_NFC, "Fc", msg, msglen)) return DK_ERROR;
+    }
+    return DK_OK;
+}
+
+static double force_scale(const DkModel *m) {
+    int i;
+    double s = 0.0;
+    if (m->kind == DK_MAXWELL) return m->c * 0.1;
+    for (i = 0; i < m->fc.n; i++)
+        if (fabs(m->fc.fs[i]) > s) s = fabs(m->fc.fs[i]);
+    return s;
+}
+
+static double model_force(const DkModel *m, const double *y, double x1, double v1) {
+    if (m->kind == DK_LUMPED) return m->kB * (x1 - y[0]) + m->cB * (v1 - y[3]);
+    return m->ks * (x1 - y[0]);
+}
+
+static double error_norm(const DkModel *m, const double *ya, const double *yb) {
+    if (m->kind == DK_LUMPED) {
+        double a = fabs(m->kB * (yb[0] - ya[0]) + m->cB * (yb[3] - ya[3]));
+        double b = fabs(m->kB * (yb[2] - ya[2]) + m->cB * (yb[5] - ya[5]));
+        return a > b ? a : b;
+    }
+    return fabs(m->ks * (yb[0] - ya[0]));
+}
+
+static void stage_constants(DkModel *m, double g) {
+    int i;
+    double ds = m->damping_scale, kBg = m->kB * g;
+    m->c_g = g;
+    m->c_mP = m->mP / g; m->c_mO = m->mO / g; m->c_mC = m->mC / g;
+    m->c_d2 = m->c_mP + kBg + m->cB;
+    m->c_d4 = m->c_mC + kBg + m->cB;
+    for (i = 0; i + 1 < m->fc.n; i++) {
+        m->c_ia[i] = ds != 1.0 ? ds * m->fc.intercept[i] : m->fc.intercept[i];
+        m->c_sa[i] = ds != 1.0 ? ds * m->fc.slope[i] : m->fc.slope[i];
+    }
+    m->c_ds = ds;
+    m->cached = 1;
+}
+
+static double lumped_potential(const DkModel *m, const double *v, const double *yb, double g, double x1,
+                               double v1) {
+    double x2b = yb[0], x3b = yb[1], x4b = yb[2], v2b = yb[3], v3b = yb[4], v4b = yb[5];
+    double v2 = v[0], v3 = v[1], v4 = v[2];
+    double kB = m->kB, cB = m->cB;
+    double e = x3b - x4b + g * (v3 - v4);
+    double a = x1 - x2b - g * v2, b = x4b + g * v4, c = v1 - v2;
+    return (0.5 * (m->mP * ((v2 - v2b) * (v2 - v2b)) + m->mO * ((v3 - v3b) * (v3 - v3b)) +
+                   m->mC * ((v4 - v4b) * (v4 - v4b))) / g
+            + 0.5 * kB / g * (a * a + b * b)
+            + 0.5 * cB * (c * c + v4 * v4)
+            + m->damping_scale * table_primitive(&m->fc, v2 - v3) + table_primitive(&m->fk, e) / g);
+}
+
+static int lumped_stage_damped(DkModel *m, const double *yb, double g, double x1, double v1, double *out,
+                               char *msg, size_t msglen) {
+    double x2b = yb[0], x3b = yb[1], x4b = yb[2], v2b = yb[3], v3b = yb[4], v4b = yb[5];
+    double mP, mO, mC, d2, d4, kB = m->kB, cB = m->cB, dxb, v[3], phi;
+    const double *ia, *sa, *ka = m->fk.intercept, *ks = m->fk.slope;
+    int it;
+    if (!m->cached || m->c_g != g || m->c_ds != m->damping_scale) stage_constants(m, g);
+    mP = m->c_mP; mO = m->c_mO; mC = m->c_mC; d2 = m->c_d2; d4 = m->c_d4; ia = m->c_ia; sa = m->c_sa;
+    dxb = x3b - x4b;
+    v[0] = v2b; v[1] = v3b; v[2] = v4b;
+    phi = lumped_potential(m, v, yb, g, x1, v1);
+    for (it = 0; it < 200; it++) {
+        double v2 = v[0], v3 = v[1], v4 = v[2];
+        double u = v2 - v3, e = dxb + g * (v3 - v4);
+        int ic = segment(&m->fc, u), ik = segment(&m->fk, e);
+        double sc = sa[ic], skg = ks[ik] * g;
+        double fcu = ia[ic] + sc * u, fke = ka[ik] + ks[ik] * e;
+        double r0 = mP * (v2 - v2b) - kB * (x1 - x2b - g * v2) - cB * (v1 - v2) + fcu;
+        double r1 = mO * (v3 - v3b) - fcu + fke;
+        double r2 = mC * (v4 - v4b) - fke + kB * (x4b + g * v4) + cB * v4;
+        double a11 = d2 + sc, a22 = mO + sc + skg, a33 = d4 + skg;
+        double w1 = -sc / a11, w2, y1, y2, d3, d2_, d1, scale, alpha, trial[3], phi_t;
+        a22 -= sc * sc / a11;
+        w2 = -skg / a22;
+        a33 -= skg * skg / a22;
+        y1 = -r0 / a11;
+        y2 = (-r1 + sc * y1) / a22;
+        d3 = (-r2 + skg * y2) / a33;
+        d2_ = y2 - w2 * d3;
+        d1 = y1 - w1 * d2_;
+        scale = fabs(d1) + fabs(d2_) + fabs(d3);
+        if (scale <= 1e-15 * (1.0 + fabs(v2) + fabs(v3) + fabs(v4))) {
+            out[0] = x2b + g * v2; out[1] = x3b + g * v3; out[2] = x4b + g * v4;
+            out[3] = v2; out[4] = v3; out[5] = v4;
+            return DK_OK;
+        }
+        alpha = 1.0;
+        for (;;) {
+            trial[0] = v2 + alpha * d1; trial[1] = v3 + alpha * d2_; trial[2] = v4 + alpha * d3;
+            phi_t = lumped_potential(m, trial, yb, g, x1, v1);
+            if (phi_t <= phi || alpha < 1e-12) break;
+            alpha *= 0.5;
+        }
+        v[0] = trial[0]; v[1] = trial[1]; v[2] = trial[2];
+        phi = phi_t;
+    }
+    snprintf(msg, msglen, "lumped model stage: damped Newton did not converge (non-monotonic table?)");
+    return DK_ERROR;
+}
+
+static int lumped_stage(DkModel *m, const double *yb, double g, double x1, double v1, double *out,
+                        char *msg, size_t msglen) {
+    double x2b = yb[0], x3b = yb[1], x4b = yb[2], v2b = yb[3], v3b = yb[4], v4b = yb[5];
+    double mP, mO, mC, d2, d4, kB = m->kB, cB = m->cB, dxb, r2, r3, r4;
+    const double *ia, *sa, *bc = m->fc.breaks, *bk = m->fk.breaks, *ka = m->fk.intercept, *ks = m->fk.slope;
+    int nbc = m->fc.nbreaks, nbk = m->fk.nbreaks, ic, ik, it;
+    if (!m->cached || m->c_g != g || m->c_ds != m->damping_scale) stage_constants(m, g);
+    mP = m->c_mP; mO = m->c_mO; mC = m->c_mC; d2 = m->c_d2; d4 = m->c_d4; ia = m->c_ia; sa = m->c_sa;
+    dxb = x3b - x4b;
+    r2 = mP * v2b + kB * (x1 - x2b) + cB * v1;
+    r3 = mO * v3b;
+    r4 = mC * v4b - kB * x4b;
+    ic = bisect_right(bc, nbc, v2b - v3b);
+    ik = bisect_right(bk, nbk, dxb + g * (v3b - v4b));
+    for (it = 0; it < MAX_NEWTON; it++) {
+        double sc = sa[ic], ac = ia[ic];
+        double skg = ks[ik] * g;
+        double akx = ka[ik] + ks[ik] * dxb;
+        double a11 = d2 + sc;
+        double w1 = -sc / a11;
+        double y1 = (r2 - ac) / a11;
+        double a22 = mO + sc + skg + sc * w1;
+        double w2 = -skg / a22;
+        double y2 = (r3 + ac - akx + sc * y1) / a22;
+        double a33 = d4 + skg + skg * w2;
+        double v2, v3, v4;
+        int jc, jk;
+        if (a11 <= 0.0 || a22 <= 0.0 || a33 <= 0.0) {
+            snprintf(msg, msglen, "stage Jacobian not positive definite (non-monotonic table?)");
+            return DK_ERROR;
+        }
+        v4 = (r4 + akx + skg * y2) / a33;
+        v3 = y2 - w2 * v4;
+        v2 = y1 - w1 * v3;
+        jc = bisect_right(bc, nbc, v2 - v3);
+        jk = bisect_right(bk, nbk, dxb + g * (v3 - v4));
+        if (jc == ic && jk == ik) {
+            out[0] = x2b + g * v2; out[1] = x3b + g * v3; out[2] = x4b + g * v4;
+            out[3] = v2; out[4] = v3; out[5] = v4;
+            return DK_OK;
+        }
+        ic = jc; ik = jk;
+    }
+    return lumped_stage_damped(m, yb, g, x1, v1, out, msg, msglen);
+}
+
+static double maxwell_table_residual(const DkModel *m, double z, double kg, double rhs) {
+    return table_eval(&m->fc, z) + kg * z - rhs;
+}
+
+static int maxwell_table_stage(DkModel *m, const double *yb, double g, double x1, double *out,
+                               char *msg, size_t msglen) {
+    const DkTable *fc = &m->fc;
+    double ks = m->ks, rhs = ks * (x1 - yb[0]), kg = ks * g, lo = -1.0, hi = 1.0;
+    int i = segment(fc, rhs / (fc->slope[(fc->n - 1) / 2] + kg)), it;
+    for (it = 0; it < MAX_NEWTON; it++) {
+        double den = fc->slope[i] + kg, vd;
+        int j;
+        if (den <= 0.0) {
+            snprintf(msg, msglen, "Maxwell table stage: non-monotonic dashpot table");
+            return DK_ERROR;
+        }
+        vd = (rhs - fc->intercept[i]) / den;
+        j = bisect_right(fc->breaks, fc->nbreaks, vd);
+        if (j == i) { out[0] = yb[0] + g * vd; return DK_OK; }
+        i = j;
+    }
+    while (maxwell_table_residual(m, lo, kg, rhs) > 0.0) lo *= 2.0;
+    while (maxwell_table_residual(m, hi, kg, rhs) < 0.0) hi *= 2.0;
+    for (it = 0; it < 200; it++) {
+        double mid = 0.5 * (lo + hi);
+        if (maxwell_table_residual(m, mid, kg, rhs) > 0.0) hi = mid; else lo = mid;
+        if (hi - lo <= 1e-15 * (1.0 + fabs(mid))) break;
+    }
+    out[0] = yb[0] + g * (0.5 * (lo + hi));
+    return DK_OK;
+}
+
+static int stage(DkModel *m, const double *yb, double g, double x1, double v1, double *out, char *msg,
+                 size_t msglen) {
+    if (m->kind == DK_LUMPED) return lumped_stage(m, yb, g, x1, v1, out, msg, msglen);
+    if (m->kind == DK_MAXWELL) {
+        double a = g * m->ks / m->c;
+        out[0] = (yb[0] + a * x1) / (1.0 + a);
+        return DK_OK;
+    }
+    return maxwell_table_stage(m, yb, g, x1, out, msg, msglen);
+}
+
+static int n_state(const DkModel *m) { return m->kind == DK_LUMPED ? 6 : 1; }
+
+static double valve_gain(const DkModel *m, double u) {
+    const DkTable *fc = &m->fc;
+    int k0 = segment(fc, 0.0), i, lo = u >= 0.0 ? k0 : 0, hi = u >= 0.0 ? fc->n - 1 : k0;
+    double mx = -INFINITY;
+    for (i = lo; i < hi; i++)
+        if (fc->slope[i] > mx) mx = fc->slope[i];
+    return m->damping_scale * (mx - fc->slope[segment(fc, u)]);
+}
+
+/* ---- effects (effects.py) --------------------------------------------------------------------- */
+
+static void play(const DkModel *m, double *x_eff, int *engaged, double *x1, double *v1) {
+    double half;
+    if (m->gap == 0.0) return;
+    half = 0.5 * m->gap;
+    if (*x1 - *x_eff >= half) { *x_eff = *x1 - half; *engaged = 1; }
+    else if (*x1 - *x_eff <= -half) { *x_eff = *x1 + half; *engaged = 1; }
+    else *engaged = 0;
+    *x1 = *x_eff;
+    if (!*engaged) *v1 = 0.0;
+}
+
+static int hist_push(DkEffectsState *e, double t, double f) {
+    if (e->hist_len == e->hist_cap) {
+        int cap = e->hist_cap ? 2 * e->hist_cap : 64, i;
+        double *h = (double *)malloc(2 * (size_t)cap * sizeof(double));
+        if (!h) return DK_ERROR;
+        for (i = 0; i < e->hist_len; i++) {
+            int k = (e->hist_head + i) % e->hist_cap;
+            h[2 * i] = e->hist[2 * k]; h[2 * i + 1] = e->hist[2 * k + 1];
+        }
+        free(e->hist);
+        e->hist = h; e->hist_cap = cap; e->hist_head = 0;
+    }
+    {
+        int k = (e->hist_head + e->hist_len) % e->hist_cap;
+        e->hist[2 * k] = t; e->hist[2 * k + 1] = f;
+        e->hist_len++;
+    }
+    return DK_OK;
+}
+
+static const double *hist_at(const DkEffectsState *e, int i) {
+    return e->hist + 2 * ((e->hist_head + i) % e->hist_cap);
+}
+
+static void effects_initialize(DkSim *s, double x1, double force) {
+    DkEffectsState *e = &s->e;
+    e->x_eff = x1; e->engaged = 1; e->temperature = s->model.t_ref; e->time = 0.0;
+    e->hist_len = 0; e->hist_head = 0;
+    hist_push(e, 0.0, force);
+}
+
+static double damping_scale(const DkSim *s) {
+    return s->model.beta != 0.0 ? exp(-s->model.beta * (s->e.temperature - s->model.t_ref)) : 1.0;
+}
+
+static int effects_output(DkSim *s, double f_model, double h, double v_eff, double a1, double vg,
+                          double *out) {
+    const DkModel *m = &s->model;
+    DkEffectsState *e = &s->e;
+    double f = (e->engaged || m->gap == 0.0) ? f_model : 0.0, target, t0, f0, t1, f1;
+    if (m->ff != 0.0) f += m->ff * tanh(v_eff / m->v_eps);
+    if (m->tau != 0.0 && (e->engaged || m->gap == 0.0)) f += m->tau * vg * a1;
+    if (m->m_eq != 0.0) f += m->m_eq * a1;
+    f += m->f0;
+    if (m->beta != 0.0) {
+        if (s->has_temperature) e->temperature = s->temperature_input;
+        else {
+            double power = f_model * v_eff;
+            e->temperature += h * (power - m->heat_g * (e->temperature - m->t_ref)) / m->heat_c;
+        }
+    }
+    e->time += h;
+    if (m->delay == 0.0) { *out = f; return DK_OK; }
+    if (hist_push(e, e->time, f)) return DK_ERROR;
+    target = e->time - m->delay;
+    while (e->hist_len > 2 && hist_at(e, 1)[0] <= target) {
+        e->hist_head = (e->hist_head + 1) % e->hist_cap;
+        e->hist_len--;
+    }
+    t0 = hist_at(e, 0)[0]; f0 = hist_at(e, 0)[1];
+    if (e->hist_len > 1) { t1 = hist_at(e, 1)[0]; f1 = hist_at(e, 1)[1]; } else { t1 = t0; f1 = f0; }
+    if (target <= t0 || t1 == t0) *out = f0;
+    else *out = f0 + (f1 - f0) * (target - t0) / (t1 - t0);
+    return DK_OK;
+}
+
+/* ---- integrator (integrator.py) -------------------------------------------------------------- */
+
+void dk_sim_clear(DkSim *s) { memset(s, 0, sizeof(*s)); }
+
+void dk_sim_free(DkSim *s) {
+    free(s->e.hist);
+    s->e.hist = NULL;
+    s->e.hist_cap = s->e.hist_len = s->e.hist_head = 0;
+}
+
+int dk_sim_setup(DkSim *s, int kind, const double *p, int n, double max_step, double tolerance,
+                 int input_mode) {
+    constants();
+    if (!(max_step > 0.0 && isfinite(max_step))) {
+        snprintf(s->msg, sizeof s->msg, "max_step must be a positive number of seconds, got %g", max_step);
+        return DK_ERROR;
+    }
+    if (input_mode != DK_EXTRAPOLATE && input_mode != DK_REPLAY) {
+        snprintf(s->msg, sizeof s->msg, "input_mode must be 0 (extrapolate) or 1 (replay), got %d", input_mode);
+        return DK_ERROR;
+    }
+    if (!(tolerance >= 0.0 && isfinite(tolerance))) {
+        snprintf(s->msg, sizeof s->msg, "tolerance must be a non-negative number, got %g", tolerance);
+        return DK_ERROR;
+    }
+    if (dk_model_init(&s->model, kind, p, n, s->msg, sizeof s->msg)) return DK_ERROR;
+    s->max_step = max_step;
+    s->tolerance = tolerance;
+    s->input_mode = input_mode;
+    return DK_OK;
+}
+
+int dk_sim_initialize(DkSim *s, double x1, double v1, double t0) {
+    DkModel *m = &s->model;
+    if (!(isfinite(x1) && isfinite(v1))) {
+        snprintf(s->msg, sizeof s->msg, "non-finite input: stroke=%g, stroke_velocity=%g", x1, v1);
+        return DK_ERROR;
+    }
+    memset(s->y, 0, sizeof s->y);
+    if (m->kind == DK_LUMPED) { s->y[0] = x1; s->y[3] = v1; s->y[4] = v1; }
+    else s->y[0] = x1;
+    s->x1 = x1; s->v1 = v1; s->time = t0; s->h_next = s->max_step; s->nsamples = 0;
+    s->force = model_force(m, s->y, x1, v1);
+    if (m->kind == DK_LUMPED && m->effects_active) {
+        effects_initialize(s, x1, s->force);
+        s->force += m->f0 + (m->ff != 0.0 ? m->ff * tanh(v1 / m->v_eps) : 0.0);
+    }
+    return DK_OK;
+}
+
+static void velocity_extrapolation(const DkSim *s, double *a, double *j, double *sn) {
+    const double *t = s->st, *v = s->sv;
+    double d01, d12;
+    *a = *j = *sn = 0.0;
+    if (s->nsamples < 3) return;
+    d01 = (v[0] - v[1]) / (t[0] - t[1]);
+    d12 = (v[1] - v[2]) / (t[1] - t[2]);
+    if (s->nsamples == 4) {
+        double d23 = (v[2] - v[3]) / (t[2] - t[3]);
+        double j1 = d01 - d12, j2 = d12 - d23;
+        double mx = fabs(j1) > fabs(j2) ? fabs(j1) : fabs(j2);
+        if (j1 * j2 > 0.0 && fabs(j1 - j2) <= 0.5 * mx) {
+            double d012 = (d01 - d12) / (t[0] - t[2]);
+            double d0123 = (d012 - (d12 - d23) / (t[1] - t[3])) / (t[0] - t[3]);
+            *a = d01 + d012 * (t[0] - t[1]) + d0123 * (t[0] - t[1]) * (t[0] - t[2]);
+            *j = 2.0 * d012 + 2.0 * d0123 * ((t[0] - t[1]) + (t[0] - t[2]));
+            *sn = d0123;
+            return;
+        }
+    }
+    if (d01 * d12 <= 0.0) return;
+    *a = fabs(d01) <= fabs(d12) ? d01 : d12;
+}
+
+typedef struct {
+    double x0, v0, c2, c3;
+} Traj;
+
+/* One SDIRK2 step of size H from tau; y, play state in/out; xs, vs: what the damper sees at the end */
+static int sdirk(DkSim *s, const Traj *tr, const double *y, double *yout, double *x_eff, int *engaged,
+                 double tau, double H, double *xs, double *vs) {
+    DkModel *m = &s->model;
+    int ns = n_state(m), i;
+    double g = GAMMA_ * H, y1[6], yb[6];
+    double t1 = tau + g, t2 = tau + H;
+    double xa = tr->x0 + t1 * (tr->v0 + t1 * (tr->c2 + t1 * tr->c3));
+    double va = tr->v0 + t1 * (2.0 * tr->c2 + 3.0 * tr->c3 * t1);
+    double xb, vb;
+    int fx = m->kind == DK_LUMPED && m->effects_active;
+    if (fx) play(m, x_eff, engaged, &xa, &va);
+    if (stage(m, y, g, xa, va, y1, s->msg, sizeof s->msg)) return DK_ERROR;
+    xb = tr->x0 + t2 * (tr->v0 + t2 * (tr->c2 + t2 * tr->c3));
+    vb = tr->v0 + t2 * (2.0 * tr->c2 + 3.0 * tr->c3 * t2);
+    if (fx) play(m, x_eff, engaged, &xb, &vb);
+    for (i = 0; i < ns; i++) yb[i] = y[i] + C21_ * (y1[i] - y[i]);
+    if (stage(m, yb, g, xb, vb, yout, s->msg, sizeof s->msg)) return DK_ERROR;
+    *xs = xb; *vs = vb;
+    return DK_OK;
+}
+
+int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
+    DkModel *m = &s->model;
+    int ns = n_state(m), i, fx = m->kind == DK_LUMPED && m->effects_active;
+    double xh, vh, d, y[6], xs, vs, x_eff = s->e.x_eff, va0, f;
+    int engaged = s->e.engaged;
+    Traj tr;
+    if (!(isfinite(x1) && isfinite(v1))) {
+        snprintf(s->msg, sizeof s->msg, "non-finite input: stroke=%g, stroke_velocity=%g", x1, v1);
+        return DK_ERROR;
+    }
+    if (!(h > 0.0)) {
+        snprintf(s->msg, sizeof s->msg, "step size must be positive, got %g", h);
+        return DK_ERROR;
+    }
+    if (s->input_mode == DK_EXTRAPOLATE) {
+        double a, j, sn;
+        for (i = 3; i > 0; i--) { s->st[i] = s->st[i - 1]; s->sv[i] = s->sv[i - 1]; }
+        s->st[0] = s->time; s->sv[0] = v1;
+        if (s->nsamples < 4) s->nsamples++;
+        if (isfinite(accel)) { a = accel; j = 0.0; sn = 0.0; }
+        else velocity_extrapolation(s, &a, &j, &sn);
+        xh = x1 + h * (v1 + h * (0.5 * a + h * (j / 6.0 + 0.25 * sn * h)));
+        vh = v1 + h * (a + h * (0.5 * j + sn * h));
+    } else {
+        xh = x1; vh = v1;
+    }
+    tr.x0 = s->x1; tr.v0 = s->input_mode == DK_EXTRAPOLATE ? v1 : s->v1;
+    d = (xh - tr.x0) / h;
+    tr.c2 = (3.0 * d - 2.0 * tr.v0 - vh) / h;
+    tr.c3 = (tr.v0 + vh - 2.0 * d) / (h * h);
+    if (fx) m->damping_scale = damping_scale(s);
+    for (i = 0; i < ns; i++) y[i] = s->y[i];
+    xs = xh; vs = vh;
+    if (s->tolerance == 0.0) {
+        int n = (int)ceil(h / s->max_step - 1e-9), k;
+        double H;
+        if (n < 1) n = 1;
+        H = h / n;
+        for (k = 0; k < n; k++) {
+            double yn[6];
+            if (sdirk(s, &tr, y, yn, &x_eff, &engaged, k * H, H, &xs, &vs)) return DK_ERROR;
+            memcpy(y, yn, sizeof y);
+        }
+    } else {
+        double tol = s->tolerance * force_scale(m), tau = 0.0;
+        double H = s->h_next < s->max_step ? s->h_next : s->max_step;
+        for (;;) {
+            double proposed = H, yf[6], ym[6], y2[6], xe1 = x_eff, xe2, x2, v2, err, fac, dummy_x, dummy_v;
+            int en1 = engaged, en2, last = tau + H >= h * (1.0 - 1e-12);
+            double xf = x_eff;
+            int enf = engaged;
+            if (last) H = h - tau;
+            if (sdirk(s, &tr, y, yf, &xf, &enf, tau, H, &dummy_x, &dummy_v)) return DK_ERROR;
+            if (sdirk(s, &tr, y, ym, &xe1, &en1, tau, 0.5 * H, &dummy_x, &dummy_v)) return DK_ERROR;
+            xe2 = xe1; en2 = en1;
+            if (sdirk(s, &tr, ym, y2, &xe2, &en2, tau + 0.5 * H, 0.5 * H, &x2, &v2)) return DK_ERROR;
+            err = error_norm(m, yf, y2);
+            if (err == 0.0) fac = 4.0;
+            else {
+                fac = 0.9 * pow(tol / err, 1.0 / 3.0);
+                if (fac < 0.2) fac = 0.2;
+                if (fac > 4.0) fac = 4.0;
+            }
+            if (err <= tol) {
+                memcpy(y, y2, sizeof y);
+                x_eff = xe2; engaged = en2; xs = x2; vs = v2;
+                if (last) {
+                    double hn = H * fac > proposed ? H * fac : proposed;
+                    s->h_next = s->max_step < hn ? s->max_step : hn;
+                    break;
+                }
+                tau += H;
+                H = s->max_step < H * fac ? s->max_step : H * fac;
+            } else {
+                H *= fac;
+                if (H < MIN_STEP) {
+                    snprintf(s->msg, sizeof s->msg, "internal step fell below %g s at t = %.9g s (error %.3g N, "
+                             "tolerance %.3g N)", MIN_STEP, s->time + tau, err, tol);
+                    return DK_ERROR;
+                }
+            }
+        }
+    }
+    for (i = 0; i < ns; i++) s->y[i] = y[i];
+    s->time += h;
+    va0 = tr.v0;
+    s->x1 = xh; s->v1 = vh;
+    if (fx) {
+        s->e.x_eff = x_eff; s->e.engaged = engaged;
+        if (effects_output(s, model_force(m, y, xs, vs), h, vs, (vh - va0) / h,
+                           m->tau != 0.0 ? valve_gain(m, vs) : 0.0, &f)) {
+            snprintf(s->msg, sizeof s->msg, "out of memory for the time-delay history");
+            return DK_ERROR;
+        }
+    } else {
+        f = model_force(m, y, xs, vs);
+    }
+    if (!isfinite(f)) {
+        snprintf(s->msg, sizeof s->msg, "damper force became non-finite");
+        return DK_ERROR;
+    }
+    s->force = f;
+    return DK_OK;
+}
+
+int dk_sim_copy(DkSim *dst, const DkSim *src) {
+    double *hist = dst->e.hist;
+    int cap = dst->e.hist_cap, i;
+    *dst = *src;
+    dst->e.hist = hist;
+    dst->e.hist_cap = cap;
+    if (src->e.hist_len > cap) {
+        free(hist);
+        dst->e.hist = (double *)malloc(2 * (size_t)src->e.hist_len * sizeof(double));
+        dst->e.hist_cap = src->e.hist_len;
+        if (!dst->e.hist) { dst->e.hist_cap = dst->e.hist_len = 0; return DK_ERROR; }
+    }
+    dst->e.hist_head = 0;
+    for (i = 0; i < src->e.hist_len; i++) {
+        const double *q = hist_at(&src->e, i);
+        dst->e.hist[2 * i] = q[0]; dst->e.hist[2 * i + 1] = q[1];
+    }
+    return DK_OK;
+}
+
+int dk_diagnostics(const DkSim *s, double *out) {
+    const DkModel *m = &s->model;
+    const double *y = s->y;
+    if (m->kind == DK_LUMPED) {
+        double u = y[3] - y[4], e = y[1] - y[2];
+        out[0] = s->x1 - y[0];
+        out[1] = s->v1 - y[3];
+        out[2] = u;
+        out[3] = m->damping_scale * table_eval(&m->fc, u);
+        out[4] = e;
+        out[5] = table_eval(&m->fk, e);
+        out[6] = y[2];
+        out[7] = m->kB * y[2] + m->cB * y[5];
+        return 8;
+    }
+    out[0] = s->x1 - y[0];
+    return 1;
+}
+
+int dk_simulate(int kind, const double *p, int np, double max_step, double tolerance, int input_mode,
+                int n, const double *t, const double *x, const double *v, const double *temp,
+                double *out, char *msg, int msglen) {
+    DkSim s;
+    int k, status = DK_OK;
+    dk_sim_clear(&s);
+    if (n < 2) { snprintf(msg, msglen, "need at least 2 samples"); return DK_ERROR; }
+    if (dk_sim_setup(&s, kind, p, np, max_step, tolerance, input_mode)) goto fail;
+    if (temp) { s.has_temperature = 1; s.temperature_input = temp[0]; }
+    if (dk_sim_initialize(&s, x[0], v[0], t[0])) goto fail;
+    out[0] = s.force;
+    for (k = 1; k < n; k++) {
+        int j = input_mode == DK_REPLAY ? k : k - 1;
+        if (temp) s.temperature_input = temp[j];
+        if (dk_sim_step(&s, t[k] - t[k - 1], x[j], v[j], NAN)) {
+            char tmp[400];
+            snprintf(tmp, sizeof tmp, "%.399s", s.msg);
+            snprintf(s.msg, sizeof s.msg, "step %d (t = %.9g s): %s", k, t[k - 1], tmp);
+            goto fail;
+        }
+        out[k] = s.force;
+    }
+    dk_sim_free(&s);
+    return DK_OK;
+fail:
+    snprintf(msg, msglen, "%s", s.msg);
+    dk_sim_free(&s);
+    status = DK_ERROR;
+    return status;
+}

@@ -1,0 +1,107 @@
+/* Damper models and their integrator in C: the kernel of the native FMUs and of the fast engine.
+ *
+ * It implements, operation for operation, the Python reference in damper_fmu/models.py,
+ * effects.py and integrator.py (equations, sign conventions and algorithm are documented there);
+ * tests/test_native.py holds the two equal to 1e-9 relative. SI units: stroke [m] positive in
+ * extension, velocity [m/s], force [N] positive in tension, temperature [degC].
+ * Depends on libc and libm only.
+ */
+#ifndef DAMPER_KERNEL_H
+#define DAMPER_KERNEL_H
+
+#include <stddef.h>
+
+#define DK_LUMPED 0
+#define DK_MAXWELL 1
+#define DK_MAXWELL_TABLE 2
+
+#define DK_EXTRAPOLATE 0
+#define DK_REPLAY 1
+
+#define DK_NFK 10 /* Fk,O ordinates (zero point implied) */
+#define DK_NFC 14 /* Fc,O ordinates (zero point implied) */
+#define DK_NEFFECT 11
+
+/* Parameter counts per model, in the order of damper_fmu.parameters.MODEL_PARAMETERS. */
+#define DK_NPAR_LUMPED (5 + 2 * DK_NFK + 2 * DK_NFC + DK_NEFFECT)
+#define DK_NPAR_MAXWELL 2
+#define DK_NPAR_MAXWELL_TABLE (1 + 2 * DK_NFC)
+#define DK_NPAR_MAX DK_NPAR_LUMPED
+
+#define DK_MAXPTS 16
+
+#define DK_OK 0
+#define DK_ERROR 1
+
+typedef struct {
+    int n;                      /* number of points (origin included) */
+    double xs[DK_MAXPTS], fs[DK_MAXPTS];
+    double breaks[DK_MAXPTS];   /* interior breakpoints xs[1..n-2] */
+    double slope[DK_MAXPTS], intercept[DK_MAXPTS], anchor[DK_MAXPTS];
+    int nbreaks;
+} DkTable;
+
+typedef struct {
+    int kind;
+    double p[DK_NPAR_MAX];      /* parameter values, in MODEL_PARAMETERS order */
+    /* lumped */
+    double mC, mO, mP, kB, cB;
+    DkTable fk, fc;
+    double damping_scale;
+    /* cached stage constants */
+    int cached;
+    double c_g, c_mP, c_mO, c_mC, c_d2, c_d4, c_ds;
+    double c_ia[DK_MAXPTS], c_sa[DK_MAXPTS];
+    /* Maxwell */
+    double ks, c;
+    /* effects (lumped only) */
+    double ff, v_eps, f0, gap, beta, heat_c, heat_g, t_ref, tau, delay, m_eq;
+    int effects_active;
+} DkModel;
+
+typedef struct {
+    double x_eff, temperature, time;
+    int engaged;
+    /* force history of the time delay: ring buffer of (time, force) pairs */
+    double *hist;
+    int hist_cap, hist_head, hist_len;
+} DkEffectsState;
+
+typedef struct {
+    DkModel model;
+    double max_step, tolerance;
+    int input_mode;
+    double y[6];
+    double x1, v1, force, time, h_next;
+    int nsamples;
+    double st[4], sv[4];        /* master's velocity samples, newest first */
+    DkEffectsState e;
+    double temperature_input;   /* measured oil temperature [degC] */
+    int has_temperature;
+    char msg[512];              /* last error message */
+} DkSim;
+
+const char *dk_parameter_names(int kind);   /* comma-separated, for the consistency test */
+int dk_parameter_count(int kind);
+
+/* Build the model from parameter values (count must match); checks as check_values. */
+int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg, size_t msglen);
+
+void dk_sim_clear(DkSim *s);
+void dk_sim_free(DkSim *s);
+int dk_sim_setup(DkSim *s, int kind, const double *p, int n, double max_step, double tolerance,
+                 int input_mode);
+int dk_sim_initialize(DkSim *s, double x1, double v1, double t0);
+/* accel: stroke acceleration from the master, or NaN (estimate it) */
+int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel);
+/* copy the state (deep copy of the history) */
+int dk_sim_copy(DkSim *dst, const DkSim *src);
+/* internal element outputs: 8 values (lumped) or 1 (Maxwell) */
+int dk_diagnostics(const DkSim *s, double *out);
+
+/* Whole sampled stroke; temperature may be NULL. out[0] is the initial force. */
+int dk_simulate(int kind, const double *p, int np, double max_step, double tolerance, int input_mode,
+                int n, const double *t, const double *x, const double *v, const double *temp,
+                double *out, char *msg, int msglen);
+
+#endif

@@ -1,0 +1,175 @@
+"""The C kernel (``damper_fmu/c``), compiled on first use and called through ctypes.
+
+The kernel implements the same equations and integrator as the Python reference
+(``models.py``, ``effects.py``, ``integrator.py``) and is what the native FMUs contain. Here it
+simulates a whole sampled stroke per call (``simulate``): the fast path of the tuner.
+
+Build: the system C compiler (``$CC``, else ``cc`` or ``gcc``) compiles ``damper_kernel.c`` with a
+parameter header generated from ``parameters.py`` (one source for names, bounds and checks) into a
+shared library cached under ``$DAMPER_NATIVE_DIR`` (default ``~/.cache/yaw-damper-toolchain``),
+keyed by a hash of the sources. Without a compiler, ``available()`` is False and ``reason()`` says
+why; everything then runs on the Python reference (slower).
+"""
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from .parameters import MODEL_PARAMETERS
+
+__all__ = ["available", "reason", "library", "simulate", "parameter_header", "C_SOURCES",
+           "KINDS", "CFLAGS", "compiler"]
+
+C_DIR = Path(__file__).resolve().parent / "c"
+C_SOURCES = ("damper_kernel.c", "damper_kernel.h")
+KINDS = {"lumped": 0, "maxwell": 1, "maxwell_table": 2}
+#: -ffp-contract=off: no fused multiply-add, so the C results equal the Python reference's
+CFLAGS = ("-O2", "-ffp-contract=off", "-fPIC", "-std=c99", "-Wall")
+
+_CHECK = {"none": 0, "positive": 1, "range": 2}
+_state: dict = {}
+
+
+def _check_kind(p) -> str:
+    """How the kernel checks a parameter: as ``parameters.check_values`` does."""
+    if p.effect is not None:
+        return "range"
+    if p.unit in ("kg", "N/m", "N.s/m"):
+        return "positive"
+    return "none"
+
+
+def parameter_header(start_values: dict[str, dict[str, float]] | None = None) -> str:
+    """C header with every model's parameters (name, unit, start value, bounds, check) in the order
+    of ``parameters.MODEL_PARAMETERS``; ``start_values``: kind -> name -> value overriding presets."""
+    start_values = start_values or {}
+    lines = ["/* Generated from damper_fmu/parameters.py by damper_fmu/native.py: do not edit. */",
+             "#ifndef DAMPER_PARAMS_H", "#define DAMPER_PARAMS_H",
+             "typedef struct { const char *name; const char *unit; double start, low, high; int check, fixed; }"
+             " DkParamSpec;",
+             "#define DK_CHECK_NONE 0", "#define DK_CHECK_POSITIVE 1", "#define DK_CHECK_RANGE 2"]
+    for kind, params in MODEL_PARAMETERS.items():
+        tag = kind.upper()
+        sv = start_values.get(kind, {})
+        lines.append(f"#define DK_PARAMS_{tag}_N {len(params)}")
+        lines.append(f"static const DkParamSpec DK_PARAMS_{tag}[{len(params)}] = {{")
+        for p in params:
+            lines.append(f'    {{"{p.name}", "{p.unit}", {float(sv.get(p.name, p.default))!r}, {p.low!r}, '
+                         f'{p.high!r}, {_CHECK[_check_kind(p)]}, {int(not (p.tunable or p.effect))}}},')
+        lines.append("};")
+    lines.append("#endif")
+    return "\n".join(lines).replace("inf,", "INFINITY,") + "\n"
+
+
+def compiler() -> str | None:
+    """Path of the C compiler to use, or None."""
+    cc = os.environ.get("CC")
+    if cc:
+        return shutil.which(cc)
+    return shutil.which("cc") or shutil.which("gcc")
+
+
+def _cache_dir() -> Path:
+    return Path(os.environ.get("DAMPER_NATIVE_DIR", Path.home() / ".cache" / "yaw-damper-toolchain"))
+
+
+def _build() -> ctypes.CDLL:
+    cc = compiler()
+    if cc is None:
+        raise OSError("no C compiler found (set CC or install gcc)")
+    header = parameter_header()
+    h = hashlib.sha256(header.encode())
+    for name in C_SOURCES:
+        h.update((C_DIR / name).read_bytes())
+    h.update(" ".join(CFLAGS).encode())
+    suffix = ".dll" if sys.platform == "win32" else ".dylib" if sys.platform == "darwin" else ".so"
+    target = _cache_dir() / f"damper_kernel_{h.hexdigest()[:16]}{suffix}"
+    if not target.exists():
+        target.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(prefix="damper_kernel_") as tmp:
+            (Path(tmp) / "damper_params.h").write_text(header)
+            out = Path(tmp) / target.name
+            cmd = [cc, *CFLAGS, "-shared", "-I", tmp, "-I", str(C_DIR), str(C_DIR / "damper_kernel.c"),
+                   "-o", str(out), "-lm"]
+            proc = subprocess.run(cmd, capture_output=True, text=True)
+            if proc.returncode != 0:
+                raise OSError(f"compiling the C kernel failed ({' '.join(cmd)}):\n{proc.stderr.strip()}")
+            os.replace(out, target)  # atomic: concurrent builders do not see half a library
+    lib = ctypes.CDLL(str(target))
+    dp, cp = ctypes.POINTER(ctypes.c_double), ctypes.c_char_p
+    lib.dk_simulate.argtypes = [ctypes.c_int, dp, ctypes.c_int, ctypes.c_double, ctypes.c_double, ctypes.c_int,
+                                ctypes.c_int, dp, dp, dp, dp, dp, cp, ctypes.c_int]
+    lib.dk_simulate.restype = ctypes.c_int
+    lib.dk_parameter_names.argtypes = [ctypes.c_int]
+    lib.dk_parameter_names.restype = ctypes.c_char_p
+    return lib
+
+
+def library() -> ctypes.CDLL:
+    """The compiled kernel (built on first call); raises OSError when it cannot be built."""
+    if "lib" not in _state:
+        try:
+            _state["lib"] = _build()
+        except OSError as err:
+            _state["lib"] = None
+            _state["reason"] = str(err)
+    if _state["lib"] is None:
+        raise OSError(_state["reason"])
+    return _state["lib"]
+
+
+def available() -> bool:
+    """True when the C kernel is compiled (or can be); ``reason()`` says why not."""
+    try:
+        library()
+    except OSError:
+        return False
+    return True
+
+
+def reason() -> str:
+    """Why the C kernel is not available ('' when it is)."""
+    return "" if available() else _state.get("reason", "")
+
+
+def _values(kind: str, params: dict) -> np.ndarray:
+    names = [p.name for p in MODEL_PARAMETERS[kind]]
+    full = {p.name: p.default for p in MODEL_PARAMETERS[kind]}
+    unknown = set(params) - set(full)
+    if unknown:
+        raise ValueError(f"unknown parameter(s) for model '{kind}': {', '.join(sorted(unknown))}")
+    full.update(params)
+    return np.ascontiguousarray([float(full[n]) for n in names], dtype=float)
+
+
+def _ptr(a):
+    return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double)) if a is not None else None
+
+
+def simulate(kind: str, params: dict, t, x, v, *, max_step: float, input_mode: int, tolerance: float,
+             temperature=None) -> np.ndarray:
+    """Force [N] at every sample of a stroke (time [s], stroke [m], velocity [m/s]; temperature
+    [degC] or None), as ``damper_fmu.simulate``; raises ValueError with the kernel's message."""
+    from .models import ConvergenceError
+
+    lib = library()
+    p = _values(kind, params)
+    t, x, v = (np.ascontiguousarray(a, dtype=float) for a in (t, x, v))
+    temp = None if temperature is None else np.ascontiguousarray(temperature, dtype=float)
+    out = np.empty(t.size)
+    msg = ctypes.create_string_buffer(512)
+    st = lib.dk_simulate(KINDS[kind], _ptr(p), p.size, float(max_step), float(tolerance), int(input_mode),
+                         t.size, _ptr(t), _ptr(x), _ptr(v), _ptr(temp), _ptr(out), msg, len(msg))
+    if st != 0:
+        text = msg.value.decode()
+        raise (ConvergenceError if "converge" in text or "internal step" in text or "Jacobian" in text
+               else ValueError)(text)
+    return out

@@ -1,0 +1,116 @@
+"""The C kernel equals the Python reference (same algorithm, operation for operation)."""
+import numpy as np
+import pytest
+
+from damper_fmu import EXTRAPOLATE, REPLAY, defaults, simulate
+from damper_fmu import native
+from damper_fmu.parameters import MODEL_PARAMETERS, check_values
+
+pytestmark = pytest.mark.skipif(not native.available(), reason=f"C kernel not available: {native.reason()}")
+
+
+def random_params(kind, rng):
+    """A random, valid parameter set of ``kind``: tables scaled per side and piece (monotone kept)."""
+    p = defaults(kind)
+    for prefix, n in (("Fk", 10), ("Fc", 14)):
+        if f"{prefix}_01" not in p:
+            continue
+        xs = np.array([p[f"{prefix}_{'x' if prefix == 'Fk' else 'v'}{i:02d}"] for i in range(1, n + 1)])
+        fs = np.array([p[f"{prefix}_{i:02d}"] for i in range(1, n + 1)])
+        # cumulative positive increments outward from zero, scaled at random
+        neg, pos = xs < 0, xs > 0
+        for side in (neg, pos):
+            f = fs[side]
+            order = np.argsort(np.abs(xs[side]))
+            inc = np.diff(np.concatenate([[0.0], np.abs(f[order])])) * rng.uniform(0.5, 1.6, order.size)
+            f_new = np.empty_like(f)
+            f_new[order] = np.sign(f[order]) * np.cumsum(inc)
+            fs[side] = f_new
+        for i in range(n):
+            p[f"{prefix}_{i + 1:02d}"] = float(fs[i])
+    if kind == "lumped":
+        for name in ("M_C", "M_O", "M_P"):
+            p[name] = rng.uniform(2.0, 20.0)
+        p["k_B"] = 10 ** rng.uniform(6, 9)
+        p["c_B"] = 10 ** rng.uniform(3, 6.7)
+    else:
+        p["k_s"] = 10 ** rng.uniform(6, 8)
+        if kind == "maxwell":
+            p["c"] = 10 ** rng.uniform(4, 6)
+    return check_values(kind, p)
+
+
+EFFECTS = [{}, {"friction_force": 120.0}, {"preload_force": -300.0}, {"free_play": 4e-4},
+           {"thermal_beta": 0.02, "thermal_capacity": 300.0}, {"valve_tau": 4e-3}, {"time_delay": 3.3e-3},
+           {"inertia_mass": 60.0},
+           {"friction_force": 80.0, "free_play": 2e-4, "time_delay": 2e-3, "valve_tau": 2e-3, "inertia_mass": 20.0}]
+
+
+def random_stroke(rng, fs=500.0, dur=1.2):
+    t = np.arange(0.0, dur, 1.0 / fs) + rng.uniform(0, 0.5)
+    x = np.zeros_like(t)
+    v = np.zeros_like(t)
+    for _ in range(3):
+        a, f, ph = rng.uniform(2e-4, 1e-2), rng.uniform(0.3, 12.0), rng.uniform(0, 2 * np.pi)
+        x += a * np.sin(2 * np.pi * f * t + ph)
+        v += a * 2 * np.pi * f * np.cos(2 * np.pi * f * t + ph)
+    v += rng.normal(0, 1e-4, t.size)  # a measured velocity is not exactly the stroke's derivative
+    return t, x, v
+
+
+def assert_equal_forces(a, b):
+    scale = max(np.abs(b).max(), 1.0)
+    assert np.abs(a - b).max() <= 1e-9 * scale, (np.abs(a - b).max(), scale)
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("kind", ["lumped", "maxwell", "maxwell_table"])
+def test_kernel_equals_python_reference(kind, seed):
+    rng = np.random.default_rng(100 + seed)
+    p = random_params(kind, rng)
+    t, x, v = random_stroke(rng)
+    for mode in (REPLAY, EXTRAPOLATE):
+        for tol, max_step in ((1e-4, 1e-3), (0.0, 7e-4), (1e-6, 0.01)):
+            kw = dict(params=p, input_mode=mode, tolerance=tol, max_step=max_step)
+            assert_equal_forces(simulate(kind, t, x, v, backend="native", **kw),
+                                simulate(kind, t, x, v, backend="python", **kw))
+
+
+@pytest.mark.parametrize("effect", range(len(EFFECTS)))
+def test_kernel_equals_python_reference_with_effects(effect):
+    rng = np.random.default_rng(7 + effect)
+    p = random_params("lumped", rng)
+    p.update(EFFECTS[effect])
+    t, x, v = random_stroke(rng)
+    temp = 20.0 + 15.0 * (t - t[0])
+    for mode in (REPLAY, EXTRAPOLATE):
+        for temperature in (None, temp):
+            kw = dict(params=p, input_mode=mode, temperature=temperature)
+            assert_equal_forces(simulate("lumped", t, x, v, backend="native", **kw),
+                                simulate("lumped", t, x, v, backend="python", **kw))
+
+
+def test_kernel_parameter_order_is_the_python_one():
+    lib = native.library()
+    for kind, code in native.KINDS.items():
+        names = lib.dk_parameter_names(code).decode().split(",")
+        assert names == [p.name for p in MODEL_PARAMETERS[kind]]
+
+
+@pytest.mark.parametrize("bad, words", [
+    ({"M_P": 0.0}, ["M_P", "positive"]),
+    ({"k_B": float("nan")}, ["k_B", "not finite"]),
+    ({"free_play": 0.5}, ["free_play", "outside"]),
+    ({"Fc_10": 1000.0}, ["Fc", "not monotone"]),
+    ({"Fk_x03": -3e-3}, ["Fk", "increasing"]),
+])
+def test_kernel_and_python_reject_the_same_parameters(bad, words):
+    t, x, v = random_stroke(np.random.default_rng(0))
+    p = {**defaults("lumped"), **bad}
+    with pytest.raises(ValueError) as py_err:
+        simulate("lumped", t, x, v, params=p, backend="python")
+    with pytest.raises(ValueError) as c_err:
+        simulate("lumped", t, x, v, params=p, backend="native")
+    for w in words:
+        assert w in str(c_err.value), str(c_err.value)
+        assert w in str(py_err.value), str(py_err.value)
