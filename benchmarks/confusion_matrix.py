@@ -33,6 +33,7 @@ sys.path.insert(0, str(ROOT))
 from campaign.effects import EFFECTS  # noqa: E402
 from campaign.generate import CHAMBER_TEMPERATURES_C, generate_dataset  # noqa: E402
 from tuner.data import load_dataset  # noqa: E402
+from tuner.engine import fastest_engine  # noqa: E402
 from tuner.diagnose import CANDIDATES, DiagnosisSettings, diagnose  # noqa: E402
 
 
@@ -67,7 +68,7 @@ def main(argv=None) -> int:
                 tests = load_dataset(data)
                 res = diagnose([t for t in tests if t.role == "identification"],
                                [t for t in tests if t.role == "validation"], tmp / "out",
-                               DiagnosisSettings(engine="inprocess", workers=a.workers, base_iterations=0),
+                               DiagnosisSettings(engine=fastest_engine(), workers=a.workers, base_iterations=0),
                                log=lambda m: None)
             finally:
                 shutil.rmtree(tmp, ignore_errors=True)

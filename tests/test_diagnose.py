@@ -25,6 +25,7 @@ from damper_fmu import defaults
 from tuner.__main__ import main
 from tuner.data import load_dataset
 from tuner.diagnose import CANDIDATES, DiagnosisSettings, ExtendedParametrization, diagnose
+from tuner.engine import fastest_engine
 from tuner.parametrization import Parametrization
 
 
@@ -57,7 +58,7 @@ def run_diagnosis(tmp_path, effects, seed, damper="lumped"):
                             oil_temperatures=CHAMBER_TEMPERATURES_C, log=lambda m: None)
     tests = load_dataset(data)
     return diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
-                    tmp_path / "out", DiagnosisSettings(engine="inprocess", base_iterations=0), log=lambda m: None)
+                    tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), base_iterations=0), log=lambda m: None)
 
 
 @pytest.mark.slow

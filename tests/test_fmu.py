@@ -26,7 +26,7 @@ def runners(fmu_paths):
         r.close()
 
 
-@pytest.mark.parametrize("kind", KINDS + ["empty"])
+@pytest.mark.parametrize("kind", KINDS + [f"{k}_py" for k in KINDS] + ["empty"])
 def test_fmpy_validator_reports_no_problem(fmu_paths, kind):
     from build_fmu import validate
 

@@ -6,6 +6,7 @@ import pytest
 from campaign.synthetic import random_stroke, write_model_dataset
 from damper_fmu import defaults, make_model, simulate
 from tuner.data import load_dataset
+from tuner.engine import fastest_engine
 from tuner.fit import FitSettings, fit
 from tuner.parametrization import Parametrization
 
@@ -38,7 +39,7 @@ def test_tuner_recovers_the_tables_of_a_known_lumped_damper(tmp_path):
     ident = [t for t in tests if t.role == "identification"]
     valid = [t for t in tests if t.role == "validation"]
     (tmp_path / "out").mkdir()
-    settings = FitSettings(models=("lumped",), population=20, iterations=40, workers=2, engine="inprocess",
+    settings = FitSettings(models=("lumped",), population=20, iterations=40, workers=2, engine=fastest_engine(),
                            polish_jacobians=25)
     fit(ident, valid, tmp_path / "out", settings, log=lambda m: None)
     import json

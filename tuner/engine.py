@@ -20,9 +20,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Signals", "Engine", "ENGINES"]
+__all__ = ["Signals", "Engine", "ENGINES", "fastest_engine"]
 
 ENGINES = ("fmu", "native", "inprocess")
+
+
+def fastest_engine() -> str:
+    """'native' where the C kernel is compiled, else 'inprocess' (same results, slower)."""
+    from damper_fmu import native
+
+    return "native" if native.available() else "inprocess"
 
 
 @dataclass
