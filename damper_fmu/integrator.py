@@ -23,8 +23,8 @@ points) from the stroke at the end of the previous step to a target at t + h:
   before ``step`` are the values at t (start of the step), as a multibody master sets them. The
   target is x1 + v1 h + a h^2/2, v1 + a h with the stroke acceleration a [m/s^2] given by the
   master (``accel``, from fmi2SetRealInputDerivatives) or estimated from the last three velocity
-  samples (``velocity_extrapolation``: a cubic through the last four where they are smooth, else
-  a limited difference, so a velocity jump is not extrapolated into an overshoot). The curve
+  samples (``velocity_extrapolation``: a cubic through the last four where they are smooth, else a
+  quadratic or a limited difference, so a velocity jump is not extrapolated into an overshoot). The curve
   starts with the master's velocity: a jump in it is a kink in the stroke.
 * ``REPLAY`` (1): the values set before ``step`` are those at t + h (a known stroke history being
   replayed, as on a rig or by ``tuner.runner``): the target is (x1, v1) itself, no input lag;
@@ -68,27 +68,31 @@ def velocity_extrapolation(samples) -> tuple[float, float, float]:
     newest sample, v(t0 + tau) = v0 + a tau + j tau^2 / 2 + s tau^3, from the master's velocity
     samples ``[(t0, v0), (t1, v1), ...]`` (newest first, up to four).
 
-    With four samples whose third differences agree (a smooth signal): the cubic through them.
-    Otherwise (fewer samples, a velocity jump, noise): the smaller of the last two backward
-    differences as the acceleration if they agree in sign, else zero -- never an overshoot.
+    The highest-order polynomial through the samples whose differences look smooth: the cubic
+    through four samples if their third differences agree in sign and within a factor 2, else the
+    quadratic through three if their backward differences do, else the smaller of the last two
+    differences as the acceleration if they agree in sign, else zero. A velocity jump or noise
+    therefore falls back to a low order, never to an overshoot.
     """
     if len(samples) < 3:
         return 0.0, 0.0, 0.0
     (t0, v0), (t1, v1), (t2, v2) = samples[:3]
     d01 = (v0 - v1) / (t0 - t1)
     d12 = (v1 - v2) / (t1 - t2)
+    d012 = (d01 - d12) / (t0 - t2)
     if len(samples) == 4:
         t3, v3 = samples[3]
         d23 = (v2 - v3) / (t2 - t3)
         j1, j2 = d01 - d12, d12 - d23
         if j1 * j2 > 0.0 and abs(j1 - j2) <= 0.5 * max(abs(j1), abs(j2)):
-            d012 = (d01 - d12) / (t0 - t2)
             d0123 = (d012 - (d12 - d23) / (t1 - t3)) / (t0 - t3)
             a = d01 + d012 * (t0 - t1) + d0123 * (t0 - t1) * (t0 - t2)
             j = 2.0 * d012 + 2.0 * d0123 * ((t0 - t1) + (t0 - t2))
             return a, j, d0123
     if d01 * d12 <= 0.0:
         return 0.0, 0.0, 0.0
+    if abs(d01 - d12) <= 0.5 * max(abs(d01), abs(d12)):
+        return d01 + d012 * (t0 - t1), 2.0 * d012, 0.0
     return (d01 if abs(d01) <= abs(d12) else d12), 0.0, 0.0
 
 

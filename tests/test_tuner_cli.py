@@ -110,3 +110,21 @@ def test_seeded_initial_guess_reads_the_damping_table_from_quasi_static_data(tmp
     guess = initial_guess("maxwell_table", sig, Parametrization("maxwell_table", force_limit=4e4))
     for name in ("Fc_08", "Fc_09", "Fc_07"):  # +2.5, +5, -2.5 mm/s: well covered by the strokes
         assert guess[name] == pytest.approx(p[name], rel=0.15)
+
+
+def test_without_a_c_compiler_the_tuner_runs_on_python_fmus_and_says_so_once(maxwell_data, tmp_path):
+    """No compiler (CC names none, the native cache is empty): the pythonfmu FMU and the Python
+    engine carry the run; one line says the fast path is off and why."""
+    path, _ = maxwell_data
+    env = {**__import__("os").environ, "CC": "no-such-compiler-here", "DAMPER_NATIVE_DIR": str(tmp_path / "cache"),
+           "DAMPER_FMU_DIR": str(tmp_path / "fmus")}
+    proc = subprocess.run([sys.executable, "-m", "tuner", "fit", "--dataset", str(path), "--out", str(tmp_path / "o"),
+                           "--models", "maxwell", "--population", "4", "--iterations", "2", "--workers", "0",
+                           "--polish", "0"],
+                          capture_output=True, text=True, env=env, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    said = (proc.stdout + proc.stderr).count("fast path is off")
+    assert said == 1, proc.stdout[-2000:]
+    assert "no C compiler" in proc.stdout + proc.stderr
+    assert (tmp_path / "fmus" / "DamperMaxwellPy.fmu").exists()
+    assert (tmp_path / "o" / "fmu" / "DamperMaxwell_tuned.fmu").exists()

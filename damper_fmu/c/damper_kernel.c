@@ -499,17 +499,17 @@ int dk_sim_initialize(DkSim *s, double x1, double v1, double t0) {
 
 static void velocity_extrapolation(const DkSim *s, double *a, double *j, double *sn) {
     const double *t = s->st, *v = s->sv;
-    double d01, d12;
+    double d01, d12, d012;
     *a = *j = *sn = 0.0;
     if (s->nsamples < 3) return;
     d01 = (v[0] - v[1]) / (t[0] - t[1]);
     d12 = (v[1] - v[2]) / (t[1] - t[2]);
+    d012 = (d01 - d12) / (t[0] - t[2]);
     if (s->nsamples == 4) {
         double d23 = (v[2] - v[3]) / (t[2] - t[3]);
         double j1 = d01 - d12, j2 = d12 - d23;
         double mx = fabs(j1) > fabs(j2) ? fabs(j1) : fabs(j2);
         if (j1 * j2 > 0.0 && fabs(j1 - j2) <= 0.5 * mx) {
-            double d012 = (d01 - d12) / (t[0] - t[2]);
             double d0123 = (d012 - (d12 - d23) / (t[1] - t[3])) / (t[0] - t[3]);
             *a = d01 + d012 * (t[0] - t[1]) + d0123 * (t[0] - t[1]) * (t[0] - t[2]);
             *j = 2.0 * d012 + 2.0 * d0123 * ((t[0] - t[1]) + (t[0] - t[2]));
@@ -518,6 +518,14 @@ static void velocity_extrapolation(const DkSim *s, double *a, double *j, double 
         }
     }
     if (d01 * d12 <= 0.0) return;
+    {
+        double mx = fabs(d01) > fabs(d12) ? fabs(d01) : fabs(d12);
+        if (fabs(d01 - d12) <= 0.5 * mx) {
+            *a = d01 + d012 * (t[0] - t[1]);
+            *j = 2.0 * d012;
+            return;
+        }
+    }
     *a = fabs(d01) <= fabs(d12) ? d01 : d12;
 }
 
