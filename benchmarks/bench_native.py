@@ -3,7 +3,8 @@
     python benchmarks/bench_native.py [--batches 5] [--batch 8] [--baseline-commit cb21df9]
 
 Data: the bundled dataset's identification tests at the fit rate (200 Hz), as ``tuner.fit`` sees
-them; candidates: random points of the improved parametrization (seeded). Variants, each in one worker
+them, with the tuner's identification settings (fixed internal steps of 1 ms; the baseline ran one
+5 ms step per sample); candidates: random points of the improved parametrization (seeded). Variants, each in one worker
 process of its own (workers = 1: two pythonfmu FMUs of different versions cannot share a process),
 interleaved batch by batch so machine load hits all alike:
 
@@ -75,17 +76,17 @@ def main() -> int:
         engines = {}
         old = baseline_fmu(args.baseline_commit, Path(tmp))
         if old is not None:
+            # as the baseline's tuner ran it: one internal step per 5 ms sample (it had no tolerance)
             engines["before (pythonfmu, baseline commit)"] = Engine("lumped", signals, engine="fmu", workers=1,
-                                                                    fmu_path=old, max_internal_step=step)
+                                                                    fmu_path=old, max_internal_step=step,
+                                                                    tolerance=None)
         engines["pythonfmu FMU"] = Engine("lumped", signals, engine="fmu", workers=1,
-                                          fmu_path=ensure_fmu("lumped", flavour="python"), max_internal_step=step)
+                                          fmu_path=ensure_fmu("lumped", flavour="python"))
         engines["native FMU through fmpy (default)"] = Engine("lumped", signals, engine="fmu", workers=1,
-                                                              fmu_path=ensure_fmu("lumped", flavour="native"),
-                                                              max_internal_step=step)
-        engines["C kernel (--engine native)"] = Engine("lumped", signals, engine="native", workers=1,
-                                                       max_internal_step=step)
-        engines["Python reference (--engine inprocess)"] = Engine("lumped", signals, engine="inprocess", workers=1,
-                                                                  max_internal_step=step)
+                                                              fmu_path=ensure_fmu("lumped", flavour="native"))
+        engines["C kernel (--engine native)"] = Engine("lumped", signals, engine="native", workers=1)
+        engines["Python reference (--engine inprocess)"] = Engine("lumped", signals, engine="inprocess",
+                                                                  workers=1)
         rates = {k: [] for k in engines}
         sse = {}
         for name, e in engines.items():

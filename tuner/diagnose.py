@@ -237,8 +237,7 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     for p in EFFECT_PARAMETERS:  # the base model has every effect off
         base[p.name] = guess[p.name] = p.default
 
-    kw = dict(engine=settings.engine, workers=settings.workers, fmu_path=engine_path,
-              max_internal_step=1.0 / settings.fit_rate_hz)
+    kw = dict(engine=settings.engine, workers=settings.workers, fmu_path=engine_path)
     lengths = [int(s.mask.sum()) for s in sig_val]
     n_val = sum(lengths)
     ranking = []

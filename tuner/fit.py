@@ -28,7 +28,7 @@ from damper_fmu.parameters import FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS, defa
 
 from . import firefly
 from .data import RigTest, prepare
-from .engine import Engine, Signals
+from .engine import IDENTIFICATION_STEP, Engine, Signals
 from .metrics import compare_to_maxwell, error_metrics
 from .parametrization import Parametrization
 from .polish import polish
@@ -151,13 +151,11 @@ def _identify(model: str, signals: list[Signals], settings: FitSettings, par: Pa
         from build_fmu import ensure_fmu
 
         engine_path = ensure_fmu(model)
-    fit_step = 1.0 / settings.fit_rate_hz
     t_start = time.perf_counter()
     evals_start = state.evaluations if state else 0
     first_population = {}
 
-    with Engine(model, signals, engine=settings.engine, workers=settings.workers, fmu_path=engine_path,
-                max_internal_step=fit_step) as eng:
+    with Engine(model, signals, engine=settings.engine, workers=settings.workers, fmu_path=engine_path) as eng:
         def evaluate(Z):
             return eng.fitness_batch([par.to_params(z) for z in Z])
 
@@ -265,7 +263,8 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
         (out / f"history_{model}.json").write_text(json.dumps(hist, indent=1))
     (out / "parameters.json").write_text(json.dumps(params, indent=2, sort_keys=True))
 
-    log("validating (each test at its own sample rate) ...")
+    # every result is checked through the FMU the user gets, whatever engine identified it
+    log("validating through the FMU (each test at its own sample rate) ...")
     tests_out, arrays = {}, {}
     for t in [*identification, *validation]:
         p = prepare(t, t.sample_rate)
@@ -274,7 +273,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
         arrays[f"{t.name}__force"] = p.force
         models_m = {}
         for model in settings.models:
-            sim = _simulate(model, params[model]["values"], p, settings.engine)
+            sim = _simulate(model, params[model]["values"], p, "fmu")
             arrays[f"{t.name}__{model}"] = sim
             models_m[model] = error_metrics(p.force[mask], sim[mask]).to_dict()
         tests_out[t.name] = {"role": t.role, "scenario": t.scenario, "models": models_m,
@@ -299,7 +298,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
         "elapsed_s": {m: histories[m]["elapsed_s"] for m in settings.models},
         "stop_reason": {m: histories[m]["stop_reason"] for m in settings.models},
         "parametrization_text": {m: histories[m]["parametrization"] for m in settings.models},
-        "fit_internal_step_s": 1.0 / settings.fit_rate_hz,
+        "fit_internal_step_s": IDENTIFICATION_STEP,
         "identification_tests": [t.name for t in identification],
         "validation_tests": [t.name for t in validation],
         **(provenance or {}),

@@ -52,11 +52,12 @@ class FmuRunner:
     """Reusable runner for one damper FMU (``.fmu`` path) in this process.
 
     ``input_mode``: 1 (default) replay with end-of-step inputs, 0 co-simulation convention.
-    ``max_internal_step``: optional override of the FMU's internal step [s].
+    ``max_internal_step``: optional override of the FMU's internal step cap [s];
+    ``tolerance``: optional override of its ``internal_tolerance`` (0: fixed steps).
     """
 
     def __init__(self, fmu_path, *, input_mode: int = _REPLAY, max_internal_step: float | None = None,
-                 instance_name: str = "damper"):
+                 tolerance: float | None = None, instance_name: str = "damper"):
         from fmpy import extract, read_model_description
         from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, defaultCallbacks
 
@@ -72,6 +73,7 @@ class FmuRunner:
                 raise ValueError(f"{self.path.name} is not a damper FMU: no variable '{name}'")
         self.input_mode = int(input_mode)
         self.max_internal_step = max_internal_step
+        self.tolerance = tolerance
         self._unzip = extract(str(self.path), tempfile.mkdtemp(prefix="damper_runner_"))
         self.messages: list[str] = []
 
@@ -105,6 +107,10 @@ class FmuRunner:
         reals, ints = {}, {}
         if self.max_internal_step is not None:
             reals["max_internal_step"] = float(self.max_internal_step)
+        if self.tolerance is not None:
+            if "internal_tolerance" not in self.variables:
+                raise ValueError(f"{self.path.name} has no internal_tolerance parameter (an FMU of an older build)")
+            reals["internal_tolerance"] = float(self.tolerance)
         if "input_interpolation" in self.variables:
             ints["input_interpolation"] = self.input_mode
         for name, value in (params or {}).items():
