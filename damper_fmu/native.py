@@ -26,7 +26,7 @@ import numpy as np
 from .parameters import MODEL_PARAMETERS
 
 __all__ = ["available", "reason", "library", "simulate", "parameter_header", "C_SOURCES",
-           "KINDS", "CFLAGS", "compiler"]
+           "KINDS", "CFLAGS", "compiler", "compile_library"]
 
 C_DIR = Path(__file__).resolve().parent / "c"
 C_SOURCES = ("damper_kernel.c", "damper_kernel.h")
@@ -81,28 +81,41 @@ def _cache_dir() -> Path:
     return Path(os.environ.get("DAMPER_NATIVE_DIR", Path.home() / ".cache" / "yaw-damper-toolchain"))
 
 
-def _build() -> ctypes.CDLL:
+def compile_library(source: Path, name: str, *, headers: dict[str, str] | None = None,
+                    include_dirs=()) -> Path:
+    """Compile the C file ``source`` (plus generated ``headers``: file name -> text) into a shared
+    library cached under ``$DAMPER_NATIVE_DIR``, keyed by a hash of everything that goes in;
+    return its path. Raises OSError without a compiler or when compilation fails."""
     cc = compiler()
     if cc is None:
         raise OSError("no C compiler found (set CC or install gcc)")
-    header = parameter_header()
-    h = hashlib.sha256(header.encode())
-    for name in C_SOURCES:
-        h.update((C_DIR / name).read_bytes())
+    h = hashlib.sha256(source.read_bytes())
+    for hname, text in sorted((headers or {}).items()):
+        h.update(hname.encode() + text.encode())
+    for d in include_dirs:
+        for f in sorted(Path(d).glob("*.h")):
+            h.update(f.read_bytes())
     h.update(" ".join(CFLAGS).encode())
     suffix = ".dll" if sys.platform == "win32" else ".dylib" if sys.platform == "darwin" else ".so"
-    target = _cache_dir() / f"damper_kernel_{h.hexdigest()[:16]}{suffix}"
+    target = _cache_dir() / f"{name}_{h.hexdigest()[:16]}{suffix}"
     if not target.exists():
         target.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(prefix="damper_kernel_") as tmp:
-            (Path(tmp) / "damper_params.h").write_text(header)
+        with tempfile.TemporaryDirectory(prefix=f"{name}_") as tmp:
+            for hname, text in (headers or {}).items():
+                (Path(tmp) / hname).write_text(text)
             out = Path(tmp) / target.name
-            cmd = [cc, *CFLAGS, "-shared", "-I", tmp, "-I", str(C_DIR), str(C_DIR / "damper_kernel.c"),
+            cmd = [cc, *CFLAGS, "-shared", "-I", tmp, *[f"-I{d}" for d in include_dirs], str(source),
                    "-o", str(out), "-lm"]
             proc = subprocess.run(cmd, capture_output=True, text=True)
             if proc.returncode != 0:
-                raise OSError(f"compiling the C kernel failed ({' '.join(cmd)}):\n{proc.stderr.strip()}")
+                raise OSError(f"compiling {source.name} failed ({' '.join(cmd)}):\n{proc.stderr.strip()}")
             os.replace(out, target)  # atomic: concurrent builders do not see half a library
+    return target
+
+
+def _build() -> ctypes.CDLL:
+    target = compile_library(C_DIR / "damper_kernel.c", "damper_kernel",
+                             headers={"damper_params.h": parameter_header()}, include_dirs=[C_DIR])
     lib = ctypes.CDLL(str(target))
     dp, cp = ctypes.POINTER(ctypes.c_double), ctypes.c_char_p
     lib.dk_simulate.argtypes = [ctypes.c_int, dp, ctypes.c_int, ctypes.c_double, ctypes.c_double, ctypes.c_int,

@@ -199,3 +199,22 @@ def test_effect_elements_through_the_fmu_match_in_process_and_state_restores(run
     f = runners["lumped"].run(t, x, v, params=p)
     np.testing.assert_allclose(f, simulate("lumped", t, x, v, params=p), rtol=0, atol=1e-9)
     assert np.abs(f - runners["lumped"].run(t, x, v)).max() > 10.0  # the effect acts
+
+
+@pytest.mark.parametrize("flavour", ["lumped", "lumped_py"])
+@pytest.mark.parametrize("mode", [REPLAY, EXTRAPOLATE])
+def test_c_stepping_loop_makes_the_same_calls_as_the_python_loop(fmu_paths, flavour, mode):
+    from tuner.runner import stepper
+
+    if stepper() is None:
+        pytest.skip("no C compiler: the runner uses its Python loop only")
+    t, x, v = stroke(duration=1.0)
+    with FmuRunner(fmu_paths[flavour], input_mode=mode) as a, \
+            FmuRunner(fmu_paths[flavour], input_mode=mode, c_loop=False) as b:
+        kw = dict(params={"time_delay": 2e-3, "thermal_beta": 0.01}, temperature=20.0 + 5.0 * t)
+        np.testing.assert_array_equal(a.run(t, x, v, **kw), b.run(t, x, v, **kw))
+        out = ("force", "damping_force")
+        np.testing.assert_array_equal(a.run(t, x, v, outputs=out), b.run(t, x, v, outputs=out))
+        x[400] = np.nan
+        with pytest.raises(SimulationError, match="step 40[01]"):
+            a.run(t, x, v)

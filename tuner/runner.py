@@ -1,9 +1,10 @@
 """Fast fmpy runner: simulate a damper FMU under a sampled stroke history.
 
 One FMU instance is extracted, loaded and instantiated once and reused across runs (FMI reset,
-then parameters re-applied: pythonfmu re-creates its slave on reset). The per-sample loop calls
-the raw FMI functions (fmi2SetReal / fmi2DoStep / fmi2GetReal through ctypes with preallocated
-buffers); nothing is re-read or re-extracted per run.
+then parameters re-applied). The per-sample loop makes the raw FMI calls (fmi2SetReal /
+fmi2DoStep / fmi2GetReal on preallocated buffers): in C (``tuner/c/fmi2_stepper.c``, the same
+calls on the FMU's own function pointers, without the interpreter's cost per call) where a C
+compiler is found, else through ctypes from Python; nothing is re-read or re-extracted per run.
 
 Time convention: the FMU is stepped from sample k-1 to sample k with the stroke and velocity of
 sample k (``input_interpolation = 1``, replay of a known history, no input lag) unless
@@ -19,9 +20,29 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["FmuRunner", "SimulationError", "as_stroke_arrays"]
+__all__ = ["FmuRunner", "SimulationError", "as_stroke_arrays", "stepper"]
 
 _REPLAY = 1
+_STEPPER: dict = {}
+
+
+def stepper():
+    """The compiled C stepping loop (ctypes library), or None without a C compiler."""
+    if "lib" not in _STEPPER:
+        from damper_fmu.native import compile_library
+
+        try:
+            lib = ctypes.CDLL(str(compile_library(Path(__file__).resolve().parent / "c" / "fmi2_stepper.c",
+                                                  "fmi2_stepper")))
+            dp, up = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_uint)
+            lib.fmi2_run.argtypes = [ctypes.c_void_p] * 4 + [ctypes.c_int, dp, dp, dp, dp, up, ctypes.c_int, up,
+                                                             ctypes.c_int, ctypes.c_int, dp,
+                                                             ctypes.POINTER(ctypes.c_int)]
+            lib.fmi2_run.restype = ctypes.c_int
+        except OSError:
+            lib = None
+        _STEPPER["lib"] = lib
+    return _STEPPER["lib"]
 
 
 class SimulationError(RuntimeError):
@@ -57,7 +78,7 @@ class FmuRunner:
     """
 
     def __init__(self, fmu_path, *, input_mode: int = _REPLAY, max_internal_step: float | None = None,
-                 tolerance: float | None = None, instance_name: str = "damper"):
+                 tolerance: float | None = None, instance_name: str = "damper", c_loop: bool = True):
         from fmpy import extract, read_model_description
         from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, defaultCallbacks
 
@@ -95,6 +116,9 @@ class FmuRunner:
         vr = lambda n: self.variables[n].valueReference  # noqa: E731
         self._vr_in = (ctypes.c_uint * 2)(vr("stroke"), vr("stroke_velocity"))
         self._in = (ctypes.c_double * 2)()
+        lib = stepper() if c_loop else None
+        self._c_loop = lib.fmi2_run if lib is not None else None
+        self._fn = [ctypes.cast(f, ctypes.c_void_p) for f in (self._set_real, self._do_step, self._get_real)]
 
     # -- helpers --------------------------------------------------------------------------
     def _check(self, status, what):
@@ -176,9 +200,11 @@ class FmuRunner:
         inp, vr_in = self._in, self._vr_in
         inp[0], inp[1] = float(x[0]), float(v[0])
         self._start(float(t[0]), params, vr_in, inp)
+        self._check(self._get_real(c, vr_out, nout, buf), "reading outputs")
+        if self._c_loop is not None:
+            return self._loop_in_c(t, x, v, None, vr_in, vr_out, nout, buf)
         result = np.empty((t.size, nout))
         set_real, do_step, get_real = self._set_real, self._do_step, self._get_real
-        self._check(get_real(c, vr_out, nout, buf), "reading outputs")
         result[0] = buf[:]
         tl, xl, vl = t.tolist(), x.tolist(), v.tolist()
         shift = 0 if self.input_mode == _REPLAY else 1
@@ -196,6 +222,21 @@ class FmuRunner:
                 result[k] = buf[:]
         return result[:, 0] if nout == 1 else result
 
+    def _loop_in_c(self, t, x, v, temp, vr_in, vr_out, nout, buf) -> np.ndarray:
+        """Samples 1.. through the C stepping loop (same FMI calls as the Python loop)."""
+        result = np.empty((t.size, nout))
+        result[0] = buf[:]
+        dp = ctypes.POINTER(ctypes.c_double)
+        failed = ctypes.c_int(0)
+        ptr = lambda a: a.ctypes.data_as(dp) if a is not None else None  # noqa: E731
+        st = self._c_loop(self._fn[0], self._fn[1], self._fn[2], self._component, t.size, ptr(t), ptr(x), ptr(v),
+                          ptr(temp), vr_in, len(vr_in), vr_out, nout, 0 if self.input_mode == _REPLAY else 1,
+                          ptr(result), ctypes.byref(failed))
+        if st > 1:
+            k = failed.value
+            self._check(st, f"step {k} (t = {t[k - 1]:.6g} s)")
+        return result[:, 0] if nout == 1 else result
+
     def _run3(self, t, x, v, temp, params, outputs) -> np.ndarray:
         """``run`` with the oil temperature as a third input (thermal drift element)."""
         nout, vr_out, buf = self._outputs(outputs)
@@ -203,8 +244,10 @@ class FmuRunner:
         vr_in = (ctypes.c_uint * 3)(self._vr_in[0], self._vr_in[1], self.variables["oil_temperature"].valueReference)
         inp = (ctypes.c_double * 3)(float(x[0]), float(v[0]), float(temp[0]))
         self._start(float(t[0]), params, vr_in, inp)
-        result = np.empty((t.size, nout))
         self._check(self._get_real(c, vr_out, nout, buf), "reading outputs")
+        if self._c_loop is not None:
+            return self._loop_in_c(t, x, v, temp, vr_in, vr_out, nout, buf)
+        result = np.empty((t.size, nout))
         result[0] = buf[:]
         shift = 0 if self.input_mode == _REPLAY else 1
         for k in range(1, t.size):
