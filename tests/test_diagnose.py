@@ -24,7 +24,7 @@ from campaign.generate import CHAMBER_TEMPERATURES_C, generate_dataset
 from damper_fmu import defaults
 from tuner.__main__ import main
 from tuner.data import load_dataset
-from tuner.diagnose import CANDIDATES, DiagnosisSettings, ExtendedParametrization, diagnose
+from tuner.diagnose import CANDIDATES, DiagnosisSettings, ExtendedParametrization, decide, diagnose
 from tuner.engine import fastest_engine
 from tuner.parametrization import Parametrization
 
@@ -86,7 +86,8 @@ def test_clean_data_gives_no_false_cause_and_a_complete_diagnosis_json(tmp_path,
     assert res["cause"] == "none", [(r["effect"], round(r["score"], 3)) for r in res["ranking"]]
     saved = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
     assert saved["cause"] == "none"
-    assert {r["effect"] for r in saved["ranking"]} == set(CANDIDATES)
+    assert {r["effect"] for r in saved["ranking"]} == set(CANDIDATES) | {"none"}  # none: the base refitted alike
+    assert saved["noise_std_n"] > 0
     assert all("score" in r and "validation_mse_change_pct" in r for r in saved["ranking"])
     assert set(saved["validation"]) == {"val1_straight_250", "val2_curve_R6000_306", "val3_curve_R500_86"}
     for v in saved["validation"].values():
@@ -101,3 +102,25 @@ def test_diagnose_command_needs_validation_tests_and_a_real_fit_folder(tmp_path,
     assert "validation" in capsys.readouterr().err
     assert main(["diagnose", "--from", str(tmp_path), "--out", str(tmp_path / "o2")]) == 2
     assert "parameters.json" in capsys.readouterr().err
+
+
+def _row(effect, score, effect_rms, noise=10.0):
+    return {"effect": effect, "score": score, "effect_rms_n": effect_rms,
+            "resolved": effect == "none" or effect_rms >= noise, "parameters": {}}
+
+
+def test_a_zero_size_effect_is_never_named_however_well_it_scores():
+    """The issue's case: a 1 N friction on a 20 kN damper scoring +5.8 is no cause."""
+    ranking = [_row("friction", 5.8, 1.06), _row("preload", 5.8, 0.4), _row("free_play", 3.4, 1e-6),
+               _row("none", 0.0, 0.0)]
+    cause, best, unresolved = decide(ranking)
+    assert cause == "none" and best["effect"] == "none"
+    assert {r["effect"] for r in unresolved} == {"friction", "preload", "free_play"}
+
+
+def test_the_best_resolved_effect_above_the_threshold_is_named():
+    ranking = [_row("time_delay", 0.9, 3.0), _row("valve_lag", 0.6, 40.0), _row("inertia", 0.04, 80.0),
+               _row("none", 0.0, 0.0)]
+    cause, best, unresolved = decide(ranking)
+    assert cause == "valve_lag" and [r["effect"] for r in unresolved] == ["time_delay"]
+    assert decide([_row("inertia", 0.04, 80.0), _row("none", 0.0, 0.0)])[0] == "none"

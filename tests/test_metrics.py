@@ -172,3 +172,14 @@ def test_polyfit_other_order_and_errors():
         polyfit_odd_even(x, x, order=-1)
     with pytest.raises(ValueError, match="all zero"):
         polyfit_odd_even(np.zeros(8), np.ones(8))
+
+
+@pytest.mark.parametrize("fs", [300.0, 1000.0, 5000.0])
+def test_noise_estimate_sees_white_noise_under_a_large_damper_signal(fs):
+    from tuner.metrics import noise_std
+
+    rng = np.random.default_rng(int(fs))
+    t = np.arange(0.0, 20.0, 1.0 / fs)
+    signal = 2e4 * np.sin(2 * np.pi * 1.7 * t) + 5e3 * np.sin(2 * np.pi * 6.3 * t + 1.0)
+    est = noise_std(signal + rng.normal(0.0, 25.0, t.size), fs)
+    assert est == pytest.approx(25.0, rel=0.1)

@@ -41,11 +41,11 @@ from damper_fmu.parameters import EFFECT_IDENTIFIED, EFFECT_PARAMETERS, defaults
 
 from .data import RigTest, prepare
 from .engine import Engine
-from .metrics import error_metrics
+from .metrics import error_metrics, noise_std
 from .parametrization import Parametrization
 from .polish import polish
 
-__all__ = ["DiagnosisSettings", "diagnose", "CANDIDATES", "ExtendedParametrization"]
+__all__ = ["DiagnosisSettings", "diagnose", "decide", "CANDIDATES", "ExtendedParametrization"]
 
 CANDIDATES = tuple(EFFECT_IDENTIFIED)
 PENALTY_PER_PARAMETER = 0.02
@@ -201,6 +201,20 @@ def _refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: floa
     return z, g, evals + n
 
 
+def decide(ranking: list[dict]) -> tuple[str, dict, list[dict]]:
+    """(cause, its ranking row, rows that scored enough but whose force is below the noise).
+
+    A cause is the best-scoring extension whose score exceeds ACCEPT_SCORE against the base
+    refitted alike AND whose force contribution is resolved (at or above the measurement noise);
+    otherwise 'none' (with the best row of the ranking)."""
+    ranked = sorted((r for r in ranking if r["effect"] != "none"), key=lambda r: -r["score"])
+    named = [r for r in ranked if r["score"] > ACCEPT_SCORE and r["resolved"]]
+    unresolved = [r for r in ranked if r["score"] > ACCEPT_SCORE and not r["resolved"]]
+    if named:
+        return named[0]["effect"], named[0], unresolved
+    return "none", next((r for r in ranking if r["effect"] == "none"), ranking[0]), unresolved
+
+
 def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path,
              settings: DiagnosisSettings | None = None, *, base_params: dict | None = None, log=print) -> dict:
     """Run the diagnosis and write ``diagnosis.json`` (and figures, extended FMU) into ``out``."""
@@ -237,6 +251,13 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     for p in EFFECT_PARAMETERS:  # the base model has every effect off
         base[p.name] = guess[p.name] = p.default
 
+    # measurement noise of the force [N] within the fit band (white noise: the anti-aliased resampling
+    # to the fit rate keeps the share fit_rate / sample_rate of its power): an effect whose force
+    # is below it is not resolved
+    noise = float(np.median([noise_std(t.force, t.sample_rate) * math.sqrt(min(1.0, settings.fit_rate_hz / t.sample_rate))
+                             for t in identification]))
+    log(f"diagnosis: force measurement noise about {noise:.1f} N rms in the {settings.fit_rate_hz / 2:g} Hz fit band "
+        f"(from the spectrum of the identification tests)")
     kw = dict(engine=settings.engine, workers=settings.workers, fmu_path=engine_path)
     lengths = [int(s.mask.sum()) for s in sig_val]
     n_val = sum(lengths)
@@ -249,54 +270,84 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
         log(f"diagnosis: base model RMSE identification {math.sqrt(sse_base_id / eid.n_samples):.1f} N, "
             f"validation {math.sqrt(mse_base):.1f} N")
 
-        def _held_out(effect, ext, z, g, evals) -> dict:
-            """Ranking entry of a refitted extension: validation MSE/AME and score."""
-            params = ext.to_params(z)
+        def _held_out(effect, params, extra, g, evals, mse_ref) -> dict:
+            """Ranking entry of a refitted model: validation MSE/AME, score against the validation
+            MSE ``mse_ref`` [N^2] of the refitted base, and the effect's force contribution [N rms]
+            on the identification tests (the fitted model minus the same with the effect off)."""
             r_val = ev.residuals_batch([params])[0]
             per_test = _split_mse(r_val, lengths)
             mse = math.inf if r_val is None else float(r_val @ r_val) / n_val
-            ratio = mse / mse_base
-            score = -math.log(ratio) - PENALTY_PER_PARAMETER * len(ext.extra) if math.isfinite(ratio) else -math.inf
-            values = {n: params[n] for n in ext.extra}
-            return {"effect": effect, "score": score, "validation_mse_change_pct": 100 * (ratio - 1),
+            ratio = mse / mse_ref
+            score = -math.log(ratio) - PENALTY_PER_PARAMETER * len(extra) if math.isfinite(ratio) else -math.inf
+            values = {n: params[n] for n in extra}
+            contribution = 0.0
+            if extra:
+                off = {**params, **{n: 0.0 for n in extra}}
+                r_on, r_off = eid.residuals_batch([params, off])
+                if r_on is not None and r_off is not None:
+                    contribution = float(np.sqrt(np.mean((r_off - r_on) ** 2)))
+            return {"effect": effect, "score": score, "validation_mse": mse,
+                    "validation_mse_change_pct": 100 * (ratio - 1),
                     "identification_rmse_n": 1 / math.sqrt(g) if g > 0 else math.inf,
                     "parameters": values, "units": {n: UNITS[n] for n in values},
+                    "effect_rms_n": contribution, "resolved": bool(contribution >= noise) if extra else True,
                     "validation": {s.name: {"mse": m, "ame": a} for s, (m, a) in zip(sig_val, per_test)},
                     "evaluations": int(evals)}
 
         refits = {}
         jac_base = _base_jacobian(eid, par, par.from_params(base))  # shared by every candidate
+        # 'none' is a candidate like the others: the base model refitted from the same starts with
+        # the same local effort (an unfinished base fit would otherwise be credited to any effect)
+        starts = [(base, sse_base_id, jac_base)] + ([(guess, math.inf, None)] if settings.guess_start else [])
+        share = max(1, settings.polish_jacobians // len(starts))  # the Jacobian budget, split
+        z_none, g_none, ev_none = None, -math.inf, 0
+        for start, _, _ in starts:
+            z, g_s, n, _ = polish(eid, par, par.from_params(start), max_jacobians=share, log=lambda m: None)
+            ev_none += n
+            if g_s > g_none:
+                z_none, g_none = z, g_s
+        r_none = ev.residuals_batch([par.to_params(z_none)])[0]
+        mse_none = float(r_none @ r_none) / n_val if r_none is not None else mse_base
+        none_row = _held_out("none", par.to_params(z_none), [], g_none, ev_none, mse_none)
+        log(f"  {'none':14s} (base refitted alike)  identification RMSE {none_row['identification_rmse_n']:.1f} N, "
+            f"validation MSE {100 * (mse_none / mse_base - 1):+6.1f} % vs the base fit")
         for effect in settings.candidates:
             ext = ExtendedParametrization(par, effect, peak)
             # the fitted base may have absorbed part of the effect into its tables: a profile line
             # search re-balances it (``_refit``); a second start from the data-driven initial guess,
             # which has not absorbed it, is kept when its refit fits the identification data better
             best_z, g, evals = None, -math.inf, 0
-            starts = [(base, sse_base_id, jac_base)] + ([(guess, math.inf, None)] if settings.guess_start else [])
-            share = max(1, settings.polish_jacobians // len(starts))  # the Jacobian budget, split
             for start, sse_start, svd in starts:
                 z, g_s, n = _refit(eid, ext, ext.from_params(start), sse_start, svd, settings, share)
                 evals += n
                 if g_s > g:
                     best_z, g = z, g_s
-            row = _held_out(effect, ext, best_z, g, evals)
+            row = _held_out(effect, ext.to_params(best_z), ext.extra, g, evals, mse_none)
             refits[effect] = (ext, best_z, evals)
             ranking.append(row)
             log(f"  {effect:14s} " + ", ".join(f"{n} = {v:.4g} {UNITS[n]}" for n, v in row["parameters"].items())
-                + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}")
-        # the leading candidate's refit is continued to convergence (absorbed effects converge slowly)
-        lead = max(ranking, key=lambda r: r["score"])
-        if lead["score"] > ACCEPT_SCORE and settings.final_jacobians > 0:
+                + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
+                + f"  effect {row['effect_rms_n']:.3g} N rms{'' if row['resolved'] else ' (below the noise)'}")
+        # the leading candidate's refit is continued to convergence (absorbed effects converge slowly),
+        # and so is the base refit, so that the continuation is not credited to the effect
+        lead = max(ranking, key=lambda r: r["score"] if r["resolved"] else -math.inf)
+        if lead["score"] > ACCEPT_SCORE and lead["resolved"] and settings.final_jacobians > 0:
+            z_none, g_none, n, _ = polish(eid, par, z_none, max_jacobians=settings.final_jacobians,
+                                          log=lambda m: None)
+            r_none = ev.residuals_batch([par.to_params(z_none)])[0]
+            mse_none = float(r_none @ r_none) / n_val if r_none is not None else mse_none
+            none_row = _held_out("none", par.to_params(z_none), [], g_none, ev_none + n, mse_none)
             ext, z, evals = refits[lead["effect"]]
             z, g, n, _ = polish(eid, ext, z, max_jacobians=settings.final_jacobians, log=lambda m: None)
             refits[lead["effect"]] = (ext, z, evals + n)
-            ranking[ranking.index(lead)] = row = _held_out(lead["effect"], ext, z, g, evals + n)
-            log(f"  {lead['effect']:14s} refined: " + ", ".join(
+            ranking[ranking.index(lead)] = row = _held_out(lead["effect"], ext.to_params(z), ext.extra, g,
+                                                           evals + n, mse_none)
+            log(f"  {lead['effect']:14s} refined (base refit continued alike): " + ", ".join(
                 f"{k} = {v:.4g} {UNITS[k]}" for k, v in row["parameters"].items())
                 + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}")
     ranking.sort(key=lambda r: -r["score"])
-    best = ranking[0]
-    cause = best["effect"] if best["score"] > ACCEPT_SCORE else "none"
+    ranking.append(none_row)
+    cause, best, unresolved = decide(ranking)
     after = best["validation"] if cause != "none" else {s.name: {"mse": m, "ame": a}
                                                         for s, (m, a) in zip(sig_val, base_val)}
     validation = {s.name: {"mse_before": m, "ame_before": a, "mse_after": after[s.name]["mse"],
@@ -308,7 +359,7 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
         for n, v in best["parameters"].items():
             lo, hi = PLAUSIBLE[n]
             effect_parameters[n] = {"value": v, "unit": UNITS[n], "plausible_range": [lo, hi],
-                                    "plausible": lo <= abs(v) <= hi}
+                                    "plausible": bool(lo <= abs(v) <= hi)}
 
     # residual analysis of the base model (evidence and figures)
     evidence, figures = {}, []
@@ -326,12 +377,15 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
 
     pooled_change = 100 * (math.exp(-(best["score"] + PENALTY_PER_PARAMETER * len(best["parameters"]))) - 1) \
         if cause != "none" else 0.0
-    verdict = "cause: none (no extension earns its parameters on held-out data)" if cause == "none" else (
+    verdict = ("cause: none (no extension earns its parameters on held-out data"
+               + ("; " + ", ".join(f"{r['effect']} scored {r['score']:+.3f} but its force, {r['effect_rms_n']:.2g} N "
+                                   f"rms, is below the measurement noise ({noise:.2g} N)" for r in unresolved)
+                  if unresolved else "") + ")") if cause == "none" else (
         f"cause: {cause} (" + ", ".join(f"{n} = {_fmt(v, UNITS[n])}" for n, v in best["parameters"].items())
-        + f"); validation MSE {pooled_change:+.0f} %")
+        + f"); validation MSE {pooled_change:+.0f} % against the base refitted alike")
     result = {"cause": cause, "verdict": verdict, "ranking": ranking, "effect_parameters": effect_parameters,
               "validation": validation, "evidence": evidence, "figures": figures,
-              "note": NOTES.get(cause, ""),
+              "note": NOTES.get(cause, ""), "noise_std_n": noise,
               "settings": {**{k: v for k, v in settings.__dict__.items() if k != "extra"},
                            "penalty_per_parameter": PENALTY_PER_PARAMETER, "accept_score": ACCEPT_SCORE,
                            "elapsed_s": time.perf_counter() - t_start},
@@ -379,8 +433,11 @@ def diagnosis_section_html(out_dir) -> str:
     for r in d["ranking"]:
         cls = " class='winner'" if r["effect"] == d["cause"] else ""
         fitted = ", ".join(f"{n} = {_fmt(v, r['units'][n])}" for n, v in r["parameters"].items())
+        size = (f"{r['effect_rms_n']:.3g}" + ("" if r.get("resolved", True) else " (below noise)")
+                if r.get("parameters") else "-")
         rows.append(f"<tr{cls}><td>{e(r['effect'])}</td><td>{e(fitted)}</td>"
-                    f"<td>{r['validation_mse_change_pct']:+.1f} %</td><td>{r['score']:+.3f}</td></tr>")
+                    f"<td>{r['validation_mse_change_pct']:+.1f} %</td><td>{r['score']:+.3f}</td>"
+                    f"<td>{e(size)}</td></tr>")
     rows = "".join(rows)
     val = "".join(f"<tr><td>{e(n)}</td><td>{v['mse_before']:.3e}</td><td>{v['mse_after']:.3e}</td>"
                   f"<td>{v['mse_change_pct']:+.1f} %</td><td>{v['ame_before']:.0f}</td><td>{v['ame_after']:.0f}</td></tr>"
@@ -401,7 +458,12 @@ def diagnosis_section_html(out_dir) -> str:
         "identification tests; the decision rests on the validation (held-out) MSE: score = -ln(MSE_ext / "
         f"MSE_base) - {s['penalty_per_parameter']} per extra parameter, a cause is named when its score exceeds "
         f"{s['accept_score']}.</p>"
-        "<table><tr><th>candidate</th><th>fitted parameters</th><th>validation MSE change</th><th>score</th></tr>"
+        "<p>'none' is the base model refitted from the same starts with the same effort; every score is "
+        "measured against it, so a refit's own progress is not credited to an effect. An effect whose force "
+        f"contribution (fitted model minus the same with the effect off) is below the measurement noise "
+        f"({d.get('noise_std_n', float('nan')):.3g} N, from the force spectrum) is not named.</p>"
+        "<table><tr><th>candidate</th><th>fitted parameters</th><th>validation MSE change vs 'none'</th>"
+        "<th>score</th><th>effect force [N rms]</th></tr>"
         f"{rows}</table>"
         + (f"<h3>Effect parameters vs plausible ranges</h3><table><tr><th>parameter</th><th>fitted</th>"
            f"<th>typical range</th><th>plausible</th></tr>{eff}</table>" if eff else "")

@@ -167,3 +167,18 @@ def polyfit_odd_even(x, y, order: int = 5) -> PolyOddEven:
         raise ValueError("fitted polynomial is identically zero on x: asymmetry index undefined")
     return PolyOddEven(coefficients=c_t / scale ** powers, fit=fit, odd=odd, even=even,
                        asymmetry_index=math.sqrt(float(np.mean(even ** 2))) / rms_fit)
+
+
+def noise_std(signal, sample_rate: float) -> float:
+    """Measurement noise of a sampled signal [its unit], white-equivalent over the Nyquist band:
+    sqrt(median PSD in 0.1-0.3 x sample_rate x sample_rate / 2). The median of a band above the
+    usual content of damper strokes ignores narrow-band signal; anti-alias filters usually keep
+    that band flat. A coloured noise or broadband signal there biases it high (conservative)."""
+    from scipy.signal import welch
+
+    x = np.asarray(signal, dtype=float)
+    if x.size < 64:
+        raise ValueError("noise_std needs at least 64 samples")
+    f, p = welch(x - x.mean(), fs=sample_rate, nperseg=min(1024, x.size))
+    band = (f > 0.1 * sample_rate) & (f < 0.3 * sample_rate)
+    return float(np.sqrt(np.median(p[band]) * sample_rate / 2.0))
