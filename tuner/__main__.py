@@ -92,8 +92,8 @@ def _add_fit_options(ap: argparse.ArgumentParser) -> None:
     g.add_argument("--no-diagnose", action="store_true",
                    help="skip the diagnosis that follows the fit (it needs validation tests)")
     g.add_argument("--polish", type=int, default=d.polish_jacobians, metavar="N",
-                   help="local least-squares refinement after Firefly, at most N Jacobians "
-                        "(default %(default)s; 0 = the paper's Firefly result as is)")
+                   help="local least-squares refinement after Firefly until converged, at most N Jacobians "
+                        "(default %(default)s, a safety cap; 0 = the paper's Firefly result as is)")
     g = ap.add_argument_group("output")
     g.add_argument("--out", type=Path, help="output folder (default results/<dataset name>[-N])")
     g.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")

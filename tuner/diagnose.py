@@ -104,7 +104,7 @@ class DiagnosisSettings:
     engine: str = "fmu"
     seed: int = 0
     base_iterations: int = 30
-    base_polish_jacobians: int = 15
+    base_polish_jacobians: int = 100  # a cap: the base refinement stops when converged
     polish_jacobians: int = 16  # per candidate, split between the two starts
     grid_points: int = 7
     guess_start: bool = True
@@ -251,9 +251,12 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     for p in EFFECT_PARAMETERS:  # the base model has every effect off
         base[p.name] = guess[p.name] = p.default
 
-    # measurement noise of the force [N] within the fit band (white noise: the anti-aliased resampling
-    # to the fit rate keeps the share fit_rate / sample_rate of its power): an effect whose force
-    # is below it is not resolved
+    # measurement noise of the force [N] within the fit band, from the spectrum of the measured force
+    # (tuner.metrics.noise_std; broadband signal such as the harmonics of a characteristic's kinks
+    # biases it high, the conservative side); white noise keeps the share fit_rate / sample_rate of
+    # its power after the anti-aliased resampling to the fit rate. The base model's residual is no
+    # better a source: its model-form error is broadband at the velocity reversals (measured: 10x the
+    # noise on lumped-damper data). An effect whose force is below the noise is not resolved.
     noise = float(np.median([noise_std(t.force, t.sample_rate) * math.sqrt(min(1.0, settings.fit_rate_hz / t.sample_rate))
                              for t in identification]))
     log(f"diagnosis: force measurement noise about {noise:.1f} N rms in the {settings.fit_rate_hz / 2:g} Hz fit band "

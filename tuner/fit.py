@@ -29,7 +29,7 @@ from damper_fmu.parameters import FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS, defa
 from . import firefly
 from .data import RigTest, prepare
 from .engine import IDENTIFICATION_STEP, Engine, Signals
-from .metrics import compare_to_maxwell, error_metrics
+from .metrics import compare_to_maxwell, error_metrics, noise_std
 from .parametrization import Parametrization
 from .polish import polish
 
@@ -53,7 +53,7 @@ class FitSettings:
     force_limit_n: float | None = None
     spring_reference_n_per_m: float = FK_REFERENCE_STIFFNESS
     stop_tol: float | None = 1e-3
-    polish_jacobians: int = 15
+    polish_jacobians: int = 100  # a safety cap: the refinement stops when converged
     extra: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
@@ -179,12 +179,14 @@ def _identify(model: str, signals: list[Signals], settings: FitSettings, par: Pa
             first_population["pop"] = np.array(json.loads(ckpt.read_text()).get("initial_population"))
         result = firefly.run(evaluate, par.dimension, options=opts, seed=settings.seed, state=state,
                              callback=callback, initial=initial)
-        z_best, g_best, polish_evals, polish_hist = result.x_best, result.fitness_best, 0, []
+        z_best, g_best, polish_evals = result.x_best, result.fitness_best, 0
+        polish_info = {"fitness": [], "stop": "no local refinement (--polish 0)", "converged": False}
         if settings.polish_jacobians > 0:
-            log(f"[{model}] local refinement (least squares, up to {settings.polish_jacobians} Jacobians "
-                f"of {par.dimension + 1} parallel simulations)")
-            z_best, g_best, polish_evals, polish_hist = polish(eng, par, result.x_best,
-                                                              max_jacobians=settings.polish_jacobians, log=log)
+            log(f"[{model}] local refinement (least squares until converged, at most {settings.polish_jacobians} "
+                f"Jacobians of {par.dimension + 1} parallel simulations)")
+            z_best, g_best, polish_evals, polish_info = polish(eng, par, result.x_best,
+                                                               max_jacobians=settings.polish_jacobians, log=log)
+            log(f"[{model}] local refinement: {polish_info['stop']}")
     elapsed = time.perf_counter() - t_start
 
     def rmse(g):
@@ -206,7 +208,9 @@ def _identify(model: str, signals: list[Signals], settings: FitSettings, par: Pa
         "iterations": int(result.iterations),
         "firefly_evaluations": int(result.evaluations),
         "firefly_best_fitness": float(result.fitness_best),
-        "polish_fitness": list(map(float, polish_hist)),
+        "polish_fitness": list(map(float, polish_info["fitness"])),
+        "polish_stop": polish_info["stop"],
+        "converged": bool(polish_info["converged"]),
         "polish_evaluations": int(polish_evals),
         "evaluation_count": int(result.evaluations + polish_evals),
         "best_fitness_final": float(g_best),
@@ -251,6 +255,10 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
     log(f"identification: {len(signals)} tests, {sum(int(s.mask.sum()) for s in signals)} samples at "
         f"{settings.fit_rate_hz:g} Hz; peak force {peak:.0f} N -> Fc,O limit {force_limit:.3g} N")
 
+    # measurement noise in the fit band [N] (tuner.metrics.noise_std; see tuner.diagnose): what a
+    # fit of a model that can represent the data reaches, reported beside the identification RMSE
+    noise = float(np.median([noise_std(t.force, t.sample_rate) * math.sqrt(min(1.0, settings.fit_rate_hz / t.sample_rate))
+                             for t in identification]))
     params, histories = {}, {}
     for model in settings.models:
         par = Parametrization(model, settings.parametrization, force_limit=force_limit,
@@ -259,6 +267,11 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
         params[model] = {"values": best, "units": dict(par.units),
                          "bounds": {n: list(par.bounds[n]) for n in par.names},
                          "parametrization": settings.parametrization}
+        rmse_id = 1.0 / math.sqrt(hist["best_fitness_final"]) if hist["best_fitness_final"] > 0 else math.inf
+        hist["noise_floor_n"] = noise
+        hist["identification_rmse_n"] = rmse_id
+        log(f"[{model}] identification RMSE {rmse_id:.1f} N = {rmse_id / noise:.1f} x the measurement noise in the "
+            f"fit band ({noise:.1f} N); local refinement {'converged' if hist['converged'] else 'NOT converged'}")
         histories[model] = hist
         (out / f"history_{model}.json").write_text(json.dumps(hist, indent=1))
     (out / "parameters.json").write_text(json.dumps(params, indent=2, sort_keys=True))

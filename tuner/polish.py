@@ -26,7 +26,10 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 15, step: float 
     """Refine the scaled point z0; return (z_best, fitness_best, evaluations_used, history).
 
     engine: tuner.engine.Engine; par: tuner.parametrization.Parametrization; step: forward
-    difference step in scaled units; history: fitness G after each accepted point.
+    difference step in scaled units; history: {"fitness": G after each Jacobian and at the end,
+    "stop": why it stopped, "converged": bool}. It stops when converged (three Jacobians without a
+    relative fitness gain of 1e-4, or the solver's own tolerances) or, still improving, at
+    ``max_jacobians`` (a safety budget, reported as not converged).
     """
     from scipy.optimize import least_squares
 
@@ -46,7 +49,8 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 15, step: float 
 
     r0 = residual_batch([np.asarray(z0, float)])[0]
     if r0 is None:
-        return z0, 0.0, used["evals"], []
+        return z0, 0.0, used["evals"], {"fitness": [], "stop": "start point cannot be simulated",
+                                        "converged": False}
     big = np.full_like(r0, 10.0 * np.sqrt(np.mean(r0 * r0)) + 1.0)
     history = [n / float(r0 @ r0)]
 
@@ -54,11 +58,15 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 15, step: float 
         r = residual_batch([np.clip(z, 0.0, 1.0)])[0]
         return big if r is None else r
 
+    stop = {"why": "", "converged": False}
+
     def jac(z):
         if len(history) > max_jacobians:
+            stop.update(why=f"budget of {max_jacobians} Jacobians spent while still improving", converged=False)
             raise _Done
         if len(history) >= 4 and history[-1] <= history[-4] * (1.0 + 1e-4):
-            raise _Done  # three Jacobians without a relative gain of 1e-4: converged
+            stop.update(why="converged: three Jacobians without a relative gain of 1e-4", converged=True)
+            raise _Done
         z = np.clip(z, 0.0, 1.0)
         steps = np.where(z + step <= 1.0, step, -step)
         pts = [z] + [z + np.eye(len(z))[i] * steps[i] for i in range(len(z))]
@@ -75,6 +83,7 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 15, step: float 
         sol = least_squares(fun, np.clip(z0, 0.0, 1.0), jac=jac, bounds=(0.0, 1.0), method="trf",
                             x_scale="jac", max_nfev=max_jacobians * 3, xtol=1e-10, ftol=1e-10, gtol=1e-10)
         candidates = [np.clip(sol.x, 0.0, 1.0)]
+        stop.update(why=f"solver: {sol.message}", converged=sol.status > 0)
     except _Done:
         candidates = []
     # best point seen (every evaluated point is cached)
@@ -87,7 +96,8 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 15, step: float 
         if r is not None and n / float(r @ r) > g:
             z, g = c, n / float(r @ r)
     g0 = n / float(r0 @ r0)
+    info = {"fitness": history, "stop": stop["why"], "converged": stop["converged"]}
     if g <= g0:
-        return np.asarray(z0, float), g0, used["evals"], history
+        return np.asarray(z0, float), g0, used["evals"], info
     history.append(g)
-    return z, g, used["evals"], history
+    return z, g, used["evals"], info
