@@ -24,7 +24,7 @@ from campaign.generate import CHAMBER_TEMPERATURES_C, generate_dataset
 from damper_fmu import defaults
 from tuner.__main__ import main
 from tuner.data import load_dataset
-from tuner.diagnose import CANDIDATES, DiagnosisSettings, ExtendedParametrization, decide, diagnose
+from tuner.diagnose import CANDIDATES, DiagnosisSettings, ExtendedParametrization, cross_check, decide, diagnose
 from tuner.engine import fastest_engine
 from tuner.parametrization import Parametrization
 
@@ -124,3 +124,14 @@ def test_the_best_resolved_effect_above_the_threshold_is_named():
     cause, best, unresolved = decide(ranking)
     assert cause == "valve_lag" and [r["effect"] for r in unresolved] == ["time_delay"]
     assert decide([_row("inertia", 0.04, 80.0), _row("none", 0.0, 0.0)])[0] == "none"
+
+
+def test_a_delay_the_residual_does_not_show_is_not_a_cause():
+    """The real-data case: a fitted 2.7 ms delay where the residual's regression says 0.15 ms."""
+    row = {**_row("time_delay", 0.3, 200.0), "parameters": {"time_delay": 2.7e-3}}
+    ranking = [row, _row("none", 0.0, 0.0)]
+    assert cross_check(ranking, {"effects": {"time_delay": {"value": 0.15e-3}}}) == [row]
+    assert decide(ranking)[0] == "none"
+    row2 = {**_row("time_delay", 0.3, 200.0), "parameters": {"time_delay": 2.7e-3}}
+    assert cross_check([row2], {"effects": {"time_delay": {"value": 2.2e-3}}}) == []
+    assert decide([row2, _row("none", 0.0, 0.0)])[0] == "time_delay"

@@ -45,7 +45,7 @@ from .metrics import error_metrics, noise_std
 from .parametrization import Parametrization
 from .polish import polish
 
-__all__ = ["DiagnosisSettings", "diagnose", "decide", "CANDIDATES", "ExtendedParametrization"]
+__all__ = ["DiagnosisSettings", "diagnose", "decide", "cross_check", "CANDIDATES", "ExtendedParametrization"]
 
 CANDIDATES = tuple(EFFECT_IDENTIFIED)
 PENALTY_PER_PARAMETER = 0.02
@@ -201,6 +201,23 @@ def _refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: floa
     return z, g, evals + n
 
 
+def cross_check(ranking: list[dict], evidence: dict) -> list[dict]:
+    """Mark a fitted force-channel delay that disagrees (beyond a factor 3, or in sign) with the
+    delay the base model's residual shows (``evidence['effects']['time_delay']['value']`` [s]) as
+    not resolved; return the rows so marked."""
+    ev_delay = ((evidence or {}).get("effects", {}).get("time_delay") or {}).get("value")
+    marked = []
+    for r in ranking:
+        fitted = r["parameters"].get("time_delay", 0.0) if r["effect"] == "time_delay" else 0.0
+        if fitted > 0.0:
+            agrees = ev_delay is not None and ev_delay > 0 and 1 / 3 <= fitted / ev_delay <= 3
+            r["evidence_agrees"] = bool(agrees)
+            if not agrees:
+                r["resolved"] = False
+                marked.append(r)
+    return marked
+
+
 def decide(ranking: list[dict]) -> tuple[str, dict, list[dict]]:
     """(cause, its ranking row, rows that scored enough but whose force is below the noise).
 
@@ -348,6 +365,26 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
             log(f"  {lead['effect']:14s} refined (base refit continued alike): " + ", ".join(
                 f"{k} = {v:.4g} {UNITS[k]}" for k, v in row["parameters"].items())
                 + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}")
+    # residual analysis of the base model (evidence and figures)
+    evidence, figures = {}, []
+    try:
+        from .fit import _simulate
+        from .residuals import TestResidual, evidence as residual_evidence, residual_figures
+
+        tr = [TestResidual(p.name, p.role or "", p.time, p.stroke, p.stroke_velocity, p.force,
+                           _simulate("lumped", base, p, settings.engine), s.mask, s.temperature)
+              for p, s in zip([*prep_id, *prep_val], [*sig_id, *sig_val])]
+        evidence = residual_evidence(tr)
+        figures = [str(Path(f).relative_to(out)) for f in residual_figures(tr, out / "figures")]
+    except ImportError:  # residual analysis module not available
+        pass
+
+    # cross-check with the residual evidence: a force-channel delay must agree with the delay the
+    # base model's residual shows (regression on -dF/dt); the refit alone can trade a delay for
+    # table changes
+    for r in cross_check(ranking, evidence):
+        log(f"  time_delay {1e3 * r['parameters']['time_delay']:.3g} ms disagrees with the residual's delay: "
+            f"not a cause")
     ranking.sort(key=lambda r: -r["score"])
     ranking.append(none_row)
     cause, best, unresolved = decide(ranking)
@@ -364,25 +401,13 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
             effect_parameters[n] = {"value": v, "unit": UNITS[n], "plausible_range": [lo, hi],
                                     "plausible": bool(lo <= abs(v) <= hi)}
 
-    # residual analysis of the base model (evidence and figures)
-    evidence, figures = {}, []
-    try:
-        from .fit import _simulate
-        from .residuals import TestResidual, evidence as residual_evidence, residual_figures
-
-        tr = [TestResidual(p.name, p.role or "", p.time, p.stroke, p.stroke_velocity, p.force,
-                           _simulate("lumped", base, p, settings.engine), s.mask, s.temperature)
-              for p, s in zip([*prep_id, *prep_val], [*sig_id, *sig_val])]
-        evidence = residual_evidence(tr)
-        figures = [str(Path(f).relative_to(out)) for f in residual_figures(tr, out / "figures")]
-    except ImportError:  # residual analysis module not available
-        pass
-
     pooled_change = 100 * (math.exp(-(best["score"] + PENALTY_PER_PARAMETER * len(best["parameters"]))) - 1) \
         if cause != "none" else 0.0
     verdict = ("cause: none (no extension earns its parameters on held-out data"
-               + ("; " + ", ".join(f"{r['effect']} scored {r['score']:+.3f} but its force, {r['effect_rms_n']:.2g} N "
-                                   f"rms, is below the measurement noise ({noise:.2g} N)" for r in unresolved)
+               + ("; " + ", ".join(f"{r['effect']} scored {r['score']:+.3f} but " + (
+                   "its delay disagrees with the residual's" if r.get("evidence_agrees") is False else
+                   f"its force, {r['effect_rms_n']:.2g} N rms, is below the measurement noise ({noise:.2g} N)")
+                   for r in unresolved)
                   if unresolved else "") + ")") if cause == "none" else (
         f"cause: {cause} (" + ", ".join(f"{n} = {_fmt(v, UNITS[n])}" for n, v in best["parameters"].items())
         + f"); validation MSE {pooled_change:+.0f} % against the base refitted alike")
@@ -436,7 +461,8 @@ def diagnosis_section_html(out_dir) -> str:
     for r in d["ranking"]:
         cls = " class='winner'" if r["effect"] == d["cause"] else ""
         fitted = ", ".join(f"{n} = {_fmt(v, r['units'][n])}" for n, v in r["parameters"].items())
-        size = (f"{r['effect_rms_n']:.3g}" + ("" if r.get("resolved", True) else " (below noise)")
+        why = " (evidence disagrees)" if r.get("evidence_agrees") is False else " (below noise)"
+        size = (f"{r['effect_rms_n']:.3g}" + ("" if r.get("resolved", True) else why)
                 if r.get("parameters") else "-")
         rows.append(f"<tr{cls}><td>{e(r['effect'])}</td><td>{e(fitted)}</td>"
                     f"<td>{r['validation_mse_change_pct']:+.1f} %</td><td>{r['score']:+.3f}</td>"
