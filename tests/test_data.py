@@ -476,3 +476,24 @@ def test_prepare_at_source_rate_changes_nothing():
                     sample_rate=FS)
     with pytest.raises(DataError, match="too short to resample"):
         prepare(short, 200.0)
+
+
+def test_temperature_column_by_name_and_a_warning_for_an_unused_one(tmp_path):
+    """A rig that calls its oil temperature 'Temp (C)': used with temperature_col, in K converted;
+    without the option the column is kept as an ordinary channel and a warning names it."""
+    from tuner.data import load_test
+
+    t = np.arange(0.0, 2.0, 1e-3)
+    frame = pd.DataFrame({"time": t, "stroke": 1e-3 * np.sin(6 * t), "force": 1e3 * np.cos(6 * t),
+                          "Temp (C)": 20.0 + t, "Oil K": 293.15 + t})
+    path = tmp_path / "rig.csv"
+    frame.to_csv(path, index=False)
+    plain = load_test(path)
+    assert "temperature" not in plain.channels
+    assert any("Temp (C)" in w and "--temperature-col" in w for w in plain.metadata["warnings"])
+    named = load_test(path, temperature_col="Temp (C)")
+    np.testing.assert_allclose(named.channels["temperature"], 20.0 + t)
+    kelvin = load_test(path, temperature_col="Oil K", temperature_unit="K")
+    np.testing.assert_allclose(kelvin.channels["temperature"], 20.0 + t, atol=1e-9)
+    with pytest.raises(DataError, match="temperature column 'oil' not found"):
+        load_test(path, temperature_col="oil")

@@ -67,6 +67,9 @@ def _add_fit_options(ap: argparse.ArgumentParser) -> None:
     g.add_argument("--time-col", default="time")
     g.add_argument("--stroke-col", default="stroke")
     g.add_argument("--force-col", default="force")
+    g.add_argument("--temperature-col", default=None, metavar="NAME",
+                   help="column holding the oil temperature (default: a column named 'temperature', if any)")
+    g.add_argument("--temperature-unit", default="degC", choices=["degC", "K"])
     g.add_argument("--time-unit", default="s", choices=["s", "ms"])
     g.add_argument("--stroke-unit", default="m", choices=["m", "cm", "mm", "um"])
     g.add_argument("--force-unit", default="N", choices=["N", "daN", "kN"])
@@ -104,7 +107,8 @@ def _load(args):
     from .data import load_dataset, load_files
 
     cols = dict(time_col=args.time_col, stroke_col=args.stroke_col, force_col=args.force_col,
-                time_unit=args.time_unit, stroke_unit=args.stroke_unit, force_unit=args.force_unit)
+                time_unit=args.time_unit, stroke_unit=args.stroke_unit, force_unit=args.force_unit,
+                temperature_col=args.temperature_col, temperature_unit=args.temperature_unit)
     if args.dataset and (args.identification or args.validation):
         raise ValueError("give either --dataset or --identification/--validation files, not both")
     if args.dataset:
@@ -120,6 +124,9 @@ def _load(args):
         name = "fit"
     if not ident:
         raise ValueError("the data holds no identification test")
+    for t in ident + valid:
+        for w in t.metadata.get("warnings", []):
+            _log(f"warning: {w}")
     names = [t.name for t in ident + valid]
     if len(set(names)) != len(names):
         raise ValueError(f"test names must be unique, got {names}")

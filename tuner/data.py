@@ -276,7 +276,8 @@ def _numeric(df: pd.DataFrame, col: str, source: str, lines) -> np.ndarray:
 def load_test(path, *, time_col="time", stroke_col="stroke", force_col="force",
               stroke_unit="m", force_unit="N", time_unit="s", extra_cols=None,
               channel_units=None, name=None, role=None, scenario=None,
-              sample_rate_hz=None, metadata=None, dt_tol=0.01) -> RigTest:
+              sample_rate_hz=None, metadata=None, dt_tol=0.01, temperature_col=None,
+              temperature_unit="degC") -> RigTest:
     """Read and check one rig-test file; return it in SI units.
 
     Column names and units (time s/ms, stroke m/cm/mm/um, force N/daN/kN) are
@@ -285,7 +286,12 @@ def load_test(path, *, time_col="time", stroke_col="stroke", force_col="force",
     to degC; degC/K are converted to degC, other units are kept as given).
     ``sample_rate_hz`` [Hz], if given, must match the time column within
     ``dt_tol``. name defaults to the file stem; role (identification/validation
-    or None) and scenario are labels. Raises DataError on any problem.
+    or None) and scenario are labels. ``temperature_col``: the column holding the
+    oil temperature (in ``temperature_unit``, degC or K), loaded as the channel
+    ``temperature`` that the thermal drift element and the diagnosis use; without
+    it a column named ``temperature`` is that channel, and another column that
+    looks like a temperature is reported in ``metadata['warnings']``. Raises
+    DataError on any problem.
     """
     path = Path(path)
     source = str(path)
@@ -296,6 +302,23 @@ def load_test(path, *, time_col="time", stroke_col="stroke", force_col="force",
         raise DataError(f"{source}: unknown role {role!r}; expected one of {ROLES}")
     df, lines = _read_table(path, source)
     found = list(df.columns)
+    warnings = []
+    if temperature_col is not None:
+        if temperature_col not in found:
+            raise DataError(f"{source}: temperature column {temperature_col!r} not found; columns found: {found}")
+        if temperature_col != "temperature":
+            if "temperature" in found:
+                raise DataError(f"{source}: --temperature-col {temperature_col!r} given but the file also has a "
+                                f"column 'temperature': rename one of them")
+            df = df.rename(columns={temperature_col: "temperature"})
+            found = list(df.columns)
+        channel_units = {**(channel_units or {}), "temperature": temperature_unit}
+    elif "temperature" not in found:
+        looks = [c for c in found if c not in (time_col, stroke_col, force_col)
+                 and re.search(r"temp|oil|°c|degc|\(c\)|\[c\]", c, flags=re.IGNORECASE)]
+        if looks:
+            warnings.append(f"{source}: column(s) {looks} look like a temperature but are not used as the oil "
+                            f"temperature; give --temperature-col NAME to use one (the thermal analysis needs it)")
     wanted = [time_col, stroke_col, force_col]
     if extra_cols is None:
         extra_cols = [c for c in found if c not in wanted]
@@ -326,7 +349,8 @@ def load_test(path, *, time_col="time", stroke_col="stroke", force_col="force",
                    scenario="" if scenario is None else str(scenario),
                    time=t, stroke=x, force=f, channels=channels,
                    sample_rate=float(sample_rate_hz) if sample_rate_hz else rate,
-                   source=path, metadata=dict(metadata or {}), channel_units=ch_units)
+                   source=path, metadata={**dict(metadata or {}), **({"warnings": warnings} if warnings else {})},
+                   channel_units=ch_units)
 
 
 def load_files(paths, role, **column_options) -> list[RigTest]:
