@@ -128,3 +128,26 @@ def test_without_a_c_compiler_the_tuner_runs_on_python_fmus_and_says_so_once(max
     assert "no C compiler" in proc.stdout + proc.stderr
     assert (tmp_path / "fmus" / "DamperMaxwellPy.fmu").exists()
     assert (tmp_path / "o" / "fmu" / "DamperMaxwell_tuned.fmu").exists()
+
+
+def test_a_stroke_in_the_wrong_unit_stops_the_fit_with_the_fmus_reason(maxwell_data, tmp_path, capsys):
+    """A small-stroke file whose millimetres pass the reader's 2 m plausibility check as metres:
+    the native FMU refuses strokes beyond its stroke_limit (1 m), no candidate can be simulated,
+    and the fit stops with exit status 2 and the reason instead of a useless result."""
+    from build_fmu import native_reason
+
+    if native_reason():
+        pytest.skip(f"the input limits are the native FMU's: {native_reason()}")
+    import pandas as pd
+
+    path, _ = maxwell_data
+    src = next(Path(path).glob("*id*1*.csv"), None) or sorted(Path(path).glob("*.csv"))[0]
+    df = pd.read_csv(src, comment="#")
+    df["stroke"] = 1.4 + df["stroke"] * (0.2 / df["stroke"].abs().max())  # 1.2-1.6 "m": the reader passes it
+    bad = tmp_path / "mm_as_m.csv"
+    df.to_csv(bad, index=False)
+    code = run_cli("fit", "--identification", bad, "--out", tmp_path / "o", "--models", "maxwell",
+                   "--population", 4, "--iterations", 2, "--workers", 0, "--no-diagnose")
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "no candidate could be simulated" in err and "stroke_limit" in err

@@ -78,18 +78,24 @@ class _Simulator:
                         max_step=self.max_internal_step, tolerance=self.tolerance, temperature=temp,
                         backend="native" if self.engine == "native" else "python")
 
-    def residuals(self, params: dict, tests: list[Signals]) -> np.ndarray | None:
-        """Measured minus simulated force [N] over the counted samples of all tests, or None
-        when the simulation fails (bad parameters, failed implicit solve)."""
+    def residuals(self, params: dict, tests: list[Signals]) -> tuple[np.ndarray | None, str]:
+        """(measured minus simulated force [N] over the counted samples of all tests, ''), or
+        (None, the reason) when the candidate cannot be simulated (invalid parameters, a failed
+        implicit solve, inputs the FMU refuses). Other exceptions are bugs and propagate."""
+        from damper_fmu.models import ConvergenceError
+        from tuner.runner import SimulationError
+
         try:
             r = np.concatenate([(s.force - self.force(params, s))[s.mask] for s in tests])
-        except Exception:  # noqa: BLE001 - a failed candidate is reported as None
-            return None
-        return r if np.all(np.isfinite(r)) else None
+        except (SimulationError, ConvergenceError, ValueError, FloatingPointError) as err:
+            return None, str(err)
+        if not np.all(np.isfinite(r)):
+            return None, "non-finite simulated force"
+        return r, ""
 
-    def sse(self, params: dict, tests: list[Signals]) -> float:
-        r = self.residuals(params, tests)
-        return math.inf if r is None else float(r @ r)
+    def sse(self, params: dict, tests: list[Signals]) -> tuple[float, str]:
+        r, why = self.residuals(params, tests)
+        return (math.inf if r is None else float(r @ r)), why
 
     def close(self):
         if self.runner is not None:
@@ -164,6 +170,8 @@ class Engine:
         self.tests = tests
         self.n_samples = int(sum(int(s.mask.sum()) for s in tests))
         self.evaluations = 0
+        self.failures = 0  # candidates that could not be simulated
+        self.last_failure = ""  # the reason the last of them gave
         args = (model, engine, str(fmu_path) if fmu_path else None, max_internal_step, tolerance, tests)
         if self.workers == 0:
             self._local = _Simulator(*args[:5])
@@ -173,19 +181,29 @@ class Engine:
             self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"),
                                              initializer=_init_worker, initargs=args)
 
+    def _record(self, results: list[tuple]) -> list:
+        """Values of (value, reason) pairs; failures counted, the last reason kept."""
+        for _, why in results:
+            if why:
+                self.failures += 1
+                self.last_failure = why
+        return [v for v, _ in results]
+
     def sse_batch(self, candidates: list[dict]) -> np.ndarray:
-        """SSE [N^2] of each candidate parameter set (inf for a failed simulation)."""
+        """SSE [N^2] of each candidate parameter set (inf for a candidate that cannot be simulated:
+        counted in ``failures``, its reason in ``last_failure``)."""
         self.evaluations += len(candidates)
         if self._pool is None:
-            return np.array([self._local.sse(p, self.tests) for p in candidates])
-        return np.array(list(self._pool.map(_worker_sse, candidates, chunksize=1)))
+            return np.array(self._record([self._local.sse(p, self.tests) for p in candidates]))
+        return np.array(self._record(list(self._pool.map(_worker_sse, candidates, chunksize=1))))
 
     def residuals_batch(self, candidates: list[dict]) -> list[np.ndarray | None]:
-        """Residual vector [N] of each candidate (None for a failed simulation)."""
+        """Residual vector [N] of each candidate (None for a candidate that cannot be simulated,
+        counted as in ``sse_batch``)."""
         self.evaluations += len(candidates)
         if self._pool is None:
-            return [self._local.residuals(p, self.tests) for p in candidates]
-        return list(self._pool.map(_worker_residuals, candidates, chunksize=1))
+            return self._record([self._local.residuals(p, self.tests) for p in candidates])
+        return self._record(list(self._pool.map(_worker_residuals, candidates, chunksize=1)))
 
     def fitness_batch(self, candidates: list[dict]) -> np.ndarray:
         """Paper's fitness G = N / SSE [1/N^2] of each candidate (0 for a failed one)."""

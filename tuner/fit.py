@@ -180,6 +180,7 @@ def _identify(model: str, signals: list[Signals], settings: FitSettings, par: Pa
         result = firefly.run(evaluate, par.dimension, options=opts, seed=settings.seed, state=state,
                              callback=callback, initial=initial)
         z_best, g_best, polish_evals = result.x_best, result.fitness_best, 0
+        last_failure = eng.last_failure
         polish_info = {"fitness": [], "stop": "no local refinement (--polish 0)", "converged": False}
         if settings.polish_jacobians > 0:
             log(f"[{model}] local refinement (least squares until converged, at most {settings.polish_jacobians} "
@@ -193,8 +194,9 @@ def _identify(model: str, signals: list[Signals], settings: FitSettings, par: Pa
         return 1.0 / math.sqrt(g) if g > 0 else math.inf
 
     if g_best <= 0.0:
-        log(f"[{model}] WARNING: no candidate could be simulated (every table non-monotonic or every "
-            f"implicit solve failed); try --parametrization improved")
+        raise ValueError(f"[{model}] no candidate could be simulated; the last failure: {last_failure or 'none'}. "
+                         f"Check the units of the input files (a stroke in mm read as m exceeds the FMU's "
+                         f"stroke_limit) or use --parametrization improved")
     best = par.to_params(z_best)
     st = result.state
     history = {
