@@ -28,7 +28,7 @@ sys.path.insert(0, str(ROOT))
 
 from damper_fmu import simulate  # noqa: E402
 from tuner.data import load_dataset, prepare  # noqa: E402
-from tuner.fit import FitSettings, _identify, to_signals  # noqa: E402
+from tuner.fit import FitSettings, identify, to_signals  # noqa: E402
 from tuner.parametrization import Parametrization  # noqa: E402
 
 VARIANTS = {"paper": ("paper", "random"), "+log+mono": ("improved", "random"), "+seeded": ("improved", "seeded")}
@@ -66,7 +66,7 @@ def main(argv=None) -> int:
         ckpt = a.out / f"ckpt_{name.replace('+', 'p')}.json"
         ckpt.unlink(missing_ok=True)
         t0 = time.perf_counter()
-        best, hist = _identify("lumped", sig, settings, par, ckpt, "compare", lambda m: None)
+        best, hist = identify("lumped", sig, settings, par, ckpt, "compare", lambda m: None)
         firefly_best = hist["firefly_best_fitness"]
         failed = sum(1 for g in hist["mean_fitness"] if g == 0.0)
         results[name] = {"history": hist["best_fitness"],

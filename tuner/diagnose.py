@@ -44,6 +44,7 @@ from .engine import Engine
 from .metrics import error_metrics, noise_std
 from .parametrization import Parametrization
 from .polish import polish
+from .report import fmt_quantity
 
 __all__ = ["DiagnosisSettings", "diagnose", "decide", "cross_check", "CANDIDATES", "ExtendedParametrization"]
 
@@ -235,7 +236,7 @@ def decide(ranking: list[dict]) -> tuple[str, dict, list[dict]]:
 def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path,
              settings: DiagnosisSettings | None = None, *, base_params: dict | None = None, log=print) -> dict:
     """Run the diagnosis and write ``diagnosis.json`` (and figures, extended FMU) into ``out``."""
-    from .fit import FitSettings, _data_digest, _identify, initial_guess, to_signals
+    from .fit import FitSettings, data_digest, identify, initial_guess, to_signals
 
     settings = settings or DiagnosisSettings()
     if not identification or not validation:
@@ -260,8 +261,8 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
         fs = FitSettings(models=("lumped",), fit_rate_hz=settings.fit_rate_hz, warmup_s=settings.warmup_s,
                          iterations=settings.base_iterations, workers=settings.workers, seed=settings.seed,
                          engine=settings.engine, polish_jacobians=settings.base_polish_jacobians)
-        base_params, _ = _identify("lumped", sig_id, fs, par, out / "checkpoints" / "diagnosis_base.json",
-                                   _data_digest(identification), log)
+        base_params, _ = identify("lumped", sig_id, fs, par, out / "checkpoints" / "diagnosis_base.json",
+                                   data_digest(identification), log)
     base = defaults("lumped")
     base.update({k: v for k, v in base_params.items() if k in base})
     guess = {**defaults("lumped"), **initial_guess("lumped", sig_id, par)}
@@ -368,11 +369,11 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     # residual analysis of the base model (evidence and figures)
     evidence, figures = {}, []
     try:
-        from .fit import _simulate
+        from .fit import simulate_model
         from .residuals import TestResidual, evidence as residual_evidence, residual_figures
 
         tr = [TestResidual(p.name, p.role or "", p.time, p.stroke, p.stroke_velocity, p.force,
-                           _simulate("lumped", base, p, settings.engine), s.mask, s.temperature)
+                           simulate_model("lumped", base, p, settings.engine), s.mask, s.temperature)
               for p, s in zip([*prep_id, *prep_val], [*sig_id, *sig_val])]
         evidence = residual_evidence(tr)
         figures = [str(Path(f).relative_to(out)) for f in residual_figures(tr, out / "figures")]
@@ -409,7 +410,7 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
                    f"its force, {r['effect_rms_n']:.2g} N rms, is below the measurement noise ({noise:.2g} N)")
                    for r in unresolved)
                   if unresolved else "") + ")") if cause == "none" else (
-        f"cause: {cause} (" + ", ".join(f"{n} = {_fmt(v, UNITS[n])}" for n, v in best["parameters"].items())
+        f"cause: {cause} (" + ", ".join(f"{n} = {fmt_quantity(v, UNITS[n])}" for n, v in best["parameters"].items())
         + f"); validation MSE {pooled_change:+.0f} % against the base refitted alike")
     result = {"cause": cause, "verdict": verdict, "ranking": ranking, "effect_parameters": effect_parameters,
               "validation": validation, "evidence": evidence, "figures": figures,
@@ -430,14 +431,6 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     return result
 
 
-def _fmt(v: float, unit: str) -> str:
-    if unit == "m":
-        return f"{v * 1e3:.3g} mm"
-    if unit == "s":
-        return f"{v * 1e3:.3g} ms"
-    return f"{v:.3g} {unit}"
-
-
 def _json_default(o):
     if isinstance(o, (np.floating, np.integer)):
         return o.item()
@@ -446,57 +439,3 @@ def _json_default(o):
     if isinstance(o, tuple):
         return list(o)
     return str(o)
-
-
-def diagnosis_section_html(out_dir) -> str:
-    """HTML section of the report for ``out_dir/diagnosis.json`` ('' when there is none)."""
-    import html
-
-    path = Path(out_dir) / "diagnosis.json"
-    if not path.exists():
-        return ""
-    d = json.loads(path.read_text())
-    e = html.escape
-    rows = []
-    for r in d["ranking"]:
-        cls = " class='winner'" if r["effect"] == d["cause"] else ""
-        fitted = ", ".join(f"{n} = {_fmt(v, r['units'][n])}" for n, v in r["parameters"].items())
-        why = " (evidence disagrees)" if r.get("evidence_agrees") is False else " (below noise)"
-        size = (f"{r['effect_rms_n']:.3g}" + ("" if r.get("resolved", True) else why)
-                if r.get("parameters") else "-")
-        rows.append(f"<tr{cls}><td>{e(r['effect'])}</td><td>{e(fitted)}</td>"
-                    f"<td>{r['validation_mse_change_pct']:+.1f} %</td><td>{r['score']:+.3f}</td>"
-                    f"<td>{e(size)}</td></tr>")
-    rows = "".join(rows)
-    val = "".join(f"<tr><td>{e(n)}</td><td>{v['mse_before']:.3e}</td><td>{v['mse_after']:.3e}</td>"
-                  f"<td>{v['mse_change_pct']:+.1f} %</td><td>{v['ame_before']:.0f}</td><td>{v['ame_after']:.0f}</td></tr>"
-                  for n, v in d["validation"].items())
-    eff = "".join(f"<tr><td>{e(n)}</td><td>{e(_fmt(p['value'], p['unit']))}</td><td>"
-                  f"{e(_fmt(p['plausible_range'][0], p['unit']))} - {e(_fmt(p['plausible_range'][1], p['unit']))}</td>"
-                  f"<td>{'yes' if p['plausible'] else 'NO'}</td></tr>" for n, p in d["effect_parameters"].items())
-    ev = (d.get("evidence") or {}).get("effects", {})
-    ev_rows = "".join(f"<li><b>{e(k)}</b> (explains {100 * v.get('r2', 0):.0f} % of the residual power): "
-                      f"{e(str(v.get('sentence', '')))}</li>" for k, v in ev.items()
-                      if isinstance(v, dict) and v.get("sentence"))
-    figs = "".join(f"<figure><img src='{e(f)}' alt='{e(f)}'></figure>" for f in d.get("figures", []))
-    s = d["settings"]
-    return (
-        "<section id='diagnosis'><h2>Diagnosis: what the model gets wrong, and why</h2>"
-        f"<p class='verdict'>{e(d['verdict'])}{'. ' + e(d['note']) if d.get('note') else ''}</p>"
-        "<p>Each candidate effect was added to the lumped model and the extended model refitted on the "
-        "identification tests; the decision rests on the validation (held-out) MSE: score = -ln(MSE_ext / "
-        f"MSE_base) - {s['penalty_per_parameter']} per extra parameter, a cause is named when its score exceeds "
-        f"{s['accept_score']}.</p>"
-        "<p>'none' is the base model refitted from the same starts with the same effort; every score is "
-        "measured against it, so a refit's own progress is not credited to an effect. An effect whose force "
-        f"contribution (fitted model minus the same with the effect off) is below the measurement noise "
-        f"({d.get('noise_std_n', float('nan')):.3g} N, from the force spectrum) is not named.</p>"
-        "<table><tr><th>candidate</th><th>fitted parameters</th><th>validation MSE change vs 'none'</th>"
-        "<th>score</th><th>effect force [N rms]</th></tr>"
-        f"{rows}</table>"
-        + (f"<h3>Effect parameters vs plausible ranges</h3><table><tr><th>parameter</th><th>fitted</th>"
-           f"<th>typical range</th><th>plausible</th></tr>{eff}</table>" if eff else "")
-        + "<h3>Validation before and after</h3><table><tr><th>test</th><th>MSE before [N&sup2;]</th>"
-          f"<th>MSE after [N&sup2;]</th><th>change</th><th>AME before [N]</th><th>AME after [N]</th></tr>{val}</table>"
-        + (f"<h3>Residual evidence (base model)</h3><ul>{ev_rows}</ul>" if ev_rows else "")
-        + figs + "</section>")

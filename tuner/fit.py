@@ -120,7 +120,7 @@ def _settings_hash(settings: FitSettings, data_digest: str, model: str) -> str:
     return hashlib.sha256(json.dumps([keep, data_digest, model], sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
-def _data_digest(tests: list[RigTest]) -> str:
+def data_digest(tests: list[RigTest]) -> str:
     h = hashlib.sha256()
     for t in tests:
         h.update(t.name.encode())
@@ -129,7 +129,7 @@ def _data_digest(tests: list[RigTest]) -> str:
     return h.hexdigest()
 
 
-def _identify(model: str, signals: list[Signals], settings: FitSettings, par: Parametrization,
+def identify(model: str, signals: list[Signals], settings: FitSettings, par: Parametrization,
               ckpt: Path, digest: str, log) -> tuple[dict, dict]:
     """Run Firefly for one model; return (best parameters, history dict)."""
     opts = firefly.FireflyOptions(population=settings.population, max_iterations=settings.iterations,
@@ -225,7 +225,7 @@ def _identify(model: str, signals: list[Signals], settings: FitSettings, par: Pa
     return best, history
 
 
-def _simulate(model: str, params: dict, p, engine: str) -> np.ndarray:
+def simulate_model(model: str, params: dict, p, engine: str) -> np.ndarray:
     if engine == "fmu":
         from build_fmu import ensure_fmu
         from tuner.runner import FmuRunner
@@ -249,7 +249,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
         raise ValueError("no identification test given")
     out = Path(out)
     (out / "checkpoints").mkdir(parents=True, exist_ok=True)
-    digest = _data_digest(identification)
+    digest = data_digest(identification)
     prep_id = [prepare(t, settings.fit_rate_hz) for t in identification]
     signals = [to_signals(p, settings.warmup_s) for p in prep_id]
     peak = max(float(np.abs(s.force[s.mask]).max()) for s in signals)
@@ -265,7 +265,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
     for model in settings.models:
         par = Parametrization(model, settings.parametrization, force_limit=force_limit,
                               spring_reference=settings.spring_reference_n_per_m)
-        best, hist = _identify(model, signals, settings, par, out / "checkpoints" / f"{model}.json", digest, log)
+        best, hist = identify(model, signals, settings, par, out / "checkpoints" / f"{model}.json", digest, log)
         params[model] = {"values": best, "units": dict(par.units),
                          "bounds": {n: list(par.bounds[n]) for n in par.names},
                          "parametrization": settings.parametrization}
@@ -288,7 +288,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
         arrays[f"{t.name}__force"] = p.force
         models_m = {}
         for model in settings.models:
-            sim = _simulate(model, params[model]["values"], p, "fmu")
+            sim = simulate_model(model, params[model]["values"], p, "fmu")
             arrays[f"{t.name}__{model}"] = sim
             models_m[model] = error_metrics(p.force[mask], sim[mask]).to_dict()
         tests_out[t.name] = {"role": t.role, "scenario": t.scenario, "models": models_m,

@@ -887,7 +887,6 @@ def make_report(out_dir, *, dpi: int = 110) -> Path:
              f"identification tests: {_e(', '.join(run.identification) or 'none')}; validation tests: "
              f"{_e(', '.join(run.validation) or 'none')}. Sign convention: stroke positive in extension, "
              "force positive in tension. SI units with engineering prefixes.</p>")
-    from .diagnose import diagnosis_section_html
 
     body = [f"<h1>{title}</h1>", intro, f"<ol class='toc'>{toc}</ol>", _summary(run),
             diagnosis_section_html(out), _metrics_section(run),
@@ -908,7 +907,6 @@ def _write_page(out: Path, title: str, body: list[str]) -> Path:
 def make_diagnosis_report(out_dir) -> Path:
     """``out_dir/report.html`` for a diagnosis run on its own (no fit in the folder): the
     diagnosis section of the full report. Returns its path."""
-    from .diagnose import diagnosis_section_html
 
     out = Path(out_dir)
     title = "Damper diagnosis report"
@@ -928,3 +926,66 @@ def main(argv=None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+
+def fmt_quantity(v: float, unit: str) -> str:
+    """A value [SI] for people: lengths in mm, times in ms, 3 significant digits."""
+    if unit == "m":
+        return f"{v * 1e3:.3g} mm"
+    if unit == "s":
+        return f"{v * 1e3:.3g} ms"
+    return f"{v:.3g} {unit}"
+
+
+def diagnosis_section_html(out_dir) -> str:
+    """HTML section of the report for ``out_dir/diagnosis.json`` ('' when there is none)."""
+    import html
+
+    path = Path(out_dir) / "diagnosis.json"
+    if not path.exists():
+        return ""
+    d = json.loads(path.read_text())
+    e = html.escape
+    rows = []
+    for r in d["ranking"]:
+        cls = " class='winner'" if r["effect"] == d["cause"] else ""
+        fitted = ", ".join(f"{n} = {fmt_quantity(v, r['units'][n])}" for n, v in r["parameters"].items())
+        why = " (evidence disagrees)" if r.get("evidence_agrees") is False else " (below noise)"
+        size = (f"{r['effect_rms_n']:.3g}" + ("" if r.get("resolved", True) else why)
+                if r.get("parameters") else "-")
+        rows.append(f"<tr{cls}><td>{e(r['effect'])}</td><td>{e(fitted)}</td>"
+                    f"<td>{r['validation_mse_change_pct']:+.1f} %</td><td>{r['score']:+.3f}</td>"
+                    f"<td>{e(size)}</td></tr>")
+    rows = "".join(rows)
+    val = "".join(f"<tr><td>{e(n)}</td><td>{v['mse_before']:.3e}</td><td>{v['mse_after']:.3e}</td>"
+                  f"<td>{v['mse_change_pct']:+.1f} %</td><td>{v['ame_before']:.0f}</td><td>{v['ame_after']:.0f}</td></tr>"
+                  for n, v in d["validation"].items())
+    eff = "".join(f"<tr><td>{e(n)}</td><td>{e(fmt_quantity(p['value'], p['unit']))}</td><td>"
+                  f"{e(fmt_quantity(p['plausible_range'][0], p['unit']))} - {e(fmt_quantity(p['plausible_range'][1], p['unit']))}</td>"
+                  f"<td>{'yes' if p['plausible'] else 'NO'}</td></tr>" for n, p in d["effect_parameters"].items())
+    ev = (d.get("evidence") or {}).get("effects", {})
+    ev_rows = "".join(f"<li><b>{e(k)}</b> (explains {100 * v.get('r2', 0):.0f} % of the residual power): "
+                      f"{e(str(v.get('sentence', '')))}</li>" for k, v in ev.items()
+                      if isinstance(v, dict) and v.get("sentence"))
+    figs = "".join(f"<figure><img src='{e(f)}' alt='{e(f)}'></figure>" for f in d.get("figures", []))
+    s = d["settings"]
+    return (
+        "<section id='diagnosis'><h2>Diagnosis: what the model gets wrong, and why</h2>"
+        f"<p class='verdict'>{e(d['verdict'])}{'. ' + e(d['note']) if d.get('note') else ''}</p>"
+        "<p>Each candidate effect was added to the lumped model and the extended model refitted on the "
+        "identification tests; the decision rests on the validation (held-out) MSE: score = -ln(MSE_ext / "
+        f"MSE_base) - {s['penalty_per_parameter']} per extra parameter, a cause is named when its score exceeds "
+        f"{s['accept_score']}.</p>"
+        "<p>'none' is the base model refitted from the same starts with the same effort; every score is "
+        "measured against it, so a refit's own progress is not credited to an effect. An effect whose force "
+        f"contribution (fitted model minus the same with the effect off) is below the measurement noise "
+        f"({d.get('noise_std_n', float('nan')):.3g} N, from the force spectrum) is not named.</p>"
+        "<table><tr><th>candidate</th><th>fitted parameters</th><th>validation MSE change vs 'none'</th>"
+        "<th>score</th><th>effect force [N rms]</th></tr>"
+        f"{rows}</table>"
+        + (f"<h3>Effect parameters vs plausible ranges</h3><table><tr><th>parameter</th><th>fitted</th>"
+           f"<th>typical range</th><th>plausible</th></tr>{eff}</table>" if eff else "")
+        + "<h3>Validation before and after</h3><table><tr><th>test</th><th>MSE before [N&sup2;]</th>"
+          f"<th>MSE after [N&sup2;]</th><th>change</th><th>AME before [N]</th><th>AME after [N]</th></tr>{val}</table>"
+        + (f"<h3>Residual evidence (base model)</h3><ul>{ev_rows}</ul>" if ev_rows else "")
+        + figs + "</section>")
