@@ -25,11 +25,10 @@ import numpy as np
 
 from .parameters import MODEL_PARAMETERS
 
-__all__ = ["available", "reason", "library", "simulate", "parameter_header", "C_SOURCES",
-           "KINDS", "CFLAGS", "compiler", "compile_library"]
+__all__ = ["available", "reason", "library", "simulate", "parameter_header", "KINDS", "CFLAGS", "compiler",
+           "compile_library"]
 
 C_DIR = Path(__file__).resolve().parent / "c"
-C_SOURCES = ("damper_kernel.c", "damper_kernel.h")
 KINDS = {"lumped": 0, "maxwell": 1, "maxwell_table": 2}
 #: -ffp-contract=off: no fused multiply-add, so the C results equal the Python reference's
 CFLAGS = ("-O2", "-ffp-contract=off", "-fPIC", "-std=c99", "-Wall")
