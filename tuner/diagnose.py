@@ -110,7 +110,7 @@ class DiagnosisSettings:
     grid_points: int = 7
     guess_start: bool = True
     profile_steps: int = 8
-    final_jacobians: int = 10  # continued refit of the leading candidate
+    final_jacobians: int = 100  # continued refit of the leading candidate: a cap, it stops when converged
     candidates: tuple = CANDIDATES
     extra: dict = field(default_factory=dict)
 
@@ -236,7 +236,7 @@ def decide(ranking: list[dict]) -> tuple[str, dict, list[dict]]:
 def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path,
              settings: DiagnosisSettings | None = None, *, base_params: dict | None = None, log=print) -> dict:
     """Run the diagnosis and write ``diagnosis.json`` (and figures, extended FMU) into ``out``."""
-    from .fit import FitSettings, data_digest, identify, initial_guess, to_signals
+    from .fit import FitSettings, data_digest, identify, initial_guess, to_signals, validation_run
 
     settings = settings or DiagnosisSettings()
     if not identification or not validation:
@@ -285,7 +285,6 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     ranking = []
     with Engine("lumped", sig_id, **kw) as eid, Engine("lumped", sig_val, **kw) as ev:
         r_base_val = ev.residuals_batch([base])[0]
-        base_val = _split_mse(r_base_val, lengths)
         mse_base = float(r_base_val @ r_base_val) / n_val
         sse_base_id = eid.sse_batch([base])[0]
         log(f"diagnosis: base model RMSE identification {math.sqrt(sse_base_id / eid.n_samples):.1f} N, "
@@ -365,15 +364,16 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
                                                            evals + n, mse_none)
             log(f"  {lead['effect']:14s} refined (base refit continued alike): " + ", ".join(
                 f"{k} = {v:.4g} {UNITS[k]}" for k, v in row["parameters"].items())
-                + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}")
+                + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
+                + f"  identification RMSE {row['identification_rmse_n']:.1f} N (none: "
+                + f"{none_row['identification_rmse_n']:.1f} N)")
     # residual analysis of the base model (evidence and figures)
     evidence, figures = {}, []
     try:
-        from .fit import simulate_model
         from .residuals import TestResidual, evidence as residual_evidence, residual_figures
 
         tr = [TestResidual(p.name, p.role or "", p.time, p.stroke, p.stroke_velocity, p.force,
-                           simulate_model("lumped", base, p, settings.engine), s.mask, s.temperature)
+                           validation_run("lumped", base, s, settings.engine)[0], s.mask, s.temperature)
               for p, s in zip([*prep_id, *prep_val], [*sig_id, *sig_val])]
         evidence = residual_evidence(tr)
         figures = [str(Path(f).relative_to(out)) for f in residual_figures(tr, out / "figures")]
@@ -389,12 +389,15 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     ranking.sort(key=lambda r: -r["score"])
     ranking.append(none_row)
     cause, best, unresolved = decide(ranking)
-    after = best["validation"] if cause != "none" else {s.name: {"mse": m, "ame": a}
-                                                        for s, (m, a) in zip(sig_val, base_val)}
-    validation = {s.name: {"mse_before": m, "ame_before": a, "mse_after": after[s.name]["mse"],
-                           "ame_after": after[s.name]["ame"],
-                           "mse_change_pct": 100 * (after[s.name]["mse"] / m - 1)}
-                  for s, (m, a) in zip(sig_val, base_val)}
+    # reported before/after figures: the validation definition of Table 3 (tuner.fit.validation_run:
+    # the FMU at its own steps), so that "before" is the Table 3 figure of the same base model
+    after_params = refits[cause][0].to_params(refits[cause][1]) if cause != "none" else base
+    validation = {}
+    for s in sig_val:
+        mb = validation_run("lumped", base, s, settings.engine)[1]
+        ma = validation_run("lumped", after_params, s, settings.engine)[1] if cause != "none" else mb
+        validation[s.name] = {"mse_before": mb["mse"], "ame_before": mb["ame"], "mse_after": ma["mse"],
+                              "ame_after": ma["ame"], "mse_change_pct": 100 * (ma["mse"] / mb["mse"] - 1)}
     effect_parameters = {}
     if cause != "none":
         for n, v in best["parameters"].items():

@@ -10,6 +10,15 @@ tests/test_fmu.py and tests/test_native.py prove all give the same forces.
 
 Objective pieces per candidate: SSE [N^2] over all identification samples after the warm-up
 of each test, and N (number of samples): the paper's fitness is G = N / SSE (eq. 5).
+
+Band-limited comparison (``Signals.oversample``): the measured force reaches the fit rate through
+an anti-aliasing low-pass (``tuner.data.Resampler``), i.e. it is filter(F(x)). Sampling the
+model's force at the fit rate instead gives F(filter(x)), which keeps the harmonics of the
+characteristic's kinks above the fit band, aliased: on lumped-model data with 20 N noise at 1 kHz
+the TRUE parameters scored 21.6 N RMSE at 200 Hz against 8.9 N of noise in the band. So the model
+is simulated on a grid ``oversample`` times finer (stroke by cubic Hermite through the samples'
+stroke and velocity) and its force is passed through the same kind of low-pass back to the
+samples: the true parameters then score 8.6 N (``simulate_signals``, the one place for this).
 """
 from __future__ import annotations
 
@@ -17,10 +26,12 @@ import math
 import multiprocessing as mp
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
-__all__ = ["Signals", "Engine", "ENGINES", "fastest_engine", "IDENTIFICATION_STEP", "IDENTIFICATION_TOLERANCE"]
+__all__ = ["Signals", "Engine", "ENGINES", "fastest_engine", "oversampling", "simulate_signals",
+           "IDENTIFICATION_STEP", "IDENTIFICATION_TOLERANCE"]
 
 ENGINES = ("fmu", "native", "inprocess")
 #: Internal steps of identification runs: fixed sub-steps (tolerance 0) of at most 1 ms [s].
@@ -52,6 +63,68 @@ class Signals:
     force: np.ndarray
     mask: np.ndarray
     temperature: np.ndarray | None = None  # measured oil temperature [degC], if the data has it
+    #: the model runs on a grid this many times finer and its force is low-passed back to these
+    #: samples (module docstring); 1: simulated at these samples
+    oversample: int = 1
+
+    @cached_property
+    def fine(self) -> tuple:
+        """(time [s], stroke [m], velocity [m/s], temperature [degC] or None) on the fine grid:
+        cubic Hermite through (stroke, velocity) samples, temperature linear."""
+        from scipy.interpolate import CubicHermiteSpline
+
+        m = int(self.oversample)
+        t = self.time
+        tf = np.append((t[:-1, None] + np.diff(t)[:, None] * (np.arange(m) / m)).ravel(), t[-1])
+        h = CubicHermiteSpline(self.time, self.stroke, self.stroke_velocity)
+        temp = None if self.temperature is None else np.interp(tf, self.time, self.temperature)
+        return tf, h(tf), h(tf, 1), temp
+
+    @cached_property
+    def low_pass(self):
+        """The anti-aliasing resampler fine grid -> these samples (``tuner.data.Resampler``)."""
+        from .data import Resampler
+
+        rate = (len(self.time) - 1) / (self.time[-1] - self.time[0])
+        return Resampler.design(rate * self.oversample, rate)
+
+    def band_limit(self, fine_force: np.ndarray) -> np.ndarray:
+        """Force [N] at these samples from the force on the fine grid: low-passed where the
+        filter's support lies inside the test (``band_limited_span``), plain samples elsewhere
+        (those are outside the mask)."""
+        out = np.array(fine_force[::self.oversample], dtype=float)
+        k0, n = self.band_limited_span()
+        out[k0:k0 + n] = self.low_pass.apply(fine_force)
+        return out
+
+    def band_limited_span(self) -> tuple[int, int]:
+        """(first sample, count) of the samples that the low-pass fully covers."""
+        if self.oversample == 1:
+            return 0, len(self.time)
+        rs = self.low_pass
+        return rs.first_index(), rs.output_length((len(self.time) - 1) * self.oversample + 1)
+
+
+def oversampling(rate_hz: float) -> int:
+    """Oversampling factor that puts the simulation grid at the identification step or finer (>= 1)."""
+    return max(1, int(math.ceil(1.0 / (IDENTIFICATION_STEP * rate_hz) - 1e-9)))
+
+
+def simulate_signals(model: str, params: dict, s: Signals, *, engine: str = "fmu", fmu_path=None,
+                     max_internal_step: float | None = IDENTIFICATION_STEP,
+                     tolerance: float | None = IDENTIFICATION_TOLERANCE) -> np.ndarray:
+    """Simulated force [N] at the samples of ``s`` (band-limited when ``s.oversample`` > 1), the
+    way the identification objective computes it; steps as in ``Engine`` (None: the FMU's own
+    defaults)."""
+    if engine == "fmu" and fmu_path is None:
+        from build_fmu import ensure_fmu
+
+        fmu_path = ensure_fmu(model)
+    sim = _Simulator(model, engine, str(fmu_path) if fmu_path else None, max_internal_step, tolerance)
+    try:
+        return sim.force(params, s)
+    finally:
+        sim.close()
 
 
 class _Simulator:
@@ -68,15 +141,23 @@ class _Simulator:
             self.runner = FmuRunner(fmu_path, max_internal_step=max_internal_step, tolerance=tolerance)
 
     def force(self, params: dict, s: Signals) -> np.ndarray:
-        # the measured temperature drives the thermal drift element when that element is on
-        temp = s.temperature if params.get("thermal_beta", 0.0) and s.temperature is not None else None
-        if self.runner is not None:
-            return self.runner.run(s.time, s.stroke, s.stroke_velocity, params, temperature=temp)
-        from damper_fmu import simulate
+        """Simulated force [N] at the samples of ``s`` (band-limited when oversampled)."""
+        if s.oversample == 1:
+            return self._run(params, s.time, s.stroke, s.stroke_velocity, s.temperature)
+        return s.band_limit(self._run(params, *s.fine))
 
-        return simulate(self.model, s.time, s.stroke, s.stroke_velocity, params=params,
-                        max_step=self.max_internal_step, tolerance=self.tolerance, temperature=temp,
-                        backend="native" if self.engine == "native" else "python")
+    def _run(self, params: dict, t, x, v, temperature) -> np.ndarray:
+        # the measured temperature drives the thermal drift element when that element is on
+        temp = temperature if params.get("thermal_beta", 0.0) and temperature is not None else None
+        if self.runner is not None:
+            return self.runner.run(t, x, v, params, temperature=temp)
+        from damper_fmu import simulate
+        from damper_fmu.integrator import DEFAULT_MAX_STEP, DEFAULT_TOLERANCE
+
+        return simulate(self.model, t, x, v, params=params,
+                        max_step=DEFAULT_MAX_STEP if self.max_internal_step is None else self.max_internal_step,
+                        tolerance=DEFAULT_TOLERANCE if self.tolerance is None else self.tolerance,
+                        temperature=temp, backend="native" if self.engine == "native" else "python")
 
     def residuals(self, params: dict, tests: list[Signals]) -> tuple[np.ndarray | None, str]:
         """(measured minus simulated force [N] over the counted samples of all tests, ''), or
