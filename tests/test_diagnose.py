@@ -86,9 +86,13 @@ def test_a_hidden_effect_is_named_blind_with_its_magnitude_and_a_30_percent_gain
 @pytest.mark.parametrize("damper", ["lumped", "twin-tube"])
 def test_clean_data_gives_no_false_cause_and_a_complete_diagnosis_json(tmp_path, damper):
     res = run_diagnosis(tmp_path, {}, seed=5, damper=damper)
-    assert res["cause"] == "none", [(r["effect"], round(r["score"], 3)) for r in res["ranking"]]
+    # no catalogue effect is named; the twin-tube damper's model-form error may be reported as such
+    allowed = {"none"} if damper == "lumped" else {"none", "unexplained"}
+    assert res["cause"] in allowed and not res["causes"], [(r["effect"], round(r["score"], 3)) for r in res["ranking"]]
     saved = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
-    assert saved["cause"] == "none"
+    assert saved["cause"] == res["cause"]
+    if saved["cause"] == "unexplained":
+        assert saved["unexplained"]["ratio"] > 2.0 and "unexplained" in saved["verdict"]
     assert {r["effect"] for r in saved["ranking"]} == set(CANDIDATES) | {"none"}  # none: the base refitted alike
     assert saved["noise_std_n"] > 0
     assert all("score" in r and "validation_mse_change_pct" in r for r in saved["ranking"])
@@ -107,9 +111,19 @@ def test_diagnose_command_needs_validation_tests_and_a_real_fit_folder(tmp_path,
     assert "parameters.json" in capsys.readouterr().err
 
 
-def _row(effect, score, effect_rms, noise=10.0):
+def _row(effect, score, effect_rms, noise=10.0, significant=True):
     return {"effect": effect, "score": score, "effect_rms_n": effect_rms,
-            "resolved": effect == "none" or effect_rms >= noise, "parameters": {}}
+            "resolved": effect == "none" or effect_rms >= noise, "parameters": {}, "significant": significant}
+
+
+def test_an_effect_whose_interval_includes_zero_is_not_named():
+    ranking = [_row("friction", 0.5, 80.0, significant=False), _row("inertia", 0.2, 60.0), _row("none", 0.0, 0.0)]
+    cause, best, rejected = decide(ranking)
+    assert cause == "inertia" and [r["effect"] for r in rejected] == ["friction"]
+    without = [{k: v for k, v in _row("friction", 0.5, 80.0).items() if k != "significant"}, _row("none", 0.0, 0.0)]
+    assert decide(without)[0] == "none"  # no interval computed: not significant
+    tiny = {**_row("valve_lag", 0.3, 40.0), "meaningful": False}
+    assert decide([tiny, _row("none", 0.0, 0.0)])[0] == "none"  # a 0.2 ms valve lag is no cause
 
 
 def test_a_zero_size_effect_is_never_named_however_well_it_scores():
@@ -138,3 +152,16 @@ def test_a_delay_the_residual_does_not_show_is_not_a_cause():
     row2 = {**_row("time_delay", 0.3, 200.0), "parameters": {"time_delay": 2.7e-3}}
     assert cross_check([row2], {"effects": {"time_delay": {"value": 2.2e-3}}}) == []
     assert decide([row2, _row("none", 0.0, 0.0)])[0] == "time_delay"
+
+
+@pytest.mark.slow
+def test_two_effects_hidden_together_are_both_named(tmp_path):
+    rng = np.random.default_rng(2024)
+    hidden = {e: float(rng.uniform(EFFECTS[e].low, EFFECTS[e].high)) for e in ("friction", "inertia")}
+    res = run_diagnosis(tmp_path, hidden, seed=17)
+    assert sorted(res["causes"]) == ["friction", "inertia"], (res["verdict"], res["selection"])
+    for e, value in hidden.items():
+        p = res["effect_parameters"][EFFECTS[e].model_parameter]
+        assert p["value"] == pytest.approx(EFFECTS[e].model_sign * value, rel=0.3)
+        assert p["interval_95"][0] > 0.0  # significant
+    assert (tmp_path / "out" / "fmu" / f"DamperLumped_{'_'.join(res['causes'])}_tuned.fmu").exists()

@@ -51,6 +51,14 @@ __all__ = ["DiagnosisSettings", "diagnose", "decide", "cross_check", "CANDIDATES
 CANDIDATES = tuple(EFFECT_IDENTIFIED)
 PENALTY_PER_PARAMETER = 0.02
 ACCEPT_SCORE = 0.05
+#: fewest independent residual blocks for a confidence interval to be trusted
+MIN_BLOCKS = 10
+#: a magnitude below this fraction of the low end of the catalogue's typical range is no physical cause
+#: (a 0.2 ms valve lag or a 0.04 mm play fitted where the typical ranges start at 1 ms and 0.1 mm is the
+#: refit compensating something else)
+MEANINGFUL_FRACTION = 0.5
+#: identification RMSE above this multiple of the measured noise: a structured residual remains
+UNEXPLAINED_RATIO = 2.0
 #: typical magnitudes (design notes' catalogue), reported next to the fitted values
 PLAUSIBLE = {"friction_force": (50.0, 300.0), "preload_force": (30.0, 400.0), "free_play": (1e-4, 1e-3),
              "thermal_beta": (0.002, 0.02), "valve_tau": (1e-3, 1e-2), "time_delay": (1e-3, 1e-2),
@@ -70,11 +78,13 @@ def search_bounds(name: str, peak_force: float) -> tuple[float, float]:
 
 
 class ExtendedParametrization:
-    """The base design vector followed by the identified parameters of one effect (linear)."""
+    """The base design vector followed by the identified parameters of one or more effects
+    (``effect``: a name, or names joined by '+'; linear within their search bounds)."""
 
     def __init__(self, base: Parametrization, effect: str, peak_force: float):
         self.base, self.effect = base, effect
-        self.extra = list(EFFECT_IDENTIFIED[effect])
+        self.effects = effect.split("+")
+        self.extra = [n for e in self.effects for n in EFFECT_IDENTIFIED[e]]
         self.extra_bounds = [search_bounds(n, peak_force) for n in self.extra]
         self.dimension = base.dimension + len(self.extra)
         self.names = base.names + self.extra
@@ -111,6 +121,7 @@ class DiagnosisSettings:
     guess_start: bool = True
     profile_steps: int = 8
     final_jacobians: int = 100  # continued refit of the leading candidate: a cap, it stops when converged
+    max_causes: int = 3  # forward selection stops here at the latest
     candidates: tuple = CANDIDATES
     extra: dict = field(default_factory=dict)
 
@@ -134,12 +145,14 @@ def _grid(lo: float, hi: float, n: int) -> list[float]:
     return [lo + (hi - lo) * f for f in np.geomspace(0.02, 1.0, n)]
 
 
-def _base_jacobian(eid: Engine, par: Parametrization, z0: np.ndarray, step: float = 1e-4):
+def _base_jacobian(eid: Engine, par, z0: np.ndarray, step: float = 1e-4, dims: int | None = None):
     """SVD (U, s, Vt) of the identification residual's Jacobian [N per scaled unit] with respect
-    to the scaled base coordinates at z0 (forward differences, one parallel batch of
-    dimension + 1 runs); None when the base cannot be simulated."""
-    steps = np.where(z0 + step <= 1.0, step, -step)
-    pts = [z0] + [z0 + np.eye(len(z0))[i] * steps[i] for i in range(len(z0))]
+    to the first ``dims`` scaled coordinates (default all) of ``par`` (a Parametrization or an
+    ExtendedParametrization) at z0 (forward differences, one parallel batch of dims + 1 runs);
+    None when z0 cannot be simulated."""
+    dims = len(z0) if dims is None else dims
+    steps = np.where(z0[:dims] + step <= 1.0, step, -step)
+    pts = [z0] + [z0 + np.eye(len(z0))[i] * steps[i] for i in range(dims)]
     res = eid.residuals_batch([par.to_params(p) for p in pts])
     if res[0] is None:
         return None
@@ -148,8 +161,9 @@ def _base_jacobian(eid: Engine, par: Parametrization, z0: np.ndarray, step: floa
 
 
 def _refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: float, jac_svd,
-           settings: DiagnosisSettings, jacobians: int) -> tuple[np.ndarray, float, int]:
-    """Profile line search on the effect parameter(s) from z0 (identification SSE sse0 [N^2]),
+           settings: DiagnosisSettings, jacobians: int, search: int = 0) -> tuple[np.ndarray, float, int]:
+    """Profile line search on the effect parameter(s) from index ``search`` of ``ext.extra`` on
+    from z0 (identification SSE sse0 [N^2]),
     then a joint polish of at most ``jacobians`` Jacobians; returns (z, fitness G = N / SSE,
     evaluations).
 
@@ -162,6 +176,8 @@ def _refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: floa
     dim = ext.base.dimension
     pts = []
     for i, (lo, hi) in enumerate(ext.extra_bounds):
+        if i < search:  # an effect already selected: kept at its fitted value during the profile
+            continue
         for val in _grid(lo, hi, settings.grid_points):
             z = z0.copy()
             z[dim + i] = (val - lo) / (hi - lo)
@@ -202,6 +218,102 @@ def _refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: floa
     return z, g, evals + n
 
 
+def effect_intervals(eid: Engine, ext: ExtendedParametrization, z: np.ndarray, step: float = 1e-4) -> dict:
+    """95 % confidence interval of each effect parameter of the extended model fitted at ``z`` (SI
+    units), from the identification residual's Jacobian by the block sandwich
+    (``tuner.significance``: valid for correlated residuals). Base coordinates at a bound are held
+    there. Returns {name: {value, std, low, high, excludes_zero}} plus '_blocks' and
+    '_correlation_time_s' (the residual's, which sets the block length: 3 correlation times)."""
+    from .significance import block_sandwich, correlation_time, interval
+
+    z = np.clip(np.asarray(z, dtype=float), 0.0, 1.0)
+    dim = ext.base.dimension
+    free = [i for i in range(ext.dimension) if i >= dim or 1e-9 < z[i] < 1 - 1e-9]
+    steps = {i: (step if z[i] + step <= 1.0 else -step) for i in free}
+    pts = [z] + [z + np.eye(ext.dimension)[i] * steps[i] for i in free]
+    res = eid.residuals_batch([ext.to_params(p) for p in pts])
+    r0 = res[0]
+    out: dict = {}
+    if r0 is None or any(r is None for r in res[1:]):
+        return {n: {"value": ext.to_params(z)[n], "std": math.inf, "low": -math.inf, "high": math.inf,
+                    "excludes_zero": False} for n in ext.extra}
+    jac = np.column_stack([(r - r0) / steps[i] for r, i in zip(res[1:], free)])
+    lengths = [int(s.mask.sum()) for s in eid.tests]
+    tau = correlation_time(r0)
+    cov, blocks = block_sandwich(jac, r0, lengths, math.ceil(3 * tau))
+    rate = (len(eid.tests[0].time) - 1) / (eid.tests[0].time[-1] - eid.tests[0].time[0])
+    params = ext.to_params(z)
+    for k, (n, (lo, hi)) in enumerate(zip(ext.extra, ext.extra_bounds)):
+        j = free.index(dim + k)
+        std = math.sqrt(max(cov[j, j], 0.0)) * (hi - lo)
+        low, high = interval(params[n], std)
+        out[n] = {"value": params[n], "std": std, "low": low, "high": high,
+                  "excludes_zero": bool(blocks >= MIN_BLOCKS and (low > 0.0 or high < 0.0))}
+    out["_blocks"], out["_correlation_time_s"] = blocks, tau / rate
+    return out
+
+
+def _next_cause(eid: Engine, par: Parametrization, peak: float, current: tuple, current_row: dict,
+                ranking: list[dict], evidence: dict, settings: DiagnosisSettings, share: int, held_out,
+                log) -> dict:
+    """One forward-selection step from the current model (``current`` = (ext, z, evaluations) of
+    the causes selected so far, ``current_row`` its ranking row).
+
+    Every catalogue effect not selected yet that gained alone (score > 0 in ``ranking``) is added
+    to the current model and refitted as in the first round (profile line search of the new
+    parameter with the current model re-balanced, then a joint polish of ``share`` Jacobians);
+    the best is continued to convergence. It is named when, against the current model, it scores
+    above ACCEPT_SCORE on held-out data, its force is resolved, a delay agrees with the residual,
+    and the 95 % interval of the new magnitude excludes zero. Returns {"cause": effect or 'none',
+    "tried": rows, and for a named cause "row" and "refit"}."""
+    cur_ext, cur_z, _ = current
+    others = [r["effect"] for r in ranking if r["effect"] not in cur_ext.effects and r["effect"] != "none"
+              and "+" not in r["effect"] and r["score"] > 0.0]
+    if not others:
+        return {"cause": "none", "tried": []}
+    params_cur = cur_ext.to_params(cur_z)
+    sse_cur = float(eid.sse_batch([params_cur])[0])
+    rows, fits, jac = [], {}, None
+    for e in others:
+        ext = ExtendedParametrization(par, f"{cur_ext.effect}+{e}", peak)
+        z0 = ext.from_params({**params_cur, **{n: 0.0 for n in EFFECT_IDENTIFIED[e]}})
+        if jac is None:  # the new effect is off at z0: the current model's Jacobian, shared
+            jac = _base_jacobian(eid, ext, z0, dims=par.dimension)
+        z, g, n = _refit(eid, ext, z0, sse_cur, jac, settings, share, search=len(cur_ext.extra))
+        row = held_out(ext.effect, ext.to_params(z), ext.extra, g, n, current_row["validation_mse"],
+                       new=EFFECT_IDENTIFIED[e])
+        row["added"] = e
+        fits[ext.effect] = (ext, z, n)
+        rows.append(row)
+        log(f"  + {e:12s} on {cur_ext.effect}: " + ", ".join(
+            f"{k} = {row['parameters'][k]:.4g} {UNITS[k]}" for k in EFFECT_IDENTIFIED[e])
+            + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
+            + f"  effect {row['effect_rms_n']:.3g} N rms{'' if row['resolved'] else ' (below the noise)'}")
+    lead = max(rows, key=lambda r: r["score"] if r["resolved"] else -math.inf)
+    if lead["score"] > ACCEPT_SCORE and lead["resolved"] and settings.final_jacobians > 0:
+        ext, z, n0 = fits[lead["effect"]]
+        z, g, n, _ = polish(eid, ext, z, max_jacobians=settings.final_jacobians, log=lambda m: None)
+        fits[lead["effect"]] = (ext, z, n0 + n)
+        row = held_out(ext.effect, ext.to_params(z), ext.extra, g, n0 + n, current_row["validation_mse"],
+                       new=EFFECT_IDENTIFIED[lead["added"]])
+        row["added"] = lead["added"]
+        rows[rows.index(lead)] = row
+    cross_check(rows, evidence)
+    for row in rows:
+        if row["score"] > ACCEPT_SCORE and row["resolved"]:
+            ext, z, _ = fits[row["effect"]]
+            ci = effect_intervals(eid, ext, z)
+            row["interval"] = {n: [ci[n]["low"], ci[n]["high"]] for n in ext.extra}
+            row["significant"] = all(ci[n]["excludes_zero"] for n in EFFECT_IDENTIFIED[row["added"]])
+            row["interval_blocks"] = ci["_blocks"]
+    named = [r for r in sorted(rows, key=lambda r: -r["score"]) if r["score"] > ACCEPT_SCORE and _earned(r)]
+    if not named:
+        log(f"  no further cause on top of {cur_ext.effect}")
+        return {"cause": "none", "tried": rows}
+    log(f"  further cause: {named[0]['added']} (" + _interval_text(named[0]) + f"), score {named[0]['score']:+.3f}")
+    return {"cause": named[0]["added"], "tried": rows, "row": named[0], "refit": fits[named[0]["effect"]]}
+
+
 def cross_check(ranking: list[dict], evidence: dict) -> list[dict]:
     """Mark a fitted force-channel delay that disagrees (beyond a factor 3, or in sign) with the
     delay the base model's residual shows (``evidence['effects']['time_delay']['value']`` [s]) as
@@ -209,7 +321,7 @@ def cross_check(ranking: list[dict], evidence: dict) -> list[dict]:
     ev_delay = ((evidence or {}).get("effects", {}).get("time_delay") or {}).get("value")
     marked = []
     for r in ranking:
-        fitted = r["parameters"].get("time_delay", 0.0) if r["effect"] == "time_delay" else 0.0
+        fitted = r["parameters"].get("time_delay", 0.0) if "time_delay" in r["effect"].split("+") else 0.0
         if fitted > 0.0:
             agrees = ev_delay is not None and ev_delay > 0 and 1 / 3 <= fitted / ev_delay <= 3
             r["evidence_agrees"] = bool(agrees)
@@ -219,18 +331,28 @@ def cross_check(ranking: list[dict], evidence: dict) -> list[dict]:
     return marked
 
 
-def decide(ranking: list[dict]) -> tuple[str, dict, list[dict]]:
-    """(cause, its ranking row, rows that scored enough but whose force is below the noise).
+def _earned(row: dict) -> bool:
+    """Resolved (force above the noise, evidence agrees), physically meaningful and significant."""
+    return bool(row["resolved"] and row.get("meaningful", True) and row.get("significant", False))
 
-    A cause is the best-scoring extension whose score exceeds ACCEPT_SCORE against the base
-    refitted alike AND whose force contribution is resolved (at or above the measurement noise);
-    otherwise 'none' (with the best row of the ranking)."""
+
+def decide(ranking: list[dict]) -> tuple[str, dict, list[dict]]:
+    """(cause, its ranking row, rows that scored enough but were not named).
+
+    A cause is the best-scoring extension that (1) scores above ACCEPT_SCORE against the base
+    refitted alike (held-out gain), (2) is resolved: its force contribution is at or above the
+    measurement noise (and a fitted delay agrees with the residual's, ``cross_check``), and
+    (3) is physically meaningful (``MEANINGFUL_FRACTION``) and (4) significant: the 95 % confidence
+    interval of its magnitude excludes zero (``effect_intervals``; a row without an interval is
+    not significant). Otherwise 'none' (with
+    the 'none' row of the ranking)."""
     ranked = sorted((r for r in ranking if r["effect"] != "none"), key=lambda r: -r["score"])
-    named = [r for r in ranked if r["score"] > ACCEPT_SCORE and r["resolved"]]
-    unresolved = [r for r in ranked if r["score"] > ACCEPT_SCORE and not r["resolved"]]
+    scored = [r for r in ranked if r["score"] > ACCEPT_SCORE]
+    named = [r for r in scored if _earned(r)]
+    rejected = [r for r in scored if not _earned(r)]
     if named:
-        return named[0]["effect"], named[0], unresolved
-    return "none", next((r for r in ranking if r["effect"] == "none"), ranking[0]), unresolved
+        return named[0]["effect"], named[0], rejected
+    return "none", next((r for r in ranking if r["effect"] == "none"), ranking[0]), rejected
 
 
 def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path,
@@ -269,6 +391,19 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     for p in EFFECT_PARAMETERS:  # the base model has every effect off
         base[p.name] = guess[p.name] = p.default
 
+    # residual analysis of the base model (evidence and figures)
+    evidence, figures = {}, []
+    try:
+        from .residuals import TestResidual, evidence as residual_evidence, residual_figures
+
+        tr = [TestResidual(p.name, p.role or "", p.time, p.stroke, p.stroke_velocity, p.force,
+                           validation_run("lumped", base, s, settings.engine)[0], s.mask, s.temperature)
+              for p, s in zip([*prep_id, *prep_val], [*sig_id, *sig_val])]
+        evidence = residual_evidence(tr)
+        figures = [str(Path(f).relative_to(out)) for f in residual_figures(tr, out / "figures")]
+    except ImportError:  # residual analysis module not available
+        pass
+
     # measurement noise of the force [N] within the fit band, from the spectrum of the measured force
     # (tuner.metrics.noise_std; broadband signal such as the harmonics of a characteristic's kinks
     # biases it high, the conservative side); white noise keeps the share fit_rate / sample_rate of
@@ -290,19 +425,22 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
         log(f"diagnosis: base model RMSE identification {math.sqrt(sse_base_id / eid.n_samples):.1f} N, "
             f"validation {math.sqrt(mse_base):.1f} N")
 
-        def _held_out(effect, params, extra, g, evals, mse_ref) -> dict:
+        def _held_out(effect, params, extra, g, evals, mse_ref, new=None) -> dict:
             """Ranking entry of a refitted model: validation MSE/AME, score against the validation
-            MSE ``mse_ref`` [N^2] of the refitted base, and the effect's force contribution [N rms]
-            on the identification tests (the fitted model minus the same with the effect off)."""
+            MSE ``mse_ref`` [N^2] of the reference (the base refitted alike, or the model of the
+            causes already selected), and the force contribution [N rms] of the ``new`` effect
+            parameters (default all of ``extra``) on the identification tests (the fitted model
+            minus the same with them off)."""
+            new = list(extra) if new is None else list(new)
             r_val = ev.residuals_batch([params])[0]
             per_test = _split_mse(r_val, lengths)
             mse = math.inf if r_val is None else float(r_val @ r_val) / n_val
             ratio = mse / mse_ref
-            score = -math.log(ratio) - PENALTY_PER_PARAMETER * len(extra) if math.isfinite(ratio) else -math.inf
+            score = -math.log(ratio) - PENALTY_PER_PARAMETER * len(new) if math.isfinite(ratio) else -math.inf
             values = {n: params[n] for n in extra}
             contribution = 0.0
-            if extra:
-                off = {**params, **{n: 0.0 for n in extra}}
+            if new:
+                off = {**params, **{n: 0.0 for n in new}}
                 r_on, r_off = eid.residuals_batch([params, off])
                 if r_on is not None and r_off is not None:
                     contribution = float(np.sqrt(np.mean((r_off - r_on) ** 2)))
@@ -310,7 +448,8 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
                     "validation_mse_change_pct": 100 * (ratio - 1),
                     "identification_rmse_n": 1 / math.sqrt(g) if g > 0 else math.inf,
                     "parameters": values, "units": {n: UNITS[n] for n in values},
-                    "effect_rms_n": contribution, "resolved": bool(contribution >= noise) if extra else True,
+                    "effect_rms_n": contribution, "resolved": bool(contribution >= noise) if new else True,
+                    "meaningful": all(abs(params[n]) >= MEANINGFUL_FRACTION * PLAUSIBLE[n][0] for n in new),
                     "validation": {s.name: {"mse": m, "ame": a} for s, (m, a) in zip(sig_val, per_test)},
                     "evaluations": int(evals)}
 
@@ -367,71 +506,136 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
                 + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
                 + f"  identification RMSE {row['identification_rmse_n']:.1f} N (none: "
                 + f"{none_row['identification_rmse_n']:.1f} N)")
-    # residual analysis of the base model (evidence and figures)
-    evidence, figures = {}, []
-    try:
-        from .residuals import TestResidual, evidence as residual_evidence, residual_figures
+        # significance: a confidence interval of the magnitude (correlated residuals: block
+        # sandwich) for every extension that earned its score with a force above the noise
+        for row in ranking:
+            if row["score"] > ACCEPT_SCORE and row["resolved"]:
+                ext, z, _ = refits[row["effect"]]
+                ci = effect_intervals(eid, ext, z)
+                row["interval"] = {n: [ci[n]["low"], ci[n]["high"]] for n in ext.extra}
+                row["significant"] = all(ci[n]["excludes_zero"] for n in ext.extra)
+                row["interval_blocks"] = ci["_blocks"]
+                log(f"  {row['effect']:14s} 95 % interval " + ", ".join(
+                    f"{n} {fmt_quantity(ci[n]['low'], UNITS[n])} .. {fmt_quantity(ci[n]['high'], UNITS[n])}"
+                    for n in ext.extra) + f" ({ci['_blocks']} residual blocks of "
+                    f"{3 * ci['_correlation_time_s']:.2g} s): " + ("excludes zero" if row["significant"]
+                                                                    else "NOT distinct from zero"))
+        # cross-check with the residual evidence: a force-channel delay must agree with the delay the
+        # base model's residual shows (regression on -dF/dt); the refit alone can trade a delay for
+        # table changes
+        for r in cross_check(ranking, evidence):
+            log(f"  time_delay {1e3 * r['parameters']['time_delay']:.3g} ms disagrees with the residual's "
+                f"delay: not a cause")
+        ranking.sort(key=lambda r: -r["score"])
+        ranking.append(none_row)
+        cause, best, unresolved = decide(ranking)
+        causes, selection = ([cause] if cause != "none" else []), []
+        # forward selection: add the best significant effect to the causes found, refit, repeat
+        while causes and len(causes) < settings.max_causes:
+            step = _next_cause(eid, par, peak, refits["+".join(causes)], best, ranking, evidence, settings,
+                               share, _held_out, log)
+            selection.append(step)
+            if step["cause"] == "none":
+                break
+            causes.append(step["cause"])
+            refits["+".join(causes)] = step["refit"]
+            best = step["row"]
+            del step["refit"], step["row"]
 
-        tr = [TestResidual(p.name, p.role or "", p.time, p.stroke, p.stroke_velocity, p.force,
-                           validation_run("lumped", base, s, settings.engine)[0], s.mask, s.temperature)
-              for p, s in zip([*prep_id, *prep_val], [*sig_id, *sig_val])]
-        evidence = residual_evidence(tr)
-        figures = [str(Path(f).relative_to(out)) for f in residual_figures(tr, out / "figures")]
-    except ImportError:  # residual analysis module not available
-        pass
-
-    # cross-check with the residual evidence: a force-channel delay must agree with the delay the
-    # base model's residual shows (regression on -dF/dt); the refit alone can trade a delay for
-    # table changes
-    for r in cross_check(ranking, evidence):
-        log(f"  time_delay {1e3 * r['parameters']['time_delay']:.3g} ms disagrees with the residual's delay: "
-            f"not a cause")
-    ranking.sort(key=lambda r: -r["score"])
-    ranking.append(none_row)
-    cause, best, unresolved = decide(ranking)
+    # what the final model leaves: at the noise, or structured beyond what the catalogue explains
+    final_rmse = best["identification_rmse_n"] if causes else none_row["identification_rmse_n"]
+    unexplained = None
+    if final_rmse > UNEXPLAINED_RATIO * noise:
+        pooled = (evidence.get("general") or {}).get("pooled") or {}
+        bands = pooled.get("band_fraction") or {}
+        r2 = {e: d.get("r2") or 0.0 for e, d in (evidence.get("effects") or {}).items()}
+        unexplained = {"identification_rmse_n": final_rmse, "noise_std_n": noise, "ratio": final_rmse / noise,
+                       "dominant_band": max(bands, key=bands.get) if bands else None,
+                       "band_fraction": bands, "best_signature": max(r2, key=r2.get) if r2 else None,
+                       "best_signature_r2": max(r2.values()) if r2 else None}
+        if not causes:
+            cause = "unexplained"
+    key = "+".join(causes)
     # reported before/after figures: the validation definition of Table 3 (tuner.fit.validation_run:
     # the FMU at its own steps), so that "before" is the Table 3 figure of the same base model
-    after_params = refits[cause][0].to_params(refits[cause][1]) if cause != "none" else base
+    after_params = refits[key][0].to_params(refits[key][1]) if causes else base
     validation = {}
     for s in sig_val:
         mb = validation_run("lumped", base, s, settings.engine)[1]
-        ma = validation_run("lumped", after_params, s, settings.engine)[1] if cause != "none" else mb
+        ma = validation_run("lumped", after_params, s, settings.engine)[1] if causes else mb
         validation[s.name] = {"mse_before": mb["mse"], "ame_before": mb["ame"], "mse_after": ma["mse"],
                               "ame_after": ma["ame"], "mse_change_pct": 100 * (ma["mse"] / mb["mse"] - 1)}
     effect_parameters = {}
-    if cause != "none":
+    if causes:
         for n, v in best["parameters"].items():
             lo, hi = PLAUSIBLE[n]
-            effect_parameters[n] = {"value": v, "unit": UNITS[n], "plausible_range": [lo, hi],
-                                    "plausible": bool(lo <= abs(v) <= hi)}
+            effect_parameters[n] = {"value": v, "unit": UNITS[n], "interval_95": best["interval"][n],
+                                    "plausible_range": [lo, hi], "plausible": bool(lo <= abs(v) <= hi)}
 
-    pooled_change = 100 * (math.exp(-(best["score"] + PENALTY_PER_PARAMETER * len(best["parameters"]))) - 1) \
-        if cause != "none" else 0.0
-    verdict = ("cause: none (no extension earns its parameters on held-out data"
-               + ("; " + ", ".join(f"{r['effect']} scored {r['score']:+.3f} but " + (
-                   "its delay disagrees with the residual's" if r.get("evidence_agrees") is False else
-                   f"its force, {r['effect_rms_n']:.2g} N rms, is below the measurement noise ({noise:.2g} N)")
-                   for r in unresolved)
-                  if unresolved else "") + ")") if cause == "none" else (
-        f"cause: {cause} (" + ", ".join(f"{n} = {fmt_quantity(v, UNITS[n])}" for n, v in best["parameters"].items())
-        + f"); validation MSE {pooled_change:+.0f} % against the base refitted alike")
-    result = {"cause": cause, "verdict": verdict, "ranking": ranking, "effect_parameters": effect_parameters,
+    verdict = _verdict(causes, best, none_row, unresolved, unexplained, noise)
+    result = {"cause": cause, "causes": causes, "verdict": verdict, "selection": selection,
+              "unexplained": unexplained, "ranking": ranking, "effect_parameters": effect_parameters,
               "validation": validation, "evidence": evidence, "figures": figures,
-              "note": NOTES.get(cause, ""), "noise_std_n": noise,
+              "note": " ".join(NOTES[c] for c in causes if c in NOTES), "noise_std_n": noise,
               "settings": {**{k: v for k, v in settings.__dict__.items() if k != "extra"},
                            "penalty_per_parameter": PENALTY_PER_PARAMETER, "accept_score": ACCEPT_SCORE,
+                           "unexplained_ratio": UNEXPLAINED_RATIO, "min_blocks": MIN_BLOCKS,
                            "elapsed_s": time.perf_counter() - t_start},
               "base_parameters": {k: base[k] for k in par.names}}
     (out / "diagnosis.json").write_text(json.dumps(result, indent=2, default=_json_default))
-    if cause != "none":
+    if causes:
         from build_fmu import build
 
-        ext, z, _ = refits[cause]
+        ext, z, _ = refits[key]
         path = build("lumped", out / "fmu", start_values=ext.to_params(z),
-                     filename=f"DamperLumped_{cause}_tuned.fmu")
+                     filename=f"DamperLumped_{'_'.join(causes)}_tuned.fmu")
         log(f"extended model exported: {path}")
     log(verdict)
     return result
+
+
+def _interval_text(row: dict) -> str:
+    return ", ".join(f"{n} = {fmt_quantity(v, UNITS[n])} (95 % interval {fmt_quantity(row['interval'][n][0], UNITS[n])}"
+                     f" .. {fmt_quantity(row['interval'][n][1], UNITS[n])})" for n, v in row["parameters"].items())
+
+
+def _verdict(causes: list[str], best: dict, none_row: dict, rejected: list[dict], unexplained: dict | None,
+             noise: float) -> str:
+    """One-paragraph verdict: the causes with magnitudes and intervals and their held-out gain, or
+    none, and what stays unexplained."""
+    if causes:
+        change = 100 * (best["validation_mse"] / none_row["validation_mse"] - 1)
+        text = (f"cause{'s' if len(causes) > 1 else ''}: {' + '.join(causes)} ({_interval_text(best)}); "
+                f"validation MSE {change:+.0f} % against the base refitted alike")
+    else:
+        text = ("cause: none (no extension earns its parameters on held-out data"
+                + ("; " + ", ".join(f"{r['effect']} scored {r['score']:+.3f} but " + _why_not(r, noise)
+                                    for r in rejected) if rejected else "") + ")")
+    if unexplained:
+        where = (f"; most of it in the {unexplained['dominant_band']} band" if unexplained["dominant_band"] else "")
+        sig = (f"; the closest catalogue signature ({unexplained['best_signature']}) explains "
+               f"{100 * unexplained['best_signature_r2']:.0f} % of the base model's residual"
+               if unexplained["best_signature"] else "")
+        text = ("unexplained: " if not causes else text + ". Not explained: ") + (
+            f"the remaining residual, {unexplained['identification_rmse_n']:.3g} N rms, is "
+            f"{unexplained['ratio']:.1f} x the measurement noise ({noise:.2g} N): a model-form error that "
+            f"no catalogue effect explains{where}{sig}") + ("" if causes else "; " + text.replace(
+                "cause: none (", "no named cause: ").rstrip(")"))
+    return text
+
+
+def _why_not(row: dict, noise: float) -> str:
+    """Why a row that scored enough was not named (for the verdict)."""
+    if row.get("evidence_agrees") is False:
+        return "its delay disagrees with the residual's"
+    if not row["resolved"]:
+        return f"its force, {row['effect_rms_n']:.2g} N rms, is below the measurement noise ({noise:.2g} N)"
+    if not row.get("meaningful", True):
+        return ("its magnitude (" + ", ".join(f"{fmt_quantity(v, UNITS[n])}" for n, v in row["parameters"].items())
+                + ") is below the physical range of the effect")
+    ci = "; ".join(f"{n} {fmt_quantity(lo, UNITS[n])} .. {fmt_quantity(hi, UNITS[n])}"
+                   for n, (lo, hi) in row.get("interval", {}).items())
+    return f"its 95 % interval includes zero ({ci or 'not computed'})"
 
 
 def _json_default(o):

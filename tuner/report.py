@@ -946,17 +946,34 @@ def diagnosis_section_html(out_dir) -> str:
         return ""
     d = json.loads(path.read_text())
     e = html.escape
-    rows = []
-    for r in d["ranking"]:
-        cls = " class='winner'" if r["effect"] == d["cause"] else ""
-        fitted = ", ".join(f"{n} = {fmt_quantity(v, r['units'][n])}" for n, v in r["parameters"].items())
-        why = " (evidence disagrees)" if r.get("evidence_agrees") is False else " (below noise)"
-        size = (f"{r['effect_rms_n']:.3g}" + ("" if r.get("resolved", True) else why)
-                if r.get("parameters") else "-")
-        rows.append(f"<tr{cls}><td>{e(r['effect'])}</td><td>{e(fitted)}</td>"
-                    f"<td>{r['validation_mse_change_pct']:+.1f} %</td><td>{r['score']:+.3f}</td>"
-                    f"<td>{e(size)}</td></tr>")
-    rows = "".join(rows)
+    causes = d.get("causes") or ([d["cause"]] if d["cause"] not in ("none", "unexplained") else [])
+
+    def _rows(ranking, winner):
+        out = []
+        for r in ranking:
+            cls = " class='winner'" if r["effect"] == winner else ""
+            fitted = ", ".join(f"{n} = {fmt_quantity(v, r['units'][n])}" for n, v in r["parameters"].items())
+            why = " (evidence disagrees)" if r.get("evidence_agrees") is False else " (below noise)"
+            size = (f"{r['effect_rms_n']:.3g}" + ("" if r.get("resolved", True) else why)
+                    if r.get("parameters") else "-")
+            ci = ", ".join(f"{fmt_quantity(lo, r['units'][n])} .. {fmt_quantity(hi, r['units'][n])}"
+                           for n, (lo, hi) in r.get("interval", {}).items())
+            ci += "" if "significant" not in r else (" (excludes 0)" if r["significant"] else " (includes 0)")
+            out.append(f"<tr{cls}><td>{e(r['effect'])}</td><td>{e(fitted)}</td><td>{e(ci or '-')}</td>"
+                       f"<td>{r['validation_mse_change_pct']:+.1f} %</td><td>{r['score']:+.3f}</td>"
+                       f"<td>{e(size)}</td></tr>")
+        return "".join(out)
+
+    head = ("<tr><th>candidate</th><th>fitted parameters</th><th>95 % interval</th><th>validation MSE change vs "
+            "{ref}</th><th>score</th><th>effect force [N rms]</th></tr>")
+    rows = _rows(d["ranking"], causes[0] if causes else None)
+    steps = ""
+    for k, st in enumerate(d.get("selection", [])):
+        if st.get("tried"):
+            added = causes[k + 1] if st["cause"] != "none" else None
+            winner = next((r["effect"] for r in st["tried"] if r.get("added") == added), None) if added else None
+            steps += (f"<h3>Forward selection, step {k + 2}: on top of {e(' + '.join(causes[:k + 1]))}</h3>"
+                      f"<table>{head.format(ref='the causes so far')}{_rows(st['tried'], winner)}</table>")
     val = "".join(f"<tr><td>{e(n)}</td><td>{v['mse_before']:.3e}</td><td>{v['mse_after']:.3e}</td>"
                   f"<td>{v['mse_change_pct']:+.1f} %</td><td>{v['ame_before']:.0f}</td><td>{v['ame_after']:.0f}</td></tr>"
                   for n, v in d["validation"].items())
@@ -980,9 +997,14 @@ def diagnosis_section_html(out_dir) -> str:
         "measured against it, so a refit's own progress is not credited to an effect. An effect whose force "
         f"contribution (fitted model minus the same with the effect off) is below the measurement noise "
         f"({d.get('noise_std_n', float('nan')):.3g} N, from the force spectrum) is not named.</p>"
-        "<table><tr><th>candidate</th><th>fitted parameters</th><th>validation MSE change vs 'none'</th>"
-        "<th>score</th><th>effect force [N rms]</th></tr>"
-        f"{rows}</table>"
+        "<p>A cause is also significant: the 95 % confidence interval of its magnitude excludes zero. The "
+        "interval comes from the identification residual's Jacobian by a block sandwich estimate (blocks of "
+        "three residual correlation times), because the residuals are correlated and the textbook interval "
+        "would be far too narrow. Causes are added one at a time (forward selection) while the next one "
+        "earns its score against the model of the causes found so far. When the final model's residual stays "
+        f"above {s.get('unexplained_ratio', 2)} x the noise, the report says so: a model-form error the catalogue "
+        "does not explain.</p>"
+        f"<table>{head.format(ref=chr(39) + 'none' + chr(39))}{rows}</table>{steps}"
         + (f"<h3>Effect parameters vs plausible ranges</h3><table><tr><th>parameter</th><th>fitted</th>"
            f"<th>typical range</th><th>plausible</th></tr>{eff}</table>" if eff else "")
         + "<h3>Validation before and after</h3><table><tr><th>test</th><th>MSE before [N&sup2;]</th>"
