@@ -151,3 +151,30 @@ def test_a_stroke_in_the_wrong_unit_stops_the_fit_with_the_fmus_reason(maxwell_d
     assert code == 2
     err = capsys.readouterr().err
     assert "no candidate could be simulated" in err and "stroke_limit" in err
+
+
+def test_diagnosis_before_is_the_table3_figure_of_the_same_model(tmp_path):
+    """One validation definition: the diagnosis' 'before' MSE/AME of the fitted lumped model equals
+    the fit's validation metrics (Table 3) of the same test, computed by the other code path."""
+    from tuner.data import load_dataset
+    from tuner.diagnose import DiagnosisSettings, diagnose
+    from tuner.engine import fastest_engine
+    from tuner.fit import FitSettings, fit
+
+    path = write_model_dataset(tmp_path / "d", "lumped", defaults("lumped"), seed=4, durations=(4.0, 3.0),
+                               roles=("identification", "validation"), noise_n=20.0)
+    tests = load_dataset(path)
+    ident = [t for t in tests if t.role == "identification"]
+    valid = [t for t in tests if t.role == "validation"]
+    (tmp_path / "fit").mkdir()
+    metrics = fit(ident, valid, tmp_path / "fit", FitSettings(models=("lumped",), population=4, iterations=1,
+                                                            workers=0, engine=fastest_engine(), polish_jacobians=1),
+                  log=lambda m: None)
+    base = json.loads((tmp_path / "fit" / "parameters.json").read_text())["lumped"]["values"]
+    res = diagnose(ident, valid, tmp_path / "diag", DiagnosisSettings(engine=fastest_engine(), workers=0,
+                                                                      candidates=(), polish_jacobians=1),
+                   base_params=base, log=lambda m: None)
+    for t in valid:
+        table3 = metrics["tests"][t.name]["models"]["lumped"]
+        assert res["validation"][t.name]["mse_before"] == pytest.approx(table3["mse"], rel=1e-9)
+        assert res["validation"][t.name]["ame_before"] == pytest.approx(table3["ame"], rel=1e-9)

@@ -489,8 +489,8 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
                 + f"  effect {row['effect_rms_n']:.3g} N rms{'' if row['resolved'] else ' (below the noise)'}")
         # the leading candidate's refit is continued to convergence (absorbed effects converge slowly),
         # and so is the base refit, so that the continuation is not credited to the effect
-        lead = max(ranking, key=lambda r: r["score"] if r["resolved"] else -math.inf)
-        if lead["score"] > ACCEPT_SCORE and lead["resolved"] and settings.final_jacobians > 0:
+        lead = max(ranking, key=lambda r: r["score"] if r["resolved"] else -math.inf, default=None)
+        if lead and lead["score"] > ACCEPT_SCORE and lead["resolved"] and settings.final_jacobians > 0:
             z_none, g_none, n, _ = polish(eid, par, z_none, max_jacobians=settings.final_jacobians,
                                           log=lambda m: None)
             r_none = ev.residuals_batch([par.to_params(z_none)])[0]
