@@ -48,6 +48,7 @@ from typing import Iterable, Mapping
 import numpy as np
 
 from campaign.rig_damper import DamperConfig
+from damper_fmu.parameters import EFFECT_TYPICAL
 
 
 @dataclass(frozen=True)
@@ -69,19 +70,19 @@ class EffectSpec:
 
 EFFECTS: dict[str, EffectSpec] = {
     s.name: s for s in (
-        EffectSpec("friction", "Ff", "N", 50.0, 300.0, 150.0,
+        EffectSpec("friction", "Ff", "N", *EFFECT_TYPICAL["friction_force"], 150.0,
                    "seal/guide Coulomb friction Ff tanh(v / 0.5 mm/s) in parallel", "friction_force"),
-        EffectSpec("preload", "F0", "N", 30.0, 400.0, 300.0,
+        EffectSpec("preload", "F0", "N", *EFFECT_TYPICAL["preload_force"], 300.0,
                    "un-tared reservoir gas force / load-cell offset: force reads -F0 more", "preload_force", -1.0),
-        EffectSpec("free_play", "gap", "m", 1e-4, 1e-3, 3e-4,
+        EffectSpec("free_play", "gap", "m", *EFFECT_TYPICAL["free_play"], 3e-4,
                    "clearance (total dead band) in the actuator-side end mount", "free_play"),
-        EffectSpec("thermal_drift", "beta", "1/K", 2e-3, 2e-2, 1e-2,
+        EffectSpec("thermal_drift", "beta", "1/K", *EFFECT_TYPICAL["thermal_beta"], 1e-2,
                    "damping x exp(-beta (T - 20 degC)); the oil heats with dissipated power", "thermal_beta"),
-        EffectSpec("valve_lag", "tau", "s", 1e-3, 1e-2, 3e-3,
+        EffectSpec("valve_lag", "tau", "s", *EFFECT_TYPICAL["valve_tau"], 3e-3,
                    "first-order lag of the blow-off valve openings", "valve_tau"),
-        EffectSpec("time_delay", "delay", "s", 1e-3, 1e-2, 3e-3,
+        EffectSpec("time_delay", "delay", "s", *EFFECT_TYPICAL["time_delay"], 3e-3,
                    "force channel lags the stroke channel by a pure delay", "time_delay"),
-        EffectSpec("inertia", "m_eq", "kg", 20.0, 200.0, 60.0,
+        EffectSpec("inertia", "m_eq", "kg", *EFFECT_TYPICAL["inertia_mass"], 60.0,
                    "equivalent fluid/rod inertia seen by the load cell", "inertia_mass"),
     )
 }

@@ -20,6 +20,7 @@ __all__ = [
     "Parameter",
     "EFFECT_PARAMETERS",
     "EFFECT_IDENTIFIED",
+    "EFFECT_TYPICAL",
     "FK_ABSCISSAE",
     "FC_ABSCISSAE",
     "LUMPED_PARAMETERS",
@@ -135,6 +136,15 @@ EFFECT_PARAMETERS: tuple[Parameter, ...] = (
     Parameter("inertia_mass", "kg", "Equivalent inertia seen by the load cell: m_eq x1''",
               0.0, 0.0, 500.0, tunable=False, effect="inertia"),
 )
+
+#: The effect catalogue's typical magnitudes |value| (SI) of each identified effect parameter (design
+#: notes): the one source for the virtual rig's draws (campaign.effects), the plausibility flags
+#: and the "physically meaningful" test of the diagnosis, and the search range it must cover.
+EFFECT_TYPICAL: dict[str, tuple[float, float]] = {
+    "friction_force": (50.0, 300.0), "preload_force": (30.0, 400.0), "free_play": (1e-4, 1e-3),
+    "thermal_beta": (2e-3, 2e-2), "valve_tau": (1e-3, 1e-2), "time_delay": (1e-3, 1e-2),
+    "inertia_mass": (20.0, 200.0),
+}
 
 #: effect name -> its identified parameters (the others of the effect stay at their defaults)
 EFFECT_IDENTIFIED: dict[str, tuple[str, ...]] = {
