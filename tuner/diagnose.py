@@ -268,7 +268,8 @@ def _next_cause(eid: Engine, par: Parametrization, peak: float, current: tuple, 
     """One forward-selection step from the current model (``current`` = (ext, z, evaluations) of
     the causes selected so far, ``current_row`` its ranking row).
 
-    Every catalogue effect not selected yet that gained alone (score > 0 in ``ranking``) is added
+    Every catalogue effect not selected yet that earned its score alone with a resolved force (in
+    ``ranking``; an effect hidden beside another one does) is added
     to the current model and refitted as in the first round (profile line search of the new
     parameter with the current model re-balanced, then a joint polish of ``share`` Jacobians);
     the best is continued to convergence. It is named when, against the current model, it scores
@@ -277,7 +278,7 @@ def _next_cause(eid: Engine, par: Parametrization, peak: float, current: tuple, 
     "tried": rows, and for a named cause "row" and "refit"}."""
     cur_ext, cur_z, _ = current
     others = [r["effect"] for r in ranking if r["effect"] not in cur_ext.effects and r["effect"] != "none"
-              and "+" not in r["effect"] and r["score"] > 0.0]
+              and "+" not in r["effect"] and r["score"] > ACCEPT_SCORE and r["resolved"]]
     if not others:
         return {"cause": "none", "tried": []}
     params_cur = cur_ext.to_params(cur_z)
