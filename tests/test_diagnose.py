@@ -14,6 +14,7 @@ Every manoeuvre runs at its own oil temperature (a climatic-chamber campaign, th
 every test, clean data included), so temperature dependence is observable.
 """
 import json
+import os
 import zlib
 
 import numpy as np
@@ -61,8 +62,14 @@ def run_diagnosis(tmp_path, effects, seed, damper="lumped"):
                     tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), base_iterations=0), log=lambda m: None)
 
 
+#: the CI suite (10 min on 2 cores) runs four single effects blind (friction and inertia are also hidden
+#: together below); DAMPER_FULL_TESTS=1 runs all seven, benchmarks/confusion_matrix.py with many seeds
+FULL = os.environ.get("DAMPER_FULL_TESTS") == "1"
+CI_EFFECTS = ("free_play", "thermal_drift", "valve_lag", "preload")
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("effect", list(EFFECTS))
+@pytest.mark.parametrize("effect", [e for e in EFFECTS if FULL or e in CI_EFFECTS])
 def test_a_hidden_effect_is_named_blind_with_its_magnitude_and_a_30_percent_gain(tmp_path, effect):
     spec = EFFECTS[effect]
     value = float(np.random.default_rng(zlib.crc32(effect.encode())).uniform(spec.low, spec.high))
