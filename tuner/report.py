@@ -937,6 +937,16 @@ def fmt_quantity(v: float, unit: str) -> str:
     return f"{v:.3g} {unit}"
 
 
+def _effect_value(name: str, v: float, unit: str) -> str:
+    """A fitted effect magnitude; one below 1/1000 of the low end of its typical range prints as 0
+    (the refit switched the effect off; 5e-15 mm is not a measurement)."""
+    from damper_fmu.parameters import EFFECT_TYPICAL
+
+    if name in EFFECT_TYPICAL and abs(v) < 1e-3 * EFFECT_TYPICAL[name][0]:
+        return "0 (off)"
+    return fmt_quantity(v, unit)
+
+
 def diagnosis_section_html(out_dir) -> str:
     """HTML section of the report for ``out_dir/diagnosis.json`` ('' when there is none)."""
     import html
@@ -952,13 +962,14 @@ def diagnosis_section_html(out_dir) -> str:
         out = []
         for r in ranking:
             cls = " class='winner'" if r["effect"] == winner else ""
-            fitted = ", ".join(f"{n} = {fmt_quantity(v, r['units'][n])}" for n, v in r["parameters"].items())
+            fitted = ", ".join(f"{n} = {_effect_value(n, v, r['units'][n])}" for n, v in r["parameters"].items())
             why = " (evidence disagrees)" if r.get("evidence_agrees") is False else " (below noise)"
             size = (f"{r['effect_rms_n']:.3g}" + ("" if r.get("resolved", True) else why)
                     if r.get("parameters") else "-")
             ci = ", ".join(f"{fmt_quantity(lo, r['units'][n])} .. {fmt_quantity(hi, r['units'][n])}"
                            for n, (lo, hi) in r.get("interval", {}).items())
             ci += "" if "significant" not in r else (" (excludes 0)" if r["significant"] else " (includes 0)")
+            ci += "; magnitude below the effect's physical range" if r.get("meaningful") is False else ""
             out.append(f"<tr{cls}><td>{e(r['effect'])}</td><td>{e(fitted)}</td><td>{e(ci or '-')}</td>"
                        f"<td>{r['validation_mse_change_pct']:+.1f} %</td><td>{r['score']:+.3f}</td>"
                        f"<td>{e(size)}</td></tr>")
