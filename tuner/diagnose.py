@@ -48,7 +48,7 @@ from damper_fmu.parameters import EFFECT_IDENTIFIED, EFFECT_PARAMETERS, EFFECT_T
 
 from .data import RigTest, prepare
 from .engine import Engine
-from .metrics import error_metrics, noise_std
+from .metrics import noise_std
 from .parametrization import Parametrization
 from .polish import polish
 from .report import fmt_quantity
