@@ -230,7 +230,7 @@ ERROR_CASES = {
     "comments_only": (lambda p: p.write_text("# a\n\n# b\n"), {}, ["empty"]),
     "header_only": (lambda p: p.write_text("time,stroke,force\n"), {}, ["no data rows"]),
     "missing_column": (lambda p: _raw(p, {"time": [0], "stroke": [0], "load": [0]}), {},
-                       ["missing column", "'force'", "columns found", "'load'"]),
+                       ["missing column", "'force'", "columns found", "'load'", "--force-col"]),
     "non_numeric": (lambda p: _raw(p, _set(_good_cols(), "force", 50, "12x5")),
                     {}, ["non-numeric", "'12x5'", "'force'", "data row 50", "line 52"]),
     "nan": (lambda p: _raw(p, _set(_good_cols(), "stroke", 77, "nan")), {},
@@ -239,14 +239,10 @@ ERROR_CASES = {
                     ["NaN", "'force'", "data row 3"]),
     "inf": (lambda p: _raw(p, _set(_good_cols(), "force", 120, "inf")), {},
             ["infinite", "'force'", "data row 120"]),
-    "duplicated_time": (lambda p: _raw(p, _set(_good_cols(), "time", 31, 0.029)), {},
-                        ["duplicated time", "data row 31"]),
     "non_monotonic": (lambda p: _raw(p, _set(_good_cols(), "time", 31, 0.0285)), {},
                       ["not increasing", "data row 31"]),
-    "irregular": (lambda p: _raw(p, {k: v[:100] + v[101:] for k, v in _good_cols().items()}),
-                  {}, ["irregular sampling", "data row 101"]),
-    "jitter": (lambda p: _raw(p, _set(_good_cols(), "time", 60, 0.0591)), {},
-               ["irregular sampling", "tolerance"]),
+    "gap": (lambda p: _raw(p, {k: v[:100] + v[110:] for k, v in _good_cols().items()}),
+            {}, ["gap of", "11 samples", "data row 101", "--t-start"]),
     "too_short": (lambda p: _raw(p, {k: v[:99] for k, v in _good_cols().items()}), {},
                   ["too short", "99 samples", "100"]),
     "stroke_in_mm_read_as_m": (
@@ -260,7 +256,14 @@ ERROR_CASES = {
         {}, ["implausible sample rate", "'ms'"]),
     "unknown_unit": (lambda p: _raw(p, _good_cols()), {"stroke_unit": "inch"},
                      ["unknown stroke unit", "'inch'"]),
-    "semicolons": (lambda p: p.write_text("time;stroke;force\n0;0;0\n"), {}, ["commas"]),
+    "spreadsheet": (lambda p: p.write_text("x"), {"_suffix": ".xlsx"}, ["save the sheet as CSV"]),
+    "position_out_of_range": (lambda p: _raw(p, _good_cols()), {"force_col": 7}, ["position 7", "3 columns"]),
+    "unit_conflict": (lambda p: _raw(p, _good_cols(), header="time,stroke [mm],force"), {"stroke_unit": "m"},
+                      ["declares 'mm'", "--stroke-unit 'm'"]),
+    "timestamps_garbled": (lambda p: _raw(p, {**_good_cols(), "time": ["2026-01-01T00:00:00"] * 199 + ["soon"]}),
+                           {}, ["neither numbers nor timestamps", "'soon'", "data row 200"]),
+    "no_time_no_rate": (lambda p: _raw(p, {k: v for k, v in _good_cols().items() if k != "time"}),
+                        {"time_col": None}, ["--rate"]),
     "bad_extension": (lambda p: p.write_text("x"), {"_suffix": ".xlsx"}, ["unsupported"]),
     "missing_extra_col": (lambda p: _raw(p, _good_cols()), {"extra_cols": ["temperature"]},
                           ["missing column", "'temperature'"]),
@@ -495,5 +498,5 @@ def test_temperature_column_by_name_and_a_warning_for_an_unused_one(tmp_path):
     np.testing.assert_allclose(named.channels["temperature"], 20.0 + t)
     kelvin = load_test(path, temperature_col="Oil K", temperature_unit="K")
     np.testing.assert_allclose(kelvin.channels["temperature"], 20.0 + t, atol=1e-9)
-    with pytest.raises(DataError, match="temperature column 'oil' not found"):
+    with pytest.raises(DataError, match="missing column 'oil' \\(temperature\\)"):
         load_test(path, temperature_col="oil")

@@ -5,6 +5,7 @@
     python -m tuner fit ...              the same on your own data (see --help)
     python -m tuner generate --out DIR   virtual test campaign -> a six-test dataset
     python -m tuner diagnose ...         what the fitted model gets wrong and why (see --help)
+    python -m tuner inspect FILES        what the reader understands of rig files (see --help)
     python -m tuner report DIR           rebuild the report of a fit output folder
 
 Exit status: 0 success, 2 bad input or arguments (message on stderr), 130 interrupted.
@@ -54,6 +55,63 @@ def _prepare_out(out: Path, resume: bool, force: bool) -> Path:
     return out
 
 
+def _add_data_options(g) -> None:
+    """Options saying how to read rig files (all default to None: the file's own declaration, else SI)."""
+    g.add_argument("--time-col", default=None, metavar="COL",
+                   help="time column: header, header without its unit, or 1-based position (default 'time'); "
+                        "'none' with --rate when the file has no time column. Seconds, milliseconds "
+                        "(--time-unit ms) or date/ISO timestamps")
+    g.add_argument("--stroke-col", default=None, metavar="COL", help="stroke column (default 'stroke')")
+    g.add_argument("--force-col", default=None, metavar="COL", help="force column (default 'force')")
+    g.add_argument("--velocity-col", default=None, metavar="COL",
+                   help="the rig's measured stroke velocity, used instead of differentiating the stroke")
+    g.add_argument("--temperature-col", default=None, metavar="COL",
+                   help="column holding the oil temperature (default: a column named 'temperature', if any)")
+    g.add_argument("--test-col", default=None, metavar="COL",
+                   help="test-id column: a file holding several tests is split by its values")
+    g.add_argument("--time-unit", default=None, choices=["s", "ms"])
+    g.add_argument("--stroke-unit", default=None, choices=["m", "cm", "mm", "um"],
+                   help="unit of the stroke (default: as the header or units row declares, else m)")
+    g.add_argument("--force-unit", default=None, choices=["N", "daN", "kN"],
+                   help="unit of the force (default: as the header or units row declares, else N)")
+    g.add_argument("--velocity-unit", default=None, choices=["m/s", "cm/s", "mm/s", "um/s"])
+    g.add_argument("--temperature-unit", default=None, choices=["degC", "K"])
+    g.add_argument("--stroke-sign", type=int, default=None, choices=[1, -1],
+                   help="-1 if the rig writes compression as positive stroke (ours: extension positive)")
+    g.add_argument("--force-sign", type=int, default=None, choices=[1, -1],
+                   help="-1 if the rig writes compression as positive force (ours: tension positive)")
+    g.add_argument("--rate", type=float, default=None, metavar="HZ", help="sample rate of files without time")
+    g.add_argument("--t-start", type=float, default=None, metavar="S",
+                   help="use the test from this time [s from its first sample]")
+    g.add_argument("--t-end", type=float, default=None, metavar="S", help="... up to this time [s]")
+    g.add_argument("--columns", type=Path, default=None, metavar="FILE",
+                   help="column mapping file (TOML or JSON) for campaigns with many files: the options above "
+                        "as keys (time_col, stroke_unit, force_sign ...), for every file and per file name")
+    g.add_argument("--accept-implausible", action="store_true",
+                   help="read data that fails the physical plausibility checks (units) as declared")
+
+
+_DATA_OPTIONS = ("time_col", "stroke_col", "force_col", "velocity_col", "temperature_col", "test_col", "time_unit",
+                 "stroke_unit", "force_unit", "velocity_unit", "temperature_unit", "stroke_sign", "force_sign",
+                 "t_start", "t_end")
+
+
+def _column_options(args) -> tuple[dict, dict]:
+    """(options for every file, file name -> its own options) from the mapping file and the command line;
+    the command line wins."""
+    from .data import read_column_mapping
+
+    common, per_file = read_column_mapping(args.columns) if args.columns else ({}, {})
+    given = {k: getattr(args, k) for k in _DATA_OPTIONS if getattr(args, k) is not None}
+    if given.get("time_col", "").lower() == "none":
+        given["time_col"] = None
+    if args.rate is not None:
+        given["rate_hz"] = args.rate
+    if args.accept_implausible:
+        given["check_plausible"] = False
+    return {**common, **given}, {name: {**opts, **given} for name, opts in per_file.items()}
+
+
 def _add_fit_options(ap: argparse.ArgumentParser) -> None:
     from .fit import FitSettings
 
@@ -64,15 +122,7 @@ def _add_fit_options(ap: argparse.ArgumentParser) -> None:
                    help="identification test files (CSV/Parquet)")
     g.add_argument("--validation", nargs="+", type=Path, default=[], metavar="FILE",
                    help="validation test files (held out)")
-    g.add_argument("--time-col", default="time")
-    g.add_argument("--stroke-col", default="stroke")
-    g.add_argument("--force-col", default="force")
-    g.add_argument("--temperature-col", default=None, metavar="NAME",
-                   help="column holding the oil temperature (default: a column named 'temperature', if any)")
-    g.add_argument("--temperature-unit", default="degC", choices=["degC", "K"])
-    g.add_argument("--time-unit", default="s", choices=["s", "ms"])
-    g.add_argument("--stroke-unit", default="m", choices=["m", "cm", "mm", "um"])
-    g.add_argument("--force-unit", default="N", choices=["N", "daN", "kN"])
+    _add_data_options(g)
     g = ap.add_argument_group("identification")
     g.add_argument("--models", default=",".join(d.models),
                    help="comma-separated from lumped, maxwell, maxwell_table (default: %(default)s)")
@@ -106,31 +156,49 @@ def _add_fit_options(ap: argparse.ArgumentParser) -> None:
 def _load(args):
     from .data import load_dataset, load_files
 
-    cols = dict(time_col=args.time_col, stroke_col=args.stroke_col, force_col=args.force_col,
-                time_unit=args.time_unit, stroke_unit=args.stroke_unit, force_unit=args.force_unit,
-                temperature_col=args.temperature_col, temperature_unit=args.temperature_unit)
+    common, per_file = _column_options(args)
+
+    def read(paths, role):
+        return [t for p in paths for t in load_files([p], role, **{**common, **per_file.get(Path(p).name, {})})]
+
     if args.dataset and (args.identification or args.validation):
         raise ValueError("give either --dataset or --identification/--validation files, not both")
     if args.dataset:
-        tests = load_dataset(args.dataset)
+        tests = load_dataset(args.dataset, check_plausible=not args.accept_implausible)
         ident = [t for t in tests if t.role == "identification"]
         valid = [t for t in tests if t.role == "validation"]
         name = args.dataset.resolve().name
     else:
         if not args.identification:
             raise ValueError("no data: give --dataset DIR or --identification FILE ...")
-        ident = load_files(args.identification, "identification", **cols)
-        valid = load_files(args.validation, "validation", **cols) if args.validation else []
+        ident = read(args.identification, "identification")
+        valid = read(args.validation, "validation")
         name = "fit"
     if not ident:
         raise ValueError("the data holds no identification test")
+    from .datasummary import format_summary
+
+    _log("data as read:")
     for t in ident + valid:
-        for w in t.metadata.get("warnings", []):
-            _log(f"warning: {w}")
+        _log(format_summary(t))
     names = [t.name for t in ident + valid]
     if len(set(names)) != len(names):
         raise ValueError(f"test names must be unique, got {names}")
     return ident, valid, name
+
+
+def cmd_inspect(args) -> int:
+    from .datasummary import summarize
+
+    if args.files and args.dataset:
+        raise ValueError("give either --dataset or FILES, not both")
+    if not args.files and not args.dataset:
+        args.dataset = DEFAULT_DATASET
+    args.identification, args.validation = list(args.files), []
+    ident, valid, _ = _load(args)
+    if args.json:
+        print(json.dumps([summarize(t) for t in ident + valid], indent=1))
+    return 0
 
 
 def _check_engine(args) -> None:
@@ -294,6 +362,11 @@ def main(argv=None) -> int:
     _add_fit_options(p_diag)
     p_diag.add_argument("--from", dest="from_fit", type=Path, help="output folder of an earlier fit (its "
                         "lumped parameters are the base model; otherwise the base model is identified here)")
+    p_ins = sub.add_parser("inspect", help="what the reader understands of rig files (columns, units, ranges)")
+    p_ins.add_argument("files", nargs="*", type=Path, metavar="FILE", help="rig test files (CSV/TSV/Parquet)")
+    p_ins.add_argument("--dataset", type=Path, help="a dataset folder with manifest.json instead of files")
+    p_ins.add_argument("--json", action="store_true", help="also print the figures as JSON (SI units)")
+    _add_data_options(p_ins.add_argument_group("data"))
     p_rep = sub.add_parser("report", help="rebuild the report of a fit output folder")
     p_rep.add_argument("folder", type=Path)
     if not argv:
@@ -302,7 +375,8 @@ def main(argv=None) -> int:
     if args.command is None:
         ap.print_help()
         return 2
-    handler = {"fit": cmd_fit, "generate": cmd_generate, "report": cmd_report, "diagnose": cmd_diagnose}[args.command]
+    handler = {"fit": cmd_fit, "generate": cmd_generate, "report": cmd_report, "diagnose": cmd_diagnose,
+               "inspect": cmd_inspect}[args.command]
     try:
         return handler(args)
     except KeyboardInterrupt:

@@ -58,12 +58,8 @@ Preprocessing (:func:`prepare`)
 """
 from __future__ import annotations
 
-import gzip
-import importlib.util
-import io
 import json
 import re
-import warnings
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
@@ -72,24 +68,28 @@ import numpy as np
 import pandas as pd
 from scipy import signal
 
+from .rigfile import DataError, RawTable, read_raw
+
 FORMAT_ID = "damper-rig-dataset/1"
 MANIFEST_NAME = "manifest.json"
 ROLES = ("identification", "validation")
 REQUIRED_COLUMNS = ("time", "stroke", "force")
 MIN_SAMPLES = 100
 MAX_STROKE_RANGE_M = 2.0
+MIN_STROKE_RANGE_M = 5e-6
+MAX_VELOCITY_M_S = 5.0
 MIN_FORCE_PEAK_N = 1.0
+MAX_FORCE_PEAK_N = 2e6
+MIN_DAMPING_N_S_PER_M = 200.0
+MAX_DAMPING_N_S_PER_M = 1e8
 MIN_SAMPLE_RATE_HZ = 10.0
 
 TIME_UNITS = {"s": 1.0, "ms": 1e-3}
 STROKE_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6}
 FORCE_UNITS = {"N": 1.0, "daN": 10.0, "kN": 1e3}
+VELOCITY_UNITS = {"m/s": 1.0, "cm/s": 1e-2, "mm/s": 1e-3, "um/s": 1e-6}
 TEMPERATURE_UNITS = {"degC": 0.0, "K": -273.15}  # offset to degC
 MANIFEST_TEST_KEYS = ("name", "file", "role", "scenario", "sample_rate_hz")
-
-
-class DataError(ValueError):
-    """Measured data that cannot be used; the message names the file and the problem."""
 
 
 @dataclass
@@ -98,7 +98,9 @@ class RigTest:
 
     time [s], stroke [m, + extension], force [N, + tension]: 1-D float arrays of
     equal length; channels: name -> array in ``channel_units[name]`` (temperature
-    in degC); sample_rate [Hz]; source: file read; metadata: free extra keys.
+    in degC); sample_rate [Hz]; source: file read; metadata: free extra keys;
+    velocity: measured stroke velocity [m/s, + extension] when the rig has one, else None
+    (the stroke is differentiated).
     """
 
     name: str
@@ -112,6 +114,7 @@ class RigTest:
     source: Path | None = None
     metadata: dict = field(default_factory=dict)
     channel_units: dict = field(default_factory=dict)
+    velocity: np.ndarray | None = None
 
     @property
     def duration(self) -> float:
@@ -133,9 +136,20 @@ def _suggest(table: dict, unit: str, ok) -> str:
     return f" Is it in {' or '.join(repr(u) for u in cands)}?" if cands else ""
 
 
+def check_finite(source, name: str, x, lines=None) -> None:
+    """Raise DataError naming the first NaN or infinite value of column ``name``."""
+    bad = ~np.isfinite(x)
+    if bad.any():
+        i = int(np.argmax(bad))
+        kind = "NaN (missing value)" if np.isnan(x[i]) else f"{x[i]} (infinite value)"
+        line = f" (line {lines[i]})" if lines is not None and i < len(lines) else ""
+        raise DataError(f"{source}: column {name!r} is {kind} at data row {i + 1}{line}")
+
+
 def check_signals(source, time, stroke, force, channels=None, *, dt_tol=0.01,
                   lines=None, units=None) -> float:
-    """Check SI signals of one test; return the sample rate [Hz].
+    """Check SI signals of one test (length, finite values, uniform increasing time, a
+    plausible sample rate); return the sample rate [Hz].
 
     time [s], stroke [m], force [N], channels: name -> array. ``dt_tol`` is the
     tolerated relative deviation of any time step from the nominal one.
@@ -155,11 +169,7 @@ def check_signals(source, time, stroke, force, channels=None, *, dt_tol=0.01,
     for name, x in cols.items():
         if len(x) != n:
             raise DataError(f"{source}: column {name!r} has {len(x)} values, time has {n}")
-        bad = ~np.isfinite(x)
-        if bad.any():
-            i = int(np.argmax(bad))
-            kind = "NaN (missing value)" if np.isnan(x[i]) else f"{x[i]} (infinite value)"
-            raise DataError(f"{source}: column {name!r} is {kind} at {where(i)}")
+        check_finite(source, name, x, lines)
     dt = np.diff(time)
     bad = dt <= 0
     if bad.any():
@@ -180,184 +190,393 @@ def check_signals(source, time, stroke, force, channels=None, *, dt_tol=0.01,
     rate = 1.0 / dt_nom
     tu = units.get("time", "s")
     if rate < MIN_SAMPLE_RATE_HZ:
+        hint = (_suggest(TIME_UNITS, tu, lambda r: rate / r >= MIN_SAMPLE_RATE_HZ)
+                if tu in TIME_UNITS else "")
         raise DataError(f"{source}: implausible sample rate {rate:.4g} Hz (< "
-                        f"{MIN_SAMPLE_RATE_HZ:g} Hz) with time in {tu!r}."
-                        + _suggest(TIME_UNITS, tu, lambda r: rate / r >= MIN_SAMPLE_RATE_HZ))
-    su = units.get("stroke", "m")
-    srange = float(np.ptp(stroke))
-    if srange > MAX_STROKE_RANGE_M:
-        raise DataError(f"{source}: implausible stroke range {srange:.4g} m (> "
-                        f"{MAX_STROKE_RANGE_M:g} m) with stroke in {su!r}."
-                        + _suggest(STROKE_UNITS, su,
-                                   lambda r: 1e-4 <= srange * r <= MAX_STROKE_RANGE_M))
-    fu = units.get("force", "N")
-    fpeak = float(np.max(np.abs(force)))
-    if fpeak < MIN_FORCE_PEAK_N:
-        raise DataError(f"{source}: implausible force: peak |force| {fpeak:.4g} N (< "
-                        f"{MIN_FORCE_PEAK_N:g} N) with force in {fu!r}."
-                        + _suggest(FORCE_UNITS, fu, lambda r: fpeak * r >= MIN_FORCE_PEAK_N)
-                        + " Or the load signal is missing.")
+                        f"{MIN_SAMPLE_RATE_HZ:g} Hz) with time in {tu!r}." + hint)
     return rate
+
+
+def plausibility(source, time, stroke, force, velocity=None, rate=None, units=None) -> dict:
+    """Refuse a test that is not physically a damper on a rig, in either direction.
+
+    SI inputs: time [s], stroke [m], force [N], velocity [m/s] (None: the stroke differentiated
+    over 20 Hz). Limits: stroke range 5 um .. 2 m; peak stroke velocity <= 5 m/s (a rig
+    actuator's limit; a stroke in mm read as m gives tens of m/s); peak force 1 N .. 2 MN;
+    apparent damping rms(F)/rms(v) from 200 N s/m (lighter than any vehicle damper: a force in kN
+    read as N) to 1e8 N s/m (100 x a yaw damper's low-speed 1e6: a stroke in m read as mm).
+    ``units``: the units the file was read in, for the suggested fix. Returns the
+    figures checked (SI); raises DataError naming the file, the figure and the likely fix.
+    """
+    units = units or {}
+    su, fu = units.get("stroke", "m"), units.get("force", "N")
+    rate = rate or (len(time) - 1) / (time[-1] - time[0])
+    v = velocity if velocity is not None else Differentiator.design(rate, 20.0, max_window=len(stroke)).apply(stroke)
+    srange = float(np.ptp(stroke))
+    vpeak = float(np.max(np.abs(v)))
+    fpeak = float(np.max(np.abs(force)))
+    vrms = float(np.std(v))
+    c_app = float(np.std(force) / vrms) if vrms > 1e-6 else None
+    fig = {"stroke_range_m": srange, "velocity_peak_m_s": vpeak, "force_peak_n": fpeak,
+           "apparent_damping_n_s_per_m": c_app}
+    tail = " If the values are right, run with --accept-implausible."
+    if srange > MAX_STROKE_RANGE_M or vpeak > MAX_VELOCITY_M_S:
+        raise DataError(
+            f"{source}: implausible stroke: range {srange:.4g} m, peak velocity {vpeak:.4g} m/s (a damper rig "
+            f"moves <= {MAX_STROKE_RANGE_M:g} m at <= {MAX_VELOCITY_M_S:g} m/s) with stroke in {su!r}."
+            + _suggest(STROKE_UNITS, su, lambda r: srange * r <= MAX_STROKE_RANGE_M and vpeak * r <= MAX_VELOCITY_M_S
+                       and srange * r >= MIN_STROKE_RANGE_M) + f" Use --stroke-unit." + tail)
+    if srange < MIN_STROKE_RANGE_M:
+        raise DataError(
+            f"{source}: implausible stroke: range {srange * 1e6:.3g} um (< {MIN_STROKE_RANGE_M * 1e6:g} um, under a "
+            f"rig's displacement resolution) with stroke in {su!r}."
+            + _suggest(STROKE_UNITS, su, lambda r: MIN_STROKE_RANGE_M <= srange * r <= MAX_STROKE_RANGE_M)
+            + " Use --stroke-unit, or the stroke signal is missing." + tail)
+    if fpeak < MIN_FORCE_PEAK_N or fpeak > MAX_FORCE_PEAK_N:
+        raise DataError(
+            f"{source}: implausible force: peak |force| {fpeak:.4g} N (a damper on a rig: {MIN_FORCE_PEAK_N:g} N "
+            f"to {MAX_FORCE_PEAK_N:.0e} N) with force in {fu!r}."
+            + _suggest(FORCE_UNITS, fu, lambda r: MIN_FORCE_PEAK_N <= fpeak * r <= MAX_FORCE_PEAK_N)
+            + " Use --force-unit, or the load signal is missing." + tail)
+    if c_app is not None and c_app < MIN_DAMPING_N_S_PER_M:
+        raise DataError(
+            f"{source}: implausible force for its stroke: rms force {np.std(force):.4g} N at rms velocity "
+            f"{vrms:.4g} m/s is an apparent damping of {c_app:.3g} N s/m, under the {MIN_DAMPING_N_S_PER_M:g} N s/m "
+            f"of the lightest vehicle damper, with force in {fu!r} and stroke in {su!r}."
+            + _suggest(FORCE_UNITS, fu, lambda r: c_app * r >= MIN_DAMPING_N_S_PER_M and fpeak * r <= MAX_FORCE_PEAK_N)
+            + " Use --force-unit/--stroke-unit." + tail)
+    if c_app is not None and c_app > MAX_DAMPING_N_S_PER_M:
+        raise DataError(
+            f"{source}: implausible stroke for its force: rms force {np.std(force):.4g} N at rms velocity "
+            f"{vrms:.4g} m/s is an apparent damping of {c_app:.3g} N s/m, over {MAX_DAMPING_N_S_PER_M:.0e} N s/m "
+            f"(100 x a yaw damper's), with stroke in {su!r} and force in {fu!r}."
+            + _suggest(STROKE_UNITS, su, lambda r: c_app / r <= MAX_DAMPING_N_S_PER_M and srange * r <= MAX_STROKE_RANGE_M)
+            + " Use --stroke-unit/--force-unit." + tail)
+    return fig
 
 
 # --------------------------------------------------------------------------- reading
 
-def _read_csv(path: Path, source: str):
-    opener = gzip.open if path.name.lower().endswith(".gz") else open
-    try:
-        with opener(path, "rt", encoding="utf-8-sig", newline="") as fh:
-            raw = fh.read().splitlines()
-    except (OSError, UnicodeDecodeError, EOFError) as exc:
-        raise DataError(f"{source}: cannot read file: {exc}") from exc
-    kept, lines = [], []
-    for k, line in enumerate(raw, start=1):
-        s = line.strip()
-        if s and not s.startswith("#"):
-            kept.append(line)
-            lines.append(k)
-    if not kept:
-        raise DataError(f"{source}: file is empty (no header line and no data)")
-    header = [c.strip() for c in kept[0].split(",")]
-    if len(header) == 1 and (";" in kept[0] or "\t" in kept[0]):
-        raise DataError(f"{source}: header {kept[0]!r} has a single column: "
-                        f"columns must be separated by commas")
-    if len(kept) == 1:
-        raise DataError(f"{source}: file is empty: header {header} but no data rows")
-    try:
-        df = pd.read_csv(io.StringIO("\n".join(kept)), skipinitialspace=True)
-    except (pd.errors.ParserError, ValueError) as exc:
-        raise DataError(f"{source}: malformed CSV: {exc}") from exc
-    df.columns = [str(c).strip() for c in df.columns]
-    return df, lines[1:]
-
-
-def _read_table(path: Path, source: str):
-    """Return (DataFrame, data-row -> file-line list or None)."""
-    if not path.exists():
-        raise DataError(f"{source}: file not found")
-    if not path.is_file():
-        raise DataError(f"{source}: not a file")
-    name = path.name.lower()
-    if name.endswith((".parquet", ".pq")):
-        if importlib.util.find_spec("pyarrow") is None:
-            raise DataError(f"{source}: reading Parquet needs pyarrow "
-                            f"(pip install pyarrow), or convert the file to CSV")
-        if path.stat().st_size == 0:
-            raise DataError(f"{source}: file is empty")
-        try:
-            df = pd.read_parquet(path)
-        except Exception as exc:  # pyarrow raises several exception types
-            raise DataError(f"{source}: cannot read Parquet: {exc}") from exc
-        if len(df) == 0:
-            raise DataError(f"{source}: file is empty: columns {list(df.columns)} but no rows")
-        df.columns = [str(c).strip() for c in df.columns]
-        return df, None
-    if name.endswith((".csv", ".csv.gz")):
-        return _read_csv(path, source)
-    raise DataError(f"{source}: unsupported file type; use .csv, .csv.gz or .parquet")
-
-
-def _numeric(df: pd.DataFrame, col: str, source: str, lines) -> np.ndarray:
-    s = df[col]
+def _numeric(raw: RawTable, col: str, source: str) -> np.ndarray:
+    s = raw.frame[col]
     if s.dtype.kind in "fiu":
         return s.to_numpy(dtype=float)
-    num = pd.to_numeric(s, errors="coerce")
-    bad = num.isna() & s.notna()
     if s.dtype.kind == "b":
-        bad[:] = True
+        raise DataError(f"{source}: column {col!r} holds booleans, not numbers")
+    num = pd.to_numeric(s, errors="coerce")
+    text = s.astype(str).str.strip().str.lower()
+    bad = num.isna() & s.notna() & ~text.isin(["", "nan", "na", "n/a", "null"])
     if bad.any():
         i = int(np.argmax(bad.to_numpy()))
-        line = f" (line {lines[i]})" if lines is not None else ""
+        line = f" (line {raw.lines[i]})" if raw.lines is not None else ""
         raise DataError(f"{source}: non-numeric value {s.iloc[i]!r} in column {col!r} "
                         f"at data row {i + 1}{line}")
     return num.to_numpy(dtype=float)
 
 
-def load_test(path, *, time_col="time", stroke_col="stroke", force_col="force",
-              stroke_unit="m", force_unit="N", time_unit="s", extra_cols=None,
-              channel_units=None, name=None, role=None, scenario=None,
-              sample_rate_hz=None, metadata=None, dt_tol=0.01, temperature_col=None,
-              temperature_unit="degC") -> RigTest:
-    """Read and check one rig-test file; return it in SI units.
+def _time_seconds(raw: RawTable, col: str, unit: str, source: str) -> tuple[np.ndarray, str]:
+    """Time column in seconds and its kind: ``'seconds'`` (numbers in ``unit``) or ``'timestamp'``
+    (datetime/ISO strings, seconds from the first stamp)."""
+    s = raw.frame[col]
+    if s.dtype.kind in "fiu" or pd.to_numeric(s.iloc[:20], errors="coerce").notna().any():
+        return _numeric(raw, col, source) * _unit_factor(TIME_UNITS, unit, "time", source), "seconds"
+    if s.dtype.kind == "M":
+        stamps = pd.Series(s)
+    else:
+        try:
+            stamps = pd.to_datetime(s, format="ISO8601", errors="raise")
+        except (ValueError, TypeError):
+            stamps = pd.to_datetime(s, errors="coerce", format="mixed")
+    bad = stamps.isna().to_numpy()
+    if bad.any():
+        i = int(np.argmax(bad))
+        line = f" (line {raw.lines[i]})" if raw.lines is not None else ""
+        raise DataError(f"{source}: time column {col!r} is neither numbers nor timestamps: "
+                        f"{s.iloc[i]!r} at data row {i + 1}{line}")
+    if getattr(stamps.dt, "tz", None) is not None:
+        stamps = stamps.dt.tz_convert("UTC")
+    ns = stamps.to_numpy(dtype="datetime64[ns]").astype(np.int64)
+    return (ns - ns[0]) * 1e-9, "timestamp"
 
-    Column names and units (time s/ms, stroke m/cm/mm/um, force N/daN/kN) are
-    those of the file. ``extra_cols``: channel columns to load (None: every
-    other column). ``channel_units``: channel -> unit (``temperature`` defaults
-    to degC; degC/K are converted to degC, other units are kept as given).
-    ``sample_rate_hz`` [Hz], if given, must match the time column within
-    ``dt_tol``. name defaults to the file stem; role (identification/validation
-    or None) and scenario are labels. ``temperature_col``: the column holding the
-    oil temperature (in ``temperature_unit``, degC or K), loaded as the channel
-    ``temperature`` that the thermal drift element and the diagnosis use; without
-    it a column named ``temperature`` is that channel, and another column that
-    looks like a temperature is reported in ``metadata['warnings']``. Raises
-    DataError on any problem.
+
+def _regularise(source, t: np.ndarray, cols: dict, dt_tol: float, lines, gap_limit: float = 5.0):
+    """Uniform time base for samples written with duplicated or irregular stamps.
+
+    Returns (t, cols, note). Duplicated stamps: the later rows are dropped. Stamps within half a
+    step of a regular clock (e.g. a 300 Hz clock stamped to the millisecond) are taken as that
+    clock. Otherwise (missing samples, jitter) every column is interpolated linearly to the
+    median step; a gap over ``gap_limit`` steps is refused (it would be invented data), as is
+    time going backwards. ``note`` says what was done (None: nothing)."""
+    def where(i):
+        return f"data row {i + 1}" + (f" (line {lines[i]})" if lines is not None and i < len(lines) else "")
+
+    dt = np.diff(t)
+    back = dt < 0
+    if back.any():
+        i = int(np.argmax(back)) + 1
+        raise DataError(f"{source}: time is not increasing: {t[i]:.9g} s at {where(i)} after {t[i - 1]:.9g} s; "
+                        f"the file mixes records or its clock was reset: split it or use --t-start/--t-end")
+    notes = []
+    dup = np.concatenate([[False], dt == 0])
+    if dup.any():
+        keep = ~dup
+        notes.append(f"{int(dup.sum())} duplicated time stamp(s) dropped (first at {where(int(np.argmax(dup)))})")
+        t = t[keep]
+        cols = {k: v[keep] for k, v in cols.items()}
+        if lines is not None:
+            lines = [ln for ln, k in zip(lines, keep) if k]
+        dt = np.diff(t)
+    if len(t) < 2:
+        return t, cols, "; ".join(notes) or None
+    n = len(t)
+    dt_mean = (t[-1] - t[0]) / (n - 1)
+    dev = np.abs(dt / dt_mean - 1.0)
+    if dev.max() <= dt_tol:
+        return t, cols, "; ".join(notes) or None
+    k = np.arange(n)
+    slope, intercept = np.polyfit(k, t - t[0], 1)  # the clock, least squares (rounded stamps)
+    grid = intercept + slope * k
+    if np.max(np.abs(t - t[0] - grid)) <= 0.5 * slope:
+        notes.append(f"time stamps jitter up to {np.max(np.abs(t - t[0] - grid)) * 1e3:.3g} ms around a regular "
+                     f"{1 / slope:.6g} Hz clock (stamp resolution): taken as that clock")
+        return grid - grid[0] + t[0], cols, "; ".join(notes)
+    step = float(np.median(dt))
+    if dt.max() > gap_limit * step:
+        i = int(np.argmax(dt)) + 1
+        raise DataError(f"{source}: gap of {dt[i - 1]:.6g} s ({dt[i - 1] / step:.0f} samples) in the time "
+                        f"column before {where(i)}: interpolating it would invent data; split the file "
+                        f"or select a segment with --t-start/--t-end")
+    m = int(np.floor((t[-1] - t[0]) / step + 1e-9)) + 1
+    new_t = t[0] + step * np.arange(m)
+    irregular = int(np.sum(np.abs(dt / step - 1.0) > dt_tol))
+    notes.append(f"{irregular} irregular time step(s) (largest {dt.max() * 1e3:.4g} ms against "
+                 f"{step * 1e3:.4g} ms): {n} samples interpolated linearly to {m} at {1 / step:.6g} Hz")
+    return new_t, {k: np.interp(new_t, t, v) for k, v in cols.items()}, "; ".join(notes)
+
+
+def _unit(given, declared, default: str, what: str, column: str, source: str, option: str) -> str:
+    """The unit to use: the one given (option) or declared in the file, which must agree."""
+    if given is not None and declared is not None and given != declared:
+        raise DataError(f"{source}: column {column!r} declares {declared!r} but {option} {given!r} was given; "
+                        f"drop {option} or correct the header")
+    return given or declared or default
+
+
+def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force", velocity_col=None,
+               temperature_col=None, test_col=None, time_unit=None, stroke_unit=None, force_unit=None,
+               velocity_unit=None, temperature_unit=None, stroke_sign=1, force_sign=1, rate_hz=None,
+               t_start=None, t_end=None, extra_cols=None, channel_units=None, name=None, role=None,
+               scenario=None, sample_rate_hz=None, metadata=None, dt_tol=0.01,
+               check_plausible=True) -> list[RigTest]:
+    """Read one rig file; return its test(s) in SI units (one per value of ``test_col``).
+
+    Columns (``*_col``): a header, a header without its unit, or a 1-based position.
+    ``time_col=None`` (or a file without that column) with ``rate_hz`` [Hz]: samples at that
+    rate. Time may be numbers (``time_unit`` s/ms) or date/ISO timestamps. Units
+    (``*_unit``): given here or declared in the file (header ``force [kN]`` or a units row;
+    both must agree), else SI. ``velocity_col``: a measured stroke velocity (default unit:
+    stroke unit per second), used instead of differentiating the stroke.
+    ``temperature_col``: the oil temperature (degC or K), loaded as channel ``temperature``
+    (without it a column named ``temperature`` is that channel, and another column that looks
+    like a temperature gives a warning). Signs: ``stroke_sign``/``force_sign`` = -1 for rigs
+    writing compression positive. ``t_start``/``t_end`` [s from the first sample] select a
+    segment. Duplicated or irregular stamps are regularised with a warning (see
+    :func:`_regularise`). ``extra_cols``: channel columns to keep (None: every other column).
+    ``check_plausible``: refuse physically implausible strokes/forces (:func:`check_plausible`).
+    What was understood goes to ``metadata['read']``, warnings to ``metadata['warnings']``.
+    Raises DataError on any problem.
     """
     path = Path(path)
     source = str(path)
-    tf = _unit_factor(TIME_UNITS, time_unit, "time", source)
-    sf = _unit_factor(STROKE_UNITS, stroke_unit, "stroke", source)
-    ff = _unit_factor(FORCE_UNITS, force_unit, "force", source)
     if role is not None and role not in ROLES:
         raise DataError(f"{source}: unknown role {role!r}; expected one of {ROLES}")
-    df, lines = _read_table(path, source)
-    found = list(df.columns)
-    warnings = []
+    for opt, sign in (("stroke_sign", stroke_sign), ("force_sign", force_sign)):
+        if sign not in (1, -1):
+            raise DataError(f"{source}: {opt} must be +1 or -1, got {sign!r}")
+    raw = read_raw(path, source)
+    found = list(raw.frame.columns)
+    warn = []
+    no_time = time_col is None or (rate_hz is not None and time_col == "time" and "time" not in found
+                                   and not any(raw.names[c].lower() == "time" for c in found))
+    use = {}
+    if not no_time:
+        use["time"] = raw.find(time_col, "time", source)
+    use["stroke"] = raw.find(stroke_col, "stroke", source)
+    use["force"] = raw.find(force_col, "force", source)
+    if velocity_col is not None:
+        use["velocity"] = raw.find(velocity_col, "velocity", source)
     if temperature_col is not None:
-        if temperature_col not in found:
-            raise DataError(f"{source}: temperature column {temperature_col!r} not found; columns found: {found}")
-        if temperature_col != "temperature":
-            if "temperature" in found:
-                raise DataError(f"{source}: --temperature-col {temperature_col!r} given but the file also has a "
-                                f"column 'temperature': rename one of them")
-            df = df.rename(columns={temperature_col: "temperature"})
-            found = list(df.columns)
-        channel_units = {**(channel_units or {}), "temperature": temperature_unit}
-    elif "temperature" not in found:
-        looks = [c for c in found if c not in (time_col, stroke_col, force_col)
-                 and re.search(r"temp|oil|°c|degc|\(c\)|\[c\]", c, flags=re.IGNORECASE)]
+        use["temperature"] = raw.find(temperature_col, "temperature", source)
+    elif (extra_cols is None or "temperature" in extra_cols) and \
+            "temperature" in [raw.names[c].lower() for c in found if c not in use.values()]:
+        use["temperature"] = raw.find("temperature", "temperature", source)
+    if test_col is not None:
+        use["test"] = raw.find(test_col, "test id", source)
+    if len(set(use.values())) != len(use):
+        raise DataError(f"{source}: one column is used for two channels: {use}")
+    rest = [c for c in found if c not in use.values()]
+    if "temperature" not in use:
+        looks = [c for c in rest if re.search(r"temp|oil|°c|degc|\(c\)|\[c\]", c, flags=re.IGNORECASE)]
         if looks:
-            warnings.append(f"{source}: column(s) {looks} look like a temperature but are not used as the oil "
-                            f"temperature; give --temperature-col NAME to use one (the thermal analysis needs it)")
-    wanted = [time_col, stroke_col, force_col]
+            warn.append(f"{source}: column(s) {looks} look like a temperature but are not used as the oil "
+                        f"temperature; give --temperature-col NAME to use one (the thermal analysis needs it)")
     if extra_cols is None:
-        extra_cols = [c for c in found if c not in wanted]
-    missing = [c for c in [*wanted, *extra_cols] if c not in found]
+        extra_cols = rest
+    elif "temperature" in use:
+        extra_cols = [c for c in extra_cols if c not in ("temperature", use["temperature"])]
+    missing = [c for c in extra_cols if c not in found]
     if missing:
         raise DataError(f"{source}: missing column(s) {missing}; columns found: {found}")
-    if len(df) == 0:
-        raise DataError(f"{source}: file is empty: header {found} but no data rows")
-    units_in = {**({"temperature": "degC"}), **(channel_units or {})}
-    t = _numeric(df, time_col, source, lines) * tf
-    x = _numeric(df, stroke_col, source, lines) * sf
-    f = _numeric(df, force_col, source, lines) * ff
-    channels, ch_units = {}, {}
+    units = {
+        "stroke": _unit(stroke_unit, raw.units.get(use["stroke"]), "m", "stroke", use["stroke"], source, "--stroke-unit"),
+        "force": _unit(force_unit, raw.units.get(use["force"]), "N", "force", use["force"], source, "--force-unit"),
+    }
+    sf = _unit_factor(STROKE_UNITS, units["stroke"], "stroke", source)
+    ff = _unit_factor(FORCE_UNITS, units["force"], "force", source)
+    if no_time:
+        if rate_hz is None or not float(rate_hz) > 0:
+            raise DataError(f"{source}: no time column: give the sample rate with --rate HZ")
+        t = np.arange(len(raw.frame)) / float(rate_hz)
+        time_kind = f"none: samples at --rate {float(rate_hz):g} Hz"
+    else:
+        units["time"] = _unit(time_unit, raw.units.get(use["time"]), "s", "time", use["time"], source, "--time-unit")
+        t, time_kind = _time_seconds(raw, use["time"], units["time"], source)
+        if time_kind == "timestamp":
+            units["time"] = "timestamp"
+    cols = {"stroke": stroke_sign * _numeric(raw, use["stroke"], source) * sf,
+            "force": force_sign * _numeric(raw, use["force"], source) * ff}
+    if "velocity" in use:
+        vdefault = units["stroke"] + "/s"
+        units["velocity"] = _unit(velocity_unit, raw.units.get(use["velocity"]), vdefault, "velocity",
+                                  use["velocity"], source, "--velocity-unit")
+        cols["velocity"] = stroke_sign * _numeric(raw, use["velocity"], source) * _unit_factor(
+            VELOCITY_UNITS, units["velocity"], "velocity", source)
+    ch_units = {}
+    declared_ch = {**{raw.names[c]: u for c, u in raw.units.items() if u}, **(channel_units or {})}
+    if "temperature" in use:
+        tu = _unit(temperature_unit or (channel_units or {}).get("temperature"), raw.units.get(use["temperature"]), "degC", "temperature",
+                   use["temperature"], source, "--temperature-unit")
+        cols["ch:temperature"] = _numeric(raw, use["temperature"], source) + _unit_factor(
+            TEMPERATURE_UNITS, tu, "temperature", source)
+        units["temperature"] = tu
+        ch_units["temperature"] = "degC"
     for c in extra_cols:
-        v = _numeric(df, c, source, lines)
-        u = units_in.get(c, "")
-        if c == "temperature" or u in TEMPERATURE_UNITS:
-            v = v + _unit_factor(TEMPERATURE_UNITS, u, f"{c!r}", source)
+        v = _numeric(raw, c, source)
+        u = declared_ch.get(c, declared_ch.get(raw.names[c], ""))
+        if u in TEMPERATURE_UNITS:
+            v = v + TEMPERATURE_UNITS[u]
             u = "degC"
-        channels[c], ch_units[c] = v, u
-    rate = check_signals(source, t, x, f, channels, dt_tol=dt_tol, lines=lines,
-                         units={"time": time_unit, "stroke": stroke_unit, "force": force_unit})
-    if sample_rate_hz is not None and abs(rate / float(sample_rate_hz) - 1.0) > dt_tol:
-        raise DataError(f"{source}: time column gives {rate:.6g} Hz but the manifest "
-                        f"says sample_rate_hz = {sample_rate_hz}")
-    stem = re.sub(r"\.(csv|csv\.gz|parquet|pq)$", "", path.name, flags=re.IGNORECASE)
-    return RigTest(name=name or stem, role=role,
-                   scenario="" if scenario is None else str(scenario),
-                   time=t, stroke=x, force=f, channels=channels,
-                   sample_rate=float(sample_rate_hz) if sample_rate_hz else rate,
-                   source=path, metadata={**dict(metadata or {}), **({"warnings": warnings} if warnings else {})},
-                   channel_units=ch_units)
+        cols[f"ch:{c}"], ch_units[c] = v, u
+    ids = raw.frame[use["test"]].astype(str).to_numpy() if "test" in use else None
+    stem = re.sub(r"\.(csv|tsv|txt|dat)(\.gz)?$|\.(parquet|pq)$", "", path.name, flags=re.IGNORECASE)
+    groups = [(None, np.arange(len(raw.frame)))] if ids is None else \
+        [(g, np.flatnonzero(ids == g)) for g in dict.fromkeys(ids)]
+    out = []
+    for gid, rows in groups:
+        label = source if gid is None else f"{source} [test {gid}]"
+        tg = t[rows] - t[rows][0]
+        cg = {k: v[rows] for k, v in cols.items()}
+        lines = None if raw.lines is None else [raw.lines[i] for i in rows]
+        for k, v in cg.items():  # NaN/inf first, so that they are named before any resampling
+            check_finite(label, k.removeprefix("ch:"), v, lines)
+        tg, cg, note = _regularise(label, tg, cg, dt_tol, lines)
+        sel = np.ones(len(tg), dtype=bool)
+        if t_start is not None:
+            sel &= tg >= t_start
+        if t_end is not None:
+            sel &= tg <= t_end
+        if not sel.all():
+            tg = tg[sel]
+            cg = {k: v[sel] for k, v in cg.items()}
+            lines = None if lines is None or note else [ln for ln, k in zip(lines, sel) if k]
+        channels = {k[3:]: v for k, v in cg.items() if k.startswith("ch:")}
+        rate = check_signals(label, tg, cg["stroke"], cg["force"], channels, dt_tol=dt_tol, lines=lines,
+                             units=units)
+        if sample_rate_hz is not None and abs(rate / float(sample_rate_hz) - 1.0) > dt_tol:
+            raise DataError(f"{label}: time column gives {rate:.6g} Hz but the manifest "
+                            f"says sample_rate_hz = {sample_rate_hz}")
+        read_checks = None
+        if check_plausible:
+            read_checks = plausibility(label, tg, cg["stroke"], cg["force"], cg.get("velocity"), rate, units)
+        read = {"columns": dict(use), "ignored": [c for c in rest if c not in extra_cols],
+                "channels": list(channels), "units": units, "time": time_kind,
+                "signs": {"stroke": stroke_sign, "force": force_sign},
+                "delimiter": raw.delimiter, "decimal": raw.decimal, "regularised": note,
+                "segment_s": [t_start, t_end] if (t_start is not None or t_end is not None) else None,
+                "plausibility": read_checks}
+        warns = list(warn) + ([f"{label}: {note}"] if note else [])
+        out.append(RigTest(
+            name=(name or stem) + ("" if gid is None else f"-{gid}"), role=role,
+            scenario="" if scenario is None else str(scenario), time=tg, stroke=cg["stroke"],
+            force=cg["force"], channels=channels,
+            sample_rate=float(sample_rate_hz) if sample_rate_hz else rate, source=path,
+            metadata={**dict(metadata or {}), "read": read, **({"warnings": warns} if warns else {})},
+            channel_units=ch_units, velocity=cg.get("velocity")))
+    return out
+
+
+def load_test(path, **options) -> RigTest:
+    """Read a rig file holding one test (options as in :func:`load_tests`)."""
+    tests = load_tests(path, **options)
+    if len(tests) != 1:
+        raise DataError(f"{path}: holds {len(tests)} tests (test-id column); use load_tests")
+    return tests[0]
 
 
 def load_files(paths, role, **column_options) -> list[RigTest]:
-    """Read loose files (no manifest), all with ``role``; options as in :func:`load_test`."""
+    """Read loose files (no manifest), all with ``role``; options as in :func:`load_tests`."""
     if isinstance(paths, (str, Path)):
         paths = [paths]
-    return [load_test(p, role=role, **column_options) for p in paths]
+    return [t for p in paths for t in load_tests(p, role=role, **column_options)]
+
+
+COLUMN_OPTIONS = ("time_col", "stroke_col", "force_col", "velocity_col", "temperature_col", "test_col",
+                  "time_unit", "stroke_unit", "force_unit", "velocity_unit", "temperature_unit", "stroke_sign",
+                  "force_sign", "rate_hz", "t_start", "t_end", "check_plausible")
+
+
+def read_column_mapping(path) -> tuple[dict, dict]:
+    """Read a column mapping file (TOML or JSON) for campaigns of many files.
+
+    Layout (TOML; JSON alike)::
+
+        [columns]                # every file
+        time_col = "Zeit"
+        stroke_unit = "mm"
+        [files."run_07.csv"]     # one file (by name), over [columns]
+        force_sign = -1
+
+    Keys: the options of :func:`load_tests` listed in ``COLUMN_OPTIONS``. Returns (every file,
+    file name -> options). Raises DataError naming the file and the unknown key.
+    """
+    import tomllib
+
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read the column mapping: {exc}") from exc
+    try:
+        data = json.loads(text) if path.suffix.lower() == ".json" else tomllib.loads(text)
+    except (json.JSONDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise DataError(f"{path}: invalid {'JSON' if path.suffix.lower() == '.json' else 'TOML'}: {exc}") from exc
+    extra = [k for k in data if k not in ("columns", "files")]
+    if extra:
+        raise DataError(f"{path}: unknown section(s) {extra}; expected 'columns' and 'files'")
+
+    def check(opts, where):
+        if not isinstance(opts, dict):
+            raise DataError(f"{path}: {where} must be a table of options")
+        bad = [k for k in opts if k not in COLUMN_OPTIONS]
+        if bad:
+            raise DataError(f"{path}: {where}: unknown option(s) {bad}; known: {', '.join(COLUMN_OPTIONS)}")
+        return dict(opts)
+
+    common = check(data.get("columns", {}), "[columns]")
+    files = data.get("files", {})
+    if not isinstance(files, dict):
+        raise DataError(f"{path}: [files] must map file names to options")
+    return common, {name: check(o, f"[files.{name!r}]") for name, o in files.items()}
 
 
 def read_manifest(folder) -> dict:
@@ -407,8 +626,9 @@ def read_manifest(folder) -> dict:
     return man
 
 
-def load_dataset(folder, *, dt_tol=0.01) -> list[RigTest]:
-    """Read every test of a dataset folder (manifest order) in SI units. Raises DataError."""
+def load_dataset(folder, *, dt_tol=0.01, check_plausible=True) -> list[RigTest]:
+    """Read every test of a dataset folder (manifest order) in SI units; ``check_plausible``
+    as in :func:`load_tests`. Raises DataError."""
     folder = Path(folder)
     man = read_manifest(folder)
     units = man.get("units", {})
@@ -420,7 +640,7 @@ def load_dataset(folder, *, dt_tol=0.01) -> list[RigTest]:
             force_unit=units.get("force", "N"), time_unit=units.get("time", "s"),
             channel_units={k: v for k, v in units.items() if k not in known},
             name=e["name"], role=e["role"], scenario=e["scenario"],
-            sample_rate_hz=e["sample_rate_hz"], dt_tol=dt_tol,
+            sample_rate_hz=e["sample_rate_hz"], dt_tol=dt_tol, check_plausible=check_plausible,
             metadata={k: v for k, v in e.items() if k not in MANIFEST_TEST_KEYS}))
     return out
 
@@ -594,7 +814,8 @@ class PreparedTest:
 
     time [s], stroke [m], stroke_velocity [m/s], force [N], channels (units in
     channel_units), sample_rate [Hz]; source_rate [Hz] of the file;
-    differentiator and resampler (None when not resampled) document the processing.
+    differentiator and resampler (None when not resampled) document the processing;
+    measured_velocity: the velocity is the rig's velocity column (not differentiated).
     """
 
     name: str
@@ -612,14 +833,15 @@ class PreparedTest:
     metadata: dict = field(default_factory=dict)
     channel_units: dict = field(default_factory=dict)
     source: Path | None = None
+    measured_velocity: bool = False
 
     def describe(self) -> str:
         """Plain-text statement of the preprocessing, for the report."""
         res = (self.resampler.describe() if self.resampler is not None
                else f"not resampled (fit rate = sample rate = {self.sample_rate:g} Hz)")
-        return (f"Test {self.name!r}: {len(self.time)} samples at {self.sample_rate:g} Hz. "
-                f"Stroke velocity from the stroke at {self.source_rate:g} Hz by a "
-                f"{self.differentiator.describe()}. All channels {res}.")
+        vel = ("Stroke velocity measured by the rig (its velocity column)" if self.measured_velocity else
+               f"Stroke velocity from the stroke at {self.source_rate:g} Hz by a {self.differentiator.describe()}")
+        return f"Test {self.name!r}: {len(self.time)} samples at {self.sample_rate:g} Hz. {vel}. All channels {res}."
 
 
 def prepare(test: RigTest, fit_rate_hz: float, *, diff_band_hz: float = 20.0,
@@ -638,13 +860,14 @@ def prepare(test: RigTest, fit_rate_hz: float, *, diff_band_hz: float = 20.0,
     if not fit_rate_hz > 0:
         raise ValueError(f"fit_rate_hz must be positive, got {fit_rate_hz}")
     diff = Differentiator.design(rate, diff_band_hz, diff_tol, max_window=len(test.stroke))
-    vel = diff.apply(test.stroke)
+    measured = test.velocity is not None
+    vel = np.asarray(test.velocity, dtype=float).copy() if measured else diff.apply(test.stroke)
     if abs(fit_rate_hz / rate - 1.0) <= 1e-9:
         return PreparedTest(test.name, test.role, test.scenario, test.time.copy(),
                             test.stroke.copy(), vel, test.force.copy(),
                             {k: v.copy() for k, v in test.channels.items()}, rate, rate,
                             diff, None, dict(test.metadata), dict(test.channel_units),
-                            test.source)
+                            test.source, measured)
     rs = Resampler.design(rate, fit_rate_hz)
     if rs.output_length(len(test.time)) < MIN_SAMPLES:
         raise DataError(f"{test.source or test.name}: too short to resample {rate:g} Hz -> "
@@ -655,4 +878,4 @@ def prepare(test: RigTest, fit_rate_hz: float, *, diff_band_hz: float = 20.0,
     return PreparedTest(test.name, test.role, test.scenario, time, stroke, rs.apply(vel),
                         rs.apply(test.force), {k: rs.apply(v) for k, v in test.channels.items()},
                         rs.rate_out, rate, diff, rs, dict(test.metadata),
-                        dict(test.channel_units), test.source)
+                        dict(test.channel_units), test.source, measured)

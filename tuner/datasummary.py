@@ -1,0 +1,85 @@
+"""What the reader understood of each rig test: the summary ``python -m tuner inspect`` prints, and
+``fit``/``diagnose`` print before they start.
+
+Per test: file, columns used and ignored, units and signs as read, time base, sample rate,
+duration, stroke/velocity/force/temperature ranges (SI and the file's units), force noise, and
+which part of the damping and elastic tables' range the data covers.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from damper_fmu.parameters import FC_ABSCISSAE
+
+from .data import Differentiator, RigTest
+from .metrics import noise_std
+
+__all__ = ["summarize", "format_summary"]
+
+
+def summarize(test: RigTest) -> dict:
+    """Figures of one test in SI units (see module docstring); JSON-serialisable."""
+    read = test.metadata.get("read", {})
+    if test.velocity is not None:
+        v, vsrc = test.velocity, "measured (velocity column)"
+    else:
+        v = Differentiator.design(test.sample_rate, 20.0, max_window=len(test.stroke)).apply(test.stroke)
+        vsrc = "differentiated stroke"
+    out = {
+        "name": test.name, "file": str(test.source) if test.source else None, "role": test.role,
+        "columns": read.get("columns", {}), "ignored_columns": read.get("ignored", []),
+        "units_read": read.get("units", {}), "signs": read.get("signs", {"stroke": 1, "force": 1}),
+        "time_base": read.get("time", "seconds"), "regularised": read.get("regularised"),
+        "sample_rate_hz": float(test.sample_rate), "duration_s": test.duration, "samples": int(len(test.time)),
+        "stroke_m": [float(test.stroke.min()), float(test.stroke.max())],
+        "velocity_m_s": [float(v.min()), float(v.max())], "velocity_source": vsrc,
+        "force_n": [float(test.force.min()), float(test.force.max())],
+        "force_noise_n": noise_std(test.force, test.sample_rate) if len(test.force) >= 64 else None,
+        "channels": {k: [float(x.min()), float(x.max()), test.channel_units.get(k, "")]
+                     for k, x in test.channels.items()},
+        "warnings": list(test.metadata.get("warnings", [])),
+    }
+    vmax = max(abs(out["velocity_m_s"][0]), abs(out["velocity_m_s"][1]))
+    table_v = max(abs(a) for a in FC_ABSCISSAE)
+    out["coverage"] = {
+        "velocity_peak_m_s": vmax, "damping_table_last_abscissa_m_s": table_v,
+        "damping_table_points_reached": int(sum(1 for a in FC_ABSCISSAE if abs(a) <= vmax)),
+        "damping_table_points": len(FC_ABSCISSAE),
+        "beyond_damping_table": vmax > table_v,
+    }
+    return out
+
+
+def _range(lo: float, hi: float, scale: float, unit: str, digits: int = 4) -> str:
+    return f"{lo * scale:.{digits}g} .. {hi * scale:.{digits}g} {unit}"
+
+
+def format_summary(test: RigTest) -> str:
+    """Plain-text summary of :func:`summarize` (a few lines per test)."""
+    s = summarize(test)
+    cols = ", ".join(f"{k} <- {v!r}" for k, v in s["columns"].items()) or "time, stroke, force"
+    units = ", ".join(f"{k} in {v}" for k, v in s["units_read"].items())
+    signs = s["signs"]
+    sign_text = ("as written (extension and tension positive)" if signs.get("stroke", 1) == signs.get("force", 1) == 1
+                 else f"stroke x {signs.get('stroke', 1):+d}, force x {signs.get('force', 1):+d} "
+                      f"(to extension and tension positive)")
+    lines = [f"{s['name']} ({s['role'] or 'no role'}): {s['file']}",
+             f"  columns: {cols}" + (f"; ignored: {s['ignored_columns']}" if s["ignored_columns"] else ""),
+             f"  read: {units or 'SI'}; signs {sign_text}; time: {s['time_base']}",
+             f"  {s['samples']} samples at {s['sample_rate_hz']:.6g} Hz, {s['duration_s']:.4g} s",
+             f"  stroke {_range(*s['stroke_m'], 1e3, 'mm')}; velocity {_range(*s['velocity_m_s'], 1e3, 'mm/s')} "
+             f"({s['velocity_source']}); force {_range(*s['force_n'], 1e-3, 'kN')}"
+             + (f"; force noise {s['force_noise_n']:.3g} N rms" if s["force_noise_n"] is not None else "")]
+    for k, (lo, hi, u) in s["channels"].items():
+        lines.append(f"  channel {k}: {lo:.4g} .. {hi:.4g} {u}".rstrip())
+    c = s["coverage"]
+    reach = (f"beyond the damping table's last abscissa {c['damping_table_last_abscissa_m_s'] * 1e3:.4g} mm/s "
+             f"(extrapolated there)" if c["beyond_damping_table"] else
+             f"{c['damping_table_points_reached']} of {c['damping_table_points']} damping-table abscissae")
+    lines.append(f"  covers: peak velocity {c['velocity_peak_m_s'] * 1e3:.4g} mm/s, {reach}")
+    if s["regularised"]:
+        lines.append(f"  time base repaired: {s['regularised']}")
+    for w in s["warnings"]:
+        if not (s["regularised"] and s["regularised"] in w):
+            lines.append(f"  warning: {w}")
+    return "\n".join(lines)

@@ -1,0 +1,207 @@
+"""Raw rig files as rigs write them: delimiters, comment lines, units in the header or a units row.
+
+This module only turns a file into a table of raw columns with the units the file declares; what
+the columns mean (time, stroke, force ...), unit conversion, signs and checks are in
+:mod:`tuner.data`.
+
+Accepted files
+--------------
+* Text: ``.csv``, ``.tsv``, ``.txt``, ``.dat`` (each also ``.gz``), UTF-8. The delimiter is
+  detected among ``,`` ``;`` tab ``|`` and runs of blanks. With ``;`` or tab as delimiter a
+  decimal comma (``1,25``) is accepted. Lines starting with ``#`` or ``%`` are comments.
+  The first other line is the header. Units may be given in the header (``force [kN]``,
+  ``force (kN)``, ``force in kN``) or in a units row right under it (every cell non-numeric,
+  e.g. ``s, mm, kN`` or ``[s], [mm], [kN]``).
+* Parquet (``.parquet``, ``.pq``), units in the column names as above.
+
+Excel workbooks are not read: save the sheet as CSV.
+"""
+from __future__ import annotations
+
+import csv
+import gzip
+import io
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+__all__ = ["DataError", "RawTable", "read_raw", "normalise_unit", "split_unit", "TEXT_SUFFIXES"]
+
+TEXT_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
+_DELIMITERS = [",", ";", "\t", "|"]
+_UNIT_ALIASES = {
+    "s": "s", "sec": "s", "second": "s", "seconds": "s", "ms": "ms", "msec": "ms",
+    "m": "m", "cm": "cm", "mm": "mm", "um": "um", "µm": "um", "μm": "um", "micron": "um",
+    "n": "N", "dan": "daN", "kn": "kN",
+    "m/s": "m/s", "mm/s": "mm/s", "cm/s": "cm/s", "ms-1": "m/s", "mms-1": "mm/s",
+    "degc": "degC", "°c": "degC", "c": "degC", "deg c": "degC", "celsius": "degC", "k": "K",
+}
+
+
+class DataError(ValueError):
+    """Measured data that cannot be used; the message names the file and the problem."""
+
+
+def normalise_unit(text: str) -> str:
+    """Canonical spelling of a unit string (``'KN'`` -> ``'kN'``, ``'°C'`` -> ``'degC'``);
+    unknown units are returned stripped and unchanged."""
+    u = text.strip().strip("[]()").strip()
+    return _UNIT_ALIASES.get(u.lower(), u)
+
+
+_HEADER_UNIT = re.compile(r"^(?P<name>.*?)\s*(?:\[(?P<b>[^\]]*)\]|\((?P<p>[^)]*)\)|\s+in\s+(?P<i>\S+))\s*$")
+
+
+def split_unit(header: str) -> tuple[str, str | None]:
+    """``'force [kN]'`` -> ``('force', 'kN')``; a header without a unit -> ``(header, None)``."""
+    m = _HEADER_UNIT.match(header.strip())
+    if not m or not m.group("name"):
+        return header.strip(), None
+    unit = m.group("b") or m.group("p") or m.group("i")
+    return m.group("name").strip(), normalise_unit(unit) if unit and unit.strip() else None
+
+
+@dataclass
+class RawTable:
+    """A file's columns as written. ``frame``: raw columns (header text stripped); ``lines``: the
+    file line of each data row (None for Parquet); ``units``: column -> unit declared in the file
+    (header or units row); ``names``: column -> name without the unit; ``delimiter``: as detected
+    (None for Parquet); ``decimal``: decimal mark."""
+
+    frame: pd.DataFrame
+    lines: list[int] | None
+    units: dict
+    names: dict
+    delimiter: str | None
+    decimal: str = "."
+
+    def find(self, spec, what: str, source: str) -> str:
+        """The column ``spec`` names: a 1-based position (``3`` or ``'3'``), the exact header, or
+        the header's name without its unit (case-insensitive). Raises ValueError naming the
+        columns found."""
+        cols = list(self.frame.columns)
+        if isinstance(spec, int) or (isinstance(spec, str) and spec.strip().isdigit() and spec not in cols):
+            k = int(spec)
+            if not 1 <= k <= len(cols):
+                raise DataError(f"{source}: {what} column position {k} is out of range: the file has "
+                             f"{len(cols)} columns {cols}")
+            return cols[k - 1]
+        if spec in cols:
+            return spec
+        low = str(spec).strip().lower()
+        hits = [c for c in cols if self.names[c].lower() == low or c.lower() == low]
+        if len(hits) == 1:
+            return hits[0]
+        if len(hits) > 1:
+            raise DataError(f"{source}: {what} column {spec!r} is ambiguous: {hits}; give the full header")
+        opt = {"time": "--time-col", "stroke": "--stroke-col", "force": "--force-col", "velocity": "--velocity-col",
+               "temperature": "--temperature-col", "test id": "--test-col"}.get(what, "the column options")
+        raise DataError(f"{source}: missing column {spec!r} ({what}); columns found: {cols}; "
+                        f"name the {what} column with {opt} (a header or a 1-based position)")
+
+
+def _is_number(cell: str, decimal: str) -> bool:
+    c = cell.strip()
+    if decimal == ",":
+        c = c.replace(",", ".")
+    try:
+        float(c)
+        return True
+    except ValueError:
+        return False
+
+
+def _detect_delimiter(header: str, sample: list[str]) -> str | None:
+    """The delimiter giving the same number (> 1) of fields on the header and the sample rows;
+    None for runs of blanks."""
+    for d in _DELIMITERS:
+        n = len(next(csv.reader([header], delimiter=d)))
+        if n > 1 and all(len(next(csv.reader([s], delimiter=d))) == n for s in sample):
+            return d
+    n = len(header.split())
+    if n > 1 and all(len(s.split()) == n for s in sample):
+        return None
+    return ","
+
+
+def _read_text(path: Path, source: str) -> RawTable:
+    opener = gzip.open if path.name.lower().endswith(".gz") else open
+    try:
+        with opener(path, "rt", encoding="utf-8-sig", newline="") as fh:
+            raw = fh.read().splitlines()
+    except (OSError, UnicodeDecodeError, EOFError) as exc:
+        raise DataError(f"{source}: cannot read file: {exc}") from exc
+    kept, lines = [], []
+    for k, line in enumerate(raw, start=1):
+        s = line.strip()
+        if s and not s.startswith(("#", "%")):
+            kept.append(line)
+            lines.append(k)
+    if not kept:
+        raise DataError(f"{source}: file is empty (no header line and no data)")
+    if len(kept) == 1:
+        raise DataError(f"{source}: file is empty: header {kept[0]!r} but no data rows")
+    delim = _detect_delimiter(kept[0], kept[1:6])
+    split = (lambda s: next(csv.reader([s], delimiter=delim))) if delim else str.split
+    header = [c.strip() for c in split(kept[0])]
+    first = [c.strip() for c in split(kept[1])]
+    decimal = "."
+    probe = [c.strip() for row in kept[1:4] for c in split(row)]
+    if delim in (";", "\t", None) and any(re.fullmatch(r"[-+]?\d+,\d+(?:[eE][-+]?\d+)?", c) for c in probe):
+        decimal = ","
+    units_row = None
+    if len(kept) > 2 and first and not any(_is_number(c, decimal) for c in first if c) and \
+            any(_is_number(c, decimal) for c in split(kept[2])):
+        units_row = first
+    body = kept[2:] if units_row else kept[1:]
+    body_lines = lines[2:] if units_row else lines[1:]
+    if not body:
+        raise DataError(f"{source}: file is empty: header {header} but no data rows")
+    try:
+        df = pd.read_csv(io.StringIO("\n".join(body)), header=None, names=header,
+                         sep=delim if delim else r"\s+", decimal=decimal, skipinitialspace=True,
+                         engine="python" if delim is None else "c", dtype=str, keep_default_na=False)
+    except (pd.errors.ParserError, ValueError) as exc:
+        raise DataError(f"{source}: malformed table: {exc}") from exc
+    df = df.apply(lambda s: s.str.strip())
+    if decimal == ",":
+        df = df.apply(lambda s: s.str.replace(",", ".", regex=False))
+    df.columns = header
+    units, names = {}, {}
+    for i, col in enumerate(header):
+        names[col], units[col] = split_unit(col)
+        if units_row is not None and i < len(units_row) and units_row[i]:
+            units[col] = normalise_unit(units_row[i])
+    return RawTable(df, body_lines, units, names, delim, decimal)
+
+
+def read_raw(path, source: str | None = None) -> RawTable:
+    """Read one rig file (see module docstring); ValueError naming the file on any problem."""
+    path = Path(path)
+    source = source or str(path)
+    if not path.exists():
+        raise DataError(f"{source}: file not found")
+    if not path.is_file():
+        raise DataError(f"{source}: not a file")
+    name = path.name.lower()
+    if name.endswith((".parquet", ".pq")):
+        if path.stat().st_size == 0:
+            raise DataError(f"{source}: file is empty")
+        try:
+            df = pd.read_parquet(path)
+        except Exception as exc:  # pyarrow raises several exception types
+            raise DataError(f"{source}: cannot read Parquet: {exc}") from exc
+        if len(df) == 0:
+            raise DataError(f"{source}: file is empty: columns {list(df.columns)} but no rows")
+        df.columns = [str(c).strip() for c in df.columns]
+        names, units = {}, {}
+        for c in df.columns:
+            names[c], units[c] = split_unit(c)
+        return RawTable(df, None, units, names, None)
+    if name.endswith(TEXT_SUFFIXES) or name.endswith(tuple(s + ".gz" for s in TEXT_SUFFIXES)):
+        return _read_text(path, source)
+    if name.endswith((".xlsx", ".xls", ".ods")):
+        raise DataError(f"{source}: unsupported file type (spreadsheet): save the sheet as CSV")
+    raise DataError(f"{source}: unsupported file type; use .csv/.tsv/.txt/.dat (optionally .gz) or .parquet")
