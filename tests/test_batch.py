@@ -1,0 +1,197 @@
+"""Fleet batch identification (tuner.batch): manifest checks, local pool vs Dask LocalCluster,
+outlier flag, failed row, kill and restart."""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+from tuner.batch import ManifestError, add_parser, cmd_batch, main, read_fleet_manifest, run_batch  # noqa: E402
+from tuner.fleet_summary import find_outliers  # noqa: E402
+
+#: small Firefly budget: the batch machinery is tested here, not the identification
+SMALL = ["--population", "6", "--iterations", "4", "--polish", "3"]
+SMALL_SETTINGS = {"population": 6, "iterations": 4, "polish_jacobians": 3}
+#: (row id, type, rig damper, dataset seed, hidden effects): two types, one damper with friction
+DAMPERS = [("A1", "A", "lumped", 1, {}), ("A2", "A", "lumped", 2, {}), ("A3", "A", "lumped", 3, {"friction": 250.0}),
+           ("B1", "B", "twin-tube", 2, {}), ("B2", "B", "twin-tube", 5, {})]
+IDS = [d[0] for d in DAMPERS]
+
+
+def _files(name: str, role: str) -> str:
+    pick = ["id1_straight_250", "id2_curve_R400_72", "id3_switch_R190_43"] if role == "id" else ["val1_straight_250"]
+    return ";".join(f"data/{name}/{p}.csv" for p in pick)
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory):
+    from campaign.generate import generate_dataset
+
+    base = tmp_path_factory.mktemp("fleet")
+    for name, _, damper, seed, effects in DAMPERS:
+        generate_dataset(base / "data" / name, seed=seed, damper=damper, t_end=5.0, effects=effects,
+                         log=lambda m: None)
+    lines = ["# fleet of the batch test: two types, A3 with hidden friction, X9 with a missing file",
+             "damper_id,type,identification,validation,seed"]
+    lines += [f"{name},{typ},{_files(name, 'id')},{_files(name, 'val')},7" for name, typ, *_ in DAMPERS]
+    lines.append("X9,B,data/missing/id1.csv,,7")
+    manifest = base / "fleet.csv"
+    manifest.write_text("\n".join(lines) + "\n")
+    return manifest
+
+
+def _params(out: Path, rid: str) -> dict:
+    return json.loads((out / rid / "parameters.json").read_text())
+
+
+def _check_fleet(res: dict, out: Path) -> None:
+    st = {r["id"]: r for r in res["rows"]}
+    assert [st[i]["status"] for i in IDS] == ["done"] * len(IDS)
+    bad = st["X9"]
+    assert bad["status"] == "failed"
+    assert "fleet.csv row 6" in bad["error"] and "'identification'" in bad["error"] and "not found" in bad["error"]
+    # the odd damper (hidden friction) lies outside its type's spread; its siblings do not; type B
+    # (two dampers) is not judged
+    assert res["outliers"]["A3"]["outlier"] and res["outliers"]["A3"]["ratio"] > 1.5
+    assert not res["outliers"]["A1"]["outlier"] and not res["outliers"]["A2"]["outlier"]
+    assert res["outliers"]["B1"]["ratio"] is None
+    csv_text = (out / "summary.csv").read_text()
+    rows = csv_text.strip().splitlines()
+    assert len(rows) == 1 + len(IDS) + 1
+    assert rows[0].startswith("row,id,damper_id,session,type,status,error")
+    assert "validation.val1_straight_250.lumped.ame_n" in rows[0] and "lumped.Fc_01 [N]" in rows[0]
+    html = (out / "summary.html").read_text()
+    assert "1.4826" in html and "A3" in html and "fc_A.png" in html
+    assert (out / "figures" / "fc_A.png").stat().st_size > 1000 and (out / "figures" / "fc_B.png").exists()
+    for i in IDS:
+        rec = json.loads((out / i / "done.json").read_text())
+        assert rec["seed"] == 7 and rec["validation"]["val1_straight_250"]["lumped"]["ame"] > 0
+
+
+@pytest.mark.slow  # about 95 s on the 2-core machine (three batches of five small fits)
+def test_pool_dask_kill_and_restart(fleet, tmp_path):
+    # 1. the local process pool: the reference
+    out_pool = tmp_path / "pool"
+    lines = []
+    res = run_batch(fleet, out_pool, scheduler="pool:2", settings=SMALL_SETTINGS, progress=False, log=lines.append)
+    _check_fleet(res, out_pool)
+    assert sorted(res["ran"]) == sorted(IDS + ["X9"])
+
+    # 2. the same batch on a Dask LocalCluster of 2 workers, killed (process group, SIGKILL) once a
+    #    row has finished
+    out = tmp_path / "dask"
+    proc = subprocess.Popen([sys.executable, "-m", "tuner.batch", str(fleet), "--out", str(out), "--scheduler",
+                             "local:2", *SMALL], cwd=ROOT, start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    t0 = time.monotonic()
+    try:
+        while not any((out / i / "done.json").exists() for i in IDS):
+            assert proc.poll() is None, "the batch ended before it could be killed"
+            assert time.monotonic() - t0 < 120, "no row finished within 120 s"
+            time.sleep(0.1)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    finished = {i: (out / i / "done.json").stat().st_mtime_ns for i in IDS if (out / i / "done.json").exists()}
+    assert 1 <= len(finished) < len(IDS)
+
+    # 3. restarted on Dask: only what had not finished runs; every row ends done, with exactly the
+    #    pool's numbers
+    res = run_batch(fleet, out, scheduler="local:2", settings=SMALL_SETTINGS, progress=False, log=lines.append)
+    _check_fleet(res, out)
+    assert sorted(res["ran"]) == sorted(set(IDS + ["X9"]) - set(finished))
+    for i, mtime in finished.items():
+        assert (out / i / "done.json").stat().st_mtime_ns == mtime, f"{i} finished before the kill but was redone"
+    for i in IDS:
+        assert _params(out, i) == _params(out_pool, i), f"{i}: Dask and the local pool differ"
+    log = (out / "batch.log").read_text()
+    assert log.count("done A1") + log.count("done A2") + log.count("done A3") == 3  # each row finished once
+
+    # 4. a rerun with nothing to do runs nothing; the failed row is retried (and fails again)
+    res = run_batch(fleet, out, scheduler="pool:1", settings=SMALL_SETTINGS, progress=False, log=lines.append)
+    assert res["ran"] == ["X9"]
+
+
+def test_manifest_errors_name_row_and_column(tmp_path):
+    m = tmp_path / "m.csv"
+    cases = {
+        "damper_id,type,identification,colour\nA1,A,a.csv,red\n": "unknown column(s) ['colour']",
+        "damper_id,type,identification,population\nA1,A,a.csv,many\n": "row 1 (line 2), column 'population': 'many' is not an integer",
+        "damper_id,type,identification\nA1,A,a.csv\nA1,A,b.csv\n": "id 'A1' (damper_id + session) repeats",
+        "damper_id,type,identification\nA 1,A,a.csv\n": "column 'damper_id': 'A 1' is not usable as a folder name",
+        "damper_id,type,identification\nA1,,a.csv\n": "column 'type' is empty or missing",
+        "damper_id,type,validation\nA1,A,a.csv\n": "no identification files",
+        "damper_id,type,identification,models\nA1,A,a.csv,lumped+spring\n": "unknown model(s)",
+        "damper_id,type,identification,population\nA1,A,a.csv,1\n": "population must be >= 2",
+    }
+    for text, msg in cases.items():
+        m.write_text(text)
+        with pytest.raises(ManifestError, match=None) as err:
+            read_fleet_manifest(m)
+        assert msg in str(err.value) and "m.csv" in str(err.value), (msg, str(err.value))
+    # exit status 2 with the message for a bad manifest
+    m.write_text("damper_id,type,identification,colour\nA1,A,a.csv,red\n")
+    assert main([str(m), "--out", str(tmp_path / "o")]) == 2
+
+
+def test_toml_manifest_defaults_sessions_and_columns(tmp_path):
+    m = tmp_path / "fleet.toml"
+    m.write_text("""
+[defaults]
+population = 8
+stroke_unit = "mm"
+[[damper]]
+damper_id = "YD-1"
+type = "A"
+session = "acceptance"
+identification = ["d/id1.csv", "d/id2.csv"]
+validation = "d/v1.csv;d/v2.csv"
+seed = 3
+[[damper]]
+damper_id = "YD-1"
+type = "A"
+session = "2026-03"
+dataset = "ds"
+force_col = "F_kN"
+force_unit = "kN"
+models = "lumped"
+diagnose = true
+""")
+    rows = read_fleet_manifest(m)
+    assert [r.id for r in rows] == ["YD-1-acceptance", "YD-1-2026-03"]
+    a, b = rows
+    assert a.identification == [str(tmp_path / "d" / "id1.csv"), str(tmp_path / "d" / "id2.csv")]
+    assert len(a.validation) == 2 and a.settings == {"population": 8, "seed": 3}
+    assert a.columns == {"stroke_unit": "mm"} and a.diagnose is None
+    assert b.dataset == str(tmp_path / "ds") and b.settings["models"] == ("lumped",) and b.diagnose is True
+    assert b.columns == {"stroke_unit": "mm", "force_col": "F_kN", "force_unit": "kN"}
+
+
+def test_parser_registration():
+    ap = argparse.ArgumentParser()
+    sub = ap.add_subparsers(dest="command")
+    add_parser(sub)
+    args = ap.parse_args(["batch", "fleet.csv", "--scheduler", "local:2", "--diagnose", "--population", "5"])
+    assert args.func is cmd_batch and args.scheduler == "local:2" and args.diagnose and args.population == 5
+
+
+def test_outlier_rule():
+    import numpy as np
+
+    v = np.array([-0.1, -0.01, 0.01, 0.1])
+    base = np.array([-20e3, -8e3, 8e3, 20e3])
+    curves = {f"d{i}": (v, base * (1 + 0.002 * i)) for i in range(5)}
+    curves["odd"] = (v, base + np.array([0.0, -900.0, 0.0, 0.0]))  # 11 % off at -10 mm/s
+    res = find_outliers(curves)
+    assert [i for i, d in res["dampers"].items() if d["outlier"]] == ["odd"]
+    assert res["dampers"]["odd"]["worst_rate_m_s"] == -0.01
+    assert not find_outliers({k: curves[k] for k in ("d0", "odd")})["judged"]  # two dampers: not judged
