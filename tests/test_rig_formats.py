@@ -217,3 +217,80 @@ def test_column_mapping_file_and_cli_errors(tmp_path, capsys, ref):
     assert main(["inspect", str(p), "--time-col", "Zeit", "--stroke-col", "Weg", "--force-col", "Kraft"]) == 2
     err = capsys.readouterr().err
     assert "run_07.csv" in err and "implausible stroke" in err and "--stroke-unit" in err
+
+
+def test_tables_cover_a_faster_dampers_velocity_range():
+    """table_abscissae: Table 2's layout for the bundled data (peak 119 mm/s < 150), stretched for a
+    damper driven to 0.6 m/s so that the last rate abscissa lies just above the peak, and the
+    parametrization's bounds follow the stretched elongations."""
+    from damper_fmu.parameters import FC_ABSCISSAE, FK_ABSCISSAE
+    from tuner.engine import Signals
+    from tuner.fit import table_abscissae
+    from tuner.parametrization import Parametrization
+
+    t = np.arange(0, 5.0, 5e-3)
+
+    def sig(vpeak):
+        v = vpeak * np.sin(2 * np.pi * t)
+        return Signals("s", t, v / (2 * np.pi), v, 0 * t, np.ones(t.size, dtype=bool), None, 1)
+
+    slow = table_abscissae([sig(0.119)], 2.7e4)
+    assert [slow[f"Fc_v{i:02d}"] for i in range(1, 15)] == pytest.approx(FC_ABSCISSAE)
+    assert [slow[f"Fk_x{i:02d}"] for i in range(1, 11)] == pytest.approx(FK_ABSCISSAE)
+    fast = table_abscissae([sig(0.6)], 1.2e5)
+    assert fast["Fc_v14"] == pytest.approx(1.05 * 0.6) and fast["Fc_v01"] == pytest.approx(-1.05 * 0.6)
+    ratio = fast["Fc_v08"] / FC_ABSCISSAE[7]
+    assert all(fast[f"Fc_v{i:02d}"] / FC_ABSCISSAE[i - 1] == pytest.approx(ratio) for i in range(1, 15))
+    assert fast["Fk_x10"] == pytest.approx(1.05 * 1.2e5 / 1.5e7)
+    par = Parametrization("lumped", force_limit=1.8e5, fixed=fast)
+    lo, hi = par.bounds["Fk_10"]
+    assert lo == pytest.approx(0.2 * 1.5e7 * fast["Fk_x10"]) and hi == pytest.approx(3 * 1.5e7 * fast["Fk_x10"])
+    with pytest.raises(ValueError, match="14 increasing nonzero"):
+        table_abscissae([sig(0.6)], 1e4, damping=[0.1] * 14)
+
+
+def test_a_fit_of_a_faster_damper_exports_tables_covering_its_velocity_range(tmp_path):
+    """End to end: a Maxwell-like damper driven to ~0.6 m/s (6 x the bundled data's peak), one
+    Firefly generation: the tuned FMU's damping table reaches beyond the data's peak velocity."""
+    import zipfile
+    import xml.etree.ElementTree as ET
+
+    from damper_fmu import simulate
+    from tuner.__main__ import main
+
+    files = []
+    for k, role in enumerate(("id", "val")):
+        t = np.arange(0, 4.0, 1e-3)
+        x = 0.04 * np.sin(2 * np.pi * 2.4 * t + k) * np.minimum(t, 1.0)
+        v = np.gradient(x, t)
+        f = simulate("maxwell", t, x, v, params={"k_s": 2e7, "c": 2e4})
+        files.append(tmp_path / f"{role}.csv")
+        pd.DataFrame({"time": t, "stroke [mm]": 1e3 * x, "force [kN]": f / 1e3}).to_csv(files[-1], index=False)
+    out = tmp_path / "fit"
+    assert main(["fit", "--identification", str(files[0]), "--validation", str(files[1]), "--out", str(out),
+                 "--models", "lumped", "--population", "3", "--iterations", "1", "--polish", "0", "--workers", "0",
+                 "--no-diagnose", "--engine", "inprocess" if __import__("build_fmu").native_reason() else "native"]) == 0
+    vals = __import__("json").loads((out / "parameters.json").read_text())["lumped"]["values"]
+    assert vals["Fc_v14"] > 0.6 and vals["Fc_v01"] < -0.6
+    fmu = next((out / "fmu").glob("DamperLumped*_tuned.fmu"))
+    with zipfile.ZipFile(fmu) as z:
+        md = ET.fromstring(z.read("modelDescription.xml"))
+    start = {v.get("name"): float(v.find("Real").get("start")) for v in md.iter("ScalarVariable")
+             if v.find("Real") is not None and v.find("Real").get("start") is not None}
+    assert start["Fc_v14"] == pytest.approx(vals["Fc_v14"])
+
+
+def test_quality_gate_names_a_model_that_does_not_describe_the_data():
+    from tuner.fit import QUALITY_AME_PCT, quality_gate
+
+    tests = {"a": {"role": "identification", "models": {"m": {"ame": 900.0, "peak_measured": 1e4}}},
+             "b": {"role": "validation", "models": {"m": {"ame": 300.0, "peak_measured": 1e4}}},
+             "c": {"role": "validation", "models": {"m": {"ame": 1500.0, "peak_measured": 1e4}}}}
+    q = quality_gate(tests, ["m"])["m"]
+    assert q["worst_test"] == "c" and q["worst_ame_pct_of_peak"] == pytest.approx(15.0)
+    assert q["describes_data"] is (15.0 <= QUALITY_AME_PCT) and "does NOT describe" in q["text"]
+    del tests["c"]
+    q = quality_gate(tests, ["m"])["m"]
+    assert q["describes_data"] and q["worst_test"] == "b"  # held-out tests only
+    q = quality_gate({"a": tests["a"]}, ["m"])["m"]
+    assert q["worst_test"] == "a" and "no held-out test" in q["text"]

@@ -141,6 +141,12 @@ def _add_fit_options(ap: argparse.ArgumentParser) -> None:
     g.add_argument("--warmup", type=float, default=d.warmup_s, help="seconds skipped at each test start")
     g.add_argument("--force-limit", type=float, default=None,
                    help="Fc,O ordinate limit [N] (default: 1.5 x peak measured force)")
+    g.add_argument("--damping-abscissae", type=_float_list, default=None, metavar="V1,...,V14",
+                   help="the 14 rates [mm/s] of the Fc,O table, increasing (default: Table 2's, stretched to the "
+                        "data's peak velocity when it exceeds 150 mm/s)")
+    g.add_argument("--elastic-abscissae", type=_float_list, default=None, metavar="X1,...,X10",
+                   help="the 10 elongations [mm] of the Fk,O table, increasing (default: Table 2's, stretched when "
+                        "the peak force would elongate the reference spring beyond 3 mm)")
     g.add_argument("--no-stop", action="store_true", help="disable the paper's stagnation stopping rule")
     g.add_argument("--no-diagnose", action="store_true",
                    help="skip the diagnosis that follows the fit (it needs validation tests)")
@@ -233,7 +239,11 @@ def cmd_fit(args) -> int:
                            population=args.population, iterations=args.iterations, workers=args.workers,
                            seed=args.seed, engine=args.engine, parametrization=args.parametrization,
                            init=args.init, force_limit_n=args.force_limit,
-                           stop_tol=None if args.no_stop else 1e-3, polish_jacobians=args.polish)
+                           stop_tol=None if args.no_stop else 1e-3, polish_jacobians=args.polish,
+                           damping_abscissae_m_s=None if args.damping_abscissae is None else
+                           tuple(1e-3 * v for v in args.damping_abscissae),
+                           elastic_abscissae_m=None if args.elastic_abscissae is None else
+                           tuple(1e-3 * x for x in args.elastic_abscissae))
     provenance = {"dataset": str(args.dataset) if args.dataset else None,
                   "files": {t.name: str(t.source) for t in ident + valid},
                   "command": " ".join(sys.argv)}
@@ -253,7 +263,11 @@ def _run_diagnosis(ident, valid, out, args, base_params=None) -> dict:
     from .diagnose import DiagnosisSettings, diagnose
 
     settings = DiagnosisSettings(fit_rate_hz=args.fit_rate, warmup_s=args.warmup, workers=args.workers,
-                                 engine=args.engine, seed=args.seed)
+                                 engine=args.engine, seed=args.seed,
+                                 damping_abscissae_m_s=None if args.damping_abscissae is None else
+                                 tuple(1e-3 * v for v in args.damping_abscissae),
+                                 elastic_abscissae_m=None if args.elastic_abscissae is None else
+                                 tuple(1e-3 * x for x in args.elastic_abscissae))
     _log("\ndiagnosis: refitting the lumped model extended by each candidate effect ...")
     result = diagnose(ident, valid, out, settings, base_params=base_params, log=_log)
     from .report import make_diagnosis_report, make_report
@@ -298,6 +312,8 @@ def cmd_diagnose(args) -> int:
 
 
 def _print_summary(metrics: dict) -> None:
+    for model, q in (metrics.get("quality") or {}).items():
+        _log(f"quality gate [{model}]: {q['text']}")
     t3 = metrics.get("table3") or {}
     if not t3:
         return

@@ -132,6 +132,8 @@ class DiagnosisSettings:
     final_jacobians: int = 100  # continued refit of the leading candidate: a cap, it stops when converged
     max_causes: int = 3  # forward selection stops here at the latest
     candidates: tuple = CANDIDATES
+    damping_abscissae_m_s: tuple | None = None  # as tuner.fit.FitSettings (without a base fit given)
+    elastic_abscissae_m: tuple | None = None
     extra: dict = field(default_factory=dict)
 
 
@@ -368,7 +370,7 @@ def decide(ranking: list[dict]) -> tuple[str, dict, list[dict]]:
 def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path,
              settings: DiagnosisSettings | None = None, *, base_params: dict | None = None, log=print) -> dict:
     """Run the diagnosis and write ``diagnosis.json`` (and figures, extended FMU) into ``out``."""
-    from .fit import FitSettings, data_digest, identify, initial_guess, to_signals, validation_run
+    from .fit import FitSettings, data_digest, identify, initial_guess, table_abscissae, to_signals, validation_run
 
     settings = settings or DiagnosisSettings()
     if not identification or not validation:
@@ -381,7 +383,11 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     sig_id = [to_signals(p, settings.warmup_s) for p in prep_id]
     sig_val = [to_signals(p, settings.warmup_s) for p in prep_val]
     peak = max(float(np.abs(s.force[s.mask]).max()) for s in sig_id)
-    par = Parametrization("lumped", "improved", force_limit=float(f"{1.5 * peak:.2g}"))
+    axes = table_abscissae(sig_id, peak, damping=settings.damping_abscissae_m_s,
+                           elastic=settings.elastic_abscissae_m)
+    if base_params is not None:  # the fit's own tables
+        axes = {k: base_params.get(k, v) for k, v in axes.items()}
+    par = Parametrization("lumped", "improved", force_limit=float(f"{1.5 * peak:.2g}"), fixed=axes)
     engine_path = None
     if settings.engine == "fmu":
         from build_fmu import ensure_fmu

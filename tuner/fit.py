@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from damper_fmu.parameters import FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS, defaults
+from damper_fmu.parameters import FC_ABSCISSAE, FK_ABSCISSAE, FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS, defaults
 
 from . import firefly
 from .data import RigTest, prepare
@@ -38,7 +38,14 @@ from .metrics import compare_to_maxwell, error_metrics, noise_std
 from .parametrization import Parametrization
 from .polish import polish
 
-__all__ = ["FitSettings", "fit", "initial_guess", "to_signals", "validation_run", "identify", "data_digest"]
+__all__ = ["FitSettings", "fit", "initial_guess", "to_signals", "validation_run", "identify", "data_digest",
+           "table_abscissae", "quality_gate", "STRETCH_BEYOND", "QUALITY_AME_PCT"]
+
+#: The tables keep the paper's Table 2 abscissae until the data reach this many times the last one.
+STRETCH_BEYOND = 1.5
+#: Quality gate [% of the test's peak force]: a model whose AME exceeds it on a held-out test does
+#: not describe the data (the lumped model reaches 1-3 % on yaw-damper data; Maxwell 5-15 %).
+QUALITY_AME_PCT = 10.0
 
 
 @dataclass
@@ -59,6 +66,8 @@ class FitSettings:
     spring_reference_n_per_m: float = FK_REFERENCE_STIFFNESS
     stop_tol: float | None = 1e-3
     polish_jacobians: int = 100  # a safety cap: the refinement stops when converged
+    damping_abscissae_m_s: tuple | None = None  # Fc,O rates [m/s], 14 sorted nonzero; None: from the data
+    elastic_abscissae_m: tuple | None = None  # Fk,O elongations [m], 10 sorted nonzero; None: from the data
     extra: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
@@ -89,6 +98,47 @@ def to_signals(p, warmup_s: float, oversample: int | None = None) -> Signals:
     return s
 
 
+def _given(name: str, values, preset: tuple) -> tuple:
+    xs = tuple(float(v) for v in values)
+    if len(xs) != len(preset) or any(x == 0 for x in xs) or list(xs) != sorted(xs) or \
+            sum(x < 0 for x in xs) != sum(x < 0 for x in preset):
+        raise ValueError(f"{name}: need {len(preset)} increasing nonzero values, {sum(x < 0 for x in preset)} of "
+                         f"them negative (like Table 2's {preset}), got {xs}")
+    return xs
+
+
+def table_abscissae(tests: list[Signals], peak_force: float, spring_reference: float = FK_REFERENCE_STIFFNESS,
+                    damping=None, elastic=None) -> dict:
+    """Fixed abscissae of the Fc,O [m/s] and Fk,O [m] tables for this data, as parameter values.
+
+    Table 2's layout unless the data go beyond it: when the identification tests' peak stroke
+    velocity exceeds ``STRETCH_BEYOND`` x the last rate abscissa (100 mm/s), every rate abscissa
+    is stretched by the same factor so that the last one is 5 % above the peak (the knee region
+    keeps its share of points); the elongation abscissae likewise when the reference spring's
+    elongation at the peak force, ``peak_force / spring_reference``, exceeds 1.5 x the last one
+    (2 mm). Up to 1.5 x the last piece is extrapolated by its fitted slope; the paper's layout is
+    kept there so the tables compare with Table 2. ``damping``/``elastic``: abscissae given by
+    the user (SI), used as they are.
+    """
+    vpeak = max(float(np.max(np.abs(s.stroke_velocity[s.mask]))) for s in tests)
+    if damping is not None:
+        fc = _given("damping abscissae", damping, FC_ABSCISSAE)
+    else:
+        last = max(abs(v) for v in FC_ABSCISSAE)
+        k = 1.05 * vpeak / last if vpeak > STRETCH_BEYOND * last else 1.0
+        fc = tuple(v * k for v in FC_ABSCISSAE)
+    if elastic is not None:
+        fk = _given("elastic abscissae", elastic, FK_ABSCISSAE)
+    else:
+        last = max(abs(x) for x in FK_ABSCISSAE)
+        e = peak_force / spring_reference
+        k = 1.05 * e / last if e > STRETCH_BEYOND * last else 1.0
+        fk = tuple(x * k for x in FK_ABSCISSAE)
+    out = {f"Fc_v{i:02d}": v for i, v in enumerate(fc, start=1)}
+    out.update({f"Fk_x{i:02d}": x for i, x in enumerate(fk, start=1)})
+    return out
+
+
 def initial_guess(model: str, tests: list[Signals], par: Parametrization) -> dict:
     """Data-driven starting individual: quasi-static force-velocity table and a Maxwell fit.
 
@@ -102,7 +152,7 @@ def initial_guess(model: str, tests: list[Signals], par: Parametrization) -> dic
     f = np.concatenate([s.force[s.mask] for s in tests])
     dfdt = np.concatenate([np.gradient(s.force, s.time)[s.mask] for s in tests])
     quasi_static = np.abs(dfdt) / par.spring_reference < 0.2 * np.abs(v)
-    guess = defaults(model)
+    guess = {**defaults(model), **par.fixed}
     if model == "maxwell":
         c = float(np.dot(v, f) / max(np.dot(v, v), 1e-30))
         lo, hi = par.bounds["c"]
@@ -254,6 +304,26 @@ def validation_run(model: str, params: dict, s: Signals, engine: str = "fmu") ->
     return sim, error_metrics(s.force[s.mask], sim[s.mask]).to_dict()
 
 
+def quality_gate(tests: dict, models) -> dict:
+    """Per model: does it describe the data? The worst AME [% of that test's peak force] over the
+    validation tests (the identification tests when there is none) against ``QUALITY_AME_PCT``.
+    ``tests``: the per-test metrics of :func:`fit` (name -> {"role", "models": {model: metrics}})."""
+    out = {}
+    for model in models:
+        rows = [(n, t["models"][model]) for n, t in tests.items() if t["role"] == "validation"] or \
+               [(n, t["models"][model]) for n, t in tests.items()]
+        worst_name, worst = max(((n, 100 * m["ame"] / m["peak_measured"]) for n, m in rows), key=lambda r: r[1])
+        ok = worst <= QUALITY_AME_PCT
+        kind = "held-out" if any(t["role"] == "validation" for t in tests.values()) else "identification (no held-out test)"
+        text = (f"worst {kind} AME {worst:.3g} % of peak force ({worst_name}): "
+                + (f"the model describes this data (gate {QUALITY_AME_PCT:g} %)" if ok else
+                   f"the model does NOT describe this data (gate {QUALITY_AME_PCT:g} %): its parameters are "
+                   f"not a characterisation of this damper"))
+        out[model] = {"worst_ame_pct_of_peak": worst, "worst_test": worst_name, "gate_pct": QUALITY_AME_PCT,
+                      "describes_data": ok, "text": text}
+    return out
+
+
 def fit(identification: list[RigTest], validation: list[RigTest], out: Path, settings: FitSettings,
         *, provenance: dict | None = None, log=print) -> dict:
     """Identify every model in ``settings.models``, validate, write the output folder.
@@ -277,10 +347,16 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
     # fit of a model that can represent the data reaches, reported beside the identification RMSE
     noise = float(np.median([noise_std(t.force, t.sample_rate) * math.sqrt(min(1.0, settings.fit_rate_hz / t.sample_rate))
                              for t in identification]))
+    axes = table_abscissae(signals, peak, settings.spring_reference_n_per_m, settings.damping_abscissae_m_s,
+                           settings.elastic_abscissae_m)
+    log(f"table abscissae: Fc,O rates up to {1e3 * axes['Fc_v14']:.4g} mm/s, Fk,O elongations up to "
+        f"{1e3 * axes['Fk_x10']:.4g} mm (identification data: peak stroke velocity "
+        f"{1e3 * max(float(np.max(np.abs(s.stroke_velocity[s.mask]))) for s in signals):.4g} mm/s)")
     params, histories = {}, {}
     for model in settings.models:
+        fixed = {k: v for k, v in axes.items() if k in {p.name for p in MODEL_PARAMETERS[model]}}
         par = Parametrization(model, settings.parametrization, force_limit=force_limit,
-                              spring_reference=settings.spring_reference_n_per_m)
+                              spring_reference=settings.spring_reference_n_per_m, fixed=fixed)
         best, hist = identify(model, signals, settings, par, out / "checkpoints" / f"{model}.json", digest, log)
         params[model] = {"values": best, "units": dict(par.units),
                          "bounds": {n: list(par.bounds[n]) for n in par.names},
@@ -318,9 +394,13 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
                               "ame_maxwell": mx["ame"], "ame_lumped": lp["ame"],
                               "ame_variation_pct": 100 * (lp["ame"] - mx["ame"]) / mx["ame"],
                               "ame_lumped_pct_of_peak": 100 * lp["ame"] / lp["peak_measured"]}
+    quality = quality_gate(tests_out, settings.models)
+    for model, q in quality.items():
+        log(f"[{model}] {q['text']}")
     settings_out = settings.to_dict()
     settings_out.update({
         "force_limit_n_used": force_limit,
+        "table_abscissae": axes,
         "preprocessing": [p.describe() for p in prep_id],
         "evaluations": {m: histories[m]["evaluation_count"] for m in settings.models},
         "elapsed_s": {m: histories[m]["elapsed_s"] for m in settings.models},
@@ -331,7 +411,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
         "validation_tests": [t.name for t in validation],
         **(provenance or {}),
     })
-    metrics = {"settings": settings_out, "tests": tests_out, "table3": table3}
+    metrics = {"settings": settings_out, "tests": tests_out, "table3": table3, "quality": quality}
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2, sort_keys=True, default=str))
 
     log("exporting tuned FMUs ...")
