@@ -6,6 +6,7 @@
     python -m tuner generate --out DIR   virtual test campaign -> a six-test dataset
     python -m tuner diagnose ...         what the fitted model gets wrong and why (see --help)
     python -m tuner inspect FILES        what the reader understands of rig files (see --help)
+    python -m tuner batch MANIFEST       a fleet: one fit per manifest row, local pool or Dask (see --help)
     python -m tuner report DIR           rebuild the report of a fit output folder
 
 Exit status: 0 success, 2 bad input or arguments (message on stderr), 130 interrupted.
@@ -385,6 +386,9 @@ def main(argv=None) -> int:
     _add_data_options(p_ins.add_argument_group("data"))
     p_rep = sub.add_parser("report", help="rebuild the report of a fit output folder")
     p_rep.add_argument("folder", type=Path)
+    from .batch import add_parser as add_batch_parser
+
+    add_batch_parser(sub)
     if not argv:
         argv = ["fit", "--dataset", str(DEFAULT_DATASET)]
     args = ap.parse_args(argv)
@@ -392,7 +396,7 @@ def main(argv=None) -> int:
         ap.print_help()
         return 2
     handler = {"fit": cmd_fit, "generate": cmd_generate, "report": cmd_report, "diagnose": cmd_diagnose,
-               "inspect": cmd_inspect}[args.command]
+               "inspect": cmd_inspect}.get(args.command) or args.func
     try:
         return handler(args)
     except KeyboardInterrupt:
