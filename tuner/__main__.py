@@ -305,8 +305,7 @@ def cmd_diagnose(args) -> int:
             if (args.from_fit / f).exists():
                 (out / f).write_bytes((args.from_fit / f).read_bytes())
     _log(f"output folder: {out}")
-    result = _run_diagnosis(ident, valid, out, args, base)
-    _log(f"\n{result['verdict']}")
+    _run_diagnosis(ident, valid, out, args, base)  # it states the verdict once
     if (out / "report.html").exists():
         _log(f"open the report: {out / 'report.html'}")
     return 0
