@@ -2,6 +2,7 @@
 
     python benchmarks/confusion_matrix.py [--seeds 3] [--t-end 6] [--damper lumped|twin-tube]
                                           [--chamber] [--out results/confusion]
+                                          [--scheduler pool | pool:N | local:N | tcp://HOST:PORT]
 
 For every catalogue effect and for clean data, ``--seeds`` datasets are generated with the virtual
 rig (a new dataset seed each time; the effect magnitude drawn uniformly inside its documented
@@ -9,6 +10,13 @@ range with a seeded generator and never passed to the diagnosis), the diagnosis 
 (in-process engine: the same equations as the FMU), and the named cause is recorded. Prints the
 confusion matrix, the detection rate per effect, the false-cause rate on clean data and the
 magnitude error of correct detections. Writes confusion.json.
+
+The runs are independent and go to the fleet executor of ``tuner.batch`` (one run = one task):
+by default a local process pool of ``os.cpu_count()`` processes, ``--scheduler local:N`` a Dask
+LocalCluster, ``--scheduler tcp://HOST:PORT`` a running Dask cluster (so a cluster can run the
+large matrix). Each run evaluates in its own process (``--workers 0``). The dataset seed and the
+drawn magnitude of every run are fixed before anything is scheduled (the same as when the runs
+went one after the other), so the matrix does not depend on the executor or the completion order.
 
 ``--damper lumped`` mounts a damper the base model represents exactly (no model-form error);
 ``twin-tube`` the physical damper (a model-form error of ~3 % of peak force remains). ``--chamber``
@@ -34,14 +42,51 @@ from campaign.effects import EFFECTS  # noqa: E402
 from campaign.generate import CHAMBER_TEMPERATURES_C, generate_dataset  # noqa: E402
 from tuner.data import load_dataset  # noqa: E402
 from tuner.engine import fastest_engine  # noqa: E402
+from tuner.batch import FleetExecutor  # noqa: E402
+from tuner.fleet_summary import write_atomic  # noqa: E402
 from tuner.diagnose import CANDIDATES, DiagnosisSettings, diagnose  # noqa: E402
+
+
+def run_case(case: dict) -> dict:
+    """One blind diagnosis: generate the case's dataset, diagnose it, return the result row."""
+    truth, effects = case["truth"], case["effects"]
+    tmp = Path(tempfile.mkdtemp(prefix="confusion_"))
+    try:
+        t0 = time.perf_counter()
+        data = generate_dataset(tmp / "data", seed=case["seed"], effects=effects, t_end=case["t_end"],
+                                damper=case["damper"],
+                                oil_temperatures=CHAMBER_TEMPERATURES_C if case["chamber"] else None,
+                                log=lambda m: None)
+        tests = load_dataset(data)
+        res = diagnose([t for t in tests if t.role == "identification"],
+                       [t for t in tests if t.role == "validation"], tmp / "out",
+                       DiagnosisSettings(engine=fastest_engine(), workers=case["workers"], base_iterations=0),
+                       log=lambda m: None)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    row = {"truth": truth, "magnitude": effects.get(truth), "named": res["cause"],
+           "causes": res["causes"], "extra_causes": [c for c in res["causes"][1:] if c != truth],
+           "unexplained_ratio": (res.get("unexplained") or {}).get("ratio"),
+           "score": res["ranking"][0]["score"], "elapsed_s": time.perf_counter() - t0, "seed": case["seed"]}
+    if truth != "none":
+        name, factor = EFFECTS[truth].model_parameter, EFFECTS[truth].model_sign
+        ext = next(r for r in res["ranking"] if r["effect"] == truth)
+        row["fitted"] = ext["parameters"][name]
+        row["relative_error"] = ext["parameters"][name] / (factor * effects[truth]) - 1.0
+        row["mse_change_pct"] = ext["validation_mse_change_pct"]
+    return row
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--t-end", type=float, default=6.0, help="duration of each scenario [s] (None: full)")
-    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--workers", type=int, default=0,
+                    help="evaluation processes inside each run (default 0: in the run's own process; the runs are "
+                         "the parallel level)")
+    ap.add_argument("--scheduler", default=None, metavar="SPEC",
+                    help="pool (default, os.cpu_count() processes), pool:N, local:N (Dask LocalCluster) or a Dask "
+                         "scheduler address tcp://HOST:PORT")
     ap.add_argument("--damper", choices=("twin-tube", "lumped"), default="twin-tube",
                     help="damper on the virtual rig (campaign.rig.DAMPERS)")
     ap.add_argument("--chamber", action="store_true", help="each manoeuvre at its own oil temperature")
@@ -51,44 +96,30 @@ def main(argv=None) -> int:
     a.out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(20231121)
     truths = [e.strip() for e in a.effects.split(",")]
-    rows = []
+    cases = []  # in the order of the sequential benchmark: the same seeds and magnitudes
     for truth in truths:
         for k in range(a.seeds):
             effects = {}
             if truth != "none":
                 spec = EFFECTS[truth]
                 effects[truth] = float(rng.uniform(spec.low, spec.high))
-            tmp = Path(tempfile.mkdtemp(prefix="confusion_"))
-            try:
-                t0 = time.perf_counter()
-                data = generate_dataset(tmp / "data", seed=1000 + 17 * k + 3 * len(rows), effects=effects,
-                                        t_end=a.t_end, damper=a.damper,
-                                        oil_temperatures=CHAMBER_TEMPERATURES_C if a.chamber else None,
-                                        log=lambda m: None)
-                tests = load_dataset(data)
-                res = diagnose([t for t in tests if t.role == "identification"],
-                               [t for t in tests if t.role == "validation"], tmp / "out",
-                               DiagnosisSettings(engine=fastest_engine(), workers=a.workers, base_iterations=0),
-                               log=lambda m: None)
-            finally:
-                shutil.rmtree(tmp, ignore_errors=True)
-            row = {"truth": truth, "magnitude": effects.get(truth), "named": res["cause"],
-                   "causes": res["causes"], "extra_causes": [c for c in res["causes"][1:] if c != truth],
-                   "unexplained_ratio": (res.get("unexplained") or {}).get("ratio"),
-                   "score": res["ranking"][0]["score"], "elapsed_s": time.perf_counter() - t0}
-            if truth != "none":
-                name, factor = EFFECTS[truth].model_parameter, EFFECTS[truth].model_sign
-                ext = next(r for r in res["ranking"] if r["effect"] == truth)
-                row["fitted"] = ext["parameters"][name]
-                row["relative_error"] = ext["parameters"][name] / (factor * effects[truth]) - 1.0
-                row["mse_change_pct"] = ext["validation_mse_change_pct"]
-            rows.append(row)
+            cases.append({"truth": truth, "effects": effects, "seed": 1000 + 17 * k + 3 * len(cases),
+                          "t_end": a.t_end, "damper": a.damper, "chamber": a.chamber, "workers": a.workers})
+    done = {}
+    with FleetExecutor(a.scheduler) as ex:
+        print(f"{len(cases)} blind diagnoses on a {ex.description}", flush=True)
+        for i, row, err in ex.run(run_case, cases):
+            if err is not None:
+                raise RuntimeError(f"run {i} ({cases[i]['truth']}, seed {cases[i]['seed']}) failed: {err}") from err
+            done[i] = row
+            truth = row["truth"]
             print(f"{truth:14s} {row['magnitude'] if row['magnitude'] is not None else '':>12}  -> "
                   f"{'+'.join(row['causes']) or row['named']:14s} score {row['score']:+.3f}" +
                   (f"  fitted {row['fitted']:.4g} ({100 * row['relative_error']:+.0f} %), "
                    f"MSE {row['mse_change_pct']:+.1f} %" if truth != "none" else "")
                   + f"  [{row['elapsed_s']:.0f} s]", flush=True)
-    (a.out / "confusion.json").write_text(json.dumps({"rows": rows}, indent=1))
+    rows = [done[i] for i in range(len(cases))]
+    write_atomic(a.out / "confusion.json", json.dumps({"rows": rows}, indent=1))
     labels = ["none", "unexplained", *CANDIDATES]
     matrix = {t: {n: sum(1 for r in rows if r["truth"] == t and r["named"] == n) for n in labels} for t in truths}
     print("\nconfusion matrix (rows: hidden effect, columns: named cause)")
@@ -109,7 +140,7 @@ def main(argv=None) -> int:
         extra = f", median |magnitude error| {100 * np.median(errs):.0f} %" if errs else ""
         label = "clean (no false cause)" if t == "none" else t
         print(f"  {label:24s} {ok}/{n} = {100 * ok / n:.0f} %{extra}")
-    (a.out / "confusion.json").write_text(json.dumps({"rows": rows, "matrix": matrix, "summary": summary,
+    write_atomic(a.out / "confusion.json", json.dumps({"rows": rows, "matrix": matrix, "summary": summary,
                                                       "false_cause_runs": len(wrong)}, indent=1))
     return 0
 
