@@ -149,3 +149,34 @@ def test_figures_are_png(tmp_path):
     for p in paths:
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert mpimg.imread(p).shape[0] > 100
+
+
+def _with_residual(r_of, seed=3):
+    t = np.arange(int(DUR * FS)) / FS
+    x, v, a = stroke(t, seed)
+    sim = damper(v)
+    return TestResidual("r", "identification", t, x, v, sim + r_of(t, x, v), sim, t > 1.0)
+
+
+def test_linear_share_tells_a_missing_linear_element_from_a_nonlinear_error():
+    """A parallel Maxwell branch (k = 2e6 N/m, tau = 50 ms: a linear filter of the stroke) is ~100 %
+    coherent with the stroke; a force even in the stroke (a |x| spring) or a white noise is not."""
+    from scipy.signal import lfilter
+
+    k, tau = 2e6, 0.05
+    al = np.exp(-1 / (FS * tau))
+    maxwell = evidence([_with_residual(lambda t, x, v: k * lfilter([1, -1], [1, -al], x))])["general"]["pooled"]
+    even = evidence([_with_residual(lambda t, x, v: 4e6 * (np.abs(x) - np.abs(x).mean()))])["general"]["pooled"]
+    noise = evidence([_with_residual(lambda t, x, v: np.random.default_rng(1).normal(0, 50, t.size))])
+    assert maxwell["linear_share"] > 0.95
+    assert even["linear_share"] < 0.3
+    assert noise["general"]["pooled"]["linear_share"] < 0.2
+
+
+def test_where_in_the_loop_the_residual_lies():
+    """A residual only at speeds below the knee lands there; extension/compression split by sign."""
+    knee = knee_velocity([_Prep(_with_residual(lambda t, x, v: 0 * t))])
+    ev = evidence([_with_residual(lambda t, x, v: np.where((np.abs(v) < 0.5 * knee) & (v > 0), 300.0, 0.0))])
+    loop = ev["general"]["pooled"]["loop"]
+    assert loop["below_knee_extension"]["power_share"] > 0.99
+    assert sum(d["time_share"] for d in loop.values()) == pytest.approx(1.0)

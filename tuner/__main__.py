@@ -312,8 +312,6 @@ def cmd_diagnose(args) -> int:
 
 
 def _print_summary(metrics: dict) -> None:
-    for model, q in (metrics.get("quality") or {}).items():
-        _log(f"quality gate [{model}]: {q['text']}")
     t3 = metrics.get("table3") or {}
     if not t3:
         return

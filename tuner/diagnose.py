@@ -568,7 +568,9 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
         unexplained = {"identification_rmse_n": final_rmse, "noise_std_n": noise, "ratio": final_rmse / noise,
                        "dominant_band": max(bands, key=bands.get) if bands else None,
                        "band_fraction": bands, "best_signature": max(r2, key=r2.get) if r2 else None,
-                       "best_signature_r2": max(r2.values()) if r2 else None}
+                       "best_signature_r2": max(r2.values()) if r2 else None,
+                       "linear_share": pooled.get("linear_share"), "band_linear_share": pooled.get("band_linear_share"),
+                       "loop": pooled.get("loop")}
         if not causes:
             cause = "unexplained"
     key = "+".join(causes)
@@ -632,6 +634,18 @@ def _verdict(causes: list[str], best: dict, none_row: dict, rejected: list[dict]
         sig = (f"; the closest catalogue signature ({unexplained['best_signature']}) explains "
                f"{100 * unexplained['best_signature_r2']:.0f} % of the base model's residual"
                if unexplained["best_signature"] else "")
+        lin = unexplained.get("linear_share")
+        if lin is not None:
+            sig += (f"; {100 * lin:.0f} % of its power is linear in the stroke (coherence) "
+                    + ("- a missing linear element (spring, Maxwell branch, delay) fits that" if lin >= 0.7 else
+                       "- so no added linear element (spring, Maxwell branch, delay) can remove most of it: "
+                       "the error is nonlinear or time-varying"))
+        loop = unexplained.get("loop") or {}
+        if loop:
+            low = sum(v["power_share"] for k, v in loop.items() if k.startswith("below"))
+            low_t = sum(v["time_share"] for k, v in loop.items() if k.startswith("below"))
+            sig += (f"; {100 * low:.0f} % of it at speeds below the blow-off knee ({100 * low_t:.0f} % of the time), "
+                    f"{100 * (1 - low):.0f} % beyond")
         text = ("unexplained: " if not causes else text + ". Not explained: ") + (
             f"the remaining residual, {unexplained['identification_rmse_n']:.3g} N rms, is "
             f"{unexplained['ratio']:.1f} x the measurement noise ({noise:.2g} N): a model-form error that "

@@ -301,9 +301,40 @@ def _spectra(p):
     return (*signal.welch(p.r[a:b], **kw), signal.welch(p.t.measured[a:b], **kw)[1])
 
 
+def _linear_share(p):
+    """(f [Hz], P_r, coherence of residual and stroke) on the longest usable run, or None. The
+    coherence is the share of residual power at f that some linear time-invariant filter of the
+    stroke explains: a missing linear branch (spring, Maxwell element, delay) shows near 1, a
+    nonlinear or time-varying error low."""
+    a, b = max(_runs(p.use), key=lambda ab: ab[1] - ab[0])
+    n = min(b - a, int(round(4 * p.fs)))
+    if b - a < 4 * n // 2 or n < 16:  # coherence needs several segments
+        n = (b - a) // 4
+    if n < 16:
+        return None
+    kw = dict(fs=p.fs, nperseg=n)
+    f, pr = signal.welch(p.r[a:b] - p.r[a:b].mean(), **kw)
+    return f, pr, signal.coherence(p.r[a:b], p.t.stroke[a:b], **kw)[1]
+
+
+def _where_in_loop(ps, knee: float) -> dict:
+    """Share of residual power [0-1] at low speed (|v| < knee: reversals and the bleed region) and
+    beyond the knee, each split by the sign of v (extension/compression), and their shares of time."""
+    v, r = _cat(ps, lambda p: p.t.velocity), _cat(ps, lambda p: p.r)
+    tot = float(np.sum(r ** 2)) or 1.0
+    out = {}
+    for name, sel in (("below_knee_extension", (np.abs(v) < knee) & (v >= 0)),
+                      ("below_knee_compression", (np.abs(v) < knee) & (v < 0)),
+                      ("beyond_knee_extension", (np.abs(v) >= knee) & (v >= 0)),
+                      ("beyond_knee_compression", (np.abs(v) >= knee) & (v < 0))):
+        out[name] = {"power_share": float(np.sum(r[sel] ** 2) / tot), "time_share": float(sel.mean())}
+    return out
+
+
 def _summary(ps):
     """rms and mean residual [N], % of force rms, band shares of residual power and residual / force
-    power per band (band powers of several tests weighted by their sample counts)."""
+    power per band (band powers of several tests weighted by their sample counts), and the share
+    of residual power linear in the stroke (pooled and per band; see ``_linear_share``)."""
     r, m = _cat(ps, lambda p: p.r), _cat(ps, lambda p: p.t.measured)
     d = {"samples": int(r.size), "rms_residual": float(np.sqrt(np.mean(r ** 2))),
          "rms_measured": float(np.sqrt(np.mean(m ** 2))), "mean_residual": float(r.mean())}
@@ -317,6 +348,16 @@ def _summary(ps):
         d["band_fraction"] = dict(zip(BANDS_HZ, (pw[0] / pw[0].sum()).tolist()))
         d["band_residual_to_force_power"] = {k: float(a / b) if b > 0 else None
                                              for k, a, b in zip(BANDS_HZ, *pw)}
+    lin = np.zeros((2, len(BANDS_HZ)))  # coherent and total residual power per band
+    for p, c in ((p, _linear_share(p)) for p in ps):
+        if c is not None:
+            f, pr, coh = c
+            for j, (lo, hi) in enumerate(BANDS_HZ.values()):
+                sel = (f >= lo) & (f < hi)
+                lin[:, j] += p.use.sum() * np.array([np.sum(coh[sel] * pr[sel]), np.sum(pr[sel])])
+    if lin[1].sum() > 0:
+        d["linear_share"] = float(lin[0].sum() / lin[1].sum())
+        d["band_linear_share"] = {k: float(a / b) if b > 0 else None for k, a, b in zip(BANDS_HZ, *lin)}
     return d
 
 
@@ -333,7 +374,8 @@ def evidence(tests: list[TestResidual]) -> dict:
     Returns {"effects": {name: {"quantity", "unit", "value" [unit], "r2" (0-1: share of residual
     power explained by that regressor), "sentence", extra numbers (SI), "per_test": {test: same
     numbers}}}, "ranking_by_r2": [names], "knee_velocity" [m/s], "general": {"per_test": {test:
-    {role, rms_residual [N], residual_pct [%], band_fraction, ...}}, "pooled": {...}}}.
+    {role, rms_residual [N], residual_pct [%], band_fraction, linear_share, ...}}, "pooled": {...,
+    "loop": where in the F-v loop the residual power lies}}}.
     time_delay delay and valve_lag tau [s] > 0 when the measured force lags the simulated one;
     thermal beta [1/K] > 0 and gain changes < 0 when the damping falls as the oil heats."""
     if not tests:
@@ -353,7 +395,8 @@ def evidence(tests: list[TestResidual]) -> dict:
                       "per_test": {n: {k: _clean(v) for k, v in per[n][e].items()} for n in per}}
     return {"effects": effects, "ranking_by_r2": sorted(EFFECTS, key=lambda e: -effects[e]["r2"]),
             "knee_velocity": knee, "general": {"per_test": {p.t.name: {"role": p.t.role, **_summary([p])}
-                                                            for p in preps}, "pooled": _summary(preps)}}
+                                                            for p in preps},
+                                               "pooled": {**_summary(preps), "loop": _where_in_loop(preps, knee)}}}
 
 
 # --------------------------------------------------------------------------- figures
