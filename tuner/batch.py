@@ -22,7 +22,8 @@ CSV (a header row; ``#`` comment lines and blank lines ignored) or TOML. Columns
   ``_unit`` or ``_sign``);
 * per-row settings: ``seed``, ``models`` (``lumped+maxwell``; ``+``, ``;`` or spaces between),
   ``population``, ``iterations``, ``polish``, ``fit_rate`` [Hz], ``warmup`` [s], ``engine``,
-  ``parametrization``, ``init``, ``force_limit`` [N], ``diagnose`` (true/false).
+  ``parametrization``, ``init``, ``force_limit`` [N], ``diagnose`` (true/false);
+* ``notes``: free text, ignored.
 
 An empty cell takes the default: TOML ``[defaults]`` table, then the command-line option, then
 ``tuner.fit.FitSettings``. TOML layout::
