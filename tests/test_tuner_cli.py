@@ -52,7 +52,10 @@ def test_interrupted_run_resumes_to_the_same_result(maxwell_data, tmp_path):
     common = ["--dataset", path, "--models", "maxwell", "--population", 6, "--workers", 0, "--no-stop"]
     straight, split = tmp_path / "straight", tmp_path / "split"
     assert run_cli("fit", *common, "--iterations", 8, "--out", straight) == 0
-    assert run_cli("fit", *common, "--iterations", 3, "--out", split) == 0
+    assert not (straight / "checkpoints").exists()  # a finished run leaves no checkpoints
+    # an interrupted run: its checkpoints after 3 iterations (kept, as an interruption leaves them)
+    assert run_cli("fit", *common, "--iterations", 3, "--out", split, "--keep-checkpoints") == 0
+    assert (split / "checkpoints" / "maxwell.json").exists()
     (split / "parameters.json").unlink()
     assert run_cli("fit", *common, "--iterations", 8, "--out", split, "--resume") == 0
     a = json.loads((straight / "parameters.json").read_text())
@@ -178,3 +181,31 @@ def test_diagnosis_before_is_the_table3_figure_of_the_same_model(tmp_path):
         table3 = metrics["tests"][t.name]["models"]["lumped"]
         assert res["validation"][t.name]["mse_before"] == pytest.approx(table3["mse"], rel=1e-9)
         assert res["validation"][t.name]["ame_before"] == pytest.approx(table3["ame"], rel=1e-9)
+
+
+def test_end_summary_and_summary_json(maxwell_data, tmp_path, capsys):
+    """The end-of-run summary is printed once, after everything is written, and summary.json holds
+    the same figures as metrics.json."""
+    path, _ = maxwell_data
+    out = tmp_path / "o"
+    assert run_cli("fit", "--dataset", path, "--out", out, "--models", "maxwell", "--population", 4,
+                   "--iterations", 2, "--workers", 0, "--polish", 0) == 0
+    text = capsys.readouterr().out
+    assert text.count("summary for scripts:") == 1
+    tail = text[text.index("done in"):]
+    assert "report: " in tail and "DamperMaxwell_tuned.fmu" in tail and "validation AME" in tail
+    summary = json.loads((out / "summary.json").read_text())
+    metrics = json.loads((out / "metrics.json").read_text())
+    val = metrics["tests"]["maxwell_val3"]["models"]["maxwell"]
+    assert summary["validation_ame"]["maxwell_val3"]["maxwell"]["ame_n"] == val["ame"]
+    assert summary["quality"]["maxwell"]["describes_data"] == metrics["quality"]["maxwell"]["describes_data"]
+    assert Path(summary["report"]).exists() and all(Path(f).exists() for f in summary["fmus"])
+
+
+def test_quiet_prints_only_the_summary(maxwell_data, tmp_path, capsys):
+    path, _ = maxwell_data
+    assert run_cli("fit", "--dataset", path, "--out", tmp_path / "q", "--models", "maxwell", "--population", 4,
+                   "--iterations", 2, "--workers", 0, "--polish", 0, "--quiet") == 0
+    text = capsys.readouterr().out
+    assert "iter" not in text and "progress" not in text
+    assert text.strip().startswith("=" * 72) or text.lstrip().startswith("=")

@@ -24,8 +24,81 @@ DEFAULT_DATASET = ROOT / "data" / "default"
 DEFAULT_RESULTS = ROOT / "results"
 
 
+_OUT = None  # the job's progress display while a job runs (tuner.progress.JobProgress)
+
+
 def _log(msg: str) -> None:
-    print(msg, flush=True)
+    if _OUT is not None:
+        _OUT(msg)
+    else:
+        print(msg, flush=True)
+
+
+def _start_job(args, weights: dict) -> "object":
+    """Progress display over the job's stages (``weights``: expected seconds); it is the log."""
+    global _OUT
+    from .progress import JobProgress
+
+    _OUT = JobProgress(weights, quiet=getattr(args, "quiet", False))
+    return _OUT
+
+
+def _end_job() -> None:
+    global _OUT
+    if _OUT is not None:
+        _OUT.finish()
+    _OUT = None
+
+
+def _end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
+    """Write ``summary.json`` and print the end-of-run summary once, after everything is written:
+    verdict, causes, validation AME per test and model, quality gate, where the report and FMUs are."""
+    metrics = json.loads((out / "metrics.json").read_text()) if (out / "metrics.json").exists() else {}
+    diag = json.loads((out / "diagnosis.json").read_text()) if (out / "diagnosis.json").exists() else {}
+    ame = {}
+    for name, t in (metrics.get("tests") or {}).items():
+        if t.get("role") == "validation":
+            ame[name] = {m: {"ame_n": r["ame"], "ame_pct_of_peak": 100 * r["ame"] / r["peak_measured"]}
+                         for m, r in t["models"].items()}
+    summary = {
+        "verdict": diag.get("verdict"), "cause": diag.get("cause"), "causes": diag.get("causes"),
+        "effect_parameters": diag.get("effect_parameters"),
+        "quality": {m: {k: q[k] for k in ("describes_data", "worst_ame_pct_of_peak", "worst_test", "gate_pct")}
+                    for m, q in (metrics.get("quality") or {}).items()},
+        "validation_ame": ame,
+        "report": str(out / "report.html") if (out / "report.html").exists() else None,
+        "fmus": sorted(str(f) for f in out.rglob("*.fmu")),
+        "total_time_s": seconds, "output_folder": str(out),
+    }
+    tmp = out / "summary.json.tmp"
+    tmp.write_text(json.dumps(summary, indent=1, default=str))
+    tmp.replace(out / "summary.json")
+    lines = ["", "=" * 72, f"done in {seconds / 60:.1f} min: {out}"]
+    for m, q in summary["quality"].items():
+        lines.append(f"  {m}: {'describes the data' if q['describes_data'] else 'does NOT describe the data'} "
+                     f"(worst held-out AME {q['worst_ame_pct_of_peak']:.3g} % of peak, gate {q['gate_pct']:g} %)")
+    if ame:
+        models = sorted({m for r in ame.values() for m in r})
+        lines.append("  validation AME [% of peak]: " + "; ".join(
+            f"{n}: " + ", ".join(f"{m} {r[m]['ame_pct_of_peak']:.3g}" for m in models if m in r) for n, r in ame.items()))
+    if summary["verdict"]:
+        lines.append(f"  diagnosis: {summary['verdict']}")
+    if summary["report"]:
+        lines.append(f"  report: {summary['report']}")
+    for f in summary["fmus"]:
+        lines.append(f"  FMU: {f}")
+    lines.append(f"  summary for scripts: {out / 'summary.json'}")
+    print("\n".join(lines), flush=True)
+    return summary
+
+
+def _tidy_checkpoints(out: Path, keep: bool) -> None:
+    """After a successful run the checkpoints (what --resume continues from) are removed unless kept."""
+    import shutil
+
+    ck = out / "checkpoints"
+    if ck.is_dir() and not keep:
+        shutil.rmtree(ck)
 
 
 def _free_folder(base: Path) -> Path:
@@ -158,6 +231,10 @@ def _add_fit_options(ap: argparse.ArgumentParser) -> None:
     g.add_argument("--out", type=Path, help="output folder (default results/<dataset name>[-N])")
     g.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
     g.add_argument("--force", action="store_true", help="move an existing --out aside (never deleted)")
+    g.add_argument("--keep-checkpoints", action="store_true",
+                   help="keep out/checkpoints after a successful run (by default they are removed: they only "
+                        "serve --resume after an interruption)")
+    g.add_argument("--quiet", action="store_true", help="no progress and no log lines; only the final summary")
 
 
 def _load(args):
@@ -220,8 +297,6 @@ def _check_engine(args) -> None:
 
 
 def cmd_fit(args) -> int:
-    from .fit import FitSettings, fit
-
     _check_engine(args)
 
     models = tuple(m.strip() for m in args.models.split(",") if m.strip())
@@ -233,6 +308,25 @@ def cmd_fit(args) -> int:
             raise ValueError(f"--{opt} must be >= 1")
     if args.population < 2:
         raise ValueError("--population must be >= 2")
+    t0 = time.perf_counter()
+    budget = args.population * args.iterations / (20 * 150)  # relative to the default run's
+    weights = {f"fit {m}": {"lumped": 60.0, "maxwell": 8.0, "maxwell_table": 30.0}[m] * budget for m in models}
+    weights.update({"validate and export": 12.0, "report": 8.0})
+    if not args.no_diagnose and "lumped" in models:
+        weights["diagnosis"] = 70.0
+    _start_job(args, weights)
+    try:
+        out = _fit_job(args, models)
+    finally:
+        _end_job()
+    _tidy_checkpoints(out, args.keep_checkpoints)
+    _end_summary(out, time.perf_counter() - t0)
+    return 0
+
+
+def _fit_job(args, models) -> Path:
+    from .fit import FitSettings, fit
+
     ident, valid, name = _load(args)
     out = args.out or _free_folder(DEFAULT_RESULTS / name)
     out = _prepare_out(out, args.resume, args.force)
@@ -249,15 +343,14 @@ def cmd_fit(args) -> int:
                   "files": {t.name: str(t.source) for t in ident + valid},
                   "command": " ".join(sys.argv)}
     _log(f"output folder: {out}")
-    t0 = time.perf_counter()
+    diagnosis = not args.no_diagnose and valid and "lumped" in models
+    if not diagnosis and _OUT is not None:
+        _OUT.weights.pop("diagnosis", None)
     metrics = fit(ident, valid, out, settings, provenance=provenance, log=_log)
     _print_summary(metrics)
-    if not args.no_diagnose and valid and "lumped" in models:
+    if diagnosis:
         _run_diagnosis(ident, valid, out, args, json.loads((out / "parameters.json").read_text())["lumped"]["values"])
-    _log(f"total time {time.perf_counter() - t0:.0f} s; results in {out}")
-    if (out / "report.html").exists():
-        _log(f"open the report: {out / 'report.html'}")
-    return 0
+    return out
 
 
 def _run_diagnosis(ident, valid, out, args, base_params=None) -> dict:
@@ -269,10 +362,14 @@ def _run_diagnosis(ident, valid, out, args, base_params=None) -> dict:
                                  tuple(1e-3 * v for v in args.damping_abscissae),
                                  elastic_abscissae_m=None if args.elastic_abscissae is None else
                                  tuple(1e-3 * x for x in args.elastic_abscissae))
+    from .progress import stage
+
+    stage(_OUT, "diagnosis")
     _log("\ndiagnosis: refitting the lumped model extended by each candidate effect ...")
     result = diagnose(ident, valid, out, settings, base_params=base_params, log=_log)
     from .report import make_diagnosis_report, make_report
 
+    stage(_OUT, "report")
     if (out / "parameters.json").exists():  # a fit's folder: the full report with the diagnosis
         make_report(out)
     else:
@@ -305,9 +402,14 @@ def cmd_diagnose(args) -> int:
             if (args.from_fit / f).exists():
                 (out / f).write_bytes((args.from_fit / f).read_bytes())
     _log(f"output folder: {out}")
-    _run_diagnosis(ident, valid, out, args, base)  # it states the verdict once
-    if (out / "report.html").exists():
-        _log(f"open the report: {out / 'report.html'}")
+    t0 = time.perf_counter()
+    _start_job(args, {"diagnosis": 70.0 if base is not None else 130.0, "report": 5.0})
+    try:
+        _run_diagnosis(ident, valid, out, args, base)  # it states the verdict once
+    finally:
+        _end_job()
+    _tidy_checkpoints(out, args.keep_checkpoints)
+    _end_summary(out, time.perf_counter() - t0)
     return 0
 
 

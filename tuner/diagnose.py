@@ -51,6 +51,7 @@ from .engine import Engine
 from .metrics import noise_std
 from .parametrization import Parametrization
 from .polish import polish
+from .progress import advance
 from .report import fmt_quantity
 
 __all__ = ["DiagnosisSettings", "diagnose", "decide", "cross_check", "CANDIDATES", "ExtendedParametrization"]
@@ -486,7 +487,9 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
         none_row = _held_out("none", par.to_params(z_none), [], g_none, ev_none, mse_none)
         log(f"  {'none':14s} (base refitted alike)  identification RMSE {none_row['identification_rmse_n']:.1f} N, "
             f"validation MSE {100 * (mse_none / mse_base - 1):+6.1f} % vs the base fit")
-        for effect in settings.candidates:
+        advance(log, 0.2)
+        for k_cand, effect in enumerate(settings.candidates):
+            advance(log, 0.2 + 0.5 * k_cand / len(settings.candidates))
             ext = ExtendedParametrization(par, effect, peak)
             # the fitted base may have absorbed part of the effect into its tables: a profile line
             # search re-balances it (``_refit``); a second start from the data-driven initial guess,
@@ -503,6 +506,7 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
             log(f"  {effect:14s} " + ", ".join(f"{n} = {v:.4g} {UNITS[n]}" for n, v in row["parameters"].items())
                 + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
                 + f"  effect {row['effect_rms_n']:.3g} N rms{'' if row['resolved'] else ' (below the noise)'}")
+        advance(log, 0.7)
         # the leading candidate's refit is continued to convergence (absorbed effects converge slowly),
         # and so is the base refit, so that the continuation is not credited to the effect
         lead = max(ranking, key=lambda r: r["score"] if r["resolved"] else -math.inf, default=None)
@@ -522,6 +526,7 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
                 + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
                 + f"  identification RMSE {row['identification_rmse_n']:.1f} N (none: "
                 + f"{none_row['identification_rmse_n']:.1f} N)")
+        advance(log, 0.8)
         # significance: a confidence interval of the magnitude (correlated residuals: block
         # sandwich) for every extension that earned its score with a force above the noise
         for row in ranking:

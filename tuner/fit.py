@@ -37,6 +37,7 @@ from .engine import IDENTIFICATION_STEP, Engine, Signals, oversampling, simulate
 from .metrics import compare_to_maxwell, error_metrics, noise_std
 from .parametrization import Parametrization
 from .polish import polish
+from .progress import advance, stage
 
 __all__ = ["FitSettings", "fit", "initial_guess", "to_signals", "validation_run", "identify", "data_digest",
            "table_abscissae", "quality_gate", "STRETCH_BEYOND", "QUALITY_AME_PCT"]
@@ -239,7 +240,8 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
             rmse = 1.0 / math.sqrt(best) if best > 0 else float("inf")
             left = (settings.iterations - st.iteration) * settings.population / rate if rate > 0 else float("nan")
             log(f"[{model}] iter {st.iteration:3d}/{settings.iterations}  best G {best:.4e} (RMSE {rmse:7.1f} N)"
-                f"  mean G {st.history_mean[-1]:.4e}  {rate:5.1f} eval/s  ~{left / 60:4.1f} min left")
+                f"  mean G {st.history_mean[-1]:.4e}  {rate:5.1f} eval/s  search ~{left / 60:4.1f} min left at most")
+            advance(log, 0.85 * st.iteration / settings.iterations)
             return False
 
         if state is not None and ckpt.exists():
@@ -354,6 +356,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
         f"{1e3 * max(float(np.max(np.abs(s.stroke_velocity[s.mask]))) for s in signals):.4g} mm/s)")
     params, histories = {}, {}
     for model in settings.models:
+        stage(log, f"fit {model}")
         fixed = {k: v for k, v in axes.items() if k in {p.name for p in MODEL_PARAMETERS[model]}}
         par = Parametrization(model, settings.parametrization, force_limit=force_limit,
                               spring_reference=settings.spring_reference_n_per_m, fixed=fixed)
@@ -371,6 +374,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
     (out / "parameters.json").write_text(json.dumps(params, indent=2, sort_keys=True))
 
     # every result is checked through the FMU the user gets, whatever engine identified it
+    stage(log, "validate and export")
     log(f"validating through the FMU (forces compared in the {settings.fit_rate_hz / 2:g} Hz fit band) ...")
     tests_out, arrays = {}, {}
     for t, p in zip([*identification, *validation], [*prep_id, *(prepare(t, settings.fit_rate_hz) for t in validation)]):
@@ -426,6 +430,6 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
     except ImportError:
         make_report = None
     if make_report is not None:
-        path = make_report(out)
-        log(f"report: {path}")
+        stage(log, "report")
+        make_report(out)
     return metrics

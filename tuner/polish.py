@@ -15,7 +15,12 @@ import math
 
 import numpy as np
 
+from .progress import advance
+
 __all__ = ["polish"]
+
+#: Jacobians a refinement typically takes to converge (for the progress display only)
+TYPICAL_JACOBIANS = 15
 
 
 class _Done(Exception):
@@ -77,6 +82,7 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 15, step: float 
         if best > 0:
             history.append(n / best)
             log(f"    polish: Jacobian {len(history) - 1}/{max_jacobians}, RMSE {math.sqrt(best / n):.1f} N")
+            advance(log, 0.85 + 0.15 * min(1.0, (len(history) - 1) / TYPICAL_JACOBIANS))
         return np.column_stack(cols)
 
     try:

@@ -1,0 +1,61 @@
+"""The job progress display: estimate over the whole job, plain timestamped lines off a terminal."""
+import io
+import re
+
+import pytest
+
+from tuner.progress import JobProgress, advance, stage
+
+
+class Clock:
+    def __init__(self):
+        self.t = 0.0
+
+    def __call__(self):
+        return self.t
+
+
+def test_estimate_covers_the_whole_job_and_is_refined_as_stages_finish():
+    clock, out = Clock(), io.StringIO()
+    p = JobProgress({"fit": 60.0, "diagnosis": 60.0}, stream=out, tty=False, clock=clock)
+    stage(p, "fit")
+    clock.t = 30.0
+    advance(p, 0.5)  # a quarter of the job in 30 s -> 90 s left, not the fit's 30 s
+    assert p.completed() == pytest.approx(0.25)
+    assert p.remaining_s() == pytest.approx(90.0)
+    clock.t = 120.0  # the fit took twice as long as expected: the estimate follows
+    stage(p, "diagnosis")
+    assert p.remaining_s() == pytest.approx(120.0)
+    advance(p, 0.2)
+    advance(p, 0.1)  # progress never goes back
+    assert p.fraction == pytest.approx(0.2)
+
+
+def test_plain_lines_when_not_a_terminal():
+    clock, out = Clock(), io.StringIO()
+    p = JobProgress({"a": 1.0, "b": 3.0}, stream=out, tty=False, clock=clock, interval_s=10.0)
+    p("hello")
+    stage(p, "a")
+    clock.t = 65.0
+    advance(p, 1.0)
+    advance(p, 1.0)  # within the interval: no second progress line
+    stage(p, "b")
+    p.finish()
+    lines = out.getvalue().splitlines()
+    stamp = r"\[\d\d:\d\d:\d\d \+\d+:\d\d\] "
+    assert re.fullmatch(stamp + "hello", lines[0])
+    assert re.fullmatch(stamp + r"progress 0 % \(stage: a 0 %\), estimating time left", lines[1])
+    assert re.fullmatch(stamp.replace(r"\d+:\d\d", "1:05") + r"progress 25 % \(stage: a 100 %\), about 3\.2 min left",
+                        lines[2])
+    assert len([ln for ln in lines if "progress" in ln]) == 3  # the stage change forces a line
+
+
+def test_quiet_prints_nothing_and_plain_print_still_works_as_log():
+    out = io.StringIO()
+    p = JobProgress({"a": 1.0}, stream=out, tty=False, quiet=True)
+    p("x")
+    stage(p, "a")
+    advance(p, 0.5)
+    assert out.getvalue() == ""
+    stage(print, "a")  # a log without hooks is left alone
+    advance(print, 0.5)

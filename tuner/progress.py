@@ -1,0 +1,139 @@
+"""One progress display for a whole job (build, fits, validation, diagnosis, report).
+
+A :class:`JobProgress` is the ``log`` callable the pipeline writes its messages to; it also
+receives where the job stands: ``stage(name)`` when a stage starts and ``advance(fraction)``
+inside it (0-1). The estimate of the time left is the elapsed time scaled by the expected cost of
+the remaining stages over that of the finished part; the expected costs are relative weights
+(seconds of the default run), so the estimate is refined as stages finish.
+
+On a terminal: a tqdm bar over the whole job, messages printed above it. Otherwise (CI, logs):
+plain lines ``[HH:MM:SS +M:SS] message`` and, at most every ``interval_s``, a progress line
+``[HH:MM:SS +M:SS] progress 37 % (stage: fit lumped 80 %), about 2.1 min left``. ``quiet``:
+nothing is printed.
+
+Pipeline functions call the progress hooks only when their ``log`` has them (:func:`stage`,
+:func:`advance`), so a plain ``print`` still works as ``log``.
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+__all__ = ["JobProgress", "stage", "advance"]
+
+
+def stage(log, name: str) -> None:
+    """Tell ``log`` that stage ``name`` starts, if it keeps progress."""
+    hook = getattr(log, "stage", None)
+    if hook is not None:
+        hook(name)
+
+
+def advance(log, fraction: float) -> None:
+    """Tell ``log`` how far [0-1] the current stage is, if it keeps progress."""
+    hook = getattr(log, "advance", None)
+    if hook is not None:
+        hook(fraction)
+
+
+class JobProgress:
+    """Progress over the stages of one job; ``weights``: stage name -> expected cost (relative)."""
+
+    def __init__(self, weights: dict[str, float], *, quiet: bool = False, stream=None, tty: bool | None = None,
+                 interval_s: float = 10.0, clock=time.monotonic):
+        if not weights or any(w <= 0 for w in weights.values()):
+            raise ValueError("weights must be a non-empty dict of positive expected costs")
+        self.weights = dict(weights)
+        self.quiet, self.stream = quiet, stream or sys.stdout
+        self.tty = self.stream.isatty() if tty is None else tty
+        self.interval_s, self.clock = interval_s, clock
+        self.t0 = clock()
+        self.done: list[str] = []
+        self.current: str | None = None
+        self.fraction = 0.0
+        self._last_line = -float("inf")
+        self._bar = None
+        if self.tty and not quiet:
+            from tqdm import tqdm
+
+            self._bar = tqdm(total=1000, file=self.stream, leave=False, dynamic_ncols=True,
+                             bar_format="{l_bar}{bar}| {postfix}")
+
+    # -- state -----------------------------------------------------------------------------------
+    @property
+    def elapsed(self) -> float:
+        return self.clock() - self.t0
+
+    def completed(self) -> float:
+        """Share [0-1] of the job's expected cost done."""
+        total = sum(self.weights.values())
+        done = sum(self.weights[s] for s in self.done)
+        if self.current is not None and self.current not in self.done:
+            done += self.weights.get(self.current, 0.0) * self.fraction
+        return min(done / total, 1.0)
+
+    def remaining_s(self) -> float | None:
+        """Estimated seconds left (None until some of the job is done)."""
+        c = self.completed()
+        if c <= 0.02:
+            return None
+        return self.elapsed * (1.0 - c) / c
+
+    # -- hooks -----------------------------------------------------------------------------------
+    def stage(self, name: str) -> None:
+        if self.current is not None and self.current not in self.done:
+            self.done.append(self.current)
+        if name not in self.weights:  # an unplanned stage: give it the mean weight
+            self.weights[name] = sum(self.weights.values()) / len(self.weights)
+        self.current, self.fraction = name, 0.0
+        self._show(force=True)
+
+    def advance(self, fraction: float) -> None:
+        self.fraction = min(max(float(fraction), self.fraction), 1.0)
+        self._show()
+
+    def finish(self) -> None:
+        if self.current is not None and self.current not in self.done:
+            self.done.append(self.current)
+        self.current = None
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+
+    def __call__(self, msg: str) -> None:
+        if self.quiet:
+            return
+        if self._bar is not None:
+            self._bar.write(str(msg), file=self.stream)
+        else:
+            for line in str(msg).splitlines() or [""]:
+                self.stream.write(f"{self._stamp()} {line}\n" if line.strip() else "\n")
+            self.stream.flush()
+
+    # -- display ---------------------------------------------------------------------------------
+    def _stamp(self) -> str:
+        e = int(self.elapsed)
+        return f"[{time.strftime('%H:%M:%S')} +{e // 60}:{e % 60:02d}]"
+
+    def status(self) -> str:
+        """``progress 37 % (stage: fit lumped 80 %), about 2.1 min left``."""
+        left = self.remaining_s()
+        eta = "estimating time left" if left is None else (
+            f"about {left / 60:.1f} min left" if left >= 60 else f"about {left:.0f} s left")
+        st = f" (stage: {self.current} {100 * self.fraction:.0f} %)" if self.current else ""
+        return f"progress {100 * self.completed():.0f} %{st}, {eta}"
+
+    def _show(self, force: bool = False) -> None:
+        if self.quiet:
+            return
+        if self._bar is not None:
+            self._bar.n = int(1000 * self.completed())
+            left = self.remaining_s()
+            self._bar.set_postfix_str(f"{self.current or ''} {100 * self.fraction:.0f} %"
+                                      + ("" if left is None else f", ~{left / 60:.1f} min left"), refresh=True)
+            return
+        now = self.clock()
+        if force or now - self._last_line >= self.interval_s:
+            self._last_line = now
+            self.stream.write(f"{self._stamp()} {self.status()}\n")
+            self.stream.flush()
