@@ -121,11 +121,15 @@ def _plot_type(path: Path, type_name: str, curves: dict, spread: dict) -> Path:
         ax.plot(v, med / 1e3, color="k", lw=1.2, ls="--", label="type median", zorder=1)
         ax2.fill_between(v, -lim, lim, color="0.85", zorder=0)
         ax2.axhline(0.0, color="k", lw=1.0, ls="--")
+    named = len(curves) <= 12  # a large fleet: only the outliers get a legend entry
+    first = True
     for i, (vv, ff) in curves.items():
         info = spread["dampers"][i]
         odd = info["outlier"]
         style = dict(color="tab:red", lw=2.0, zorder=3) if odd else dict(color="tab:blue", lw=1.0, alpha=0.7, zorder=2)
-        ax.plot(vv, ff / 1e3, marker="o", ms=3, label=f"{i} (outlier)" if odd else i, **style)
+        label = f"{i} (outlier)" if odd else (i if named else ("within the band" if first else None))
+        first = first and (odd or named)
+        ax.plot(vv, ff / 1e3, marker="o", ms=3, label=label, **style)
         if spread["judged"]:
             import numpy as np
 
