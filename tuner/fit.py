@@ -241,7 +241,7 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
             left = (settings.iterations - st.iteration) * settings.population / rate if rate > 0 else float("nan")
             log(f"[{model}] iter {st.iteration:3d}/{settings.iterations}  best G {best:.4e} (RMSE {rmse:7.1f} N)"
                 f"  mean G {st.history_mean[-1]:.4e}  {rate:5.1f} eval/s  search ~{left / 60:4.1f} min left at most")
-            advance(log, 0.85 * st.iteration / settings.iterations)
+            advance(log, 0.85 * st.iteration / max(settings.iterations, 1))
             return False
 
         if state is not None and ckpt.exists():

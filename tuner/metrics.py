@@ -171,14 +171,18 @@ def polyfit_odd_even(x, y, order: int = 5) -> PolyOddEven:
 
 def noise_std(signal, sample_rate: float) -> float:
     """Measurement noise of a sampled signal [its unit], white-equivalent over the Nyquist band:
-    sqrt(median PSD in 0.1-0.3 x sample_rate x sample_rate / 2). The median of a band above the
-    usual content of damper strokes ignores narrow-band signal; anti-alias filters usually keep
-    that band flat. A coloured noise or broadband signal there biases it high (conservative)."""
+    sqrt(PSD x sample_rate / 2), the PSD taken as the smallest of its medians over the bands
+    0.1-0.2, 0.2-0.3 and 0.3-0.4 x sample_rate. A damper force's content (the harmonics of its
+    characteristic's kinks) falls with frequency, so at low sample rates (300 Hz) the upper band
+    is the least biased; the band stops at 0.4 x sample_rate, where rigs' anti-alias filters start
+    to cut the noise (an estimate from there would be too low, and make effects look resolved).
+    Any signal left in the bands biases it high (conservative)."""
     from scipy.signal import welch
 
     x = np.asarray(signal, dtype=float)
     if x.size < 64:
         raise ValueError("noise_std needs at least 64 samples")
     f, p = welch(x - x.mean(), fs=sample_rate, nperseg=min(1024, x.size))
-    band = (f > 0.1 * sample_rate) & (f < 0.3 * sample_rate)
-    return float(np.sqrt(np.median(p[band]) * sample_rate / 2.0))
+    medians = [np.median(p[(f > lo * sample_rate) & (f < hi * sample_rate)])
+               for lo, hi in ((0.1, 0.2), (0.2, 0.3), (0.3, 0.4))]
+    return float(np.sqrt(min(medians) * sample_rate / 2.0))

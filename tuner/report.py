@@ -730,7 +730,7 @@ def _poly_section(run: _Run, fdir: Path, dpi: int) -> str:
         s, desc = var[key]
         terms = " ".join(f"{'+' if ci >= 0 else '-'} {abs(ci):.4g}" + (f"·{s}" if k else "") +
                          (f"<sup>{k}</sup>" if k > 1 else "") for k, ci in reversed(list(enumerate(c))))
-        rows = [[f"c<sub>{k}</sub>", f"{ci:.4e}", unit_html(_coef_unit(key, k)), "odd" if k % 2 else "even"]
+        rows = [[f"c<sub>{k}</sub>", f"{ci:.3e}", unit_html(_coef_unit(key, k)), "odd" if k % 2 else "even"]
                 for k, ci in enumerate(c)]
         p5, fs = fit["p5"], np.array(fit["table"].fs)
         resid = float(np.sqrt(np.mean((p5.fit - fs) ** 2)))
@@ -899,9 +899,16 @@ def make_report(out_dir, *, dpi: int = 110) -> Path:
     return _write_page(out, title, body)
 
 
+def _number_sections(html_text: str) -> str:
+    """Number the ``<h2>`` section headings 1, 2, ... in the order they appear (whatever sections a
+    run has), replacing any number they carry."""
+    count = iter(range(1, 1000))
+    return re.sub(r"<h2>(?:\d+\.\s*)?", lambda m: f"<h2>{next(count)}. ", html_text)
+
+
 def _write_page(out: Path, title: str, body: list[str]) -> Path:
     page = (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>{title}</title>"
-            f"<style>{_CSS}</style></head><body>" + "\n".join(body) + "</body></html>\n")
+            f"<style>{_CSS}</style></head><body>" + _number_sections("\n".join(body)) + "</body></html>\n")
     path = out / "report.html"
     path.write_text(page, encoding="utf-8")
     return path
@@ -940,14 +947,21 @@ def fmt_quantity(v: float, unit: str) -> str:
     return f"{v:.3g} {unit}"
 
 
-def _effect_value(name: str, v: float, unit: str) -> str:
+def effect_value(name: str, v: float, unit: str) -> str:
     """A fitted effect magnitude; one below 1/1000 of the low end of its typical range prints as 0
     (the refit switched the effect off; 5e-15 mm is not a measurement)."""
     from damper_fmu.parameters import EFFECT_TYPICAL
 
     if name in EFFECT_TYPICAL and abs(v) < 1e-3 * EFFECT_TYPICAL[name][0]:
         return "0 (off)"
-    return fmt_quantity(v, unit)
+    text = fmt_quantity(v, unit)
+    if name in EFFECT_TYPICAL:
+        lo, hi = EFFECT_TYPICAL[name]
+        if abs(v) > hi:
+            text += f" (above its typical {fmt_quantity(lo, unit)} - {fmt_quantity(hi, unit)})"
+        elif abs(v) < lo:
+            text += f" (below its typical {fmt_quantity(lo, unit)} - {fmt_quantity(hi, unit)})"
+    return text
 
 
 def diagnosis_section_html(out_dir) -> str:
@@ -965,7 +979,7 @@ def diagnosis_section_html(out_dir) -> str:
         out = []
         for r in ranking:
             cls = " class='winner'" if r["effect"] == winner else ""
-            fitted = ", ".join(f"{n} = {_effect_value(n, v, r['units'][n])}" for n, v in r["parameters"].items())
+            fitted = ", ".join(f"{n} = {effect_value(n, v, r['units'][n])}" for n, v in r["parameters"].items())
             why = " (evidence disagrees)" if r.get("evidence_agrees") is False else " (below noise)"
             size = (f"{r['effect_rms_n']:.3g}" + ("" if r.get("resolved", True) else why)
                     if r.get("parameters") else "-")
@@ -995,8 +1009,7 @@ def diagnosis_section_html(out_dir) -> str:
                   f"{e(fmt_quantity(p['plausible_range'][0], p['unit']))} - {e(fmt_quantity(p['plausible_range'][1], p['unit']))}</td>"
                   f"<td>{'yes' if p['plausible'] else 'NO'}</td></tr>" for n, p in d["effect_parameters"].items())
     ev = (d.get("evidence") or {}).get("effects", {})
-    ev_rows = "".join(f"<li><b>{e(k)}</b> (explains {100 * v.get('r2', 0):.0f} % of the residual power): "
-                      f"{e(str(v.get('sentence', '')))}</li>" for k, v in ev.items()
+    ev_rows = "".join(f"<li><b>{e(k)}</b>: {e(str(v.get('sentence', '')))}</li>" for k, v in ev.items()
                       if isinstance(v, dict) and v.get("sentence"))
     figs = "".join(f"<figure><img src='{e(f)}' alt='{e(f)}'></figure>" for f in d.get("figures", []))
     s = d["settings"]

@@ -282,7 +282,18 @@ def _sentence(e, d):
                 f"{d['reversals']} reversals: r follows -F_sim for {1e3 * d['gap_time']:.1f} ms after them "
                 f"(coefficient on -F_sim {d['coef_window']:.2f} in the first 50 ms vs {d['coef_elsewhere']:.2f} "
                 f"elsewhere), apparent gap {1e3 * d['value']:.2f} mm"),
-            }[e]() + f"; {x}"
+            }[e]() + _against_physics(e, d) + f"; {x}"
+
+
+#: effects whose regression coefficient has a physical sign (> 0 for the effect itself)
+_SIGNED = {"friction": "a friction", "inertia": "an inertia", "time_delay": "a delay", "valve_lag": "a valve lag"}
+
+
+def _against_physics(e, d) -> str:
+    """A word when a signed effect's coefficient came out negative: not that effect."""
+    if e in _SIGNED and d.get("value") is not None and d["value"] < 0:
+        return f" (negative: opposite to {_SIGNED[e]}, so this correlation is not evidence for it)"
+    return ""
 
 
 def _runs(b):
