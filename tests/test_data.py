@@ -17,8 +17,9 @@ FS = 1000.0
 def _frame(n=2000, fs=FS, seed=0, temperature=True):
     rng = np.random.default_rng(seed)
     t = np.arange(n) / fs
-    x = 0.02 * np.sin(2 * np.pi * 0.7 * t + rng.uniform(0, 6)) + 1e-3 * rng.standard_normal(n)
-    f = 8e3 * np.sin(2 * np.pi * 0.7 * t + 1.0) + 50 * rng.standard_normal(n)
+    phase = rng.uniform(0, 6)
+    x = 0.02 * np.sin(2 * np.pi * 0.7 * t + phase) + 1e-3 * rng.standard_normal(n)
+    f = 8e3 * np.sin(2 * np.pi * 0.7 * t + phase + 1.2) + 50 * rng.standard_normal(n)  # a damper: leads x
     cols = {"time": t, "stroke": x, "force": f}
     if temperature:
         cols["temperature"] = 25 + 10 * t / t[-1] + 0.01 * rng.standard_normal(n)

@@ -127,7 +127,7 @@ def test_measured_velocity_column_is_used_instead_of_the_differentiator(tmp_path
     pt = prepare(g, 1000.0)
     np.testing.assert_allclose(pt.stroke_velocity, v, rtol=1e-8, atol=1e-12)
     assert "measured by the rig" in pt.describe()
-    flipped = load_test(p, velocity_col="velocity", stroke_sign=-1)
+    flipped = load_test(p, velocity_col="velocity", stroke_sign=-1, force_sign=-1)
     np.testing.assert_allclose(flipped.velocity, -v, rtol=1e-8, atol=1e-12)
 
 
@@ -294,3 +294,19 @@ def test_quality_gate_names_a_model_that_does_not_describe_the_data():
     assert q["describes_data"] and q["worst_test"] == "b"  # held-out tests only
     q = quality_gate({"a": tests["a"]}, ["m"])["m"]
     assert q["worst_test"] == "a" and "no held-out test" in q["text"]
+
+
+@pytest.mark.parametrize("signs, refused", [((1, 1), False), ((-1, -1), False), ((1, -1), True), ((-1, 1), True)])
+def test_a_flipped_sign_is_refused_because_a_damper_absorbs_power(tmp_path, ref, signs, refused):
+    """The bundled twin-tube test written with stroke/force signs flipped: both flipped is only
+    another convention (power unchanged) and passes; one flipped makes the damper deliver power."""
+    p = tmp_path / "signs.csv"
+    pd.DataFrame({"time": ref["time"], "stroke": signs[0] * ref["stroke"], "force": signs[1] * ref["force"]}) \
+        .to_csv(p, index=False, float_format="%.10g")
+    if refused:
+        with pytest.raises(DataError, match="anti-correlated.*--force-sign -1"):
+            load_test(p)
+        g = load_test(p, force_sign=signs[1], stroke_sign=signs[0])  # the fix the message names
+        assert g.metadata["read"]["plausibility"]["force_velocity_correlation"] > 0.3
+    else:
+        load_test(p)

@@ -82,6 +82,7 @@ MIN_FORCE_PEAK_N = 1.0
 MAX_FORCE_PEAK_N = 2e6
 MIN_DAMPING_N_S_PER_M = 200.0
 MAX_DAMPING_N_S_PER_M = 1e8
+MIN_FORCE_VELOCITY_CORRELATION = -0.05
 MIN_SAMPLE_RATE_HZ = 10.0
 
 TIME_UNITS = {"s": 1.0, "ms": 1e-3}
@@ -204,7 +205,9 @@ def plausibility(source, time, stroke, force, velocity=None, rate=None, units=No
     over 20 Hz). Limits: stroke range 5 um .. 2 m; peak stroke velocity <= 5 m/s (a rig
     actuator's limit; a stroke in mm read as m gives tens of m/s); peak force 1 N .. 2 MN;
     apparent damping rms(F)/rms(v) from 200 N s/m (lighter than any vehicle damper: a force in kN
-    read as N) to 1e8 N s/m (100 x a yaw damper's low-speed 1e6: a stroke in m read as mm).
+    read as N) to 1e8 N s/m (100 x a yaw damper's low-speed 1e6: a stroke in m read as mm); a
+    passive damper absorbs power, so force and velocity must not be anti-correlated (correlation
+    below -0.05: one of the two signs is flipped).
     ``units``: the units the file was read in, for the suggested fix. Returns the
     figures checked (SI); raises DataError naming the file, the figure and the likely fix.
     """
@@ -217,8 +220,10 @@ def plausibility(source, time, stroke, force, velocity=None, rate=None, units=No
     fpeak = float(np.max(np.abs(force)))
     vrms = float(np.std(v))
     c_app = float(np.std(force) / vrms) if vrms > 1e-6 else None
+    fv = np.asarray(force, dtype=float) - np.mean(force)
+    power = float(np.mean(fv * v) / (np.std(fv) * vrms)) if vrms > 1e-6 and np.std(fv) > 0 else None
     fig = {"stroke_range_m": srange, "velocity_peak_m_s": vpeak, "force_peak_n": fpeak,
-           "apparent_damping_n_s_per_m": c_app}
+           "apparent_damping_n_s_per_m": c_app, "force_velocity_correlation": power}
     tail = " If the values are right, run with --accept-implausible."
     if srange > MAX_STROKE_RANGE_M or vpeak > MAX_VELOCITY_M_S:
         raise DataError(
@@ -245,6 +250,11 @@ def plausibility(source, time, stroke, force, velocity=None, rate=None, units=No
             f"of the lightest vehicle damper, with force in {fu!r} and stroke in {su!r}."
             + _suggest(FORCE_UNITS, fu, lambda r: c_app * r >= MIN_DAMPING_N_S_PER_M and fpeak * r <= MAX_FORCE_PEAK_N)
             + " Use --force-unit/--stroke-unit." + tail)
+    if power is not None and power < MIN_FORCE_VELOCITY_CORRELATION:
+        raise DataError(
+            f"{source}: force and stroke velocity are anti-correlated (correlation {power:+.2f}): the damper would "
+            f"deliver power instead of absorbing it, so one sign convention differs from ours (stroke positive in "
+            f"extension, force positive in tension). Use --force-sign -1 (or --stroke-sign -1)." + tail)
     if c_app is not None and c_app > MAX_DAMPING_N_S_PER_M:
         raise DataError(
             f"{source}: implausible stroke for its force: rms force {np.std(force):.4g} N at rms velocity "
