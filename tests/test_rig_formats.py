@@ -269,7 +269,10 @@ def test_a_fit_of_a_faster_damper_exports_tables_covering_its_velocity_range(tmp
     out = tmp_path / "fit"
     assert main(["fit", "--identification", str(files[0]), "--validation", str(files[1]), "--out", str(out),
                  "--models", "lumped", "--population", "3", "--iterations", "1", "--polish", "0", "--workers", "0",
-                 "--no-diagnose", "--engine", "inprocess" if __import__("build_fmu").native_reason() else "native"]) == 0
+                 "--no-diagnose", "--diff-band", "40",
+                 "--engine", "inprocess" if __import__("build_fmu").native_reason() else "native"]) == 0
+    settings = __import__("json").loads((out / "metrics.json").read_text())["settings"]
+    assert settings["diff_band_hz"] == 40.0 and "0.5 % up to 40 Hz" in settings["preprocessing"][0]
     vals = __import__("json").loads((out / "parameters.json").read_text())["lumped"]["values"]
     assert vals["Fc_v14"] > 0.6 and vals["Fc_v01"] < -0.6
     fmu = next((out / "fmu").glob("DamperLumped*_tuned.fmu"))

@@ -213,6 +213,9 @@ def _add_fit_options(ap: argparse.ArgumentParser) -> None:
                    help="seeded: data-driven guess and preset in the first population (default)")
     g.add_argument("--fit-rate", type=float, default=d.fit_rate_hz, help="resample to this rate [Hz]")
     g.add_argument("--warmup", type=float, default=d.warmup_s, help="seconds skipped at each test start")
+    g.add_argument("--diff-band", type=float, default=d.diff_band_hz, metavar="HZ",
+                   help="band up to which the stroke differentiator is accurate to 0.5 %% (default %(default)s Hz: "
+                        "railway strokes; raise it for rig tests with faster strokes; ignored with --velocity-col)")
     g.add_argument("--force-limit", type=float, default=None,
                    help="Fc,O ordinate limit [N] (default: 1.5 x peak measured force)")
     g.add_argument("--damping-abscissae", type=_float_list, default=None, metavar="V1,...,V14",
@@ -335,6 +338,7 @@ def _fit_job(args, models) -> Path:
                            seed=args.seed, engine=args.engine, parametrization=args.parametrization,
                            init=args.init, force_limit_n=args.force_limit,
                            stop_tol=None if args.no_stop else 1e-3, polish_jacobians=args.polish,
+                           diff_band_hz=args.diff_band,
                            damping_abscissae_m_s=None if args.damping_abscissae is None else
                            tuple(1e-3 * v for v in args.damping_abscissae),
                            elastic_abscissae_m=None if args.elastic_abscissae is None else
@@ -357,7 +361,7 @@ def _run_diagnosis(ident, valid, out, args, base_params=None) -> dict:
     from .diagnose import DiagnosisSettings, diagnose
 
     settings = DiagnosisSettings(fit_rate_hz=args.fit_rate, warmup_s=args.warmup, workers=args.workers,
-                                 engine=args.engine, seed=args.seed,
+                                 engine=args.engine, seed=args.seed, diff_band_hz=args.diff_band,
                                  damping_abscissae_m_s=None if args.damping_abscissae is None else
                                  tuple(1e-3 * v for v in args.damping_abscissae),
                                  elastic_abscissae_m=None if args.elastic_abscissae is None else

@@ -133,6 +133,7 @@ class DiagnosisSettings:
     final_jacobians: int = 100  # continued refit of the leading candidate: a cap, it stops when converged
     max_causes: int = 3  # forward selection stops here at the latest
     candidates: tuple = CANDIDATES
+    diff_band_hz: float = 20.0  # as tuner.fit.FitSettings
     damping_abscissae_m_s: tuple | None = None  # as tuner.fit.FitSettings (without a base fit given)
     elastic_abscissae_m: tuple | None = None
     extra: dict = field(default_factory=dict)
@@ -379,8 +380,8 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     out = Path(out)
     (out / "checkpoints").mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
-    prep_id = [prepare(t, settings.fit_rate_hz) for t in identification]
-    prep_val = [prepare(t, settings.fit_rate_hz) for t in validation]
+    prep_id = [prepare(t, settings.fit_rate_hz, diff_band_hz=settings.diff_band_hz) for t in identification]
+    prep_val = [prepare(t, settings.fit_rate_hz, diff_band_hz=settings.diff_band_hz) for t in validation]
     sig_id = [to_signals(p, settings.warmup_s) for p in prep_id]
     sig_val = [to_signals(p, settings.warmup_s) for p in prep_val]
     peak = max(float(np.abs(s.force[s.mask]).max()) for s in sig_id)

@@ -67,6 +67,7 @@ class FitSettings:
     spring_reference_n_per_m: float = FK_REFERENCE_STIFFNESS
     stop_tol: float | None = 1e-3
     polish_jacobians: int = 100  # a safety cap: the refinement stops when converged
+    diff_band_hz: float = 20.0  # band [Hz] within which the stroke differentiator is accurate to 0.5 %
     damping_abscissae_m_s: tuple | None = None  # Fc,O rates [m/s], 14 sorted nonzero; None: from the data
     elastic_abscissae_m: tuple | None = None  # Fk,O elongations [m], 10 sorted nonzero; None: from the data
     extra: dict = field(default_factory=dict)
@@ -338,7 +339,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
     out = Path(out)
     (out / "checkpoints").mkdir(parents=True, exist_ok=True)
     digest = data_digest(identification)
-    prep_id = [prepare(t, settings.fit_rate_hz) for t in identification]
+    prep_id = [prepare(t, settings.fit_rate_hz, diff_band_hz=settings.diff_band_hz) for t in identification]
     signals = [to_signals(p, settings.warmup_s) for p in prep_id]
     peak = max(float(np.abs(s.force[s.mask]).max()) for s in signals)
     force_limit = settings.force_limit_n or float(f"{1.5 * peak:.2g}")
@@ -377,7 +378,8 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
     stage(log, "validate and export")
     log(f"validating through the FMU (forces compared in the {settings.fit_rate_hz / 2:g} Hz fit band) ...")
     tests_out, arrays = {}, {}
-    for t, p in zip([*identification, *validation], [*prep_id, *(prepare(t, settings.fit_rate_hz) for t in validation)]):
+    prep_val = [prepare(t, settings.fit_rate_hz, diff_band_hz=settings.diff_band_hz) for t in validation]
+    for t, p in zip([*identification, *validation], [*prep_id, *prep_val]):
         s = to_signals(p, settings.warmup_s)
         arrays[f"{t.name}__time"], arrays[f"{t.name}__stroke"] = p.time, p.stroke
         arrays[f"{t.name}__force"] = p.force
