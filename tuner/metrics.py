@@ -171,11 +171,12 @@ def polyfit_odd_even(x, y, order: int = 5) -> PolyOddEven:
 
 def noise_std(signal, sample_rate: float) -> float:
     """Measurement noise of a sampled signal [its unit], white-equivalent over the Nyquist band:
-    sqrt(PSD x sample_rate / 2), the PSD taken as the smallest of its medians over the bands
-    0.1-0.2, 0.2-0.3 and 0.3-0.4 x sample_rate. A damper force's content (the harmonics of its
+    sqrt(PSD x sample_rate / 2), the PSD taken as the smaller of its medians over the bands
+    0.1-0.2 and 0.2-0.3 x sample_rate. A damper force's content (the harmonics of its
     characteristic's kinks) falls with frequency, so at low sample rates (300 Hz) the upper band
-    is the least biased; the band stops at 0.4 x sample_rate, where rigs' anti-alias filters start
-    to cut the noise (an estimate from there would be too low, and make effects look resolved).
+    is the less biased; the bands stop at 0.3 x sample_rate because rigs' anti-alias filters
+    start to cut the noise above (the virtual rig's FIR, cut-off 0.4 x, already attenuates 0.3-0.4 x:
+    an estimate from there read 8 N for 10 N, and too low a noise makes effects look resolved).
     Any signal left in the bands biases it high (conservative)."""
     from scipy.signal import welch
 
@@ -184,5 +185,5 @@ def noise_std(signal, sample_rate: float) -> float:
         raise ValueError("noise_std needs at least 64 samples")
     f, p = welch(x - x.mean(), fs=sample_rate, nperseg=min(1024, x.size))
     medians = [np.median(p[(f > lo * sample_rate) & (f < hi * sample_rate)])
-               for lo, hi in ((0.1, 0.2), (0.2, 0.3), (0.3, 0.4))]
+               for lo, hi in ((0.1, 0.2), (0.2, 0.3))]
     return float(np.sqrt(min(medians) * sample_rate / 2.0))
