@@ -1,5 +1,6 @@
 """The tuner end to end: a small identification through the FMU, resume, outputs, error paths."""
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -192,6 +193,9 @@ def test_end_summary_and_summary_json(maxwell_data, tmp_path, capsys):
                    "--iterations", 2, "--workers", 0, "--polish", 0) == 0
     text = capsys.readouterr().out
     assert text.count("summary for scripts:") == 1
+    # off a terminal: timestamped progress lines over the job's stages, in order
+    stages = re.findall(r"^\[\d\d:\d\d:\d\d \+\d+:\d\d\] progress \d+ % \(stage: ([a-z ]+?) \d+ %\)", text, flags=re.M)
+    assert stages[0] == "fit maxwell" and "validate and export" in stages and stages[-1] == "report"
     tail = text[text.index("done in"):]
     assert "report: " in tail and "DamperMaxwell_tuned.fmu" in tail and "validation AME" in tail
     summary = json.loads((out / "summary.json").read_text())

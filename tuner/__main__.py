@@ -350,7 +350,7 @@ def _fit_job(args, models) -> Path:
     diagnosis = not args.no_diagnose and valid and "lumped" in models
     if not diagnosis and _OUT is not None:
         _OUT.weights.pop("diagnosis", None)
-    metrics = fit(ident, valid, out, settings, provenance=provenance, log=_log)
+    metrics = fit(ident, valid, out, settings, provenance=provenance, log=_OUT or _log)  # the progress display when a job runs
     _print_summary(metrics)
     if diagnosis:
         _run_diagnosis(ident, valid, out, args, json.loads((out / "parameters.json").read_text())["lumped"]["values"])
@@ -370,7 +370,7 @@ def _run_diagnosis(ident, valid, out, args, base_params=None) -> dict:
 
     stage(_OUT, "diagnosis")
     _log("\ndiagnosis: refitting the lumped model extended by each candidate effect ...")
-    result = diagnose(ident, valid, out, settings, base_params=base_params, log=_log)
+    result = diagnose(ident, valid, out, settings, base_params=base_params, log=_OUT or _log)
     from .report import make_diagnosis_report, make_report
 
     stage(_OUT, "report")
