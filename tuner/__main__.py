@@ -240,7 +240,9 @@ def _add_fit_options(ap: argparse.ArgumentParser) -> None:
     g.add_argument("--quiet", action="store_true", help="no progress and no log lines; only the final summary")
 
 
-def _load(args):
+def _load(args, file_role: str | None = "identification"):
+    """(identification tests, validation tests, name) from --dataset or the files; ``file_role``: the
+    role of --identification files (None for ``inspect``, which only reads them)."""
     from .data import load_dataset, load_files
 
     common, per_file = _column_options(args)
@@ -258,7 +260,7 @@ def _load(args):
     else:
         if not args.identification:
             raise ValueError("no data: give --dataset DIR or --identification FILE ...")
-        ident = read(args.identification, "identification")
+        ident = read(args.identification, file_role)
         valid = read(args.validation, "validation")
         name = "fit"
     if not ident:
@@ -282,7 +284,7 @@ def cmd_inspect(args) -> int:
     if not args.files and not args.dataset:
         args.dataset = DEFAULT_DATASET
     args.identification, args.validation = list(args.files), []
-    ident, valid, _ = _load(args)
+    ident, valid, _ = _load(args, file_role=None)
     if args.json:
         print(json.dumps([summarize(t) for t in ident + valid], indent=1))
     return 0

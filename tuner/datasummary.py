@@ -63,7 +63,7 @@ def format_summary(test: RigTest) -> str:
     sign_text = ("as written (extension and tension positive)" if signs.get("stroke", 1) == signs.get("force", 1) == 1
                  else f"stroke x {signs.get('stroke', 1):+d}, force x {signs.get('force', 1):+d} "
                       f"(to extension and tension positive)")
-    lines = [f"{s['name']} ({s['role'] or 'no role'}): {s['file']}",
+    lines = [f"{s['name']}" + (f" ({s['role']})" if s["role"] else "") + f": {s['file']}",
              f"  columns: {cols}" + (f"; ignored: {s['ignored_columns']}" if s["ignored_columns"] else ""),
              f"  read: {units or 'SI'}; signs {sign_text}; time: {s['time_base']}",
              f"  {s['samples']} samples at {s['sample_rate_hz']:.6g} Hz, {s['duration_s']:.4g} s",
