@@ -502,15 +502,11 @@ def main(argv=None) -> int:
         return 2
     handler = {"fit": cmd_fit, "generate": cmd_generate, "report": cmd_report, "diagnose": cmd_diagnose,
                "inspect": cmd_inspect}.get(args.command) or args.func
-    try:
-        return handler(args)
-    except KeyboardInterrupt:
-        print("\ninterrupted: run again with --resume and the same --out to continue", file=sys.stderr)
-        return 130
-    except (ValueError, FileExistsError, FileNotFoundError) as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
+    from .batch import CONTINUE_HINT
+    from .cli_run import run_handler
 
+    hint = CONTINUE_HINT if args.command == "batch" else "run again with --resume and the same --out to continue"
+    return run_handler(handler, args, hint)
 
 if __name__ == "__main__":
     code = main()

@@ -90,6 +90,7 @@ import time
 import traceback
 from pathlib import Path
 
+from .cli_run import run_handler
 from .fleet_summary import OUTLIER_K, OUTLIER_TOLERANCE, write_atomic, write_summary
 
 __all__ = ["Row", "ManifestError", "read_fleet_manifest", "FleetExecutor", "parse_scheduler", "run_row", "run_batch",
@@ -760,6 +761,10 @@ def run_batch(manifest, out, *, scheduler: str | None = None, settings: dict | N
 
 # --------------------------------------------------------------------------- command line
 
+#: how to continue an interrupted batch (finished rows are never redone)
+CONTINUE_HINT = "run the same command again to continue (finished rows are kept)"
+
+
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Register the ``batch`` sub-command on an argparse subparsers object (func=cmd_batch)."""
     p = subparsers.add_parser("batch", help="identify a fleet: one fit per manifest row, fleet summary",
@@ -825,14 +830,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tuner batch", description=__doc__.split("\n\n")[0])
     _add_arguments(ap)
     args = ap.parse_args(sys.argv[1:] if argv is None else list(argv))
-    try:
-        return cmd_batch(args)
-    except KeyboardInterrupt:
-        print("\ninterrupted: run the same command again to continue (finished rows are kept)", file=sys.stderr)
-        return 130
-    except (ValueError, FileExistsError, FileNotFoundError) as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
+    return run_handler(cmd_batch, args, CONTINUE_HINT)
 
 
 if __name__ == "__main__":
