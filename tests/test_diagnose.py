@@ -162,6 +162,19 @@ def test_a_delay_the_residual_does_not_show_is_not_a_cause():
     assert decide([row2, _row("none", 0.0, 0.0)])[0] == "time_delay"
 
 
+def test_delay_agreement_allows_for_what_the_base_refit_absorbed():
+    """The lumped blind case: 2.20 ms fitted (2.22 ms hidden) while the base residual showed 0.71 ms
+    (the base refit had absorbed two thirds); a residual showing more than three times the fitted
+    delay, or a fitted delay more than five times the residual's, is disagreement."""
+    def agrees(fitted, seen):
+        row = {**_row("time_delay", 0.3, 200.0), "parameters": {"time_delay": fitted}}
+        return cross_check([row], {"effects": {"time_delay": {"value": seen}}}) == []
+    assert agrees(2.20e-3, 0.71e-3)
+    assert not agrees(2.20e-3, 0.40e-3)      # ratio 5.5
+    assert not agrees(0.50e-3, 1.60e-3)      # the residual shows more than three times the fit
+    assert not agrees(1.0e-3, -1.0e-3)       # opposite sign
+
+
 @pytest.mark.slow
 def test_two_effects_hidden_together_are_both_named(tmp_path):
     rng = np.random.default_rng(2024)
