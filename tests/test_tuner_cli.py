@@ -39,6 +39,9 @@ def test_small_identification_through_the_fmu_recovers_maxwell_parameters(maxwel
     metrics = json.loads((out / "metrics.json").read_text())
     val = metrics["tests"]["maxwell_val3"]["models"]["maxwell"]
     assert val["rmse"] < 40.0  # noise is 20 N rms
+    # the model that made the data, fitted at 200 Hz, holds on the 1 kHz files (tuner.full_rate)
+    assert metrics["full_rate"]["maxwell"]["holds"] is True, metrics["full_rate"]["maxwell"]["text"]
+    assert set(metrics["full_rate"]["maxwell"]["tests"]) == set(metrics["tests"])
     from build_fmu import validate
 
     assert validate(out / "fmu" / "DamperMaxwell_tuned.fmu") == []

@@ -34,6 +34,7 @@ from damper_fmu.parameters import FC_ABSCISSAE, FK_ABSCISSAE, FK_REFERENCE_STIFF
 from . import firefly
 from .data import RigTest, prepare
 from .engine import IDENTIFICATION_STEP, Engine, Signals, oversampling, simulate_signals
+from .full_rate import MIN_RATE_RATIO, comparison_rate, full_rate_check
 from .metrics import compare_to_maxwell, error_metrics, noise_std
 from .parametrization import Parametrization
 from .polish import polish
@@ -307,6 +308,38 @@ def validation_run(model: str, params: dict, s: Signals, engine: str = "fmu") ->
     return sim, error_metrics(s.force[s.mask], sim[s.mask]).to_dict()
 
 
+def full_rate_checks(tests: list[RigTest], params: dict, settings: FitSettings, log=print) -> dict:
+    """``tuner.full_rate.full_rate_check`` of every model on every test recorded fast enough:
+    {model: {"tests": {test: result}, "holds": bool or None (no test applies), "text": one line}}.
+    Logs the line."""
+    rows = {m: {} for m in settings.models}
+    for t in tests:
+        rate = comparison_rate(t.sample_rate, settings.fit_rate_hz)
+        if rate is None:
+            continue
+        s = to_signals(prepare(t, rate, diff_band_hz=settings.diff_band_hz), settings.warmup_s)
+        sigma = noise_std(t.force, t.sample_rate)
+        for model in settings.models:
+            rows[model][t.name] = full_rate_check(model, params[model]["values"], s, settings.fit_rate_hz,
+                                                  t.sample_rate, sigma)
+    out = {}
+    for model, r in rows.items():
+        if not r:
+            out[model] = {"tests": {}, "holds": None, "text": (
+                f"full-rate check: not applicable (no test recorded at {MIN_RATE_RATIO:g} x the fit rate or faster)")}
+        else:
+            holds = all(x["holds"] for x in r.values())
+            name, w = max(r.items(), key=lambda kv: kv[1]["rmse_increase_n"] / kv[1]["noise_in_fit_band_n"])
+            out[model] = {"tests": r, "holds": holds, "text": (
+                "full-rate check: " + ("the fit holds at the files' own rate" if holds else
+                                       "the fit does NOT hold at the files' own rate (fit at a higher --fit-rate)")
+                + f"; worst {name}: {w['fit_band_hz']:g}-{w['upper_hz']:.0f} Hz hides {w['hidden_n']:.3g} N rms "
+                  f"beyond the noise, adding {w['rmse_increase_n']:.2g} N to the RMSE (noise in the fit band "
+                  f"{w['noise_in_fit_band_n']:.3g} N)")}
+        log(f"[{model}] {out[model]['text']}")
+    return out
+
+
 def quality_gate(tests: dict, models) -> dict:
     """Per model: does it describe the data? The worst AME [% of that test's peak force] over the
     validation tests (the identification tests when there is none) against ``QUALITY_AME_PCT``.
@@ -389,6 +422,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
         tests_out[t.name] = {"role": t.role, "scenario": t.scenario, "models": models_m,
                              "sample_rate_hz": p.sample_rate, "source_rate_hz": t.sample_rate}
     np.savez_compressed(out / "simulations.npz", **arrays)
+    full_rate = full_rate_checks([*identification, *validation], params, settings, log)
 
     table3 = {}
     if "lumped" in settings.models and "maxwell" in settings.models:
@@ -417,7 +451,8 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
         "validation_tests": [t.name for t in validation],
         **(provenance or {}),
     })
-    metrics = {"settings": settings_out, "tests": tests_out, "table3": table3, "quality": quality}
+    metrics = {"settings": settings_out, "tests": tests_out, "table3": table3, "quality": quality,
+               "full_rate": full_rate}
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2, sort_keys=True, default=str))
 
     log("exporting tuned FMUs ...")

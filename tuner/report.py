@@ -595,7 +595,9 @@ def _summary(run: _Run) -> str:
         elif mx and mx[0][1] > 105:
             amp_txt += " The Maxwell element gives higher forces than the damper."
         amp_txt += "</p>"
-    gate = "".join(f"<li>{_e(MODEL_LABEL.get(m, m))}: {_e(q['text'])}</li>"
+    full_rate = run.metrics.get("full_rate") or {}
+    gate = "".join(f"<li>{_e(MODEL_LABEL.get(m, m))}: {_e(q['text'])}"
+                   + (f"; {_e(full_rate[m]['text'])}" if m in full_rate else "") + "</li>"
                    for m, q in (run.metrics.get("quality") or {}).items())
     gate = f"<p>Quality gate:</p><ul class='summary'>{gate}</ul>" if gate else ""
     return (f'<section id="summary"><h2>1. Summary</h2><p>Validation tests (not used in the fit):</p>'
