@@ -501,3 +501,29 @@ def test_temperature_column_by_name_and_a_warning_for_an_unused_one(tmp_path):
     np.testing.assert_allclose(kelvin.channels["temperature"], 20.0 + t, atol=1e-9)
     with pytest.raises(DataError, match="missing column 'oil' \\(temperature\\)"):
         load_test(path, temperature_col="oil")
+
+
+def _sine_test(freq_hz, amp_m, rate=2000.0, noise_m=1e-6, seconds=6.0):
+    t = np.arange(0.0, seconds, 1.0 / rate)
+    x = amp_m * np.sin(2 * np.pi * freq_hz * t) + np.random.default_rng(3).normal(0.0, noise_m, t.size)
+    return RigTest("sine", "identification", "sine", t, x, 1e5 * np.gradient(x, t), sample_rate=rate)
+
+
+def test_differentiator_band_follows_the_stroke_spectrum():
+    """A 35 Hz stroke gets a band that covers it and its velocity within the 0.5 % design
+    tolerance (analytic reference 2 pi f A); a 2 Hz stroke keeps the 20 Hz design, and white
+    stroke noise (5 um on a 2 mm stroke) does not widen it."""
+    from tuner.data import MIN_DIFF_BAND_HZ, stroke_band_hz
+
+    fast = _sine_test(35.0, 5e-4)
+    assert 35.0 <= stroke_band_hz(fast, 200.0) <= 40.0
+    p = prepare(fast, 200.0)
+    core = slice(len(p.time) // 4, 3 * len(p.time) // 4)
+    amp = np.sqrt(2) * np.std(p.stroke_velocity[core])
+    assert amp == pytest.approx(2 * np.pi * 35.0 * 5e-4, rel=0.006)
+    assert stroke_band_hz(_sine_test(2.0, 2e-3, noise_m=5e-6), 200.0) == MIN_DIFF_BAND_HZ
+    # a quasi-static stroke whose velocity PSD is overtaken by the noise's f^2 rise below the top
+    slow = _sine_test(0.2, 2e-2, rate=1000.0, noise_m=2e-5, seconds=20.0)
+    assert stroke_band_hz(slow, 250.0) == MIN_DIFF_BAND_HZ
+    fixed = prepare(fast, 200.0, diff_band_hz=20.0)        # the old fixed band: 35 Hz read too low
+    assert np.sqrt(2) * np.std(fixed.stroke_velocity[core]) < 0.97 * 2 * np.pi * 35.0 * 5e-4

@@ -214,8 +214,8 @@ def _add_fit_options(ap: argparse.ArgumentParser) -> None:
     g.add_argument("--fit-rate", type=float, default=d.fit_rate_hz, help="resample to this rate [Hz]")
     g.add_argument("--warmup", type=float, default=d.warmup_s, help="seconds skipped at each test start")
     g.add_argument("--diff-band", type=float, default=d.diff_band_hz, metavar="HZ",
-                   help="band up to which the stroke differentiator is accurate to 0.5 %% (default %(default)s Hz: "
-                        "railway strokes; raise it for rig tests with faster strokes; ignored with --velocity-col)")
+                   help="band up to which the stroke differentiator is accurate to 0.5 %% (default: per test, where "
+                        "99 %% of the stroke velocity's power lies, 20 Hz at least; ignored with --velocity-col)")
     g.add_argument("--force-limit", type=float, default=None,
                    help="Fc,O ordinate limit [N] (default: 1.5 x peak measured force)")
     g.add_argument("--damping-abscissae", type=_float_list, default=None, metavar="V1,...,V14",

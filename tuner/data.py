@@ -39,7 +39,9 @@ Preprocessing (:func:`prepare`)
   with ``deriv=1``), applied at the source sample rate. It is a symmetric FIR,
   hence zero-phase. Its gain relative to the ideal ``j 2 pi f`` is 1 - O(f^4);
   the window is the longest odd one whose gain error stays within 0.5 % (design
-  margin under the 1 % requirement) for every frequency up to 20 Hz. At 1 kHz
+  margin under the 1 % requirement) for every frequency up to the band
+  (``stroke_band_hz``: where 99 % of the stroke velocity's power lies, 20 Hz at
+  least; ``--diff-band`` sets it). For a 20 Hz band at 1 kHz
   that is 19 samples (19 ms): gain 0.9998 at 10 Hz, 0.9963 at 20 Hz, 0.948 at
   40 Hz, -3 dB at about 66 Hz, and above 100 Hz the output never exceeds that of
   an ideal differentiator at 18 Hz (white stroke noise sigma [m] gives velocity
@@ -60,6 +62,7 @@ from __future__ import annotations
 
 import json
 import re
+import warnings
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
@@ -854,9 +857,44 @@ class PreparedTest:
         return f"Test {self.name!r}: {len(self.time)} samples at {self.sample_rate:g} Hz. {vel}. All channels {res}."
 
 
-def prepare(test: RigTest, fit_rate_hz: float, *, diff_band_hz: float = 20.0,
+#: lowest differentiator band [Hz] (the design for 0.1-10 Hz railway strokes)
+MIN_DIFF_BAND_HZ = 20.0
+#: share of the stroke velocity's power (below the fit pass band) the differentiator band covers
+DIFF_BAND_POWER = 0.99
+#: lowest PSD, relative to its peak, of a frequency that counts as stroke content
+DIFF_BAND_LEVEL = 1e-2
+
+
+def stroke_band_hz(test: RigTest, fit_rate_hz: float) -> float:
+    """Differentiator band [Hz] for a test resampled to ``fit_rate_hz``: where the stroke's
+    velocity content ends, and at least ``MIN_DIFF_BAND_HZ``. Velocity by central difference,
+    Welch PSD (0.25 Hz resolution), counted up to the fit's flat pass band (0.4 x the fit rate)
+    or 0.1 x the sample rate (what the shortest, 5-sample window meets), whichever is lower.
+    The content ends at the lower of (a) the frequency below which ``DIFF_BAND_POWER`` of the
+    power lies and (b) the last frequency whose PSD is at least ``DIFF_BAND_LEVEL`` of the peak.
+    Stroke noise rises as f^2 in the velocity and fools (a) alone (on the bundled quasi-static
+    curves, counted to 100 Hz, it read 63-71 Hz for content ending near 7 Hz, where the noise
+    PSD reaches 1e-3 of the peak at 100 Hz); (b) needs a noise of 1 % of the peak per bin."""
+    rate = float(test.sample_rate)
+    top = min(0.4 * float(fit_rate_hz), 0.1 * rate)
+    v = np.gradient(np.asarray(test.stroke, dtype=float)) * rate
+    f, p = signal.welch(v - v.mean(), fs=rate, nperseg=min(len(v), int(4 * rate)))
+    sel = f <= top
+    f, p = f[sel], p[sel]
+    if not p.max() > 0:
+        return MIN_DIFF_BAND_HZ
+    c = np.cumsum(p)
+    by_power = float(f[np.searchsorted(c / c[-1], DIFF_BAND_POWER)])
+    by_level = float(f[np.flatnonzero(p >= DIFF_BAND_LEVEL * p.max())[-1]])
+    return float(min(max(min(by_power, by_level), MIN_DIFF_BAND_HZ), max(top, MIN_DIFF_BAND_HZ)))
+
+
+def prepare(test: RigTest, fit_rate_hz: float, *, diff_band_hz: float | None = None,
             diff_tol: float = 0.005) -> PreparedTest:
     """Differentiate the stroke and resample every channel to ``fit_rate_hz`` [Hz].
+
+    ``diff_band_hz``: band [Hz] of the differentiator (None: ``stroke_band_hz`` when resampling,
+    ``MIN_DIFF_BAND_HZ`` at the source rate).
 
     The velocity [m/s] is computed at the source rate (see module docstring),
     then stroke, velocity, force and channels pass through the same resampler,
@@ -869,6 +907,8 @@ def prepare(test: RigTest, fit_rate_hz: float, *, diff_band_hz: float = 20.0,
     fit_rate_hz = float(fit_rate_hz)
     if not fit_rate_hz > 0:
         raise ValueError(f"fit_rate_hz must be positive, got {fit_rate_hz}")
+    if diff_band_hz is None:   # from the stroke when resampling to a fit rate, else the design band
+        diff_band_hz = MIN_DIFF_BAND_HZ if abs(fit_rate_hz / rate - 1.0) <= 1e-9 else stroke_band_hz(test, fit_rate_hz)
     diff = Differentiator.design(rate, diff_band_hz, diff_tol, max_window=len(test.stroke))
     measured = test.velocity is not None
     vel = np.asarray(test.velocity, dtype=float).copy() if measured else diff.apply(test.stroke)

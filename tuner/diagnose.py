@@ -138,7 +138,7 @@ class DiagnosisSettings:
     final_jacobians: int = 100  # continued refit of the leading candidate: a cap, it stops when converged
     max_causes: int = 3  # forward selection stops here at the latest
     candidates: tuple = CANDIDATES
-    diff_band_hz: float = 20.0  # as tuner.fit.FitSettings
+    diff_band_hz: float | None = None  # as tuner.fit.FitSettings
     damping_abscissae_m_s: tuple | None = None  # as tuner.fit.FitSettings (without a base fit given)
     elastic_abscissae_m: tuple | None = None
     extra: dict = field(default_factory=dict)

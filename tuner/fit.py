@@ -32,7 +32,7 @@ import numpy as np
 from damper_fmu.parameters import FC_ABSCISSAE, FK_ABSCISSAE, FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS, defaults
 
 from . import firefly
-from .data import RigTest, prepare
+from .data import RigTest, prepare, stroke_band_hz
 from .engine import IDENTIFICATION_STEP, Engine, Signals, oversampling, simulate_signals
 from .full_rate import MIN_RATE_RATIO, comparison_rate, full_rate_check
 from .metrics import compare_to_maxwell, error_metrics, noise_std
@@ -68,7 +68,9 @@ class FitSettings:
     spring_reference_n_per_m: float = FK_REFERENCE_STIFFNESS
     stop_tol: float | None = 1e-3
     polish_jacobians: int = 100  # a safety cap: the refinement stops when converged
-    diff_band_hz: float = 20.0  # band [Hz] within which the stroke differentiator is accurate to 0.5 %
+    #: band [Hz] within which the stroke differentiator is accurate to 0.5 % (None: from each test's
+    #: stroke spectrum, tuner.data.stroke_band_hz)
+    diff_band_hz: float | None = None
     damping_abscissae_m_s: tuple | None = None  # Fc,O rates [m/s], 14 sorted nonzero; None: from the data
     elastic_abscissae_m: tuple | None = None  # Fk,O elongations [m], 10 sorted nonzero; None: from the data
     extra: dict = field(default_factory=dict)
@@ -317,7 +319,8 @@ def full_rate_checks(tests: list[RigTest], params: dict, settings: FitSettings, 
         rate = comparison_rate(t.sample_rate, settings.fit_rate_hz)
         if rate is None:
             continue
-        s = to_signals(prepare(t, rate, diff_band_hz=settings.diff_band_hz), settings.warmup_s)
+        band = settings.diff_band_hz or stroke_band_hz(t, settings.fit_rate_hz)    # the fit's velocity
+        s = to_signals(prepare(t, rate, diff_band_hz=band), settings.warmup_s)
         sigma = noise_std(t.force, t.sample_rate)
         for model in settings.models:
             rows[model][t.name] = full_rate_check(model, params[model]["values"], s, settings.fit_rate_hz,
