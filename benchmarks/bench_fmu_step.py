@@ -3,7 +3,7 @@
     python benchmarks/bench_fmu_step.py [--seconds 10] [--repeats 7]
 
 Prints, per communication step (1 kHz stroke, 2 Hz + 7 Hz sine):
-  (1) the lumped-model FMU (native where a C compiler is found) through tuner.runner.FmuRunner
+  (1) the lumped-model FMU (native where a C compiler is found) through tuner.identification.runner.FmuRunner
       (C stepping loop), (2) the lumped pythonfmu FMU through the same runner, (3) an empty
       pythonfmu FMU with the same interface through the same runner (pythonfmu's FMI boundary
       alone), (4) the lumped FMU through a warm fmpy.simulate_fmu (+ reset) as FMU calibration
@@ -26,7 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from build_fmu import ensure_fmu  # noqa: E402
 from damper_fmu import simulate  # noqa: E402
-from tuner.runner import FmuRunner  # noqa: E402
+from tuner.identification.runner import FmuRunner  # noqa: E402
 
 
 def stroke(seconds: float, fs: float = 1000.0):

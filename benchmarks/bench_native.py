@@ -2,14 +2,14 @@
 
     python benchmarks/bench_native.py [--batches 5] [--batch 8] [--baseline-commit cb21df9]
 
-Data: the bundled dataset's identification tests at the fit rate (200 Hz), as ``tuner.fit`` sees
+Data: the bundled dataset's identification tests at the fit rate (200 Hz), as ``tuner.identification.fit`` sees
 them, with the tuner's identification settings (fixed internal steps of 1 ms; the baseline ran one
 5 ms step per sample); candidates: random points of the improved parametrization (seeded). Variants, each in one worker
 process of its own (workers = 1: two pythonfmu FMUs of different versions cannot share a process),
 interleaved batch by batch so machine load hits all alike:
 
 * ``before``: the pythonfmu FMU of the baseline commit (the project before the native kernel),
-  through ``tuner.runner`` (built from a git worktree of that commit; skipped if git is missing);
+  through ``tuner.identification.runner`` (built from a git worktree of that commit; skipped if git is missing);
 * ``pythonfmu FMU``: today's pythonfmu FMU (same algorithm as the native one);
 * ``native FMU``: the C FMU through fmpy (``--engine fmu``, the default);
 * ``C kernel``: the same C code called once per test (``--engine native``);
@@ -34,10 +34,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from build_fmu import ensure_fmu  # noqa: E402
-from tuner.data import load_dataset, prepare  # noqa: E402
-from tuner.engine import Engine  # noqa: E402
-from tuner.fit import to_signals  # noqa: E402
-from tuner.parametrization import Parametrization  # noqa: E402
+from tuner.data.reading import load_dataset, prepare  # noqa: E402
+from tuner.identification.engine import Engine  # noqa: E402
+from tuner.identification.fit import to_signals  # noqa: E402
+from tuner.identification.parametrization import Parametrization  # noqa: E402
 
 FIT_RATE, WARMUP = 200.0, 0.5
 

@@ -3,7 +3,7 @@
     python benchmarks/bench_tuner.py [--quick] [--no-compare] [--budget 1200] [--engine inprocess]
 
 Data: the bundled dataset (data/default); identification tests at the fit rate (200 Hz, internal
-step 1/200 s), 0.5 s warm-up skipped, force limit as tuner.fit derives it. Prints:
+step 1/200 s), 0.5 s warm-up skipped, force limit as tuner.identification.fit derives it. Prints:
   (1) evaluations/s of the lumped FMU engine with 1 and 2 workers on the same batches of random
       candidates (interleaved, pool start-up excluded); target 2 workers / 1 worker >= 1.7;
   (2) the same candidates through a warm fmpy.simulate_fmu + reset, serial, one FMU instance;
@@ -35,13 +35,13 @@ from bench_fmu_step import SimulateFmuWay  # noqa: E402
 from build_fmu import ensure_fmu  # noqa: E402
 from damper_fmu import simulate  # noqa: E402
 from damper_fmu.parameters import defaults  # noqa: E402
-from tuner import firefly  # noqa: E402
-from tuner.data import load_dataset, prepare  # noqa: E402
-from tuner.engine import Engine  # noqa: E402
-from tuner.fit import FitSettings, initial_guess, to_signals  # noqa: E402
+from tuner.identification import firefly  # noqa: E402
+from tuner.data.reading import load_dataset, prepare  # noqa: E402
+from tuner.identification.engine import Engine  # noqa: E402
+from tuner.identification.fit import FitSettings, initial_guess, to_signals  # noqa: E402
 from tuner.metrics import error_metrics  # noqa: E402
-from tuner.parametrization import Parametrization  # noqa: E402
-from tuner.polish import polish  # noqa: E402
+from tuner.identification.parametrization import Parametrization  # noqa: E402
+from tuner.identification.polish import polish  # noqa: E402
 
 FIT_RATE, WARMUP = 200.0, 0.5
 PAPER_EVALS = 20 * 151
@@ -87,7 +87,7 @@ def load(data: Path):
     signals = [to_signals(prepare(t, FIT_RATE), WARMUP) for t in tests if t.role == "identification"]
     validation = [prepare(t, t.sample_rate) for t in tests if t.role == "validation"]
     peak = max(float(np.abs(s.force[s.mask]).max()) for s in signals)
-    return signals, validation, float(f"{1.5 * peak:.2g}")  # as tuner.fit
+    return signals, validation, float(f"{1.5 * peak:.2g}")  # as tuner.identification.fit
 
 
 def throughput(args, signals) -> dict:
@@ -222,7 +222,7 @@ def compare(args, signals, validation, force_limit) -> list[dict]:
         f" {n + ' RMSE N (MSE N^2)':>26s}" for n in names)
     print(f"\n(4) lumped model, equal budgets of {budget} evaluations ({args.engine} engine, {args.workers} workers, "
           f"seed {args.seed}; scaled space of Parametrization('lumped', 'improved', force_limit={force_limit:g}))"
-          f"\n    polish: tuner.polish.polish, {args.polish} Jacobians; validation at each test's own rate")
+          f"\n    polish: tuner.identification.polish.polish, {args.polish} Jacobians; validation at each test's own rate")
     print(head)
     for r in rows:
         for tag, ev, tm, rm, val in (("", r["evals"], r["time"], r["rmse"], r["val"]),

@@ -27,9 +27,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from damper_fmu import simulate  # noqa: E402
-from tuner.data import load_dataset, prepare  # noqa: E402
-from tuner.fit import FitSettings, identify, to_signals  # noqa: E402
-from tuner.parametrization import Parametrization  # noqa: E402
+from tuner.data.reading import load_dataset, prepare  # noqa: E402
+from tuner.identification.fit import FitSettings, identify, to_signals  # noqa: E402
+from tuner.identification.parametrization import Parametrization  # noqa: E402
 
 VARIANTS = {"paper": ("paper", "random"), "+log+mono": ("improved", "random"), "+seeded": ("improved", "seeded")}
 

@@ -11,7 +11,7 @@ range with a seeded generator and never passed to the diagnosis), the diagnosis 
 confusion matrix, the detection rate per effect, the false-cause rate on clean data and the
 magnitude error of correct detections. Writes confusion.json.
 
-The runs are independent and go to the fleet executor of ``tuner.batch`` (one run = one task):
+The runs are independent and go to the fleet executor of ``tuner.cli.batch`` (one run = one task):
 by default a local process pool of ``os.cpu_count()`` processes, ``--scheduler local:N`` a Dask
 LocalCluster, ``--scheduler tcp://HOST:PORT`` a running Dask cluster (so a cluster can run the
 large matrix). Each run evaluates in its own process (``--workers 0``). The dataset seed and the
@@ -40,11 +40,11 @@ sys.path.insert(0, str(ROOT))
 
 from campaign.effects import EFFECTS  # noqa: E402
 from campaign.generate import CHAMBER_TEMPERATURES_C, generate_dataset  # noqa: E402
-from tuner.data import load_dataset  # noqa: E402
-from tuner.engine import fastest_engine  # noqa: E402
-from tuner.batch import FleetExecutor  # noqa: E402
-from tuner.fleet_summary import write_atomic  # noqa: E402
-from tuner.diagnose import CANDIDATES, DiagnosisSettings, diagnose  # noqa: E402
+from tuner.data.reading import load_dataset  # noqa: E402
+from tuner.identification.engine import fastest_engine  # noqa: E402
+from tuner.cli.batch import FleetExecutor  # noqa: E402
+from tuner.results.fleet_summary import write_atomic  # noqa: E402
+from tuner.diagnosis.diagnose import CANDIDATES, DiagnosisSettings, diagnose  # noqa: E402
 
 
 def run_case(case: dict) -> dict:
@@ -67,7 +67,8 @@ def run_case(case: dict) -> dict:
     row = {"truth": truth, "magnitude": effects.get(truth), "named": res["cause"],
            "causes": res["causes"], "extra_causes": [c for c in res["causes"][1:] if c != truth],
            "unexplained_ratio": (res.get("unexplained") or {}).get("ratio"),
-           "score": res["ranking"][0]["score"], "elapsed_s": time.perf_counter() - t0, "seed": case["seed"]}
+           "score": res["ranking"][0]["score"], "elapsed_s": time.perf_counter() - t0, "seed": case["seed"],
+           "screen": res["evidence"]["joint_screen"]["kept"]}
     if truth != "none":
         name, factor = EFFECTS[truth].model_parameter, EFFECTS[truth].model_sign
         ext = next(r for r in res["ranking"] if r["effect"] == truth)
@@ -117,7 +118,7 @@ def main(argv=None) -> int:
                   f"{'+'.join(row['causes']) or row['named']:14s} score {row['score']:+.3f}" +
                   (f"  fitted {row['fitted']:.4g} ({100 * row['relative_error']:+.0f} %), "
                    f"MSE {row['mse_change_pct']:+.1f} %" if truth != "none" else "")
-                  + f"  [{row['elapsed_s']:.0f} s]", flush=True)
+                  + f"  screen {'+'.join(row['screen']) or '-'}  [{row['elapsed_s']:.0f} s]", flush=True)
     rows = [done[i] for i in range(len(cases))]
     write_atomic(a.out / "confusion.json", json.dumps({"rows": rows}, indent=1))
     labels = ["none", "unexplained", *CANDIDATES]
@@ -140,6 +141,14 @@ def main(argv=None) -> int:
         extra = f", median |magnitude error| {100 * np.median(errs):.0f} %" if errs else ""
         label = "clean (no false cause)" if t == "none" else t
         print(f"  {label:24s} {ok}/{n} = {100 * ok / n:.0f} %{extra}")
+    # the joint screen (residual on all catalogue signatures at once, before any refit): how often its
+    # largest kept term is the hidden effect, and how often it keeps a term on clean data
+    print("\njoint screen before the refits: largest kept term = hidden effect (clean: nothing kept)")
+    for t in truths:
+        rs = [r for r in rows if r["truth"] == t]
+        hit = sum(1 for r in rs if (r["screen"][:1] == [t] if t != "none" else not r["screen"]))
+        summary[t]["screen_top_correct"] = hit
+        print(f"  {t:24s} {hit}/{len(rs)}")
     write_atomic(a.out / "confusion.json", json.dumps({"rows": rows, "matrix": matrix, "summary": summary,
                                                       "false_cause_runs": len(wrong)}, indent=1))
     return 0

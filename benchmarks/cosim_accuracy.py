@@ -5,7 +5,7 @@
 The master sets the stroke and velocity of each communication point at the start of the step
 (``input_interpolation = 0``, as a multibody code does) on sines of 0.5-10 Hz and 1-30 mm; the
 reference is scipy's Radau (rtol 1e-9) on the lumped model's right-hand side driven by the true
-continuous stroke (``tuner.reference``). Printed: the largest force error after the first 0.1 s,
+continuous stroke (``tuner.identification.reference``). Printed: the largest force error after the first 0.1 s,
 in % of the peak force, per frequency/amplitude (rows) and communication step (columns).
 """
 from __future__ import annotations
@@ -21,8 +21,8 @@ sys.path.insert(0, str(ROOT))
 
 from build_fmu import ensure_fmu  # noqa: E402
 from damper_fmu import EXTRAPOLATE, defaults  # noqa: E402
-from tuner.reference import lumped_reference  # noqa: E402
-from tuner.runner import FmuRunner  # noqa: E402
+from tuner.identification.reference import lumped_reference  # noqa: E402
+from tuner.identification.runner import FmuRunner  # noqa: E402
 
 STEPS_MS = (0.5, 1.0, 2.0, 5.0, 10.0)
 CASES = [(f, a) for f in (0.5, 2.0, 5.0, 10.0) for a in (1e-3, 5e-3, 30e-3)]

@@ -1,4 +1,4 @@
-"""Write a rig dataset in the ``damper-rig-dataset/1`` format (see ``tuner.data``).
+"""Write a rig dataset in the ``damper-rig-dataset/1`` format (see ``tuner.data.reading``).
 
 Files are CSV with fixed number formatting, so that the same input always gives
 the same bytes and files stay small: time with 3 more decimals than the sample
@@ -23,8 +23,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from tuner.data import (FORMAT_ID, MANIFEST_NAME, MANIFEST_TEST_KEYS, REQUIRED_COLUMNS,
-                        ROLES, check_signals)
+from tuner.data.reading import (FORMAT_ID, MANIFEST_NAME, MANIFEST_TEST_KEYS, REQUIRED_COLUMNS, ROLES, check_signals)
 
 UNITS = {"time": "s", "stroke": "m", "force": "N"}
 KNOWN_CHANNEL_UNITS = {"temperature": "degC"}

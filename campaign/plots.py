@@ -13,7 +13,8 @@ def plot_dataset(folder, filename: str = "overview.png") -> Path:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from tuner.data import load_dataset, prepare
+    from tuner.data.reading import load_dataset
+    from tuner.data.preprocess import prepare
 
     tests = load_dataset(folder)
     fig = Figure(figsize=(13, 2.3 * len(tests) + 0.6))
@@ -34,7 +35,7 @@ def plot_dataset(folder, filename: str = "overview.png") -> Path:
     axes[-1][0].set_xlabel("time [s]")
     axes[-1][1].set_xlabel("time [s]")
     axes[-1][2].set_xlabel("stroke velocity [mm/s]")
-    from tuner.data import read_manifest
+    from tuner.data.reading import read_manifest
 
     title = read_manifest(folder).get("description", "dataset")
     fig.suptitle(f"{title}\nstrokes (extension +) and forces (tension +)", fontsize=9)

@@ -27,7 +27,7 @@ points) from the stroke at the end of the previous step to a target at t + h:
   quadratic or a limited difference, so a velocity jump is not extrapolated into an overshoot). The curve
   starts with the master's velocity: a jump in it is a kink in the stroke.
 * ``REPLAY`` (1): the values set before ``step`` are those at t + h (a known stroke history being
-  replayed, as on a rig or by ``tuner.runner``): the target is (x1, v1) itself, no input lag;
+  replayed, as on a rig or by ``tuner.identification.runner``): the target is (x1, v1) itself, no input lag;
   the curve starts with the velocity reached at the end of the previous step.
 
 The force returned by ``step`` is the output force at the end of the step [N], tension positive.
@@ -58,7 +58,7 @@ INPUT_INTERPOLATION_DESCRIPTION = (
     "communication step, as a multibody master or fmpy's simulate_fmu sets them; the stroke is "
     "extrapolated over the step with the acceleration given by fmi2SetRealInputDerivatives or "
     "estimated from the last velocity samples. 1 (replay): the values are those at the END of the "
-    "step, for a runner that sets them ahead (tuner.runner); with simulate_fmu it lags one step.")
+    "step, for a runner that sets them ahead (tuner.identification.runner); with simulate_fmu it lags one step.")
 #: Smallest internal step [s] before the integrator gives up.
 MIN_STEP = 1e-12
 
@@ -280,7 +280,7 @@ def simulate(model, time, stroke, stroke_velocity, *, params=None, max_step=DEFA
     time [s] (strictly increasing), stroke [m], stroke_velocity [m/s]: arrays of equal length;
     temperature [degC]: optional measured oil temperature for the thermal drift element.
     Returns the force [N] at every sample; sample 0 is the initial (force-free) state. With the
-    default REPLAY mode, this is what the FMU computes when driven by ``tuner.runner``.
+    default REPLAY mode, this is what the FMU computes when driven by ``tuner.identification.runner``.
     backend: 'python' (this module), 'native' (the C kernel; error if not compiled) or 'auto'
     (native when available).
     """

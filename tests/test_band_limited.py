@@ -1,4 +1,4 @@
-"""Band-limited comparison (tuner.engine): the measured force reaches the fit rate through an
+"""Band-limited comparison (tuner.identification.engine): the measured force reaches the fit rate through an
 anti-aliasing low-pass, so the simulated force must too. Reference: the TRUE parameters on data
 the model generated, whose only misfit is the measurement noise that survives the same low-pass
 (computed from the noise realisation itself, not from the code under test)."""
@@ -6,9 +6,10 @@ import numpy as np
 
 from campaign.synthetic import random_stroke
 from damper_fmu import defaults, simulate
-from tuner.data import Resampler, RigTest, prepare
-from tuner.engine import oversampling, simulate_signals
-from tuner.fit import to_signals
+from tuner.data.reading import RigTest
+from tuner.data.preprocess import Resampler, prepare
+from tuner.identification.engine import oversampling, simulate_signals
+from tuner.identification.fit import to_signals
 
 
 def _data(seed=3, noise_n=20.0):

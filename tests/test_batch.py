@@ -1,4 +1,4 @@
-"""Fleet batch identification (tuner.batch): manifest checks, local pool vs Dask LocalCluster,
+"""Fleet batch identification (tuner.cli.batch): manifest checks, local pool vs Dask LocalCluster,
 outlier flag, failed row, kill and restart."""
 from __future__ import annotations
 
@@ -15,8 +15,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
-from tuner.batch import ManifestError, add_parser, cmd_batch, main, read_fleet_manifest, run_batch  # noqa: E402
-from tuner.fleet_summary import find_outliers  # noqa: E402
+from tuner.cli.batch import ManifestError, add_parser, cmd_batch, main, read_fleet_manifest, run_batch  # noqa: E402
+from tuner.results.fleet_summary import find_outliers  # noqa: E402
 
 #: small Firefly budget: the batch machinery is tested here, not the identification
 SMALL = ["--population", "6", "--iterations", "4", "--polish", "3"]
@@ -89,7 +89,7 @@ def test_pool_dask_kill_and_restart(fleet, tmp_path):
     # 2. the same batch on a Dask LocalCluster of 2 workers, killed (process group, SIGKILL) once a
     #    row has finished
     out = tmp_path / "dask"
-    proc = subprocess.Popen([sys.executable, "-m", "tuner.batch", str(fleet), "--out", str(out), "--scheduler",
+    proc = subprocess.Popen([sys.executable, "-m", "tuner.cli.batch", str(fleet), "--out", str(out), "--scheduler",
                              "local:2", *SMALL], cwd=ROOT, start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     t0 = time.monotonic()

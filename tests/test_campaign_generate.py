@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from campaign.generate import DEFAULT_SEED, generate_dataset
-from tuner.data import load_dataset
+from tuner.data.reading import load_dataset
 
 ROOT = Path(__file__).resolve().parents[1]
 BUNDLED = ROOT / "data" / "default"

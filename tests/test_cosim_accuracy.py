@@ -1,11 +1,11 @@
 """The native FMU stepped as a multibody master steps it, against scipy's Radau on the true
-continuous stroke (tuner.reference: an independent right-hand-side formulation)."""
+continuous stroke (tuner.identification.reference: an independent right-hand-side formulation)."""
 import numpy as np
 import pytest
 
 from damper_fmu import EXTRAPOLATE, defaults
-from tuner.reference import lumped_reference
-from tuner.runner import FmuRunner
+from tuner.identification.reference import lumped_reference
+from tuner.identification.runner import FmuRunner
 
 
 def sine(freq, amp):

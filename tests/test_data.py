@@ -8,8 +8,9 @@ import pandas as pd
 import pytest
 
 from campaign.dataset import write_dataset
-from tuner.data import (DataError, Differentiator, Resampler, RigTest, load_dataset,
-                        load_files, load_test, prepare)
+from tuner.data.reading import DataError, RigTest, load_dataset, load_files, load_test
+from tuner.data.preprocess import Resampler, prepare
+from tuner.data.differentiator import Differentiator
 
 FS = 1000.0
 
@@ -485,7 +486,7 @@ def test_prepare_at_source_rate_changes_nothing():
 def test_temperature_column_by_name_and_a_warning_for_an_unused_one(tmp_path):
     """A rig that calls its oil temperature 'Temp (C)': used with temperature_col, in K converted;
     without the option the column is kept as an ordinary channel and a warning names it."""
-    from tuner.data import load_test
+    from tuner.data.reading import load_test
 
     t = np.arange(0.0, 2.0, 1e-3)
     frame = pd.DataFrame({"time": t, "stroke": 1e-3 * np.sin(6 * t), "force": 1e3 * np.cos(6 * t),
@@ -513,7 +514,7 @@ def test_differentiator_band_follows_the_stroke_spectrum():
     """A 35 Hz stroke gets a band that covers it and its velocity within the 0.5 % design
     tolerance (analytic reference 2 pi f A); a 2 Hz stroke keeps the 20 Hz design, and white
     stroke noise (5 um on a 2 mm stroke) does not widen it."""
-    from tuner.data import MIN_DIFF_BAND_HZ, stroke_band_hz
+    from tuner.data.preprocess import MIN_DIFF_BAND_HZ, stroke_band_hz
 
     fast = _sine_test(35.0, 5e-4)
     assert 35.0 <= stroke_band_hz(fast, 200.0) <= 40.0

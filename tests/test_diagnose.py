@@ -24,10 +24,10 @@ from campaign.effects import EFFECTS
 from campaign.generate import CHAMBER_TEMPERATURES_C, generate_dataset
 from damper_fmu import defaults
 from tuner.__main__ import main
-from tuner.data import load_dataset
-from tuner.diagnose import CANDIDATES, DiagnosisSettings, ExtendedParametrization, cross_check, decide, diagnose
-from tuner.engine import fastest_engine
-from tuner.parametrization import Parametrization
+from tuner.data.reading import load_dataset
+from tuner.diagnosis.diagnose import CANDIDATES, DiagnosisSettings, ExtendedParametrization, cross_check, decide, diagnose
+from tuner.identification.engine import fastest_engine
+from tuner.identification.parametrization import Parametrization
 
 
 def test_extended_parametrization_round_trips_base_and_effect():

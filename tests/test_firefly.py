@@ -13,7 +13,7 @@ import json
 import numpy as np
 import pytest
 
-from tuner.firefly import FireflyOptions, FireflyState, move_population, run
+from tuner.identification.firefly import FireflyOptions, FireflyState, move_population, run
 
 SEEDS = range(5)
 

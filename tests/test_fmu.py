@@ -5,7 +5,7 @@ from fmpy import read_model_description
 
 from damper_fmu import EXTRAPOLATE, MODEL_PARAMETERS, REPLAY, defaults, simulate
 from tuner.cosim import mass_spring_cosimulation
-from tuner.runner import FmuRunner, SimulationError
+from tuner.identification.runner import FmuRunner, SimulationError
 
 KINDS = ["lumped", "maxwell", "maxwell_table"]
 
@@ -204,7 +204,7 @@ def test_effect_elements_through_the_fmu_match_in_process_and_state_restores(run
 @pytest.mark.parametrize("flavour", ["lumped", "lumped_py"])
 @pytest.mark.parametrize("mode", [REPLAY, EXTRAPOLATE])
 def test_c_stepping_loop_makes_the_same_calls_as_the_python_loop(fmu_paths, flavour, mode):
-    from tuner.runner import stepper
+    from tuner.identification.runner import stepper
 
     if stepper() is None:
         pytest.skip("no C compiler: the runner uses its Python loop only")

@@ -1,4 +1,4 @@
-"""Full-rate check (tuner.full_rate): does a fit made at 200 Hz hold at the file's 1 kHz?
+"""Full-rate check (tuner.identification.full_rate): does a fit made at 200 Hz hold at the file's 1 kHz?
 
 References: the TRUE parameters on data the lumped model generated at 1 kHz with white noise of a
 known level (nothing above the fit band but noise: it holds), and the same data with a 130 Hz
@@ -13,9 +13,10 @@ import pytest
 
 from campaign.synthetic import random_stroke
 from damper_fmu import defaults, simulate
-from tuner.data import RigTest, prepare
-from tuner.fit import to_signals
-from tuner.full_rate import MIN_RATE_RATIO, comparison_rate, full_rate_check
+from tuner.data.reading import RigTest
+from tuner.data.preprocess import prepare
+from tuner.identification.fit import to_signals
+from tuner.identification.full_rate import MIN_RATE_RATIO, comparison_rate, full_rate_check
 
 
 @pytest.fixture(scope="module")

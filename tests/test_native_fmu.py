@@ -10,7 +10,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
 from damper_fmu import EXTRAPOLATE, REPLAY, defaults
-from tuner.runner import FmuRunner, SimulationError
+from tuner.identification.runner import FmuRunner, SimulationError
 
 KINDS = ["lumped", "maxwell", "maxwell_table"]
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from damper_fmu import defaults, make_model
-from tuner.parametrization import Parametrization
+from tuner.identification.parametrization import Parametrization
 
 
 @pytest.mark.parametrize("model", ["lumped", "maxwell", "maxwell_table"])

@@ -6,10 +6,10 @@ import pytest
 
 from campaign.synthetic import random_stroke, write_model_dataset
 from damper_fmu import defaults, make_model, simulate
-from tuner.data import load_dataset
-from tuner.engine import fastest_engine
-from tuner.fit import FitSettings, fit
-from tuner.parametrization import Parametrization
+from tuner.data.reading import load_dataset
+from tuner.identification.engine import fastest_engine
+from tuner.identification.fit import FitSettings, fit
+from tuner.identification.parametrization import Parametrization
 
 
 def truth_parameters():
@@ -48,7 +48,7 @@ def test_tuner_recovers_the_tables_of_a_known_lumped_damper(tmp_path):
     est = json.loads((tmp_path / "out" / "parameters.json").read_text())["lumped"]["values"]
     # the fit reaches the noise floor: the 20 N white noise that the anti-aliasing low-pass to the
     # 200 Hz fit rate keeps (computed from the filter on a long noise record, not by the tuner)
-    from tuner.data import Resampler
+    from tuner.data.preprocess import Resampler
 
     band_noise = Resampler.design(1000.0, 200.0).apply(np.random.default_rng(0).normal(0.0, 20.0, 200_000)).std()
     rmse = json.loads((tmp_path / "out" / "history_lumped.json").read_text())["identification_rmse_n"]

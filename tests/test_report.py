@@ -1,4 +1,4 @@
-"""Tests of tuner.report on a small synthetic fit output folder (no fit is run).
+"""Tests of tuner.results.report on a small synthetic fit output folder (no fit is run).
 
 The folder is fake but consistent: metrics are computed from the stored arrays with
 tuner.metrics, Table 3 from those metrics, populations lie within the bounds.
@@ -14,7 +14,7 @@ from matplotlib.image import imread
 
 from damper_fmu.parameters import MODEL_PARAMETERS, defaults
 from tuner.metrics import error_metrics, variation_percent
-from tuner.report import bound_position, eng, make_report
+from tuner.results.report import bound_position, eng, make_report
 
 RATE = 100.0      # [Hz]
 N = 500           # samples per test
@@ -263,7 +263,7 @@ def test_bound_position():
 def test_loop_velocity_exact_for_cubic_stroke():
     """The Savitzky-Golay cubic derivative is exact for a cubic stroke (interior samples);
     the end samples use second-order differences, exact for a quadratic."""
-    from tuner.report import _velocity
+    from tuner.results.report import _velocity
 
     t = np.arange(400) / 200.0
     x = 1e-3 * (0.5 - 2.0 * t + 1.5 * t ** 2 - 0.7 * t ** 3)

@@ -15,11 +15,11 @@ from damper_fmu import defaults
 
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
-    from tuner.data import load_dataset
-    from tuner.diagnose import DiagnosisSettings, diagnose
-    from tuner.engine import fastest_engine
-    from tuner.fit import FitSettings, fit
-    from tuner.report import make_report
+    from tuner.data.reading import load_dataset
+    from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
+    from tuner.identification.engine import fastest_engine
+    from tuner.identification.fit import FitSettings, fit
+    from tuner.results.report import make_report
 
     tmp = tmp_path_factory.mktemp("rep")
     tests = load_dataset(write_model_dataset(tmp / "d", "lumped", defaults("lumped"), seed=4, durations=(4.0, 3.0),
@@ -79,7 +79,7 @@ def test_numbers_carry_at_most_four_significant_digits_outside_parameter_tables(
 
 
 def test_out_of_range_effect_values_are_flagged():
-    from tuner.report import effect_value  # the one formatter of fitted magnitudes
+    from tuner.results.report import effect_value  # the one formatter of fitted magnitudes
 
     assert "above its typical" in effect_value("thermal_beta", 0.05, "1/K")
     assert "below its typical" in effect_value("friction_force", 10.0, "N")

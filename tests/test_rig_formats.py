@@ -9,7 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tuner.data import DataError, load_dataset, load_test, load_tests, prepare
+from tuner.data.reading import DataError, load_dataset, load_test, load_tests
+from tuner.data.preprocess import prepare
 from tuner.__main__ import DEFAULT_DATASET
 
 N = 4000  # 4 s at 1 kHz
@@ -224,9 +225,9 @@ def test_tables_cover_a_faster_dampers_velocity_range():
     damper driven to 0.6 m/s so that the last rate abscissa lies just above the peak, and the
     parametrization's bounds follow the stretched elongations."""
     from damper_fmu.parameters import FC_ABSCISSAE, FK_ABSCISSAE
-    from tuner.engine import Signals
-    from tuner.fit import table_abscissae
-    from tuner.parametrization import Parametrization
+    from tuner.identification.engine import Signals
+    from tuner.identification.fit import table_abscissae
+    from tuner.identification.parametrization import Parametrization
 
     t = np.arange(0, 5.0, 5e-3)
 
@@ -284,7 +285,7 @@ def test_a_fit_of_a_faster_damper_exports_tables_covering_its_velocity_range(tmp
 
 
 def test_quality_gate_names_a_model_that_does_not_describe_the_data():
-    from tuner.fit import QUALITY_AME_PCT, quality_gate
+    from tuner.identification.fit import QUALITY_AME_PCT, quality_gate
 
     tests = {"a": {"role": "identification", "models": {"m": {"ame": 900.0, "peak_measured": 1e4}}},
              "b": {"role": "validation", "models": {"m": {"ame": 300.0, "peak_measured": 1e4}}},

@@ -1,9 +1,9 @@
-"""Confidence intervals under correlated residuals (tuner.significance), checked against truth:
+"""Confidence intervals under correlated residuals (tuner.diagnosis.significance), checked against truth:
 a straight-line fit with AR(1) noise, many seeds; the 95 % interval must cover the true slope
 about 95 % of the time, where the textbook white-noise interval covers far less."""
 import numpy as np
 
-from tuner.significance import Z95, block_sandwich, correlation_time
+from tuner.diagnosis.significance import Z95, block_sandwich, correlation_time
 
 
 def ar1(rng, n, phi):

@@ -39,7 +39,7 @@ def test_small_identification_through_the_fmu_recovers_maxwell_parameters(maxwel
     metrics = json.loads((out / "metrics.json").read_text())
     val = metrics["tests"]["maxwell_val3"]["models"]["maxwell"]
     assert val["rmse"] < 40.0  # noise is 20 N rms
-    # the model that made the data, fitted at 200 Hz, holds on the 1 kHz files (tuner.full_rate)
+    # the model that made the data, fitted at 200 Hz, holds on the 1 kHz files (tuner.identification.full_rate)
     assert metrics["full_rate"]["maxwell"]["holds"] is True, metrics["full_rate"]["maxwell"]["text"]
     assert set(metrics["full_rate"]["maxwell"]["tests"]) == set(metrics["tests"])
     from build_fmu import validate
@@ -106,9 +106,10 @@ def test_command_line_entry_point_exits_non_zero_on_bad_input(tmp_path):
 
 def test_seeded_initial_guess_reads_the_damping_table_from_quasi_static_data(tmp_path):
     """The data-driven seed recovers Fc,O where the data is quasi-static (slow strokes)."""
-    from tuner.data import load_dataset, prepare
-    from tuner.fit import initial_guess, to_signals
-    from tuner.parametrization import Parametrization
+    from tuner.data.reading import load_dataset
+    from tuner.data.preprocess import prepare
+    from tuner.identification.fit import initial_guess, to_signals
+    from tuner.identification.parametrization import Parametrization
 
     p = defaults("maxwell_table")
     path = write_model_dataset(tmp_path / "mt", "maxwell_table", p, seed=4, durations=(20.0,),
@@ -163,10 +164,10 @@ def test_a_stroke_in_the_wrong_unit_stops_the_fit_with_the_fmus_reason(maxwell_d
 def test_diagnosis_before_is_the_table3_figure_of_the_same_model(tmp_path):
     """One validation definition: the diagnosis' 'before' MSE/AME of the fitted lumped model equals
     the fit's validation metrics (Table 3) of the same test, computed by the other code path."""
-    from tuner.data import load_dataset
-    from tuner.diagnose import DiagnosisSettings, diagnose
-    from tuner.engine import fastest_engine
-    from tuner.fit import FitSettings, fit
+    from tuner.data.reading import load_dataset
+    from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
+    from tuner.identification.engine import fastest_engine
+    from tuner.identification.fit import FitSettings, fit
 
     path = write_model_dataset(tmp_path / "d", "lumped", defaults("lumped"), seed=4, durations=(4.0, 3.0),
                                roles=("identification", "validation"), noise_n=20.0)

@@ -37,7 +37,7 @@ def _log(msg: str) -> None:
 def _start_job(args, weights: dict) -> "object":
     """Progress display over the job's stages (``weights``: expected seconds); it is the log."""
     global _OUT
-    from .progress import JobProgress
+    from tuner.progress import JobProgress
 
     _OUT = JobProgress(weights, quiet=getattr(args, "quiet", False))
     return _OUT
@@ -173,7 +173,7 @@ _DATA_OPTIONS = ("time_col", "stroke_col", "force_col", "velocity_col", "tempera
 def _column_options(args) -> tuple[dict, dict]:
     """(options for every file, file name -> its own options) from the mapping file and the command line;
     the command line wins."""
-    from .data import read_column_mapping
+    from tuner.data.reading import read_column_mapping
 
     common, per_file = read_column_mapping(args.columns) if args.columns else ({}, {})
     given = {k: getattr(args, k) for k in _DATA_OPTIONS if getattr(args, k) is not None}
@@ -187,7 +187,7 @@ def _column_options(args) -> tuple[dict, dict]:
 
 
 def _add_fit_options(ap: argparse.ArgumentParser) -> None:
-    from .fit import FitSettings
+    from tuner.identification.fit import FitSettings
 
     d = FitSettings()
     g = ap.add_argument_group("data")
@@ -243,7 +243,7 @@ def _add_fit_options(ap: argparse.ArgumentParser) -> None:
 def _load(args, file_role: str | None = "identification"):
     """(identification tests, validation tests, name) from --dataset or the files; ``file_role``: the
     role of --identification files (None for ``inspect``, which only reads them)."""
-    from .data import load_dataset, load_files
+    from tuner.data.reading import load_dataset, load_files
 
     common, per_file = _column_options(args)
 
@@ -265,7 +265,7 @@ def _load(args, file_role: str | None = "identification"):
         name = "fit"
     if not ident:
         raise ValueError("the data holds no identification test")
-    from .datasummary import format_summary
+    from tuner.data.summary import format_summary
 
     _log("data as read:")
     for t in ident + valid:
@@ -277,7 +277,7 @@ def _load(args, file_role: str | None = "identification"):
 
 
 def cmd_inspect(args) -> int:
-    from .datasummary import summarize
+    from tuner.data.summary import summarize
 
     if args.files and args.dataset:
         raise ValueError("give either --dataset or FILES, not both")
@@ -330,7 +330,7 @@ def cmd_fit(args) -> int:
 
 
 def _fit_job(args, models) -> Path:
-    from .fit import FitSettings, fit
+    from tuner.identification.fit import FitSettings, fit
 
     ident, valid, name = _load(args)
     out = args.out or _free_folder(DEFAULT_RESULTS / name)
@@ -360,7 +360,7 @@ def _fit_job(args, models) -> Path:
 
 
 def _run_diagnosis(ident, valid, out, args, base_params=None) -> dict:
-    from .diagnose import DiagnosisSettings, diagnose
+    from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
 
     settings = DiagnosisSettings(fit_rate_hz=args.fit_rate, warmup_s=args.warmup, workers=args.workers,
                                  engine=args.engine, seed=args.seed, diff_band_hz=args.diff_band,
@@ -368,12 +368,12 @@ def _run_diagnosis(ident, valid, out, args, base_params=None) -> dict:
                                  tuple(1e-3 * v for v in args.damping_abscissae),
                                  elastic_abscissae_m=None if args.elastic_abscissae is None else
                                  tuple(1e-3 * x for x in args.elastic_abscissae))
-    from .progress import stage
+    from tuner.progress import stage
 
     stage(_OUT, "diagnosis")
     _log("\ndiagnosis: refitting the lumped model extended by each candidate effect ...")
     result = diagnose(ident, valid, out, settings, base_params=base_params, log=_OUT or _log)
-    from .report import make_diagnosis_report, make_report
+    from tuner.results.report import make_diagnosis_report, make_report
 
     stage(_OUT, "report")
     if (out / "parameters.json").exists():  # a fit's folder: the full report with the diagnosis
@@ -454,7 +454,7 @@ def cmd_generate(args) -> int:
 
 
 def cmd_report(args) -> int:
-    from .report import make_report
+    from tuner.results.report import make_report
 
     _log(f"report: {make_report(args.folder)}")
     return 0
@@ -491,7 +491,7 @@ def main(argv=None) -> int:
     _add_data_options(p_ins.add_argument_group("data"))
     p_rep = sub.add_parser("report", help="rebuild the report of a fit output folder")
     p_rep.add_argument("folder", type=Path)
-    from .batch import add_parser as add_batch_parser
+    from tuner.cli.batch import add_parser as add_batch_parser
 
     add_batch_parser(sub)
     if not argv:
@@ -502,8 +502,8 @@ def main(argv=None) -> int:
         return 2
     handler = {"fit": cmd_fit, "generate": cmd_generate, "report": cmd_report, "diagnose": cmd_diagnose,
                "inspect": cmd_inspect}.get(args.command) or args.func
-    from .batch import CONTINUE_HINT
-    from .cli_run import run_handler
+    from tuner.cli.batch import CONTINUE_HINT
+    from tuner.cli.run import run_handler
 
     hint = CONTINUE_HINT if args.command == "batch" else "run again with --resume and the same --out to continue"
     return run_handler(handler, args, hint)

@@ -3,9 +3,9 @@ extended by that effect, and the gain measured on held-out data.
 
 Procedure (``diagnose``):
 1. Base model: the lumped model identified on the identification tests (taken from an earlier fit
-   or identified here: seeded Firefly + least-squares polish, as ``tuner.fit``).
+   or identified here: seeded Firefly + least-squares polish, as ``tuner.identification.fit``).
 2. Residuals (measured - simulated force) of the base model on every test: evidence numbers and
-   figures (``tuner.residuals``): in time, against velocity and stroke, around velocity reversals,
+   figures (``tuner.diagnosis.residuals``): in time, against velocity and stroke, around velocity reversals,
    against frequency, drift over the test and against the temperature channel.
 3. For every candidate of the catalogue (``damper_fmu.effects``): extend the model by that effect,
    refit on the identification tests, and measure the validation MSE. The refit (``_refit``) runs
@@ -20,7 +20,7 @@ Procedure (``diagnose``):
    above 0.05 (~7 % held-out MSE reduction for one parameter), its force is above the measured
    noise, its magnitude is physically meaningful (>= half the low end of its typical range), a
    fitted delay agrees with the residual's, and the 95 % interval of its magnitude excludes zero
-   (``effect_intervals``: block sandwich, ``tuner.significance``).
+   (``effect_intervals``: block sandwich, ``tuner.diagnosis.significance``).
 4. Forward selection (``_next_cause``): further causes are added one at a time on the same rules
    against the model of the causes found so far.
 5. Unexplained: a final identification RMSE above ``UNEXPLAINED_RATIO`` x the noise is reported as
@@ -46,13 +46,15 @@ import numpy as np
 
 from damper_fmu.parameters import EFFECT_IDENTIFIED, EFFECT_PARAMETERS, EFFECT_TYPICAL, defaults
 
-from .data import RigTest, prepare
-from .engine import Engine
-from .metrics import noise_std
-from .parametrization import Parametrization
-from .polish import polish
-from .progress import advance
-from .report import fmt_quantity
+from tuner.data.reading import RigTest
+from tuner.data.preprocess import prepare
+from tuner.identification.engine import Engine
+from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidence, residual_figures
+from tuner.metrics import noise_std
+from tuner.identification.parametrization import Parametrization
+from tuner.identification.polish import polish
+from tuner.progress import advance
+from tuner.results.report import fmt_quantity
 
 __all__ = ["DiagnosisSettings", "diagnose", "decide", "cross_check", "CANDIDATES", "ExtendedParametrization"]
 
@@ -138,8 +140,8 @@ class DiagnosisSettings:
     final_jacobians: int = 100  # continued refit of the leading candidate: a cap, it stops when converged
     max_causes: int = 3  # forward selection stops here at the latest
     candidates: tuple = CANDIDATES
-    diff_band_hz: float | None = None  # as tuner.fit.FitSettings
-    damping_abscissae_m_s: tuple | None = None  # as tuner.fit.FitSettings (without a base fit given)
+    diff_band_hz: float | None = None  # as tuner.identification.fit.FitSettings
+    damping_abscissae_m_s: tuple | None = None  # as tuner.identification.fit.FitSettings (without a base fit given)
     elastic_abscissae_m: tuple | None = None
     extra: dict = field(default_factory=dict)
 
@@ -239,10 +241,10 @@ def _refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: floa
 def effect_intervals(eid: Engine, ext: ExtendedParametrization, z: np.ndarray, step: float = 1e-4) -> dict:
     """95 % confidence interval of each effect parameter of the extended model fitted at ``z`` (SI
     units), from the identification residual's Jacobian by the block sandwich
-    (``tuner.significance``: valid for correlated residuals). Base coordinates at a bound are held
+    (``tuner.diagnosis.significance``: valid for correlated residuals). Base coordinates at a bound are held
     there. Returns {name: {value, std, low, high, excludes_zero}} plus '_blocks' and
     '_correlation_time_s' (the residual's, which sets the block length: 3 correlation times)."""
-    from .significance import block_sandwich, correlation_time, interval
+    from tuner.diagnosis.significance import block_sandwich, correlation_time, interval
 
     z = np.clip(np.asarray(z, dtype=float), 0.0, 1.0)
     dim = ext.base.dimension
@@ -378,7 +380,7 @@ def decide(ranking: list[dict]) -> tuple[str, dict, list[dict]]:
 def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path,
              settings: DiagnosisSettings | None = None, *, base_params: dict | None = None, log=print) -> dict:
     """Run the diagnosis and write ``diagnosis.json`` (and figures, extended FMU) into ``out``."""
-    from .fit import FitSettings, data_digest, identify, initial_guess, table_abscissae, to_signals, validation_run
+    from tuner.identification.fit import FitSettings, data_digest, identify, initial_guess, table_abscissae, to_signals, validation_run
 
     settings = settings or DiagnosisSettings()
     if not identification or not validation:
@@ -415,19 +417,6 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     for p in EFFECT_PARAMETERS:  # the base model has every effect off
         base[p.name] = guess[p.name] = p.default
 
-    # residual analysis of the base model (evidence and figures)
-    evidence, figures = {}, []
-    try:
-        from .residuals import TestResidual, evidence as residual_evidence, residual_figures
-
-        tr = [TestResidual(p.name, p.role or "", p.time, p.stroke, p.stroke_velocity, p.force,
-                           validation_run("lumped", base, s, settings.engine)[0], s.mask, s.temperature)
-              for p, s in zip([*prep_id, *prep_val], [*sig_id, *sig_val])]
-        evidence = residual_evidence(tr)
-        figures = [str(Path(f).relative_to(out)) for f in residual_figures(tr, out / "figures")]
-    except ImportError:  # residual analysis module not available
-        pass
-
     # measurement noise of the force [N] within the fit band, from the spectrum of the measured force
     # (tuner.metrics.noise_std; broadband signal such as the harmonics of a characteristic's kinks
     # biases it high, the conservative side); white noise keeps the share fit_rate / sample_rate of
@@ -438,6 +427,19 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
                              for t in identification]))
     log(f"diagnosis: force measurement noise about {noise:.1f} N rms in the {settings.fit_rate_hz / 2:g} Hz fit band "
         f"(from the spectrum of the identification tests)")
+
+    # residual analysis of the base model (evidence, joint screen, figures)
+    tr = [TestResidual(p.name, p.role or "", p.time, p.stroke, p.stroke_velocity, p.force,
+                       validation_run("lumped", base, s, settings.engine)[0], s.mask, s.temperature)
+          for p, s in zip([*prep_id, *prep_val], [*sig_id, *sig_val])]
+    evidence = residual_evidence(tr, noise_n=noise)
+    figures = [str(Path(f).relative_to(out)) for f in residual_figures(tr, out / "figures")]
+    scr = evidence["joint_screen"]
+    log("diagnosis: joint screen of the residual on all catalogue signatures: "
+        + (" + ".join(f"{e} ({scr['terms'][e]['contribution_n']:.3g} N)" for e in scr["kept"]) or "nothing")
+        + f" above the noise, explaining {100 * scr['r2_kept']:.0f} % of the base residual; all seven "
+          f"signatures together {100 * scr['r2_all']:.0f} %")
+
     kw = dict(engine=settings.engine, workers=settings.workers, fmu_path=engine_path)
     lengths = [int(s.mask.sum()) for s in sig_val]
     n_val = sum(lengths)
@@ -582,11 +584,12 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
                        "band_fraction": bands, "best_signature": max(r2, key=r2.get) if r2 else None,
                        "best_signature_r2": max(r2.values()) if r2 else None,
                        "linear_share": pooled.get("linear_share"), "band_linear_share": pooled.get("band_linear_share"),
-                       "loop": pooled.get("loop")}
+                       "loop": pooled.get("loop"),
+                       "catalogue_r2_all": (evidence.get("joint_screen") or {}).get("r2_all")}
         if not causes:
             cause = "unexplained"
     key = "+".join(causes)
-    # reported before/after figures: the validation definition of Table 3 (tuner.fit.validation_run:
+    # reported before/after figures: the validation definition of Table 3 (tuner.identification.fit.validation_run:
     # the FMU at its own steps), so that "before" is the Table 3 figure of the same base model
     after_params = refits[key][0].to_params(refits[key][1]) if causes else base
     validation = {}
@@ -646,6 +649,9 @@ def _verdict(causes: list[str], best: dict, none_row: dict, rejected: list[dict]
         sig = (f"; the closest catalogue signature ({unexplained['best_signature']}) explains "
                f"{100 * unexplained['best_signature_r2']:.0f} % of the base model's residual"
                if unexplained["best_signature"] else "")
+        if unexplained.get("catalogue_r2_all") is not None:
+            sig += (f", all seven signatures together {100 * unexplained['catalogue_r2_all']:.0f} % "
+                    "(joint least squares)")
         lin = unexplained.get("linear_share")
         if lin is not None:
             sig += (f"; {100 * lin:.0f} % of its power is linear in the stroke (coherence) "

@@ -7,13 +7,13 @@ Output folder (SI units everywhere):
     simulations.npz        per test: time, stroke, measured force, simulated force per model
     fmu/<Model>_tuned.fmu  FMUs with the identified values as start values
     checkpoints/<model>.json  Firefly state after every iteration (``--resume`` continues from it)
-    report.html, figures/  the report (tuner.report)
+    report.html, figures/  the report (tuner.results.report)
 
 Objective: G = N / SSE over the identification tests at the fit rate (paper eq. 5), skipping the
 first ``warmup_s`` of each test (the model starts force-free; the damper may not). Validation
 metrics (Table 3, and the diagnosis' before/after: one definition, ``validation_run``) compare
 the measured and simulated forces in the fit band, both through the same anti-aliasing low-pass
-(``tuner.engine``), the simulation by the built FMU at its own default internal steps. At the
+(``tuner.identification.engine``), the simulation by the built FMU at its own default internal steps. At the
 file's own rate the comparison was dominated by the silent block's damping c_B times the noise of
 the differentiated stroke velocity (measured: 585 N RMSE at 1 kHz against 54 N in the fit band on
 lumped-model data), which no damper parameter can fix.
@@ -31,14 +31,15 @@ import numpy as np
 
 from damper_fmu.parameters import FC_ABSCISSAE, FK_ABSCISSAE, FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS, defaults
 
-from . import firefly
-from .data import RigTest, prepare, stroke_band_hz
-from .engine import IDENTIFICATION_STEP, Engine, Signals, oversampling, simulate_signals
-from .full_rate import MIN_RATE_RATIO, comparison_rate, full_rate_check
-from .metrics import compare_to_maxwell, error_metrics, noise_std
-from .parametrization import Parametrization
-from .polish import polish
-from .progress import advance, stage
+from tuner.identification import firefly
+from tuner.data.reading import RigTest
+from tuner.data.preprocess import prepare, stroke_band_hz
+from tuner.identification.engine import IDENTIFICATION_STEP, Engine, Signals, oversampling, simulate_signals
+from tuner.identification.full_rate import MIN_RATE_RATIO, comparison_rate, full_rate_check
+from tuner.metrics import error_metrics, noise_std
+from tuner.identification.parametrization import Parametrization
+from tuner.identification.polish import polish
+from tuner.progress import advance, stage
 
 __all__ = ["FitSettings", "fit", "initial_guess", "to_signals", "validation_run", "identify", "data_digest",
            "table_abscissae", "quality_gate", "STRETCH_BEYOND", "QUALITY_AME_PCT"]
@@ -69,7 +70,7 @@ class FitSettings:
     stop_tol: float | None = 1e-3
     polish_jacobians: int = 100  # a safety cap: the refinement stops when converged
     #: band [Hz] within which the stroke differentiator is accurate to 0.5 % (None: from each test's
-    #: stroke spectrum, tuner.data.stroke_band_hz)
+    #: stroke spectrum, tuner.data.preprocess.stroke_band_hz)
     diff_band_hz: float | None = None
     damping_abscissae_m_s: tuple | None = None  # Fc,O rates [m/s], 14 sorted nonzero; None: from the data
     elastic_abscissae_m: tuple | None = None  # Fk,O elongations [m], 10 sorted nonzero; None: from the data
@@ -84,7 +85,7 @@ class FitSettings:
 def to_signals(p, warmup_s: float, oversample: int | None = None) -> Signals:
     """Engine input from a PreparedTest; samples before time[0] + warmup_s do not count.
 
-    oversample: factor of the band-limited comparison (``tuner.engine``); by default the one that
+    oversample: factor of the band-limited comparison (``tuner.identification.engine``); by default the one that
     puts the simulation grid at the identification step when the data was low-passed to the fit
     rate, else 1 (data at its own rate, not filtered). Samples the low-pass does not fully cover
     (tens of ms at each end) do not count either.
@@ -302,7 +303,7 @@ def validation_run(model: str, params: dict, s: Signals, engine: str = "fmu") ->
     """(simulated force [N] at the samples of ``s``, error metrics dict over its counted samples).
 
     The one definition of the validation figures (Table 3, diagnosis before/after): band-limited
-    as the identification objective (``tuner.engine.simulate_signals``), but through the built FMU
+    as the identification objective (``tuner.identification.engine.simulate_signals``), but through the built FMU
     (engine 'fmu') at its own default internal steps (error-controlled), i.e. the model the user
     gets. engine 'native' gives the same numbers without FMI (tests hold them equal).
     """
@@ -311,7 +312,7 @@ def validation_run(model: str, params: dict, s: Signals, engine: str = "fmu") ->
 
 
 def full_rate_checks(tests: list[RigTest], params: dict, settings: FitSettings, log=print) -> dict:
-    """``tuner.full_rate.full_rate_check`` of every model on every test recorded fast enough:
+    """``tuner.identification.full_rate.full_rate_check`` of every model on every test recorded fast enough:
     {model: {"tests": {test: result}, "holds": bool or None (no test applies), "text": one line}}.
     Logs the line."""
     rows = {m: {} for m in settings.models}
@@ -382,7 +383,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
     log(f"identification: {len(signals)} tests, {sum(int(s.mask.sum()) for s in signals)} samples at "
         f"{settings.fit_rate_hz:g} Hz; peak force {peak:.0f} N -> Fc,O limit {force_limit:.3g} N")
 
-    # measurement noise in the fit band [N] (tuner.metrics.noise_std; see tuner.diagnose): what a
+    # measurement noise in the fit band [N] (tuner.metrics.noise_std; see tuner.diagnosis.diagnose): what a
     # fit of a model that can represent the data reaches, reported beside the identification RMSE
     noise = float(np.median([noise_std(t.force, t.sample_rate) * math.sqrt(min(1.0, settings.fit_rate_hz / t.sample_rate))
                              for t in identification]))
@@ -466,7 +467,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
                                                  if k in {p.name for p in MODEL_PARAMETERS[model]}},
               filename=f"{SLAVES[model]}_tuned.fmu")
     try:
-        from .report import make_report
+        from tuner.results.report import make_report
     except ImportError:
         make_report = None
     if make_report is not None:

@@ -2,7 +2,7 @@
 
 This module only turns a file into a table of raw columns with the units the file declares; what
 the columns mean (time, stroke, force ...), unit conversion, signs and checks are in
-:mod:`tuner.data`.
+:mod:`tuner.data.reading`.
 
 Accepted files
 --------------

@@ -12,7 +12,11 @@ sign; the coefficient below the knee is reported too); free_play -F_sim in the a
 velocity reversals; thermal_drift the law m ~ g exp(-b x) F_sim with a free gain g, x = time since
 the test start or temperature (its r2 includes the constant gain: see r2_gain_only, r2_drift_only).
 
-Derivatives use Savitzky-Golay filters over ~20 ms (as ``tuner.data`` does for the velocity):
+``joint_screen`` regresses r on all these signatures at once (sequentially thresholded least
+squares, terms below the noise or of unphysical sign dropped): a ranking of candidates and of
+their combination before the diagnosis' refits, and the share of r any linear mix of them explains.
+
+Derivatives use Savitzky-Golay filters over ~20 ms (as ``tuner.data.reading`` does for the velocity):
 dF_sim/dt cubic (polyorder 3), stroke acceleration polyorder 4 (for a symmetric window that is the
 second-derivative counterpart of the cubic first derivative: error O(f^4)). Samples within half a
 window of either end are left out of every regression.
@@ -27,7 +31,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from scipy import optimize, signal
 
-__all__ = ["TestResidual", "evidence", "residual_figures", "EFFECTS"]
+__all__ = ["TestResidual", "evidence", "joint_screen", "residual_figures", "EFFECTS"]
 
 EFFECTS = ("friction", "preload", "free_play", "thermal_drift", "valve_lag", "time_delay", "inertia")
 ROLES = ("identification", "validation")
@@ -379,14 +383,84 @@ def _clean(v):
     return float(v) if np.isfinite(v) else None
 
 
-def evidence(tests: list[TestResidual]) -> dict:
+# --------------------------------------------------------------------------- joint screen
+
+#: effects whose screen coefficient must be positive to count (the signature's sign is the effect's)
+_POSITIVE = ("friction", "inertia", "time_delay", "valve_lag", "free_play")
+
+
+def _signatures(p, knee, gap_span):
+    """Linearised signature of every catalogue effect for one test (columns in EFFECTS order):
+    the regressors of the single-effect evidence, free play as -F_sim within ``gap_span`` [s] after
+    each reversal, thermal drift as -F_sim x (T - T_start) (or x time since the start when the
+    test has no temperature channel): a damping gain falling as the oil heats, linearised."""
+    n = p.r.size
+    gap = np.zeros(n)
+    for k in p.rev:
+        gap[k:k + max(1, int(round(gap_span * p.fs)))] = 1.0
+    t = p.t
+    x = (t.temperature - t.temperature[0]) if t.temperature is not None else (t.time - t.time[0])
+    cols = {"friction": np.tanh(t.velocity / V_EPS), "preload": np.ones(n), "free_play": -t.simulated * gap,
+            "thermal_drift": -t.simulated * x, "valve_lag": -p.dF * (np.abs(t.velocity) > knee),
+            "time_delay": -p.dF, "inertia": p.acc}
+    return np.column_stack([cols[e] for e in EFFECTS])
+
+
+def joint_screen(preps, knee, gap_span: float, threshold_n: float) -> dict:
+    """Sparse regression of the residual on all catalogue signatures at once (sequentially
+    thresholded least squares, as PySINDy's STLSQ): solve, drop every term whose force
+    contribution (|coefficient| x rms of its signature [N]) is below ``threshold_n`` or whose
+    coefficient has the wrong physical sign, re-solve with the rest, until nothing changes.
+
+    Returns {"kept": [effects, largest contribution first], "terms": {effect: {"coefficient",
+    "contribution_n"}} of the kept ones, "r2_kept": share of the residual power they explain
+    together, "r2_all": the share all seven signatures explain at once (least squares, signs
+    free): the most any combination of linearised catalogue effects can remove, "threshold_n"}.
+    A cheap ranking before the refits; its coefficients are linearisations, not magnitudes."""
+    X = np.concatenate([_signatures(p, knee, gap_span)[p.use] for p in preps])
+    r = np.concatenate([p.r[p.use] for p in preps])
+    scale = np.sqrt(np.mean(X ** 2, axis=0))
+    live = scale > 0
+    rr = _dot(r, r) or 1.0
+
+    def solve(cols):
+        if not cols.any():
+            return np.zeros(X.shape[1]), 0.0
+        Z = X[:, cols] / scale[cols]
+        b, *_ = np.linalg.lstsq(Z, r, rcond=None)
+        full = np.zeros(X.shape[1])
+        full[cols] = b / scale[cols]
+        e = r - Z @ b
+        return full, 1.0 - _dot(e, e) / rr
+
+    _, r2_all = solve(live)
+    keep = live.copy()
+    for _ in range(len(EFFECTS)):
+        coef, r2 = solve(keep)
+        contrib = np.abs(coef) * scale
+        wrong = np.array([e in _POSITIVE and c < 0 for e, c in zip(EFFECTS, coef)])
+        new = keep & (contrib >= threshold_n) & ~wrong
+        if (new == keep).all():
+            break
+        keep = new
+    coef, r2 = solve(keep)
+    terms = {e: {"coefficient": float(coef[j]), "contribution_n": float(abs(coef[j]) * scale[j])}
+             for j, e in enumerate(EFFECTS) if keep[j]}
+    return {"kept": sorted(terms, key=lambda e: -terms[e]["contribution_n"]), "terms": terms,
+            "r2_kept": float(r2), "r2_all": float(r2_all), "threshold_n": float(threshold_n)}
+
+
+def evidence(tests: list[TestResidual], noise_n: float | None = None) -> dict:
     """Residual evidence for every effect of the catalogue (see module docstring).
+
+    ``noise_n``: measurement noise [N] in the compared band, the joint screen's threshold
+    (None: 5 % of the residual's rms).
 
     Returns {"effects": {name: {"quantity", "unit", "value" [unit], "r2" (0-1: share of residual
     power explained by that regressor), "sentence", extra numbers (SI), "per_test": {test: same
     numbers}}}, "ranking_by_r2": [names], "knee_velocity" [m/s], "general": {"per_test": {test:
     {role, rms_residual [N], residual_pct [%], band_fraction, linear_share, ...}}, "pooled": {...,
-    "loop": where in the F-v loop the residual power lies}}}.
+    "loop": where in the F-v loop the residual power lies}}, "joint_screen": ``joint_screen``}.
     time_delay delay and valve_lag tau [s] > 0 when the measured force lags the simulated one;
     thermal beta [1/K] > 0 and gain changes < 0 when the damping falls as the oil heats."""
     if not tests:
@@ -404,8 +478,11 @@ def evidence(tests: list[TestResidual]) -> dict:
         effects[e] = {"quantity": q, "unit": u, **{k: _clean(v) for k, v in d.items()},
                       "sentence": _sentence(e, d),
                       "per_test": {n: {k: _clean(v) for k, v in per[n][e].items()} for n in per}}
+    rms = float(np.sqrt(np.mean(np.concatenate([p.r[p.use] for p in preps]) ** 2)))
+    screen = joint_screen(preps, knee, max(pooled["free_play"]["gap_time"], 1e-3),
+                          noise_n if noise_n is not None else 0.05 * rms)
     return {"effects": effects, "ranking_by_r2": sorted(EFFECTS, key=lambda e: -effects[e]["r2"]),
-            "knee_velocity": knee, "general": {"per_test": {p.t.name: {"role": p.t.role, **_summary([p])}
+            "joint_screen": screen, "knee_velocity": knee, "general": {"per_test": {p.t.name: {"role": p.t.role, **_summary([p])}
                                                             for p in preps},
                                                "pooled": {**_summary(preps), "loop": _where_in_loop(preps, knee)}}}
 

@@ -3,7 +3,7 @@ directly (``native``: one call per test, the same code the native FMU runs), or 
 reference in-process (``inprocess``).
 
 Evaluations run in worker processes (``spawn``), each holding ONE FMU instance reused for every
-candidate (reset + parameters re-applied, see ``tuner.runner``) and the identification strokes,
+candidate (reset + parameters re-applied, see ``tuner.identification.runner``) and the identification strokes,
 sent once at start-up. A generation is evaluated as one batch (``sse_batch``), so evaluations
 run in parallel and are counted exactly. The other engines run the same equations without FMI;
 tests/test_fmu.py and tests/test_native.py prove all give the same forces.
@@ -12,7 +12,7 @@ Objective pieces per candidate: SSE [N^2] over all identification samples after 
 of each test, and N (number of samples): the paper's fitness is G = N / SSE (eq. 5).
 
 Band-limited comparison (``Signals.oversample``): the measured force reaches the fit rate through
-an anti-aliasing low-pass (``tuner.data.Resampler``), i.e. it is filter(F(x)). Sampling the
+an anti-aliasing low-pass (``tuner.data.preprocess.Resampler``), i.e. it is filter(F(x)). Sampling the
 model's force at the fit rate instead gives F(filter(x)), which keeps the harmonics of the
 characteristic's kinks above the fit band, aliased: on lumped-model data with 20 N noise at 1 kHz
 the TRUE parameters scored 21.6 N RMSE at 200 Hz against 8.9 N of noise in the band. So the model
@@ -82,8 +82,8 @@ class Signals:
 
     @cached_property
     def low_pass(self):
-        """The anti-aliasing resampler fine grid -> these samples (``tuner.data.Resampler``)."""
-        from .data import Resampler
+        """The anti-aliasing resampler fine grid -> these samples (``tuner.data.preprocess.Resampler``)."""
+        from tuner.data.preprocess import Resampler
 
         rate = (len(self.time) - 1) / (self.time[-1] - self.time[0])
         return Resampler.design(rate * self.oversample, rate)
@@ -136,7 +136,7 @@ class _Simulator:
         self.max_internal_step, self.tolerance = max_internal_step, tolerance
         self.runner = None
         if engine == "fmu":
-            from tuner.runner import FmuRunner
+            from tuner.identification.runner import FmuRunner
 
             self.runner = FmuRunner(fmu_path, max_internal_step=max_internal_step, tolerance=tolerance)
 
@@ -164,7 +164,7 @@ class _Simulator:
         (None, the reason) when the candidate cannot be simulated (invalid parameters, a failed
         implicit solve, inputs the FMU refuses). Other exceptions are bugs and propagate."""
         from damper_fmu.models import ConvergenceError
-        from tuner.runner import SimulationError
+        from tuner.identification.runner import SimulationError
 
         try:
             r = np.concatenate([(s.force - self.force(params, s))[s.mask] for s in tests])

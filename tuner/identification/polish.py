@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from .progress import advance
+from tuner.progress import advance
 
 __all__ = ["polish"]
 
@@ -30,7 +30,7 @@ class _Done(Exception):
 def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 15, step: float = 1e-4, log=print):
     """Refine the scaled point z0; return (z_best, fitness_best, evaluations_used, history).
 
-    engine: tuner.engine.Engine; par: tuner.parametrization.Parametrization; step: forward
+    engine: tuner.identification.engine.Engine; par: tuner.identification.parametrization.Parametrization; step: forward
     difference step in scaled units; history: {"fitness": G after each Jacobian and at the end,
     "stop": why it stopped, "converged": bool}. It stops when converged (three Jacobians without a
     relative fitness gain of 1e-4, or the solver's own tolerances) or, still improving, at

@@ -1,6 +1,6 @@
 """HTML report of a fit output folder (paper: Isacchi, Ripamonti, Corsi 2023, section 3).
 
-``make_report(out_dir)`` reads what ``tuner.fit`` writes (SI units throughout)::
+``make_report(out_dir)`` reads what ``tuner.identification.fit`` writes (SI units throughout)::
 
     parameters.json       {model: {values, units, bounds, parametrization}}
     metrics.json          {settings, tests: {name: {role, scenario, models: {model: metrics}}}, table3}
@@ -847,7 +847,7 @@ def _provenance_section(run: _Run) -> str:
     import matplotlib
 
     env = (f"Report written {_dt.datetime.now(_dt.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')} by "
-           f"tuner.report (Python {platform.python_version()}, numpy {np.__version__}, "
+           f"tuner.results.report (Python {platform.python_version()}, numpy {np.__version__}, "
            f"matplotlib {matplotlib.__version__}) from folder <code>{_e(run.out.resolve())}</code>.")
     return ("<section id='provenance'><h2>9. Provenance and run settings</h2><p>" + env + "</p>"
             + _table(["Setting (metrics.json)", "Value"], rows, "settings")
@@ -872,7 +872,7 @@ table.settings td{text-align:left}
 def make_report(out_dir, *, dpi: int = 110) -> Path:
     """Write ``out_dir/figures/*.png`` and ``out_dir/report.html`` from a fit output folder.
 
-    out_dir: folder written by tuner.fit (see module docstring); dpi: figure resolution [dots/inch].
+    out_dir: folder written by tuner.identification.fit (see module docstring); dpi: figure resolution [dots/inch].
     Returns the path of report.html. Raises ValueError when parameters.json or metrics.json is
     missing or unreadable, or when simulations.npz holds arrays of inconsistent length.
     """

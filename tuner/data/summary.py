@@ -7,12 +7,11 @@ which part of the damping and elastic tables' range the data covers.
 """
 from __future__ import annotations
 
-import numpy as np
-
 from damper_fmu.parameters import FC_ABSCISSAE
 
-from .data import Differentiator, RigTest
-from .metrics import noise_std
+from tuner.data.reading import RigTest
+from tuner.data.differentiator import Differentiator
+from tuner.metrics import noise_std
 
 __all__ = ["summarize", "format_summary"]
 

@@ -1,9 +1,9 @@
 """Does a fit made at the fit rate hold on the data at its own (full) sample rate?
 
-The identification low-passes every test to the fit rate (200 Hz by default, ``tuner.data.prepare``):
+The identification low-passes every test to the fit rate (200 Hz by default, ``tuner.data.preprocess.prepare``):
 what the damper does above the fit band (``fit_rate / 2``) is not seen by the fit. This check
 compares the fitted model with the data at twice the fit rate, with the same band-limited
-comparison as the fit (``tuner.engine``: the model on a fine grid, low-passed like the data; at the
+comparison as the fit (``tuner.identification.engine``: the model on a fine grid, low-passed like the data; at the
 file's own rate the model would be driven by the differentiator's velocity noise, which the
 rubber mounts turn into hundreds of N of force), and splits the residual (measured - simulated
 force [N]) by frequency (Welch PSD, Hann windows of 2 s):
@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 
-from .engine import Signals, fastest_engine, simulate_signals
+from tuner.identification.engine import Signals, fastest_engine, simulate_signals
 
 __all__ = ["full_rate_check", "comparison_rate", "MIN_RATE_RATIO"]
 
@@ -53,8 +53,8 @@ def full_rate_check(model: str, params: dict, s: Signals, fit_rate_hz: float, fi
                     file_noise_n: float, *, engine: str | None = None) -> dict:
     """The check for one test.
 
-    ``s``: the test prepared at ``comparison_rate`` (``tuner.data.prepare`` then
-    ``tuner.fit.to_signals``, band-limited); ``file_noise_n``: the white-equivalent force noise
+    ``s``: the test prepared at ``comparison_rate`` (``tuner.data.preprocess.prepare`` then
+    ``tuner.identification.fit.to_signals``, band-limited); ``file_noise_n``: the white-equivalent force noise
     of the file [N] over 0 .. ``file_rate_hz`` / 2 (``tuner.metrics.noise_std``).
     Returns forces [N] and frequencies [Hz]: ``fit_band_hz``, ``upper_hz``, ``rmse_in_fit_band_n``,
     ``noise_in_fit_band_n``, ``rmse_above_n`` (residual between the two), ``noise_above_n``,
@@ -62,7 +62,7 @@ def full_rate_check(model: str, params: dict, s: Signals, fit_rate_hz: float, fi
     """
     rate = (len(s.time) - 1) / (s.time[-1] - s.time[0])
     fit_band, upper = fit_rate_hz / 2.0, 0.4 * rate
-    # as the validation (tuner.fit.validation_run): the model at its own default, converged steps
+    # as the validation (tuner.identification.fit.validation_run): the model at its own default, converged steps
     sim = simulate_signals(model, params, s, engine=engine or fastest_engine(), max_internal_step=None,
                            tolerance=None)
     idx = np.flatnonzero(s.mask)

@@ -1,8 +1,8 @@
-"""Fleet batch identification: ``python -m tuner batch MANIFEST`` (also ``python -m tuner.batch``).
+"""Fleet batch identification: ``python -m tuner batch MANIFEST`` (also ``python -m tuner.cli.batch``).
 
-One manifest row per damper test session; every row is identified by ``tuner.fit.fit`` (and
-diagnosed by ``tuner.diagnose.diagnose`` with ``--diagnose``) into its own folder
-``<out>/<id>/``, then a fleet summary is written (``tuner.fleet_summary``: summary.csv,
+One manifest row per damper test session; every row is identified by ``tuner.identification.fit.fit`` (and
+diagnosed by ``tuner.diagnosis.diagnose.diagnose`` with ``--diagnose``) into its own folder
+``<out>/<id>/``, then a fleet summary is written (``tuner.results.fleet_summary``: summary.csv,
 summary.html, the damping characteristics of each type overlaid with outliers marked).
 
 Manifest
@@ -16,9 +16,9 @@ CSV (a header row; ``#`` comment lines and blank lines ignored) or TOML. Columns
 * ``identification``, ``validation``: test files, paths relative to the manifest's folder, several
   separated by ``;`` (TOML: a list or such a string); or ``dataset``: a dataset folder with a
   ``manifest.json`` (its roles are used);
-* column mapping and units, passed to ``tuner.data.load_files``: ``time_col``, ``stroke_col``,
+* column mapping and units, passed to ``tuner.data.reading.load_files``: ``time_col``, ``stroke_col``,
   ``force_col``, ``temperature_col``, ``time_unit``, ``stroke_unit``, ``force_unit``,
-  ``temperature_unit`` (and any other loader option of ``tuner.data`` ending in ``_col``,
+  ``temperature_unit`` (and any other loader option of ``tuner.data.reading`` ending in ``_col``,
   ``_unit`` or ``_sign``);
 * per-row settings: ``seed``, ``models`` (``lumped+maxwell``; ``+``, ``;`` or spaces between),
   ``population``, ``iterations``, ``polish``, ``fit_rate`` [Hz], ``warmup`` [s], ``engine``,
@@ -26,7 +26,7 @@ CSV (a header row; ``#`` comment lines and blank lines ignored) or TOML. Columns
 * ``notes``: free text, ignored.
 
 An empty cell takes the default: TOML ``[defaults]`` table, then the command-line option, then
-``tuner.fit.FitSettings``. TOML layout::
+``tuner.identification.fit.FitSettings``. TOML layout::
 
     [defaults]
     population = 10
@@ -90,8 +90,8 @@ import time
 import traceback
 from pathlib import Path
 
-from .cli_run import run_handler
-from .fleet_summary import OUTLIER_K, OUTLIER_TOLERANCE, write_atomic, write_summary
+from tuner.cli.run import run_handler
+from tuner.results.fleet_summary import OUTLIER_K, OUTLIER_TOLERANCE, write_atomic, write_summary
 
 __all__ = ["Row", "ManifestError", "read_fleet_manifest", "FleetExecutor", "parse_scheduler", "run_row", "run_batch",
            "add_parser", "cmd_batch", "main", "ROW_FORMAT", "SETTING_COLUMNS"]
@@ -139,13 +139,12 @@ class Row:
 
 
 def _loader_options() -> set:
-    """Column/unit options the data reader of this version accepts (tuner.data, public names)."""
+    """Column/unit options the data reader of this version accepts (tuner.data.reading, public names)."""
     import inspect
 
-    from . import data
+    from tuner.data.reading import load_tests
 
-    fn = getattr(data, "load_tests", None) or data.load_test
-    names = set(inspect.signature(fn).parameters)
+    names = set(inspect.signature(load_tests).parameters)
     names = {n for n in names if n.endswith(("_col", "_unit", "_sign"))}
     return names | {"time_col", "stroke_col", "force_col", "temperature_col", "time_unit", "stroke_unit",
                     "force_unit", "temperature_unit"}
@@ -205,7 +204,7 @@ def _split_files(value, where: str, column: str, base: Path) -> list:
 
 
 def _check_setting(name: str, value, where: str, column: str):
-    from .engine import ENGINES
+    from tuner.identification.engine import ENGINES
 
     if name in ("population",) and value < 2:
         raise ManifestError(f"{where}, column {column!r}: population must be >= 2, got {value}")
@@ -333,7 +332,7 @@ def read_fleet_manifest(path) -> list[Row]:
 
 def _task(row: Row, out: Path, base_settings: dict, diagnose: bool, row_workers: int) -> dict:
     """The picklable description of one row's work (sent to a worker)."""
-    from .fit import FitSettings
+    from tuner.identification.fit import FitSettings
 
     s = {**base_settings, **row.settings, "workers": int(row_workers)}
     s["models"] = list(s.get("models", FitSettings().models))
@@ -348,7 +347,7 @@ def _task(row: Row, out: Path, base_settings: dict, diagnose: bool, row_workers:
 
 
 def _load_row_data(task: dict):
-    from .data import DataError, load_dataset, load_files
+    from tuner.data.reading import DataError, load_dataset, load_files
 
     where = task["where"]
     if task["dataset"]:
@@ -417,9 +416,9 @@ def run_row(task: dict) -> dict:
     Runs in a worker. Every exception of the row is caught and recorded (``failed.json``: type,
     message, traceback): a failed row does not stop the others. ``done.json`` is written last.
     """
-    from .data import DataError
-    from .diagnose import DiagnosisSettings, diagnose
-    from .fit import FitSettings, fit
+    from tuner.data.reading import DataError
+    from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
+    from tuner.identification.fit import FitSettings, fit
 
     folder = Path(task["folder"])
     started, t0 = _now(), time.perf_counter()
@@ -456,7 +455,7 @@ def run_row(task: dict) -> dict:
             ds = DiagnosisSettings(fit_rate_hz=settings.fit_rate_hz, warmup_s=settings.warmup_s,
                                    workers=task["workers"], engine=settings.engine, seed=settings.seed)
             diagnose(ident, valid, folder, ds, base_params=base, log=log)
-            from .report import make_report
+            from tuner.results.report import make_report
 
             make_report(folder)
         rec = _record(task, folder, started, time.perf_counter() - t0, n_lines)
@@ -679,7 +678,7 @@ def run_batch(manifest, out, *, scheduler: str | None = None, settings: dict | N
     manifest row: id, type, status ('done', 'failed', 'pending'), error, ran (bool: run now),
     record], "ran": [ids run now], "summary": paths, "outliers": {id: info}, "elapsed_s"}.
     """
-    from .fit import FitSettings
+    from tuner.identification.fit import FitSettings
 
     rows = read_fleet_manifest(manifest)
     out = Path(out)
@@ -775,7 +774,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
-    from .fit import FitSettings
+    from tuner.identification.fit import FitSettings
 
     d = FitSettings()
     p.add_argument("manifest", type=Path, help="fleet manifest (CSV or TOML), one row per damper test session")
@@ -815,7 +814,7 @@ def cmd_batch(args) -> int:
         if v is not None:
             settings[name] = v
     manifest = Path(args.manifest)
-    out = args.out or Path(__file__).resolve().parents[1] / "results" / manifest.stem
+    out = args.out or Path(__file__).resolve().parents[2] / "results" / manifest.stem
     if args.outlier_k <= 0 or args.outlier_tolerance < 0:
         raise ValueError("--outlier-k must be > 0 and --outlier-tolerance >= 0")
     res = run_batch(manifest, out, scheduler=args.scheduler, settings=settings, diagnose=args.diagnose,
@@ -834,7 +833,7 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    # run the importable module's main, so that worker processes unpickle tuner.batch.run_row
-    from tuner.batch import main as _main
+    # run the importable module's main, so that worker processes unpickle tuner.cli.batch.run_row
+    from tuner.cli.batch import main as _main
 
     sys.exit(_main())

@@ -1,0 +1,2 @@
+"""Results for people: the HTML report of one fit (``report``) and of a fleet (``fleet_summary``).
+"""
