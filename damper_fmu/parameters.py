@@ -111,14 +111,15 @@ _FC = _table_parameters("Fc", FC_ABSCISSAE, _FC_KN, "m/s", "Damping force Fc,O",
 
 #: Optional effect elements of the lumped model (damper_fmu.effects); every one is off at its
 #: default, so the base model is unchanged. Bounds: what the tuner may identify (wider than the
-#: typical ranges of the design notes' catalogue).
+#: typical ranges of the design notes' catalogue; force effects up to 10 % of the 2 MN the data reader
+#: accepts, so that the diagnosis can search 10 % of any plausible damper's peak force).
 EFFECT_PARAMETERS: tuple[Parameter, ...] = (
     Parameter("friction_force", "N", "Coulomb friction in parallel (seals, guides): Ff tanh(v / v_eps)",
-              0.0, 0.0, 2000.0, tunable=False, effect="friction"),
+              0.0, 0.0, 2e5, tunable=False, effect="friction"),
     Parameter("friction_velocity", "m/s", "Velocity scale v_eps of the smoothed friction",
               5e-4, 1e-5, 1e-2, tunable=False, effect="friction"),
     Parameter("preload_force", "N", "Constant force offset (un-tared gas force, load-cell offset); tension +",
-              0.0, -2000.0, 2000.0, tunable=False, effect="preload"),
+              0.0, -2e5, 2e5, tunable=False, effect="preload"),
     Parameter("free_play", "m", "Total clearance (dead band) in series at the actuator end",
               0.0, 0.0, 3e-3, tunable=False, effect="free_play"),
     Parameter("thermal_beta", "1/K", "Damping scaled by exp(-beta (T - T_ref)) with the oil temperature T",

@@ -54,6 +54,18 @@ def test_every_rig_effect_has_a_model_element_the_diagnosis_fits():
         assert lo <= spec.model_sign * spec.low <= hi and lo <= spec.model_sign * spec.high <= hi
 
 
+def test_search_bounds_scale_with_the_data():
+    """Force effects search at least 10 % of the peak force (a 200 kN damper may have a 15 kN
+    preload); a free play never wider than the stroke range; the catalogue range otherwise."""
+    from tuner.diagnosis.diagnose import search_bounds
+
+    assert search_bounds("preload_force", 2e5) == (-2e4, 2e4)
+    assert search_bounds("friction_force", 2e4)[1] == pytest.approx(2e3)
+    assert search_bounds("free_play", 2e4) == (0.0, 2e-3)
+    assert search_bounds("free_play", 2e4, stroke_range_m=0.6e-3) == (0.0, 0.6e-3)
+    assert search_bounds("free_play", 2e4, stroke_range_m=0.1) == (0.0, 2e-3)
+
+
 def run_diagnosis(tmp_path, effects, seed, damper="lumped"):
     data = generate_dataset(tmp_path / "data", seed=seed, effects=effects, t_end=6.0, damper=damper,
                             oil_temperatures=CHAMBER_TEMPERATURES_C, log=lambda m: None)

@@ -82,14 +82,17 @@ NOTES = {"time_delay": "a skew between the force and stroke channels (DAQ, filte
          "preload": "an un-tared gas force or load-cell offset: check the rig's zero before the test"}
 
 
-def search_bounds(name: str, peak_force: float) -> tuple[float, float]:
+def search_bounds(name: str, peak_force: float, stroke_range_m: float | None = None) -> tuple[float, float]:
     """Refit bounds of an effect parameter (SI): twice the top of the catalogue's typical range, so
     that every documented magnitude is reachable; force scales at least 10 % of the measured peak
-    force [N] (a larger damper may have more) and at most the peak force itself, within the
-    parameter's model bounds."""
+    force [N] (a larger damper may have more) and at most the peak force itself; a free play at
+    most the data's stroke range [m] (a wider gap would leave the damper unloaded all along);
+    within the parameter's model bounds."""
     top = 2.0 * EFFECT_TYPICAL[name][1]
     if name in ("friction_force", "preload_force"):
         top = min(max(top, 0.1 * peak_force), peak_force)
+    if name == "free_play" and stroke_range_m is not None and stroke_range_m > 0:
+        top = min(top, stroke_range_m)
     top = min(top, next(p.high for p in EFFECT_PARAMETERS if p.name == name))  # what the model accepts
     return (-top, top) if name == "preload_force" else (0.0, top)
 
@@ -98,11 +101,11 @@ class ExtendedParametrization:
     """The base design vector followed by the identified parameters of one or more effects
     (``effect``: a name, or names joined by '+'; linear within their search bounds)."""
 
-    def __init__(self, base: Parametrization, effect: str, peak_force: float):
-        self.base, self.effect = base, effect
+    def __init__(self, base: Parametrization, effect: str, peak_force: float, stroke_range_m: float | None = None):
+        self.base, self.effect, self.stroke_range_m = base, effect, stroke_range_m
         self.effects = effect.split("+")
         self.extra = [n for e in self.effects for n in EFFECT_IDENTIFIED[e]]
-        self.extra_bounds = [search_bounds(n, peak_force) for n in self.extra]
+        self.extra_bounds = [search_bounds(n, peak_force, stroke_range_m) for n in self.extra]
         self.dimension = base.dimension + len(self.extra)
         self.names = base.names + self.extra
 
@@ -296,7 +299,7 @@ def _next_cause(eid: Engine, par: Parametrization, peak: float, current: tuple, 
     sse_cur = float(eid.sse_batch([params_cur])[0])
     rows, fits, jac = [], {}, None
     for e in others:
-        ext = ExtendedParametrization(par, f"{cur_ext.effect}+{e}", peak)
+        ext = ExtendedParametrization(par, f"{cur_ext.effect}+{e}", peak, cur_ext.stroke_range_m)
         z0 = ext.from_params({**params_cur, **{n: 0.0 for n in EFFECT_IDENTIFIED[e]}})
         if jac is None:  # the new effect is off at z0: the current model's Jacobian, shared
             jac = _base_jacobian(eid, ext, z0, dims=par.dimension)
@@ -393,6 +396,7 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     sig_id = [to_signals(p, settings.warmup_s) for p in prep_id]
     sig_val = [to_signals(p, settings.warmup_s) for p in prep_val]
     peak = max(float(np.abs(s.force[s.mask]).max()) for s in sig_id)
+    stroke_range = max(float(np.ptp(s.stroke[s.mask])) for s in sig_id)
     axes = table_abscissae(sig_id, peak, damping=settings.damping_abscissae_m_s,
                            elastic=settings.elastic_abscissae_m)
     if base_params is not None:  # the fit's own tables
@@ -499,7 +503,7 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
         advance(log, 0.2)
         for k_cand, effect in enumerate(settings.candidates):
             advance(log, 0.2 + 0.5 * k_cand / len(settings.candidates))
-            ext = ExtendedParametrization(par, effect, peak)
+            ext = ExtendedParametrization(par, effect, peak, stroke_range)
             # the fitted base may have absorbed part of the effect into its tables: a profile line
             # search re-balances it (``_refit``); a second start from the data-driven initial guess,
             # which has not absorbed it, is kept when its refit fits the identification data better
