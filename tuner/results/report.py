@@ -1013,6 +1013,13 @@ def diagnosis_section_html(out_dir) -> str:
     ev = (d.get("evidence") or {}).get("effects", {})
     ev_rows = "".join(f"<li><b>{e(k)}</b>: {e(str(v.get('sentence', '')))}</li>" for k, v in ev.items()
                       if isinstance(v, dict) and v.get("sentence"))
+    scr = (d.get("evidence") or {}).get("joint_screen")
+    if scr:
+        kept = " + ".join(f"{k} ({scr['terms'][k]['contribution_n']:.3g} N)" for k in scr["kept"]) or "nothing"
+        ev_rows += (f"<li><b>joint screen</b> (the residual on all seven signatures at once, terms below "
+                    f"{scr['threshold_n']:.3g} N or of unphysical sign dropped): keeps {e(kept)}, explaining "
+                    f"{100 * scr['r2_kept']:.0f} % of the residual power; all seven together "
+                    f"{100 * scr['r2_all']:.0f} %: the most any linear mix of catalogue effects could remove</li>")
     figs = "".join(f"<figure><img src='{e(f)}' alt='{e(f)}'></figure>" for f in d.get("figures", []))
     s = d["settings"]
     return (
