@@ -36,7 +36,8 @@ from build_fmu import ensure_fmu  # noqa: E402
 from damper_fmu import simulate  # noqa: E402
 from damper_fmu.parameters import defaults  # noqa: E402
 from tuner.identification import firefly  # noqa: E402
-from tuner.data.reading import load_dataset, prepare  # noqa: E402
+from tuner.data.preprocess import prepare  # noqa: E402
+from tuner.data.reading import load_dataset  # noqa: E402
 from tuner.identification.engine import Engine  # noqa: E402
 from tuner.identification.fit import FitSettings, initial_guess, to_signals  # noqa: E402
 from tuner.metrics import error_metrics  # noqa: E402

@@ -27,7 +27,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from damper_fmu import simulate  # noqa: E402
-from tuner.data.reading import load_dataset, prepare  # noqa: E402
+from tuner.data.preprocess import prepare  # noqa: E402
+from tuner.data.reading import load_dataset  # noqa: E402
 from tuner.identification.fit import FitSettings, identify, to_signals  # noqa: E402
 from tuner.identification.parametrization import Parametrization  # noqa: E402
 

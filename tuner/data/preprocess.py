@@ -8,8 +8,10 @@ Preprocessing (:func:`prepare`)
   hence zero-phase. Its gain relative to the ideal ``j 2 pi f`` is 1 - O(f^4);
   the window is the longest odd one whose gain error stays within 0.5 % (design
   margin under the 1 % requirement) for every frequency up to the band
-  (``stroke_band_hz``: where 99 % of the stroke velocity's power lies, 20 Hz at
-  least; ``--diff-band`` sets it). For a 20 Hz band at 1 kHz
+  (``stroke_band_hz``: where the stroke's velocity content ends - 99 % of its
+  power, and a PSD at least 1 % of the peak - between 20 Hz and min(0.4 x the fit
+  rate, 0.1 x the sample rate); ``--diff-band`` sets it; a rig's measured velocity
+  replaces it). For a 20 Hz band at 1 kHz
   that is 19 samples (19 ms): gain 0.9998 at 10 Hz, 0.9963 at 20 Hz, 0.948 at
   40 Hz, -3 dB at about 66 Hz, and above 100 Hz the output never exceeds that of
   an ideal differentiator at 18 Hz (white stroke noise sigma [m] gives velocity
@@ -205,7 +207,8 @@ def prepare(test: RigTest, fit_rate_hz: float, *, diff_band_hz: float | None = N
     if not fit_rate_hz > 0:
         raise ValueError(f"fit_rate_hz must be positive, got {fit_rate_hz}")
     if diff_band_hz is None:   # from the stroke when resampling to a fit rate, else the design band
-        diff_band_hz = MIN_DIFF_BAND_HZ if abs(fit_rate_hz / rate - 1.0) <= 1e-9 else stroke_band_hz(test, fit_rate_hz)
+        at_source = abs(fit_rate_hz / rate - 1.0) <= 1e-9 or test.velocity is not None
+        diff_band_hz = MIN_DIFF_BAND_HZ if at_source else stroke_band_hz(test, fit_rate_hz)
     diff = Differentiator.design(rate, diff_band_hz, diff_tol, max_window=len(test.stroke))
     measured = test.velocity is not None
     vel = np.asarray(test.velocity, dtype=float).copy() if measured else diff.apply(test.stroke)

@@ -32,7 +32,8 @@ temperature ``degC``, ``K``. Other channels keep their values and their
 manifest unit string unchanged. The reader converts to SI (temperature to
 degC) and checks ``sample_rate_hz`` against the file's time column.
 
-Preprocessing (differentiator, resampling, ``prepare``): ``tuner.data.preprocess``.
+Preprocessing (resampling, ``prepare``): ``tuner.data.preprocess``; the stroke differentiator:
+``tuner.data.differentiator``.
 """
 from __future__ import annotations
 

@@ -32,7 +32,8 @@ Procedure (``diagnose``):
 
 Search bounds (``search_bounds``) cover twice the catalogue's typical range
 (``damper_fmu.parameters.EFFECT_TYPICAL``, the one source), force scales at least 10 % of the
-measured peak force, so the procedure is not tied to one damper.
+measured peak force and a free play at most the stroke range, so the procedure is not tied to one
+damper.
 """
 from __future__ import annotations
 

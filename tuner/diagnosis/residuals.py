@@ -16,7 +16,7 @@ the test start or temperature (its r2 includes the constant gain: see r2_gain_on
 squares, terms below the noise or of unphysical sign dropped): a ranking of candidates and of
 their combination before the diagnosis' refits, and the share of r any linear mix of them explains.
 
-Derivatives use Savitzky-Golay filters over ~20 ms (as ``tuner.data.reading`` does for the velocity):
+Derivatives use Savitzky-Golay filters over ~20 ms (as ``tuner.data.differentiator`` does for the velocity):
 dF_sim/dt cubic (polyorder 3), stroke acceleration polyorder 4 (for a symmetric window that is the
 second-derivative counterpart of the cubic first derivative: error O(f^4)). Samples within half a
 window of either end are left out of every regression.
@@ -389,17 +389,19 @@ def _clean(v):
 _POSITIVE = ("friction", "inertia", "time_delay", "valve_lag", "free_play")
 
 
-def _signatures(p, knee, gap_span):
+def _signatures(p, knee, gap_span, use_temperature: bool):
     """Linearised signature of every catalogue effect for one test (columns in EFFECTS order):
     the regressors of the single-effect evidence, free play as -F_sim within ``gap_span`` [s] after
-    each reversal, thermal drift as -F_sim x (T - T_start) (or x time since the start when the
-    test has no temperature channel): a damping gain falling as the oil heats, linearised."""
+    each reversal, thermal drift as -F_sim x (T - T at the first usable sample) [K] when
+    ``use_temperature``, else x the time since that sample [s]: a damping gain falling as the oil
+    heats, linearised."""
     n = p.r.size
     gap = np.zeros(n)
     for k in p.rev:
         gap[k:k + max(1, int(round(gap_span * p.fs)))] = 1.0
     t = p.t
-    x = (t.temperature - t.temperature[0]) if t.temperature is not None else (t.time - t.time[0])
+    first = int(np.argmax(p.use))
+    x = (t.temperature - t.temperature[first]) if use_temperature else (t.time - t.time[first])
     cols = {"friction": np.tanh(t.velocity / V_EPS), "preload": np.ones(n), "free_play": -t.simulated * gap,
             "thermal_drift": -t.simulated * x, "valve_lag": -p.dF * (np.abs(t.velocity) > knee),
             "time_delay": -p.dF, "inertia": p.acc}
@@ -417,7 +419,10 @@ def joint_screen(preps, knee, gap_span: float, threshold_n: float) -> dict:
     together, "r2_all": the share all seven signatures explain at once (least squares, signs
     free): the most any combination of linearised catalogue effects can remove, "threshold_n"}.
     A cheap ranking before the refits; its coefficients are linearisations, not magnitudes."""
-    X = np.concatenate([_signatures(p, knee, gap_span)[p.use] for p in preps])
+    # one drift variable for every test, by the rule of the single-effect evidence (_thermal)
+    use_temperature = all(p.t.temperature is not None for p in preps) and \
+        float(np.ptp(_cat(preps, lambda p: p.t.temperature))) > MIN_T_SPAN_K
+    X = np.concatenate([_signatures(p, knee, gap_span, use_temperature)[p.use] for p in preps])
     r = np.concatenate([p.r[p.use] for p in preps])
     scale = np.sqrt(np.mean(X ** 2, axis=0))
     live = scale > 0

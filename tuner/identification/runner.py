@@ -2,7 +2,7 @@
 
 One FMU instance is extracted, loaded and instantiated once and reused across runs (FMI reset,
 then parameters re-applied). The per-sample loop makes the raw FMI calls (fmi2SetReal /
-fmi2DoStep / fmi2GetReal on preallocated buffers): in C (``tuner/c/fmi2_stepper.c``, the same
+fmi2DoStep / fmi2GetReal on preallocated buffers): in C (``tuner/identification/c/fmi2_stepper.c``, the same
 calls on the FMU's own function pointers, without the interpreter's cost per call) where a C
 compiler is found, else through ctypes from Python; nothing is re-read or re-extracted per run.
 

@@ -3,7 +3,8 @@
 ``make_report(out_dir)`` reads what ``tuner.identification.fit`` writes (SI units throughout)::
 
     parameters.json       {model: {values, units, bounds, parametrization}}
-    metrics.json          {settings, tests: {name: {role, scenario, models: {model: metrics}}}, table3}
+    metrics.json          {settings, tests: {name: {role, scenario, models: {model: metrics}}}, table3,
+                           quality, full_rate}
     history_<model>.json  mean/best fitness per generation, initial and final populations (optional)
     simulations.npz       <test>__time [s], __stroke [m], __force [N], __<model> [N] (optional)
 

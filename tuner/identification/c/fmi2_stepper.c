@@ -1,5 +1,5 @@
 /* A co-simulation master's stepping loop in C, for any FMI 2.0 co-simulation FMU already loaded
- * and instantiated by fmpy (tuner/runner.py passes the FMU's own fmi2SetReal, fmi2DoStep and
+ * and instantiated by fmpy (tuner/identification/runner.py passes the FMU's own fmi2SetReal, fmi2DoStep and
  * fmi2GetReal). It makes exactly the calls the Python loop makes, sample by sample, without the
  * interpreter's overhead per call. Depends on nothing but the FMI 2.0 calling convention. */
 #include <stddef.h>
