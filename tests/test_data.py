@@ -528,3 +528,15 @@ def test_differentiator_band_follows_the_stroke_spectrum():
     assert stroke_band_hz(slow, 250.0) == MIN_DIFF_BAND_HZ
     fixed = prepare(fast, 200.0, diff_band_hz=20.0)        # the old fixed band: 35 Hz read too low
     assert np.sqrt(2) * np.std(fixed.stroke_velocity[core]) < 0.97 * 2 * np.pi * 35.0 * 5e-4
+
+
+def test_inspect_summary_states_the_differentiator_band_and_its_velocity():
+    """What `inspect` prints is the velocity the fit will see: a 35 Hz stroke's band and peak velocity
+    (analytic 2 pi f A = 110 mm/s; the old fixed 20 Hz band read it more than 3 % low)."""
+    from tuner.data.summary import format_summary, summarize
+
+    fast = _sine_test(35.0, 5e-4, noise_m=0.0)     # a peak (max) would pick up differentiated noise
+    s = summarize(fast, 200.0)
+    assert "up to 35" in s["velocity_source"]
+    assert max(-s["velocity_m_s"][0], s["velocity_m_s"][1]) == pytest.approx(2 * np.pi * 35.0 * 5e-4, rel=0.01)
+    assert "up to 20 Hz" in format_summary(fast, 200.0, diff_band_hz=20.0)

@@ -267,13 +267,21 @@ def _load(args, file_role: str | None = "identification"):
         raise ValueError("the data holds no identification test")
     from tuner.data.summary import format_summary
 
+    rate, band = _fit_rate_and_band(args)
     _log("data as read:")
     for t in ident + valid:
-        _log(format_summary(t))
+        _log(format_summary(t, rate, band))
     names = [t.name for t in ident + valid]
     if len(set(names)) != len(names):
         raise ValueError(f"test names must be unique, got {names}")
     return ident, valid, name
+
+
+def _fit_rate_and_band(args) -> tuple[float, float | None]:
+    """Fit rate [Hz] and differentiator band [Hz] (None: from the data) the command will use."""
+    from tuner.identification.fit import FitSettings
+
+    return getattr(args, "fit_rate", None) or FitSettings().fit_rate_hz, getattr(args, "diff_band", None)
 
 
 def cmd_inspect(args) -> int:
@@ -286,7 +294,8 @@ def cmd_inspect(args) -> int:
     args.identification, args.validation = list(args.files), []
     ident, valid, _ = _load(args, file_role=None)
     if args.json:
-        print(json.dumps([summarize(t) for t in ident + valid], indent=1))
+        rate, band = _fit_rate_and_band(args)
+        print(json.dumps([summarize(t, rate, band) for t in ident + valid], indent=1))
     return 0
 
 
