@@ -74,11 +74,13 @@ def run_diagnosis(tmp_path, effects, seed, damper="lumped"):
                     tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), base_iterations=0), log=lambda m: None)
 
 
-#: the CI suite (10 min on 2 cores) runs two single effects blind (friction and inertia are also hidden
-#: together below; thermal drift, valve lag and time delay: 5/5, 5/5 and 4/5 in
-#: benchmarks/confusion_matrix.py with five seeds each); DAMPER_FULL_TESTS=1 runs all seven
+#: the CI suite (10 min on 2 cores) runs one single effect blind, free play, the one the base model
+#: absorbs most (friction and inertia are hidden together below; preload, thermal drift, valve lag and
+#: time delay: 5/5 each in benchmarks/confusion_matrix.py with five seeds, 2026-11-23; a preload's
+#: residual signature is also checked analytically in tests/test_residuals.py); DAMPER_FULL_TESTS=1
+#: runs all seven
 FULL = os.environ.get("DAMPER_FULL_TESTS") == "1"
-CI_EFFECTS = ("free_play", "preload")
+CI_EFFECTS = ("free_play",)
 
 
 @pytest.mark.slow
