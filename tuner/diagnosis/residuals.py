@@ -196,12 +196,7 @@ def _free_play(preps):
     span = max(t_gap, 1e-3)
     vbar = float(np.concatenate(vabs)[:, tau < span].mean())
 
-    def reg(p):   # -F_sim during the apparent gap after each reversal
-        g = np.zeros(p.r.size)
-        for k in p.rev:
-            g[k:k + max(1, int(round(span * p.fs)))] = 1.0
-        return -p.t.simulated * g
-    return {"value": t_gap * vbar, "r2": _regress(preps, reg)[1], "gap_time": t_gap, "reversals": n_rev,
+    return {"value": t_gap * vbar, "r2": _regress(preps, lambda p: _signature(p, "free_play", gap_span=span))[1], "gap_time": t_gap, "reversals": n_rev,
             "coef_window": float(np.sum(num) / np.sum(den)), "coef_elsewhere": rho_e,
             "mean_speed_after_reversal": vbar}
 
@@ -246,13 +241,26 @@ def _thermal(preps):
     return out
 
 
+def _signature(p, effect: str, knee: float = 0.0, gap_span: float = 0.0) -> np.ndarray:
+    """The regressor of a catalogue effect for one test (module docstring), full length: friction
+    tanh(v / V_EPS), preload 1, inertia x'', time_delay -dF_sim/dt, valve_lag -dF_sim/dt beyond the
+    knee [m/s], free_play -F_sim within ``gap_span`` [s] after each reversal."""
+    t = p.t
+    if effect == "free_play":
+        gap = np.zeros(p.r.size)
+        for k in p.rev:
+            gap[k:k + max(1, int(round(gap_span * p.fs)))] = 1.0
+        return -t.simulated * gap
+    return {"friction": lambda: np.tanh(t.velocity / V_EPS), "preload": lambda: np.ones(p.r.size),
+            "inertia": lambda: p.acc, "time_delay": lambda: -p.dF,
+            "valve_lag": lambda: -p.dF * (np.abs(t.velocity) > knee)}[effect]()
+
+
 def _effects(preps, knee):
     """Every catalogue effect on the pooled usable samples of ``preps``: {name: {value, r2, ...}}."""
-    one = {e: dict(zip(("value", "r2"), _regress(preps, fn))) for e, fn in (
-        ("friction", lambda p: np.tanh(p.t.velocity / V_EPS)), ("preload", lambda p: 1.0),
-        ("inertia", lambda p: p.acc), ("time_delay", lambda p: -p.dF),
-        ("valve_lag", lambda p: -p.dF * (np.abs(p.t.velocity) > knee)),
-        ("below", lambda p: -p.dF * (np.abs(p.t.velocity) <= knee)))}   # -dF: coefficient = lag
+    one = {e: dict(zip(("value", "r2"), _regress(preps, lambda p, e=e: _signature(p, e, knee))))
+           for e in ("friction", "preload", "inertia", "time_delay", "valve_lag")}   # -dF: coefficient = lag
+    one["below"] = dict(zip(("value", "r2"), _regress(preps, lambda p: -p.dF * (np.abs(p.t.velocity) <= knee))))
     below = one.pop("below")
     one["valve_lag"].update(tau_below_knee=below["value"], r2_below_knee=below["r2"], knee_velocity=knee)
     one["preload"]["mean_to_rms"] = np.sign(one["preload"]["value"]) * np.sqrt(one["preload"]["r2"])
@@ -395,17 +403,11 @@ def _signatures(p, knee, gap_span, use_temperature: bool):
     each reversal, thermal drift as -F_sim x (T - T at the first usable sample) [K] when
     ``use_temperature``, else x the time since that sample [s]: a damping gain falling as the oil
     heats, linearised."""
-    n = p.r.size
-    gap = np.zeros(n)
-    for k in p.rev:
-        gap[k:k + max(1, int(round(gap_span * p.fs)))] = 1.0
     t = p.t
     first = int(np.argmax(p.use))
     x = (t.temperature - t.temperature[first]) if use_temperature else (t.time - t.time[first])
-    cols = {"friction": np.tanh(t.velocity / V_EPS), "preload": np.ones(n), "free_play": -t.simulated * gap,
-            "thermal_drift": -t.simulated * x, "valve_lag": -p.dF * (np.abs(t.velocity) > knee),
-            "time_delay": -p.dF, "inertia": p.acc}
-    return np.column_stack([cols[e] for e in EFFECTS])
+    return np.column_stack([-t.simulated * x if e == "thermal_drift" else _signature(p, e, knee, gap_span)
+                            for e in EFFECTS])
 
 
 def joint_screen(preps, knee, gap_span: float, threshold_n: float) -> dict:
