@@ -44,12 +44,14 @@ SLAVES = {
     "lumped": "DamperLumped",
     "maxwell": "DamperMaxwell",
     "maxwell_table": "DamperMaxwellTable",
+    "twochamber": "DamperTwoChamber",
 }
 #: pythonfmu FMUs: model kind -> slave class (model identifier); 'empty' has no physics (benchmark)
 PY_SLAVES = {
     "lumped": "DamperLumpedPy",
     "maxwell": "DamperMaxwellPy",
     "maxwell_table": "DamperMaxwellTablePy",
+    "twochamber": "DamperTwoChamberPy",
     "empty": "EmptyDamper",
 }
 BUILD_OPTIONS = {"canGetAndSetFMUstate": True, "canSerializeFMUstate": True}

@@ -11,8 +11,8 @@ Table 2) are damped out at any step, while the slow dynamics is second-order acc
 Internal steps (``tolerance`` > 0, the default): step doubling. Each trial sub-step H is taken
 once whole and once as two halves; their difference, measured as the silent-block forces it
 implies [N], must stay below ``tolerance`` x the model's force scale (largest |Fc,O| ordinate),
-else H shrinks; the next H follows the usual third-root rule (local error ~ H^3), capped by
-``max_step``. The two-halves result is kept. ``tolerance = 0`` gives fixed sub-steps of at most
+else H shrinks (by 5 when a stage's Newton solve fails: a smaller step is an easier solve);
+the next H follows the usual third-root rule (local error ~ H^3), capped by ``max_step``. The two-halves result is kept. ``tolerance = 0`` gives fixed sub-steps of at most
 ``max_step`` (used for step-refinement studies).
 
 Inputs within a communication step [t, t + h] (``input_mode``): the stroke the damper sees is a
@@ -212,10 +212,13 @@ class Simulator:
                 last = tau + H >= h * (1.0 - 1e-12)
                 if last:
                     H = h - tau
-                yf, _, _, _ = sdirk(y, pstate, tau, H)
-                ym, pm, _, _ = sdirk(y, pstate, tau, 0.5 * H)
-                y2, p2, x2, v2 = sdirk(ym, pm, tau + 0.5 * H, 0.5 * H)
-                err = model.error_norm(yf, y2)
+                try:
+                    yf, _, _, _ = sdirk(y, pstate, tau, H)
+                    ym, pm, _, _ = sdirk(y, pstate, tau, 0.5 * H)
+                    y2, p2, x2, v2 = sdirk(ym, pm, tau + 0.5 * H, 0.5 * H)
+                    err = model.error_norm(yf, y2)
+                except ConvergenceError as exc:  # a stage solve failed: retry with a smaller step
+                    err, failure = math.inf, exc
                 fac = 4.0 if err == 0.0 else min(4.0, max(0.2, 0.9 * (tol / err) ** (1.0 / 3.0)))
                 if err <= tol:
                     y, pstate, xs, vs = y2, p2, x2, v2
@@ -227,8 +230,9 @@ class Simulator:
                 else:
                     H *= fac
                     if H < MIN_STEP:
+                        why = f"last: {failure}" if err == math.inf else f"error {err:.3g} N, tolerance {tol:.3g} N"
                         raise ConvergenceError(f"internal step fell below {MIN_STEP:g} s at t = "
-                                               f"{self.time + tau:.9g} s (error {err:.3g} N, tolerance {tol:.3g} N)")
+                                               f"{self.time + tau:.9g} s ({why})")
         self.y = y
         self.time += h
         self.x1, self.v1 = xh, vh

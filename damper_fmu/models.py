@@ -16,6 +16,30 @@ Lumped model (paper section 2.1, with physically consistent signs; the printed e
 Maxwell model: spring k_s in series with a linear dashpot c; state xd = dashpot end position,
 F = k_s (x1 - xd) = c xd'. Table Maxwell model: same with the dashpot force Fc,O(xd').
 
+Two-chamber model (a twin-tube form: rebound and compression chambers, piston and foot valves;
+massless, the oil's compressibility is the series stiffness):
+
+    actuator x1 --[mounts kM, cM]-- piston y --| rebound chamber R | compression chamber C | reservoir |
+
+    fR' = kR(y, fR) (y' - up)           fR = Aa pR, gauge force of R (Aa: annulus area)
+    gC' = kC(y, gC) (-y' + a up - uf)   gC = Ap pC, gauge force of C (Ap: piston area), a = Aa / Ap
+    fR - a gC = Fp(up)    piston valve, up = its flow / Aa: up > 0 the rebound half of Fc,O, up < 0
+                          the check valve (slope check_damping)
+    gC = Ff(uf)           foot valve, uf = its flow / Ap: uf > 0 Ff(u) = -Fc,O(-u / (1 - a)) / (1 - a),
+                          so that the steady compression force is Fc,O(v); uf < 0 the intake check
+    fR - gC = kM (x1 - y) + cM (x1' - y')
+    output F = fR - gC + k_gas (x1 - x_ref)   (reservoir gas spring, zero at the start stroke x_ref)
+    kR(y, fR) = k_R / (1 - y / L_R) / (1 + air (1 + fR / (a f_res))^-1.714)
+    kC(y, gC) = k_C / (1 + y / L_C) / (1 + air (1 + gC / f_res)^-1.714)
+
+(chamber volumes shrink and grow with the piston position y, the volume ratio clipped at 0.05;
+entrained air compressed isentropically, exponent 1 + 1/1.4, with the pressure ratio
+1 + f / (A p_res) floored smoothly at 0.05, so that a chamber sucked towards cavitation by a
+very fast stroke stays soft but finite and Newton's method sees a smooth stiffness). After every reversal
+both chambers are sealed (stiffness ~ kR + a^2 kC) until a check valve opens: the behaviour the
+lumped model's single series spring cannot produce (research/README.md). At constant velocity v the
+force is Fc,O(v) + check_damping (1 - a)^2 v in rebound, Fc,O(v) + check_damping v in compression.
+
 Each model exposes ``stage(yb, g, x1, v1)``: the solution y of the implicit stage equation
 ``y = yb + g f(y; x1, v1)`` (one stage of an SDIRK scheme), solved exactly by Newton's method on
 the piecewise-linear characteristics (within the right pieces the equations are linear, so the
@@ -23,12 +47,14 @@ iteration ends when the pieces stop changing).
 """
 from __future__ import annotations
 
+import math
 from bisect import bisect_right as bisect_segment  # the lookup of PwlTable.segment, inlined
 
 from .parameters import check_values
 from .tables import PwlTable
 
-__all__ = ["ConvergenceError", "DIAGNOSTICS", "LumpedModel", "MaxwellModel", "MaxwellTableModel", "make_model"]
+__all__ = ["ConvergenceError", "DIAGNOSTICS", "LumpedModel", "MaxwellModel", "MaxwellTableModel", "TwoChamberModel",
+           "make_model"]
 
 _MAX_NEWTON = 12  # plain piecewise-linear Newton; then the damped fallback
 
@@ -47,6 +73,13 @@ DIAGNOSTICS: dict[str, dict[str, tuple[str, str]]] = {
     },
     "maxwell": {"spring_elongation": ("m", "Series spring elongation")},
     "maxwell_table": {"spring_elongation": ("m", "Series spring elongation")},
+    "twochamber": {
+        "mount_elongation": ("m", "Mount elongation x1 - y"),
+        "rebound_chamber_force": ("N", "Rebound-chamber gauge pressure times annulus area"),
+        "compression_chamber_force": ("N", "Compression-chamber gauge pressure times piston area"),
+        "piston_valve_rate": ("m/s", "Piston-valve flow / annulus area (+ rebound damping, - check)"),
+        "foot_valve_rate": ("m/s", "Foot-valve flow / piston area (+ compression damping, - intake check)"),
+    },
 }
 
 
@@ -329,11 +362,190 @@ class MaxwellTableModel(_SeriesSpringModel):
         return [yb[0] + g * 0.5 * (lo + hi)]
 
 
-_MODELS = {"lumped": LumpedModel, "maxwell": MaxwellModel, "maxwell_table": MaxwellTableModel}
+#: Two-chamber model: isentropic air exponent 1 + 1/1.4, clip of the volume and pressure ratios,
+#: Newton tolerance (sum of |residuals| relative to the force scale) and iteration limits.
+AIR_EXPONENT = 1.714
+_TC_CLIP = 0.05
+_TC_TOL = 1e-10
+_TC_MAX_NEWTON = 60
+_TC_PLAIN = 12
+_TC_MAX_HALVINGS = 40
+
+
+def _solve5(a: list[list[float]], b: list[float]) -> list[float] | None:
+    """Solve the 5x5 system a x = b by Gaussian elimination with partial pivoting (a, b copied);
+    None when singular. Written as the C kernel's ``solve5``, operation for operation."""
+    m = [row[:] + [bi] for row, bi in zip(a, b)]
+    n = 5
+    for k in range(n):
+        p = k
+        for i in range(k + 1, n):
+            if abs(m[i][k]) > abs(m[p][k]):
+                p = i
+        if abs(m[p][k]) < 1e-300:
+            return None
+        if p != k:
+            m[k], m[p] = m[p], m[k]
+        for i in range(k + 1, n):
+            f = m[i][k] / m[k][k]
+            for j in range(k, n + 1):
+                m[i][j] -= f * m[k][j]
+    x = [0.0] * n
+    for i in range(n - 1, -1, -1):
+        s_ = m[i][n]
+        for j in range(i + 1, n):
+            s_ -= m[i][j] * x[j]
+        x[i] = s_ / m[i][i]
+    return x
+
+
+class TwoChamberModel:
+    """Two-chamber (twin-tube) damper model; state y = [y, fR, gC, x_ref, up, uf] in m, N, N, m,
+    m/s, m/s (piston position, chamber forces, start stroke of the gas spring, and the valve rates
+    of the last stage, kept as the next Newton start)."""
+
+    kind = "twochamber"
+    n_state = 6
+
+    def __init__(self, params: dict[str, float] | None = None):
+        p = check_values("twochamber", params or {})
+        self.params = p
+        self.kM, self.cM = p["k_M"], p["c_M"]
+        self.kR, self.kC, self.a = p["k_R"], p["k_C"], p["area_ratio"]
+        self.LR, self.LC, self.air, self.fres, self.kgas = p["L_R"], p["L_C"], p["air"], p["f_res"], p["k_gas"]
+        self.fc = _table(p, "Fc", "v")
+        cchk, r = p["check_damping"], 1.0 - self.a
+        pos = [(x, f) for x, f in zip(self.fc.xs, self.fc.fs) if x > 0.0]
+        neg = [(x, f) for x, f in zip(self.fc.xs, self.fc.fs) if x < 0.0][::-1]
+        self.fp = PwlTable([-1.0] + [x for x, _ in pos], [-cchk] + [f for _, f in pos])
+        self.ff = PwlTable([-1.0] + [-r * x for x, _ in neg], [-cchk] + [-f / r for _, f in neg])
+        self._tol = _TC_TOL * self.force_scale()
+
+    def initial_state(self, x1: float, v1: float) -> list[float]:
+        """Force-free state at stroke x1 [m]: chambers at reservoir pressure, mounts unloaded."""
+        return [x1, 0.0, 0.0, x1, 0.0, 0.0]
+
+    def force(self, y, x1: float, v1: float) -> float:
+        """Output force [N], positive in tension."""
+        return y[1] - y[2] + self.kgas * (x1 - y[3])
+
+    def force_scale(self) -> float:
+        """Force scale [N] of the integrator's error tolerance: the largest |Fc,O| ordinate."""
+        return max(abs(f) for f in self.fc.fs)
+
+    def error_norm(self, ya, yb) -> float:
+        """Difference [N] between two states, as the chamber forces they imply."""
+        return max(abs(yb[1] - ya[1]), abs(yb[2] - ya[2]))
+
+    def stiffness(self, y: float, fR: float, gC: float) -> tuple[float, ...]:
+        """Chamber stiffnesses [N/m] at piston position y [m] and chamber forces fR, gC [N], with
+        their derivatives: (kR, dkR/dy, dkR/dfR, kC, dkC/dy, dkC/dgC)."""
+        s = 1.0 - y / self.LR
+        if s > _TC_CLIP:
+            kR = self.kR / s
+            kRy = kR / (self.LR * s)
+        else:
+            kR, kRy = self.kR / _TC_CLIP, 0.0
+        s = 1.0 + y / self.LC
+        if s > _TC_CLIP:
+            kC = self.kC / s
+            kCy = -kC / (self.LC * s)
+        else:
+            kC, kCy = self.kC / _TC_CLIP, 0.0
+        kRf = kCg = 0.0
+        if self.air > 0.0:
+            for side in (0, 1):
+                scale = self.a * self.fres if side == 0 else self.fres
+                e = (fR if side == 0 else gC) / scale + 1.0 - _TC_CLIP  # absolute / reservoir pressure - floor
+                root = math.sqrt(e * e + _TC_CLIP * _TC_CLIP)
+                ratio = _TC_CLIP + 0.5 * (e + root)  # smooth floor: never below 0.05, C-infinity
+                q = ratio ** -AIR_EXPONENT
+                dq = -AIR_EXPONENT * q / ratio * (0.5 * (1.0 + e / root)) / scale
+                d = 1.0 + self.air * q
+                if side == 0:
+                    kR, kRy = kR / d, kRy / d
+                    kRf = -kR * self.air * dq / d
+                else:
+                    kC, kCy = kC / d, kCy / d
+                    kCg = -kC * self.air * dq / d
+        return kR, kRy, kRf, kC, kCy, kCg
+
+    def _residual(self, q, yb, g: float, x1: float, v1: float, jacobian: bool):
+        w, up, uf, fR, gC = q
+        a = self.a
+        y = yb[0] + g * w
+        kR, kRy, kRf, kC, kCy, kCg = self.stiffness(y, fR, gC)
+        uR, uC = w - up, -w + a * up - uf
+        ip, jf = self.fp.segment(up), self.ff.segment(uf)
+        sp, sf = self.fp.slope[ip], self.ff.slope[jf]
+        r = [fR - yb[1] - g * kR * uR,
+             gC - yb[2] - g * kC * uC,
+             fR - a * gC - (self.fp.intercept[ip] + sp * up),
+             gC - (self.ff.intercept[jf] + sf * uf),
+             fR - gC - self.kM * (x1 - y) - self.cM * (v1 - w)]
+        if not jacobian:
+            return r, None
+        jac = [[-g * (kR + g * kRy * uR), g * kR, 0.0, 1.0 - g * kRf * uR, 0.0],
+               [-g * (-kC + g * kCy * uC), -g * kC * a, g * kC, 0.0, 1.0 - g * kCg * uC],
+               [0.0, -sp, 0.0, 1.0, -a],
+               [0.0, 0.0, -sf, 0.0, 1.0],
+               [self.kM * g + self.cM, 0.0, 0.0, 1.0, -1.0]]
+        return r, jac
+
+    def stage(self, yb, g: float, x1: float, v1: float) -> list[float]:
+        """Solve y = yb + g f(y) for the two-chamber model (x1 [m], v1 [m/s] at the stage time).
+
+        Unknowns: piston velocity w, valve rates up, uf and the chamber forces. Newton's method,
+        started from the valve rates of the base point and the piston velocity at frozen chamber
+        forces: full steps first (exact within the valves' linear pieces), then, if the pieces
+        keep changing, a backtracking line search on the sum of |residuals| [N]."""
+        fb = yb[1] - yb[2]
+        w0 = (self.cM * v1 - fb + self.kM * (x1 - yb[0])) / (self.cM + self.kM * g)
+        q = [w0, yb[4], yb[5], yb[1], yb[2]]
+        r, jac = self._residual(q, yb, g, x1, v1, True)
+        rn = abs(r[0]) + abs(r[1]) + abs(r[2]) + abs(r[3]) + abs(r[4])
+        for it in range(_TC_MAX_NEWTON):
+            if rn <= self._tol:
+                break
+            d = _solve5(jac, r)
+            if d is None:
+                raise ConvergenceError("two-chamber stage: singular Jacobian")
+            if it < _TC_PLAIN:  # plain Newton: exact within the valves' pieces, usually done in 2-4
+                q = [qi - di for qi, di in zip(q, d)]
+                r, jac = self._residual(q, yb, g, x1, v1, True)
+                rn = abs(r[0]) + abs(r[1]) + abs(r[2]) + abs(r[3]) + abs(r[4])
+                continue
+            lam, accepted = 1.0, False  # then damped: backtracking on the sum of |residuals|
+            for _ in range(_TC_MAX_HALVINGS):
+                qt = [qi - lam * di for qi, di in zip(q, d)]
+                rt, _ = self._residual(qt, yb, g, x1, v1, False)
+                rnt = abs(rt[0]) + abs(rt[1]) + abs(rt[2]) + abs(rt[3]) + abs(rt[4])
+                if rnt < rn:
+                    accepted = True
+                    break
+                lam *= 0.5
+            if not accepted:
+                break
+            q, rn = qt, rnt
+            r, jac = self._residual(q, yb, g, x1, v1, True)
+        if not rn <= self._tol:
+            raise ConvergenceError(f"two-chamber stage: Newton stalled at a residual of {rn:.3g} N "
+                                   f"(tolerance {self._tol:.3g} N)")
+        w, up, uf, fR, gC = q
+        return [yb[0] + g * w, fR, gC, yb[3], up, uf]
+
+    def diagnostics(self, y, x1: float, v1: float) -> dict[str, float]:
+        """Mount elongation [m], chamber forces [N] and valve rates [m/s] of the state y."""
+        return {"mount_elongation": x1 - y[0], "rebound_chamber_force": y[1], "compression_chamber_force": y[2],
+                "piston_valve_rate": y[4], "foot_valve_rate": y[5]}
+
+
+_MODELS = {"lumped": LumpedModel, "maxwell": MaxwellModel, "maxwell_table": MaxwellTableModel,
+           "twochamber": TwoChamberModel}
 
 
 def make_model(kind: str, params: dict[str, float] | None = None):
-    """Model instance of ``kind`` ('lumped', 'maxwell', 'maxwell_table') with ``params`` (SI)."""
+    """Model instance of ``kind`` ('lumped', 'maxwell', 'maxwell_table', 'twochamber') with ``params`` (SI)."""
     try:
         cls = _MODELS[kind]
     except KeyError:

@@ -23,27 +23,18 @@ from pathlib import Path
 
 import numpy as np
 
-from .parameters import MODEL_PARAMETERS
+from .parameters import MODEL_PARAMETERS, check_rule
 
 __all__ = ["available", "reason", "library", "simulate", "parameter_header", "KINDS", "CFLAGS", "compiler",
            "compile_library"]
 
 C_DIR = Path(__file__).resolve().parent / "c"
-KINDS = {"lumped": 0, "maxwell": 1, "maxwell_table": 2}
+KINDS = {"lumped": 0, "maxwell": 1, "maxwell_table": 2, "twochamber": 3}
 #: -ffp-contract=off: no fused multiply-add, so the C results equal the Python reference's
 CFLAGS = ("-O2", "-ffp-contract=off", "-fPIC", "-std=c99", "-Wall")
 
 _CHECK = {"none": 0, "positive": 1, "range": 2}
 _state: dict = {}
-
-
-def _check_kind(p) -> str:
-    """How the kernel checks a parameter: as ``parameters.check_values`` does."""
-    if p.effect is not None:
-        return "range"
-    if p.unit in ("kg", "N/m", "N.s/m"):
-        return "positive"
-    return "none"
 
 
 def parameter_header(start_values: dict[str, dict[str, float]] | None = None) -> str:
@@ -62,7 +53,7 @@ def parameter_header(start_values: dict[str, dict[str, float]] | None = None) ->
         lines.append(f"static const DkParamSpec DK_PARAMS_{tag}[{len(params)}] = {{")
         for p in params:
             lines.append(f'    {{"{p.name}", "{p.unit}", {float(sv.get(p.name, p.default))!r}, {p.low!r}, '
-                         f'{p.high!r}, {_CHECK[_check_kind(p)]}, {int(not (p.tunable or p.effect))}}},')
+                         f'{p.high!r}, {_CHECK[check_rule(p)]}, {int(not (p.tunable or p.effect))}}},')
         lines.append("};")
     lines.append("#endif")
     return "\n".join(lines).replace("inf,", "INFINITY,") + "\n"

@@ -11,6 +11,14 @@ Lumped model (Isacchi, Ripamonti, Corsi 2023, section 2.1): 29 tunable parameter
 both tables pass through F(0) = 0, so the zero abscissa carries no parameter. The abscissae are
 ``fixed`` parameters (set before a run, not identified): the paper chooses them per damper.
 The reference preset is the paper's Table 2; the bounds are the paper's section 2.3 values.
+
+Two-chamber model (``models.TwoChamberModel``, a twin-tube form): 37 tunable parameters
+    k_M [N/m], c_M [N s/m] mounts, k_R, k_C [N/m] chamber stiffnesses, area_ratio [1],
+    L_R, L_C [m] chamber lengths, air [1], f_res [N], k_gas [N/m],
+    Fc_01..Fc_28 [N]  ordinates of the damping table at Fc_v01..Fc_v28 [m/s] (Table 2's abscissae
+    with the midpoints added: the valves' knees need the finer layout),
+and the fixed check-valve slope check_damping [N s/m]. Its preset is a fit to the virtual rig's
+twin-tube damper (research/results), a plausible railway yaw damper, not a paper value.
 """
 from __future__ import annotations
 
@@ -26,7 +34,10 @@ __all__ = [
     "LUMPED_PARAMETERS",
     "MAXWELL_PARAMETERS",
     "MAXWELL_TABLE_PARAMETERS",
+    "TWOCHAMBER_PARAMETERS",
+    "TWOCHAMBER_FC_ABSCISSAE",
     "MODEL_PARAMETERS",
+    "check_rule",
     "defaults",
     "tunable_names",
     "check_values",
@@ -37,7 +48,7 @@ __all__ = [
 UNIT_DEFINITIONS: dict[str, dict[str, float]] = {
     "m": {"m": 1}, "m/s": {"m": 1, "s": -1}, "s": {"s": 1}, "kg": {"kg": 1},
     "N": {"kg": 1, "m": 1, "s": -2}, "N/m": {"kg": 1, "s": -2}, "N.s/m": {"kg": 1, "s": -1},
-    "K": {"K": 1}, "1/K": {"K": -1}, "J/K": {"kg": 1, "m": 2, "s": -2, "K": -1},
+    "1": {}, "K": {"K": 1}, "1/K": {"K": -1}, "J/K": {"kg": 1, "m": 2, "s": -2, "K": -1},
     "W/K": {"kg": 1, "m": 2, "s": -3, "K": -1}, "degC": {"K": 1, "offset": 273.15},
 }
 
@@ -49,6 +60,8 @@ class Parameter:
     ``tunable``: identified by the base fit (else a fixed setting such as a table abscissa).
     ``log_scale``: the bounds span decades; a tuner should search this parameter in log space.
     ``effect``: name of the optional effect element the parameter belongs to (off at its default).
+    ``check``: 'positive' or 'range' (within [low, high]) whatever the unit; None: the rule of
+    ``check_rule`` (effects in range, masses/stiffnesses/dampings and log-scaled values positive).
     """
 
     name: str
@@ -60,6 +73,19 @@ class Parameter:
     tunable: bool = True
     log_scale: bool = False
     effect: str | None = None
+    check: str | None = None
+
+
+def check_rule(p: Parameter) -> str:
+    """How a value of ``p`` is checked before any run: 'range' (within [low, high]), 'positive' or
+    'none'. One rule for ``check_values`` and the C kernel (``native.parameter_header``)."""
+    if p.check is not None:
+        return p.check
+    if p.effect is not None:
+        return "range"
+    if p.unit in ("kg", "N/m", "N.s/m") or p.log_scale:
+        return "positive"
+    return "none"
 
 
 # Table 2 of the paper: elongation abscissae [mm] and ordinates [kN] of Fk,O (zero point omitted).
@@ -177,15 +203,62 @@ MAXWELL_TABLE_PARAMETERS: tuple[Parameter, ...] = (
     *_FC,
 )
 
+
+def _densify(abscissae) -> tuple[float, ...]:
+    """The abscissae with the midpoint of every piece from zero outwards added (twice as many)."""
+    out = []
+    for side in ([x for x in abscissae if x < 0][::-1], [x for x in abscissae if x > 0]):
+        prev, pts = 0.0, []
+        for x in side:
+            pts += [0.5 * (prev + x), x]
+            prev = x
+        out += pts
+    return tuple(sorted(out))
+
+
+#: Damping-table abscissae of the two-chamber model [m/s]: Table 2's with the midpoints added.
+TWOCHAMBER_FC_ABSCISSAE = _densify(FC_ABSCISSAE)
+# Preset ordinates [kN]: the fit of research/results/tc_results_s1.json (tc_pos_air_gas_x2), rounded.
+_FC_TC_KN = (-25.19, -22.37, -19.08, -18.29, -17.33, -16.46, -12.44, -10.45, -8.54, -6.81, -5.22, -3.72, -2.39,
+             -1.12, 1.12, 2.37, 3.72, 5.22, 6.82, 8.55, 10.39, 12.38, 16.44, 17.31, 18.27, 19.08, 22.37, 25.29)
+_FC_TC = _table_parameters("Fc", TWOCHAMBER_FC_ABSCISSAE, _FC_TC_KN,
+                           "m/s", "Damping force Fc,O (piston valve in rebound, foot valve in compression)",
+                           _fc_bounds)
+
+#: Two-chamber (twin-tube) model; preset: a fit to the virtual rig's twin-tube damper.
+TWOCHAMBER_PARAMETERS: tuple[Parameter, ...] = (
+    Parameter("k_M", "N/m", "Mount stiffness (both silent blocks in series)", 2.99e7, 1e5, 1e11, log_scale=True),
+    Parameter("c_M", "N.s/m", "Mount damping (both silent blocks in series)", 5.1e4, 1e1, 1e8, log_scale=True),
+    Parameter("k_R", "N/m", "Rebound-chamber hydraulic stiffness at mid-stroke, bubble-free oil (beta Aa^2 / V_R)",
+              2.38e7, 1e5, 1e10, log_scale=True),
+    Parameter("k_C", "N/m", "Compression-chamber hydraulic stiffness at mid-stroke, bubble-free oil "
+              "(beta Ap^2 / V_C)", 7.59e7, 1e5, 1e10, log_scale=True),
+    Parameter("area_ratio", "1", "Annulus area / piston area Aa / Ap", 0.336, 0.02, 0.98, check="range"),
+    Parameter("L_R", "m", "Rebound-chamber length at mid-stroke V_R0 / Aa (stiffness grows as the chamber "
+              "shortens)", 0.096, 0.05, 100.0, log_scale=True),
+    Parameter("L_C", "m", "Compression-chamber length at mid-stroke V_C0 / Ap", 0.089, 0.05, 100.0, log_scale=True),
+    Parameter("air", "1", "Entrained-air softening of the oil at reservoir pressure (0: none)", 3.45, 0.0, 50.0,
+              check="range"),
+    Parameter("f_res", "N", "Reservoir pressure times piston area Ap p_res (scale of the air's stiffening)",
+              878.0, 10.0, 1e5, log_scale=True),
+    Parameter("k_gas", "N/m", "Reservoir gas spring on the rod, zero at the start stroke", 1727.0, 0.0, 2e4,
+              check="range"),
+    *[p for p in _FC_TC if p.tunable],
+    Parameter("check_damping", "N.s/m", "Slope of the piston and intake check valves (fixed)", 1e3, 1e0, 1e6,
+              tunable=False),
+    *[p for p in _FC_TC if not p.tunable],
+)
+
 MODEL_PARAMETERS: dict[str, tuple[Parameter, ...]] = {
     "lumped": LUMPED_PARAMETERS,
     "maxwell": MAXWELL_PARAMETERS,
     "maxwell_table": MAXWELL_TABLE_PARAMETERS,
+    "twochamber": TWOCHAMBER_PARAMETERS,
 }
 
 
 def defaults(model: str) -> dict[str, float]:
-    """Reference preset of ``model`` ('lumped', 'maxwell', 'maxwell_table') as name -> SI value."""
+    """Reference preset of ``model`` ('lumped', 'maxwell', 'maxwell_table', 'twochamber') as name -> SI value."""
     return {p.name: p.default for p in MODEL_PARAMETERS[model]}
 
 
@@ -214,10 +287,11 @@ def check_values(model: str, values: dict[str, float], *, bounds: bool = False) 
         if not math.isfinite(v):
             raise ValueError(f"parameter {name} = {v} is not finite")
         p = spec[name]
-        if p.effect is not None:
-            if not (p.low <= v <= p.high):
-                raise ValueError(f"effect parameter {name} = {v:g} {p.unit} outside [{p.low:g}, {p.high:g}]")
-        elif p.unit in ("kg", "N/m", "N.s/m") and v <= 0.0:
+        rule = check_rule(p)
+        if rule == "range" and not (p.low <= v <= p.high):
+            what = "effect parameter" if p.effect else "parameter"
+            raise ValueError(f"{what} {name} = {v:g} {p.unit} outside [{p.low:g}, {p.high:g}]")
+        if rule == "positive" and v <= 0.0:
             raise ValueError(f"parameter {name} = {v} {p.unit} must be positive")
         if bounds and p.tunable and not (p.low <= v <= p.high):
             raise ValueError(f"parameter {name} = {v:g} {p.unit} outside its bounds [{p.low:g}, {p.high:g}]")

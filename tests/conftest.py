@@ -13,6 +13,7 @@ if str(ROOT) not in sys.path:
 def fmu_paths():
     from build_fmu import ensure_fmu
 
-    paths = {kind: ensure_fmu(kind) for kind in ("lumped", "maxwell", "maxwell_table", "empty")}
-    paths.update({f"{kind}_py": ensure_fmu(kind, flavour="python") for kind in ("lumped", "maxwell", "maxwell_table")})
+    kinds = ("lumped", "maxwell", "maxwell_table", "twochamber")
+    paths = {kind: ensure_fmu(kind) for kind in (*kinds, "empty")}
+    paths.update({f"{kind}_py": ensure_fmu(kind, flavour="python") for kind in kinds})
     return paths

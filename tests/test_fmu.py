@@ -7,7 +7,7 @@ from damper_fmu import EXTRAPOLATE, MODEL_PARAMETERS, REPLAY, defaults, simulate
 from tuner.cosim import mass_spring_cosimulation
 from tuner.identification.runner import FmuRunner, SimulationError
 
-KINDS = ["lumped", "maxwell", "maxwell_table"]
+KINDS = ["lumped", "maxwell", "maxwell_table", "twochamber"]
 
 
 def stroke(fs=1000.0, duration=2.0):

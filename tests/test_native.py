@@ -12,8 +12,9 @@ pytestmark = pytest.mark.skipif(not native.available(), reason=f"C kernel not av
 def random_params(kind, rng):
     """A random, valid parameter set of ``kind``: tables scaled per side and piece (monotone kept)."""
     p = defaults(kind)
-    for prefix, n in (("Fk", 10), ("Fc", 14)):
-        if f"{prefix}_01" not in p:
+    for prefix in ("Fk", "Fc"):
+        n = sum(1 for k in p if k.startswith(f"{prefix}_{'x' if prefix == 'Fk' else 'v'}"))
+        if not n:
             continue
         xs = np.array([p[f"{prefix}_{'x' if prefix == 'Fk' else 'v'}{i:02d}"] for i in range(1, n + 1)])
         fs = np.array([p[f"{prefix}_{i:02d}"] for i in range(1, n + 1)])
@@ -33,6 +34,12 @@ def random_params(kind, rng):
             p[name] = rng.uniform(2.0, 20.0)
         p["k_B"] = 10 ** rng.uniform(6, 9)
         p["c_B"] = 10 ** rng.uniform(3, 6.7)
+    elif kind == "twochamber":
+        p["k_M"], p["c_M"] = 10 ** rng.uniform(7, 8.5), 10 ** rng.uniform(3.5, 5)
+        p["k_R"], p["k_C"] = 10 ** rng.uniform(7, 8), 10 ** rng.uniform(7, 8.3)
+        p["area_ratio"] = rng.uniform(0.2, 0.6)
+        p["L_R"], p["L_C"] = rng.uniform(0.08, 0.5), rng.uniform(0.08, 0.5)
+        p["air"], p["f_res"], p["k_gas"] = rng.uniform(0.0, 5.0), 10 ** rng.uniform(2.5, 3.5), rng.uniform(0, 3e3)
     else:
         p["k_s"] = 10 ** rng.uniform(6, 8)
         if kind == "maxwell":
@@ -76,6 +83,17 @@ def test_kernel_equals_python_reference(kind, seed):
                                 simulate(kind, t, x, v, backend="python", **kw))
 
 
+@pytest.mark.parametrize("seed", range(2))
+def test_two_chamber_kernel_equals_python_reference(seed):
+    rng = np.random.default_rng(300 + seed)
+    p = random_params("twochamber", rng)
+    t, x, v = random_stroke(rng)
+    for mode, tol, max_step in ((REPLAY, 1e-4, 1e-3), (EXTRAPOLATE, 1e-6, 0.01)):
+        kw = dict(params=p, input_mode=mode, tolerance=tol, max_step=max_step)
+        assert_equal_forces(simulate("twochamber", t, x, v, backend="native", **kw),
+                            simulate("twochamber", t, x, v, backend="python", **kw))
+
+
 @pytest.mark.parametrize("effect", range(len(EFFECTS)))
 def test_kernel_equals_python_reference_with_effects(effect):
     rng = np.random.default_rng(7 + effect)
@@ -103,14 +121,19 @@ def test_kernel_parameter_order_is_the_python_one():
     ({"free_play": 0.5}, ["free_play", "outside"]),
     ({"Fc_10": 1000.0}, ["Fc", "not monotone"]),
     ({"Fk_x03": -3e-3}, ["Fk", "increasing"]),
+    ({"area_ratio": 1.0}, ["area_ratio", "outside"]),
+    ({"air": -0.5}, ["air", "outside"]),
+    ({"L_R": 0.0}, ["L_R", "positive"]),
+    ({"Fc_20": 0.0}, ["Fc", "not monotone"]),
 ])
 def test_kernel_and_python_reject_the_same_parameters(bad, words):
     t, x, v = random_stroke(np.random.default_rng(0))
-    p = {**defaults("lumped"), **bad}
+    kind = "twochamber" if {"area_ratio", "air", "L_R", "Fc_20"} & set(bad) else "lumped"
+    p = {**defaults(kind), **bad}
     with pytest.raises(ValueError) as py_err:
-        simulate("lumped", t, x, v, params=p, backend="python")
+        simulate(kind, t, x, v, params=p, backend="python")
     with pytest.raises(ValueError) as c_err:
-        simulate("lumped", t, x, v, params=p, backend="native")
+        simulate(kind, t, x, v, params=p, backend="native")
     for w in words:
         assert w in str(c_err.value), str(c_err.value)
         assert w in str(py_err.value), str(py_err.value)

@@ -12,7 +12,7 @@ from fmpy.fmi2 import FMU2Slave
 from damper_fmu import EXTRAPOLATE, REPLAY, defaults
 from tuner.identification.runner import FmuRunner, SimulationError
 
-KINDS = ["lumped", "maxwell", "maxwell_table"]
+KINDS = ["lumped", "maxwell", "maxwell_table", "twochamber"]
 
 
 def stroke(fs=1000.0, duration=1.5):

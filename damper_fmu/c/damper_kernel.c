@@ -25,6 +25,7 @@ static const DkParamSpec *specs(int kind, int *n) {
     case DK_LUMPED: *n = DK_PARAMS_LUMPED_N; return DK_PARAMS_LUMPED;
     case DK_MAXWELL: *n = DK_PARAMS_MAXWELL_N; return DK_PARAMS_MAXWELL;
     case DK_MAXWELL_TABLE: *n = DK_PARAMS_MAXWELL_TABLE_N; return DK_PARAMS_MAXWELL_TABLE;
+    case DK_TWOCHAMBER: *n = DK_PARAMS_TWOCHAMBER_N; return DK_PARAMS_TWOCHAMBER;
     default: *n = 0; return NULL;
     }
 }
@@ -159,6 +160,24 @@ int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg, size_
         }
     } else if (kind == DK_MAXWELL) {
         m->ks = p[0]; m->c = p[1];
+    } else if (kind == DK_TWOCHAMBER) {
+        double xs[DK_NFC_TC + 1], fs[DK_NFC_TC + 1], cchk = p[DK_NTC + DK_NFC_TC], r;
+        int k, np_ = 0;
+        m->kM = p[0]; m->cM = p[1]; m->kR0 = p[2]; m->kC0 = p[3]; m->ar = p[4];
+        m->LR = p[5]; m->LC = p[6]; m->air = p[7]; m->fres = p[8]; m->kgas = p[9];
+        if (table_init(&m->fc, p + DK_NTC + 1 + DK_NFC_TC, p + DK_NTC, DK_NFC_TC, "Fc", msg, msglen))
+            return DK_ERROR;
+        r = 1.0 - m->ar;
+        /* piston valve: the check (slope cchk) below zero, the table's rebound half above */
+        xs[0] = -1.0; fs[0] = -cchk; np_ = 1;
+        for (k = 0; k < m->fc.n; k++)
+            if (m->fc.xs[k] > 0.0) { xs[np_] = m->fc.xs[k]; fs[np_] = m->fc.fs[k]; np_++; }
+        if (table_init(&m->vp, xs, fs, np_, "piston valve", msg, msglen)) return DK_ERROR;
+        /* foot valve: the intake check below zero, Ff(u) = -Fc(-u / r) / r above */
+        xs[0] = -1.0; fs[0] = -cchk; np_ = 1;
+        for (k = m->fc.n - 1; k >= 0; k--)
+            if (m->fc.xs[k] < 0.0) { xs[np_] = -r * m->fc.xs[k]; fs[np_] = -m->fc.fs[k] / r; np_++; }
+        if (table_init(&m->vf, xs, fs, np_, "foot valve", msg, msglen)) return DK_ERROR;
     } else {
         m->ks = p[0];
         if (table_init(&m->fc, p + 1 + DK_NFC, p + 1, DK_NFC, "Fc", msg, msglen)) return DK_ERROR;
@@ -177,6 +196,7 @@ static double force_scale(const DkModel *m) {
 
 static double model_force(const DkModel *m, const double *y, double x1, double v1) {
     if (m->kind == DK_LUMPED) return m->kB * (x1 - y[0]) + m->cB * (v1 - y[3]);
+    if (m->kind == DK_TWOCHAMBER) return y[1] - y[2] + m->kgas * (x1 - y[3]);
     return m->ks * (x1 - y[0]);
 }
 
@@ -184,6 +204,10 @@ static double error_norm(const DkModel *m, const double *ya, const double *yb) {
     if (m->kind == DK_LUMPED) {
         double a = fabs(m->kB * (yb[0] - ya[0]) + m->cB * (yb[3] - ya[3]));
         double b = fabs(m->kB * (yb[2] - ya[2]) + m->cB * (yb[5] - ya[5]));
+        return a > b ? a : b;
+    }
+    if (m->kind == DK_TWOCHAMBER) {
+        double a = fabs(yb[1] - ya[1]), b = fabs(yb[2] - ya[2]);
         return a > b ? a : b;
     }
     return fabs(m->ks * (yb[0] - ya[0]));
@@ -346,9 +370,133 @@ static int maxwell_table_stage(DkModel *m, const double *yb, double g, double x1
     return DK_OK;
 }
 
+
+/* ---- two-chamber model (models.py, TwoChamberModel) ------------------------------------------- */
+
+#define TC_AIR_EXPONENT 1.714
+#define TC_CLIP 0.05
+#define TC_TOL 1e-10
+#define TC_MAX_NEWTON 60
+#define TC_PLAIN 12
+#define TC_MAX_HALVINGS 40
+
+static int solve5(double a[5][5], const double *b, double *x) {
+    double m[5][6];
+    int i, j, k, p;
+    for (i = 0; i < 5; i++) { for (j = 0; j < 5; j++) m[i][j] = a[i][j]; m[i][5] = b[i]; }
+    for (k = 0; k < 5; k++) {
+        p = k;
+        for (i = k + 1; i < 5; i++)
+            if (fabs(m[i][k]) > fabs(m[p][k])) p = i;
+        if (fabs(m[p][k]) < 1e-300) return DK_ERROR;
+        if (p != k)
+            for (j = 0; j < 6; j++) { double t = m[k][j]; m[k][j] = m[p][j]; m[p][j] = t; }
+        for (i = k + 1; i < 5; i++) {
+            double f = m[i][k] / m[k][k];
+            for (j = k; j < 6; j++) m[i][j] -= f * m[k][j];
+        }
+    }
+    for (i = 4; i >= 0; i--) {
+        double s_ = m[i][5];
+        for (j = i + 1; j < 5; j++) s_ -= m[i][j] * x[j];
+        x[i] = s_ / m[i][i];
+    }
+    return DK_OK;
+}
+
+/* chamber stiffnesses and derivatives: k[0..5] = kR, dkR/dy, dkR/dfR, kC, dkC/dy, dkC/dgC */
+static void tc_stiffness(const DkModel *m, double y, double fR, double gC, double *k) {
+    double s = 1.0 - y / m->LR, kR, kRy, kC, kCy, kRf = 0.0, kCg = 0.0;
+    int side;
+    if (s > TC_CLIP) { kR = m->kR0 / s; kRy = kR / (m->LR * s); }
+    else { kR = m->kR0 / TC_CLIP; kRy = 0.0; }
+    s = 1.0 + y / m->LC;
+    if (s > TC_CLIP) { kC = m->kC0 / s; kCy = -kC / (m->LC * s); }
+    else { kC = m->kC0 / TC_CLIP; kCy = 0.0; }
+    if (m->air > 0.0) {
+        for (side = 0; side < 2; side++) {
+            double scale = side == 0 ? m->ar * m->fres : m->fres;
+            double e = (side == 0 ? fR : gC) / scale + 1.0 - TC_CLIP, root = sqrt(e * e + TC_CLIP * TC_CLIP);
+            double ratio = TC_CLIP + 0.5 * (e + root), q, dq, d;
+            q = pow(ratio, -TC_AIR_EXPONENT);
+            dq = -TC_AIR_EXPONENT * q / ratio * (0.5 * (1.0 + e / root)) / scale;
+            d = 1.0 + m->air * q;
+            if (side == 0) { kR = kR / d; kRy = kRy / d; kRf = -kR * m->air * dq / d; }
+            else { kC = kC / d; kCy = kCy / d; kCg = -kC * m->air * dq / d; }
+        }
+    }
+    k[0] = kR; k[1] = kRy; k[2] = kRf; k[3] = kC; k[4] = kCy; k[5] = kCg;
+}
+
+static double tc_residual(const DkModel *m, const double *q, const double *yb, double g, double x1, double v1,
+                          double *r, double J[5][5]) {
+    double w = q[0], up = q[1], uf = q[2], fR = q[3], gC = q[4], a = m->ar, y = yb[0] + g * w, k[6];
+    double uR, uC, sp, sf;
+    int ip = segment(&m->vp, up), jf = segment(&m->vf, uf);
+    tc_stiffness(m, y, fR, gC, k);
+    uR = w - up; uC = -w + a * up - uf;
+    sp = m->vp.slope[ip]; sf = m->vf.slope[jf];
+    r[0] = fR - yb[1] - g * k[0] * uR;
+    r[1] = gC - yb[2] - g * k[3] * uC;
+    r[2] = fR - a * gC - (m->vp.intercept[ip] + sp * up);
+    r[3] = gC - (m->vf.intercept[jf] + sf * uf);
+    r[4] = fR - gC - m->kM * (x1 - y) - m->cM * (v1 - w);
+    if (J) {
+        J[0][0] = -g * (k[0] + g * k[1] * uR); J[0][1] = g * k[0]; J[0][2] = 0.0;
+        J[0][3] = 1.0 - g * k[2] * uR; J[0][4] = 0.0;
+        J[1][0] = -g * (-k[3] + g * k[4] * uC); J[1][1] = -g * k[3] * a; J[1][2] = g * k[3];
+        J[1][3] = 0.0; J[1][4] = 1.0 - g * k[5] * uC;
+        J[2][0] = 0.0; J[2][1] = -sp; J[2][2] = 0.0; J[2][3] = 1.0; J[2][4] = -a;
+        J[3][0] = 0.0; J[3][1] = 0.0; J[3][2] = -sf; J[3][3] = 0.0; J[3][4] = 1.0;
+        J[4][0] = m->kM * g + m->cM; J[4][1] = 0.0; J[4][2] = 0.0; J[4][3] = 1.0; J[4][4] = -1.0;
+    }
+    return fabs(r[0]) + fabs(r[1]) + fabs(r[2]) + fabs(r[3]) + fabs(r[4]);
+}
+
+static int tc_stage(DkModel *m, const double *yb, double g, double x1, double v1, double *out, char *msg,
+                    size_t msglen) {
+    double fb = yb[1] - yb[2], q[5], r[5], J[5][5], d[5], qt[5], rt[5], rn, rnt = 0.0;
+    int it, i, h;
+    if (m->tc_tol == 0.0) m->tc_tol = TC_TOL * force_scale(m);
+    q[0] = (m->cM * v1 - fb + m->kM * (x1 - yb[0])) / (m->cM + m->kM * g);
+    q[1] = yb[4]; q[2] = yb[5]; q[3] = yb[1]; q[4] = yb[2];
+    rn = tc_residual(m, q, yb, g, x1, v1, r, J);
+    for (it = 0; it < TC_MAX_NEWTON; it++) {
+        int accepted = 0;
+        double lam = 1.0;
+        if (rn <= m->tc_tol) break;
+        if (solve5(J, r, d)) {
+            snprintf(msg, msglen, "two-chamber stage: singular Jacobian");
+            return DK_ERROR;
+        }
+        if (it < TC_PLAIN) {
+            for (i = 0; i < 5; i++) q[i] = q[i] - d[i];
+            rn = tc_residual(m, q, yb, g, x1, v1, r, J);
+            continue;
+        }
+        for (h = 0; h < TC_MAX_HALVINGS; h++) {
+            for (i = 0; i < 5; i++) qt[i] = q[i] - lam * d[i];
+            rnt = tc_residual(m, qt, yb, g, x1, v1, rt, NULL);
+            if (rnt < rn) { accepted = 1; break; }
+            lam *= 0.5;
+        }
+        if (!accepted) break;
+        for (i = 0; i < 5; i++) q[i] = qt[i];
+        rn = tc_residual(m, q, yb, g, x1, v1, r, J);
+    }
+    if (!(rn <= m->tc_tol)) {
+        snprintf(msg, msglen, "two-chamber stage: Newton stalled at a residual of %.3g N (tolerance %.3g N)",
+                 rn, m->tc_tol);
+        return DK_ERROR;
+    }
+    out[0] = yb[0] + g * q[0]; out[1] = q[3]; out[2] = q[4]; out[3] = yb[3]; out[4] = q[1]; out[5] = q[2];
+    return DK_OK;
+}
+
 static int stage(DkModel *m, const double *yb, double g, double x1, double v1, double *out, char *msg,
                  size_t msglen) {
     if (m->kind == DK_LUMPED) return lumped_stage(m, yb, g, x1, v1, out, msg, msglen);
+    if (m->kind == DK_TWOCHAMBER) return tc_stage(m, yb, g, x1, v1, out, msg, msglen);
     if (m->kind == DK_MAXWELL) {
         double a = g * m->ks / m->c;
         out[0] = (yb[0] + a * x1) / (1.0 + a);
@@ -357,7 +505,7 @@ static int stage(DkModel *m, const double *yb, double g, double x1, double v1, d
     return maxwell_table_stage(m, yb, g, x1, out, msg, msglen);
 }
 
-static int n_state(const DkModel *m) { return m->kind == DK_LUMPED ? 6 : 1; }
+static int n_state(const DkModel *m) { return m->kind == DK_LUMPED || m->kind == DK_TWOCHAMBER ? 6 : 1; }
 
 static double valve_gain(const DkModel *m, double u) {
     const DkTable *fc = &m->fc;
@@ -487,6 +635,7 @@ int dk_sim_initialize(DkSim *s, double x1, double v1, double t0) {
     }
     memset(s->y, 0, sizeof s->y);
     if (m->kind == DK_LUMPED) { s->y[0] = x1; s->y[3] = v1; s->y[4] = v1; }
+    else if (m->kind == DK_TWOCHAMBER) { s->y[0] = x1; s->y[3] = x1; }
     else s->y[0] = x1;
     s->x1 = x1; s->v1 = v1; s->time = t0; s->h_next = s->max_step; s->nsamples = 0;
     s->force = model_force(m, s->y, x1, v1);
@@ -607,11 +756,14 @@ int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
             double xf = x_eff;
             int enf = engaged;
             if (last) H = h - tau;
-            if (sdirk(s, &tr, y, yf, &xf, &enf, tau, H, &dummy_x, &dummy_v)) return DK_ERROR;
-            if (sdirk(s, &tr, y, ym, &xe1, &en1, tau, 0.5 * H, &dummy_x, &dummy_v)) return DK_ERROR;
-            xe2 = xe1; en2 = en1;
-            if (sdirk(s, &tr, ym, y2, &xe2, &en2, tau + 0.5 * H, 0.5 * H, &x2, &v2)) return DK_ERROR;
-            err = error_norm(m, yf, y2);
+            xe2 = xe1; en2 = en1; x2 = v2 = 0.0;
+            if (sdirk(s, &tr, y, yf, &xf, &enf, tau, H, &dummy_x, &dummy_v) ||
+                sdirk(s, &tr, y, ym, &xe1, &en1, tau, 0.5 * H, &dummy_x, &dummy_v) ||
+                (xe2 = xe1, en2 = en1, sdirk(s, &tr, ym, y2, &xe2, &en2, tau + 0.5 * H, 0.5 * H, &x2, &v2))) {
+                err = INFINITY;  /* a stage solve failed (message in s->msg): retry with a smaller step */
+            } else {
+                err = error_norm(m, yf, y2);
+            }
             if (err == 0.0) fac = 4.0;
             else {
                 fac = 0.9 * pow(tol / err, 1.0 / 3.0);
@@ -631,8 +783,11 @@ int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
             } else {
                 H *= fac;
                 if (H < MIN_STEP) {
-                    snprintf(s->msg, sizeof s->msg, "internal step fell below %g s at t = %.9g s (error %.3g N, "
-                             "tolerance %.3g N)", MIN_STEP, s->time + tau, err, tol);
+                    char why[300];
+                    if (isinf(err)) snprintf(why, sizeof why, "last: %.290s", s->msg);
+                    else snprintf(why, sizeof why, "error %.3g N, tolerance %.3g N", err, tol);
+                    snprintf(s->msg, sizeof s->msg, "internal step fell below %g s at t = %.9g s (%s)", MIN_STEP,
+                             s->time + tau, why);
                     return DK_ERROR;
                 }
             }
@@ -694,6 +849,10 @@ int dk_diagnostics(const DkSim *s, double *out) {
         out[6] = y[2];
         out[7] = m->kB * y[2] + m->cB * y[5];
         return 8;
+    }
+    if (m->kind == DK_TWOCHAMBER) {
+        out[0] = s->x1 - y[0]; out[1] = y[1]; out[2] = y[2]; out[3] = y[4]; out[4] = y[5];
+        return 5;
     }
     out[0] = s->x1 - y[0];
     return 1;

@@ -14,6 +14,7 @@
 #define DK_LUMPED 0
 #define DK_MAXWELL 1
 #define DK_MAXWELL_TABLE 2
+#define DK_TWOCHAMBER 3
 
 #define DK_EXTRAPOLATE 0
 #define DK_REPLAY 1
@@ -21,14 +22,17 @@
 #define DK_NFK 10 /* Fk,O ordinates (zero point implied) */
 #define DK_NFC 14 /* Fc,O ordinates (zero point implied) */
 #define DK_NEFFECT 11
+#define DK_NFC_TC 28 /* two-chamber damping-table ordinates (zero point implied) */
+#define DK_NTC 10    /* two-chamber scalar parameters before the table */
 
 /* Parameter counts per model, in the order of damper_fmu.parameters.MODEL_PARAMETERS. */
 #define DK_NPAR_LUMPED (5 + 2 * DK_NFK + 2 * DK_NFC + DK_NEFFECT)
 #define DK_NPAR_MAXWELL 2
 #define DK_NPAR_MAXWELL_TABLE (1 + 2 * DK_NFC)
-#define DK_NPAR_MAX DK_NPAR_LUMPED
+#define DK_NPAR_TWOCHAMBER (DK_NTC + 1 + 2 * DK_NFC_TC)
+#define DK_NPAR_MAX (DK_NPAR_TWOCHAMBER > DK_NPAR_LUMPED ? DK_NPAR_TWOCHAMBER : DK_NPAR_LUMPED)
 
-#define DK_MAXPTS 16
+#define DK_MAXPTS 32
 
 #define DK_OK 0
 #define DK_ERROR 1
@@ -54,6 +58,10 @@ typedef struct {
     double c_ia[DK_MAXPTS], c_sa[DK_MAXPTS];
     /* Maxwell */
     double ks, c;
+    /* two-chamber: mounts, chamber stiffnesses, area ratio, chamber lengths, air, gas spring;
+       piston- and foot-valve tables; Newton tolerance [N] */
+    double kM, cM, kR0, kC0, ar, LR, LC, air, fres, kgas, tc_tol;
+    DkTable vp, vf;
     /* effects (lumped only) */
     double ff, v_eps, f0, gap, beta, heat_c, heat_g, t_ref, tau, delay, m_eq;
     int effects_active;
@@ -96,7 +104,7 @@ int dk_sim_initialize(DkSim *s, double x1, double v1, double t0);
 int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel);
 /* copy the state (deep copy of the history) */
 int dk_sim_copy(DkSim *dst, const DkSim *src);
-/* internal element outputs: 8 values (lumped) or 1 (Maxwell) */
+/* internal element outputs: 8 values (lumped), 5 (two-chamber) or 1 (Maxwell) */
 int dk_diagnostics(const DkSim *s, double *out);
 
 /* Whole sampled stroke; temperature may be NULL. out[0] is the initial force. */
