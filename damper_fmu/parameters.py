@@ -36,7 +36,9 @@ __all__ = [
     "MAXWELL_TABLE_PARAMETERS",
     "TWOCHAMBER_PARAMETERS",
     "TWOCHAMBER_FC_ABSCISSAE",
+    "densify_abscissae",
     "MODEL_PARAMETERS",
+    "MODEL_KINDS",
     "check_rule",
     "defaults",
     "tunable_names",
@@ -204,7 +206,7 @@ MAXWELL_TABLE_PARAMETERS: tuple[Parameter, ...] = (
 )
 
 
-def _densify(abscissae) -> tuple[float, ...]:
+def densify_abscissae(abscissae) -> tuple[float, ...]:
     """The abscissae with the midpoint of every piece from zero outwards added (twice as many)."""
     out = []
     for side in ([x for x in abscissae if x < 0][::-1], [x for x in abscissae if x > 0]):
@@ -217,7 +219,7 @@ def _densify(abscissae) -> tuple[float, ...]:
 
 
 #: Damping-table abscissae of the two-chamber model [m/s]: Table 2's with the midpoints added.
-TWOCHAMBER_FC_ABSCISSAE = _densify(FC_ABSCISSAE)
+TWOCHAMBER_FC_ABSCISSAE = densify_abscissae(FC_ABSCISSAE)
 # Preset ordinates [kN]: the fit of research/results/tc_results_s1.json (tc_pos_air_gas_x2), rounded.
 _FC_TC_KN = (-25.19, -22.37, -19.08, -18.29, -17.33, -16.46, -12.44, -10.45, -8.54, -6.81, -5.22, -3.72, -2.39,
              -1.12, 1.12, 2.37, 3.72, 5.22, 6.82, 8.55, 10.39, 12.38, 16.44, 17.31, 18.27, 19.08, 22.37, 25.29)
@@ -255,6 +257,9 @@ MODEL_PARAMETERS: dict[str, tuple[Parameter, ...]] = {
     "maxwell_table": MAXWELL_TABLE_PARAMETERS,
     "twochamber": TWOCHAMBER_PARAMETERS,
 }
+
+#: Model kinds, in the order reports list them.
+MODEL_KINDS = tuple(MODEL_PARAMETERS)
 
 
 def defaults(model: str) -> dict[str, float]:

@@ -199,7 +199,8 @@ def _add_fit_options(ap: argparse.ArgumentParser) -> None:
     _add_data_options(g)
     g = ap.add_argument_group("identification")
     g.add_argument("--models", default=",".join(d.models),
-                   help="comma-separated from lumped, maxwell, maxwell_table (default: %(default)s)")
+                   help="comma-separated from lumped, maxwell, maxwell_table, twochamber (the twin-tube form; "
+                        "default: %(default)s)")
     g.add_argument("--population", type=int, default=d.population, help="fireflies (default %(default)s)")
     g.add_argument("--iterations", type=int, default=d.iterations, help="max iterations (default %(default)s)")
     g.add_argument("--workers", type=int, default=d.workers, help="worker processes (default %(default)s)")
@@ -311,12 +312,14 @@ def _check_engine(args) -> None:
 
 
 def cmd_fit(args) -> int:
+    from damper_fmu.parameters import MODEL_KINDS
+
     _check_engine(args)
 
     models = tuple(m.strip() for m in args.models.split(",") if m.strip())
-    bad = [m for m in models if m not in ("lumped", "maxwell", "maxwell_table")]
+    bad = [m for m in models if m not in MODEL_KINDS]
     if bad or not models:
-        raise ValueError(f"unknown model(s) {bad}; choose from lumped, maxwell, maxwell_table")
+        raise ValueError(f"unknown model(s) {bad}; choose from {', '.join(MODEL_KINDS)}")
     for opt in ("population", "iterations"):
         if getattr(args, opt) < 1:
             raise ValueError(f"--{opt} must be >= 1")

@@ -90,6 +90,7 @@ import time
 import traceback
 from pathlib import Path
 
+from damper_fmu.parameters import MODEL_KINDS
 from tuner.cli.run import run_handler
 from tuner.results.fleet_summary import OUTLIER_K, OUTLIER_TOLERANCE, write_atomic, write_summary
 
@@ -105,7 +106,7 @@ SETTING_COLUMNS = {"seed": ("seed", "int"), "models": ("models", "models"), "pop
                    "engine": ("engine", "str"), "parametrization": ("parametrization", "str"),
                    "init": ("init", "str"), "force_limit": ("force_limit_n", "float")}
 BASE_COLUMNS = ("damper_id", "type", "session", "identification", "validation", "dataset", "diagnose", "notes")
-MODELS = ("lumped", "maxwell", "maxwell_table")
+MODELS = MODEL_KINDS
 #: environment of every worker process: one BLAS thread (the fleet level is the parallel one, and
 #: the same thread count everywhere keeps the numbers identical on every executor)
 WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}

@@ -30,7 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from damper_fmu.parameters import FC_ABSCISSAE, FK_ABSCISSAE, FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS, defaults
+from damper_fmu.parameters import (FC_ABSCISSAE, FK_ABSCISSAE, FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS, defaults,
+                                   densify_abscissae)
 
 from tuner.identification import firefly
 from tuner.data.reading import RigTest
@@ -44,7 +45,7 @@ from tuner.progress import advance, stage
 from tuner.results.report import make_report
 
 __all__ = ["FitSettings", "fit", "initial_guess", "to_signals", "validation_run", "identify", "data_digest",
-           "table_abscissae", "quality_gate", "STRETCH_BEYOND", "QUALITY_AME_PCT"]
+           "table_abscissae", "model_abscissae", "quality_gate", "STRETCH_BEYOND", "QUALITY_AME_PCT"]
 
 #: The tables keep the paper's Table 2 abscissae until the data reach this many times the last one.
 STRETCH_BEYOND = 1.5
@@ -145,6 +146,17 @@ def table_abscissae(tests: list[Signals], peak_force: float, spring_reference: f
     out = {f"Fc_v{i:02d}": v for i, v in enumerate(fc, start=1)}
     out.update({f"Fk_x{i:02d}": x for i, x in enumerate(fk, start=1)})
     return out
+
+
+def model_abscissae(model: str, axes: dict) -> dict:
+    """The fixed abscissae of ``model`` from the :func:`table_abscissae` of the data: the lumped and
+    table-Maxwell models take them as they are; the two-chamber model's damping table has the
+    midpoints added (``damper_fmu.parameters.densify_abscissae``)."""
+    names = {p.name for p in MODEL_PARAMETERS[model]}
+    if model == "twochamber":
+        fc = [axes[k] for k in sorted(axes) if k.startswith("Fc_v")]
+        return {f"Fc_v{i:02d}": v for i, v in enumerate(densify_abscissae(fc), start=1)}
+    return {k: v for k, v in axes.items() if k in names}
 
 
 def initial_guess(model: str, tests: list[Signals], par: Parametrization) -> dict:
@@ -397,7 +409,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
     params, histories = {}, {}
     for model in settings.models:
         stage(log, f"fit {model}")
-        fixed = {k: v for k, v in axes.items() if k in {p.name for p in MODEL_PARAMETERS[model]}}
+        fixed = model_abscissae(model, axes)
         par = Parametrization(model, settings.parametrization, force_limit=force_limit,
                               spring_reference=settings.spring_reference_n_per_m, fixed=fixed)
         best, hist = identify(model, signals, settings, par, out / "checkpoints" / f"{model}.json", digest, log)

@@ -33,16 +33,16 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from damper_fmu.parameters import MODEL_PARAMETERS, defaults
+from damper_fmu.parameters import MODEL_KINDS, MODEL_PARAMETERS, defaults
 from damper_fmu.tables import PwlTable
 from tuner.metrics import polyfit_odd_even
 
 __all__ = ["make_report", "eng", "bound_position"]
 
-MODEL_ORDER = ("lumped", "maxwell", "maxwell_table")
+MODEL_ORDER = MODEL_KINDS
 MODEL_LABEL = {"lumped": "lumped (proposed)", "maxwell": "Maxwell (linear)",
-               "maxwell_table": "Maxwell, table dashpot"}
-MODEL_COLOR = {"lumped": "tab:green", "maxwell": "tab:red", "maxwell_table": "tab:orange"}
+               "maxwell_table": "Maxwell, table dashpot", "twochamber": "two-chamber (twin-tube form)"}
+MODEL_COLOR = {"lumped": "tab:green", "maxwell": "tab:red", "maxwell_table": "tab:orange", "twochamber": "tab:purple"}
 CONSTANTS = ("M_C", "M_O", "M_P", "k_B", "c_B")
 BOUND_FLAG_FRACTION = 0.01      # "at bound": within 1 % of the bound range
 ZOOM_WINDOW_S = 1.5             # zoom panel width [s]
