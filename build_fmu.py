@@ -179,7 +179,7 @@ def _fmi_headers() -> list[Path]:
 def _model_description(kind: str, identifier: str, guid: str, start_values: dict, settings: dict) -> bytes:
     """modelDescription.xml of the native FMU of ``kind`` (value references: fmi2_damper.c)."""
     from damper_fmu.models import DIAGNOSTICS
-    from damper_fmu.parameters import MODEL_PARAMETERS, UNIT_DEFINITIONS
+    from damper_fmu.parameters import EFFECT_MODELS, MODEL_PARAMETERS, UNIT_DEFINITIONS
 
     params = MODEL_PARAMETERS[kind]
     root = Element("fmiModelDescription", {
@@ -224,7 +224,7 @@ def _model_description(kind: str, identifier: str, guid: str, start_values: dict
 
     var("stroke", 0, "input", "continuous", "m", "Damper stroke, positive in extension", 0.0)
     var("stroke_velocity", 1, "input", "continuous", "m/s", "Damper stroke velocity, positive in extension", 0.0)
-    if kind == "lumped":
+    if kind in EFFECT_MODELS:
         var("oil_temperature", 3, "input", "continuous", "degC",
             "Measured oil temperature; used by the thermal drift element when thermal_source = 1", 20.0)
     outputs.append(var("force", 2, "output", "continuous", "N", "Damper force, positive in tension",
@@ -243,7 +243,7 @@ def _model_description(kind: str, identifier: str, guid: str, start_values: dict
             initial="exact")
     var("input_interpolation", 0, "parameter", "fixed", None, INPUT_INTERPOLATION_DESCRIPTION,
         settings.get("input_interpolation", 0), initial="exact", kind_="Integer")
-    if kind == "lumped":
+    if kind in EFFECT_MODELS:
         var("thermal_source", 1, "parameter", "fixed", None,
             "Oil temperature of the thermal drift element: 0 internal thermal balance, 1 the oil_temperature input",
             0, initial="exact", kind_="Integer")

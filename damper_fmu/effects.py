@@ -1,11 +1,13 @@
-"""Optional effect elements around the lumped damper model (all off at their defaults).
+"""Optional effect elements of the lumped and two-chamber models (all off at their defaults).
 
 They extend the base model with the physics a real damper (or rig) shows and the base model
 lacks, for the diagnosis (design notes' catalogue). Sign convention: forces tension +, stroke
 extension +, SI units; temperatures in degC.
 
 * ``friction``: F += Ff tanh(v_eff / v_eps), in parallel (seals and guides; v_eff: the stroke
-  velocity the damper sees, after the free play).
+  velocity the damper sees, after the free play). In the two-chamber model the seal friction acts
+  at the piston velocity inside the mounts (``models.TwoChamberModel``), not here
+  (``friction_inside``).
 * ``preload``: F += F0 (un-tared reservoir gas force or load-cell offset; F0 < 0 for a gas force
   pushing the rod out).
 * ``free_play``: dead band of total width g in series at the actuator end (backlash operator on
@@ -36,9 +38,10 @@ __all__ = ["Effects"]
 class Effects:
     """Effect elements of one simulation run; ``active`` is False when all are off."""
 
-    def __init__(self, params: dict):
+    def __init__(self, params: dict, friction_inside: bool = False):
         p = params
         self.ff, self.v_eps = p.get("friction_force", 0.0), p.get("friction_velocity", 5e-4)
+        self.friction_inside = friction_inside
         self.f0 = p.get("preload_force", 0.0)
         self.gap = p.get("free_play", 0.0)
         self.beta = p.get("thermal_beta", 0.0)
@@ -100,7 +103,7 @@ class Effects:
         [N s/m]: c0 - Fc'(v_eff); temperature_input [degC] or None.
         """
         f = f_model if (self.engaged or not self.gap) else 0.0
-        if self.ff:
+        if self.ff and not self.friction_inside:
             f += self.ff * math.tanh(v_eff / self.v_eps)
         if self.tau and (self.engaged or not self.gap):
             f += self.tau * valve_gain * a1

@@ -40,6 +40,7 @@ import numpy as np
 
 from .effects import Effects
 from .models import ConvergenceError, make_model
+from .parameters import EFFECT_MODELS, FRICTION_INSIDE
 
 __all__ = ["EXTRAPOLATE", "REPLAY", "GAMMA", "DEFAULT_MAX_STEP", "DEFAULT_TOLERANCE", "INPUT_INTERPOLATION_DESCRIPTION", "Simulator",
            "simulate", "velocity_extrapolation"]
@@ -121,8 +122,8 @@ class Simulator:
         self.time = 0.0
         self.h_next = self.max_step
         self.samples: list[tuple[float, float]] = []  # master's (time, velocity), newest first
-        #: effect elements (lumped model only); None or inactive: the base model alone
-        self.effects = Effects(model.params) if model.kind == "lumped" else None
+        #: effect elements (lumped and two-chamber models); None or inactive: the base model alone
+        self.effects = _effects(model)
         #: measured oil temperature [degC] for the thermal drift element (None: internal balance)
         self.temperature_input: float | None = None
 
@@ -130,7 +131,7 @@ class Simulator:
         """Replace the model (new parameter values) keeping the state, effect states included."""
         old = self.effects
         self.model = model
-        self.effects = Effects(model.params) if model.kind == "lumped" else None
+        self.effects = _effects(model)
         if old is not None and old.active and self.effects is not None and self.effects.active:
             self.effects.set_state(old.get_state())
 
@@ -146,7 +147,7 @@ class Simulator:
         e = self.effects
         if e is not None and e.active:
             e.initialize(x1, self.force)
-            self.force += e.f0 + (e.ff * math.tanh(v1 / e.v_eps) if e.ff else 0.0)
+            self.force += e.f0 + (e.ff * math.tanh(v1 / e.v_eps) if e.ff and not e.friction_inside else 0.0)
         return self.force
 
     def step(self, h: float, x1: float, v1: float, accel: float | None = None) -> float:
@@ -269,6 +270,10 @@ class Simulator:
         self.samples = [(st[n + 6 + 2 * i], st[n + 7 + 2 * i]) for i in range(count)]
         if active:
             self.effects.set_state(st[base:])
+
+
+def _effects(model) -> Effects | None:
+    return Effects(model.params, model.kind in FRICTION_INSIDE) if model.kind in EFFECT_MODELS else None
 
 
 def _check_input(x1: float, v1: float) -> None:

@@ -27,8 +27,9 @@ massless, the oil's compressibility is the series stiffness):
                           the check valve (slope check_damping)
     gC = Ff(uf)           foot valve, uf = its flow / Ap: uf > 0 Ff(u) = -Fc,O(-u / (1 - a)) / (1 - a),
                           so that the steady compression force is Fc,O(v); uf < 0 the intake check
-    fR - gC = kM (x1 - y) + cM (x1' - y')
-    output F = fR - gC + k_gas (x1 - x_ref)   (reservoir gas spring, zero at the start stroke x_ref)
+    fR - gC + Ff tanh(y' / v_eps) = kM (x1 - y) + cM (x1' - y')   (Ff: seal friction, effect 'friction')
+    output F = fR - gC + Ff tanh(y' / v_eps) + k_gas (x1 - x_ref)   (reservoir gas spring, zero at the
+                                                                    start stroke x_ref)
     kR(y, fR) = k_R / (1 - y / L_R) / (1 + air (1 + fR / (a f_res))^-1.714)
     kC(y, gC) = k_C / (1 + y / L_C) / (1 + air (1 + gC / f_res)^-1.714)
 
@@ -248,13 +249,8 @@ class LumpedModel:
                 + self.damping_scale * self.fc.primitive(v2 - v3) + self.fk.primitive(e) / g)
 
     def valve_gain(self, u: float) -> float:
-        """c0 - Fc'(u) [N s/m]: the valve-closed resistance c0 (steepest slope of Fc,O on the side
-        of u) minus the local slope at the rate u [m/s] (valve lag effect: zero where the
-        characteristic is at its steepest, largest beyond the blow-off knee)."""
-        fc = self.fc
-        k0 = fc.segment(0.0)  # first piece with positive abscissae
-        side = fc.slope[k0:] if u >= 0.0 else fc.slope[:k0]
-        return self.damping_scale * (max(side) - fc.slope[fc.segment(u)])
+        """c0 - Fc'(u) [N s/m] (valve lag effect): see :func:`valve_gain`."""
+        return valve_gain(self.fc, self.damping_scale, u)
 
     def diagnostics(self, y, x1: float, v1: float) -> dict[str, float]:
         """Internal elongations [m], rates [m/s] and element forces [N] (positive in tension)."""
@@ -270,6 +266,15 @@ class LumpedModel:
             "blockB_elongation": x4,
             "blockB_force": self.kB * x4 + self.cB * v4,
         }
+
+
+def valve_gain(fc: PwlTable, damping_scale: float, u: float) -> float:
+    """c0 - Fc'(u) [N s/m]: the valve-closed resistance c0 (steepest slope of the damping table ``fc``
+    on the side of u) minus the local slope at the rate u [m/s], times the damping scale (valve lag
+    effect: zero where the characteristic is at its steepest, largest beyond the blow-off knee)."""
+    k0 = fc.segment(0.0)  # first piece with positive abscissae
+    side = fc.slope[k0:] if u >= 0.0 else fc.slope[:k0]
+    return damping_scale * (max(side) - fc.slope[fc.segment(u)])
 
 
 class _SeriesSpringModel:
@@ -400,12 +405,12 @@ def _solve5(a: list[list[float]], b: list[float]) -> list[float] | None:
 
 
 class TwoChamberModel:
-    """Two-chamber (twin-tube) damper model; state y = [y, fR, gC, x_ref, up, uf] in m, N, N, m,
-    m/s, m/s (piston position, chamber forces, start stroke of the gas spring, and the valve rates
-    of the last stage, kept as the next Newton start)."""
+    """Two-chamber (twin-tube) damper model; state y = [y, fR, gC, x_ref, up, uf, w] in m, N, N, m,
+    m/s, m/s, m/s (piston position, chamber forces, start stroke of the gas spring, the valve rates
+    and the piston velocity of the last stage: the friction force needs w, the rates start Newton)."""
 
     kind = "twochamber"
-    n_state = 6
+    n_state = 7
 
     def __init__(self, params: dict[str, float] | None = None):
         p = check_values("twochamber", params or {})
@@ -414,6 +419,9 @@ class TwoChamberModel:
         self.kR, self.kC, self.a = p["k_R"], p["k_C"], p["area_ratio"]
         self.LR, self.LC, self.air, self.fres, self.kgas = p["L_R"], p["L_C"], p["air"], p["f_res"], p["k_gas"]
         self.fc = _table(p, "Fc", "v")
+        self.ffr, self.v_eps = p["friction_force"], p["friction_velocity"]
+        #: factor on the valve characteristics (thermal drift effect; 1 = base model)
+        self.damping_scale = 1.0
         cchk, r = p["check_damping"], 1.0 - self.a
         pos = [(x, f) for x, f in zip(self.fc.xs, self.fc.fs) if x > 0.0]
         neg = [(x, f) for x, f in zip(self.fc.xs, self.fc.fs) if x < 0.0][::-1]
@@ -422,12 +430,20 @@ class TwoChamberModel:
         self._tol = _TC_TOL * self.force_scale()
 
     def initial_state(self, x1: float, v1: float) -> list[float]:
-        """Force-free state at stroke x1 [m]: chambers at reservoir pressure, mounts unloaded."""
-        return [x1, 0.0, 0.0, x1, 0.0, 0.0]
+        """Force-free state at stroke x1 [m]: chambers at reservoir pressure, mounts unloaded, the
+        piston moving with the actuator (v1 [m/s]; with friction the force starts at Ff tanh(v1 / v_eps))."""
+        return [x1, 0.0, 0.0, x1, 0.0, 0.0, v1]
 
     def force(self, y, x1: float, v1: float) -> float:
         """Output force [N], positive in tension."""
-        return y[1] - y[2] + self.kgas * (x1 - y[3])
+        f = y[1] - y[2] + self.kgas * (x1 - y[3])
+        if self.ffr:
+            f += self.ffr * math.tanh(y[6] / self.v_eps)
+        return f
+
+    def valve_gain(self, u: float) -> float:
+        """c0 - Fc'(u) [N s/m] (valve lag effect): see :func:`valve_gain`."""
+        return valve_gain(self.fc, self.damping_scale, u)
 
     def force_scale(self) -> float:
         """Force scale [N] of the integrator's error tolerance: the largest |Fc,O| ordinate."""
@@ -477,19 +493,24 @@ class TwoChamberModel:
         kR, kRy, kRf, kC, kCy, kCg = self.stiffness(y, fR, gC)
         uR, uC = w - up, -w + a * up - uf
         ip, jf = self.fp.segment(up), self.ff.segment(uf)
-        sp, sf = self.fp.slope[ip], self.ff.slope[jf]
+        ds = self.damping_scale
+        sp, sf = ds * self.fp.slope[ip], ds * self.ff.slope[jf]
+        fr = dfr = 0.0
+        if self.ffr:
+            th = math.tanh(w / self.v_eps)
+            fr, dfr = self.ffr * th, self.ffr * (1.0 - th * th) / self.v_eps
         r = [fR - yb[1] - g * kR * uR,
              gC - yb[2] - g * kC * uC,
-             fR - a * gC - (self.fp.intercept[ip] + sp * up),
-             gC - (self.ff.intercept[jf] + sf * uf),
-             fR - gC - self.kM * (x1 - y) - self.cM * (v1 - w)]
+             fR - a * gC - (ds * self.fp.intercept[ip] + sp * up),
+             gC - (ds * self.ff.intercept[jf] + sf * uf),
+             fR - gC + fr - self.kM * (x1 - y) - self.cM * (v1 - w)]
         if not jacobian:
             return r, None
         jac = [[-g * (kR + g * kRy * uR), g * kR, 0.0, 1.0 - g * kRf * uR, 0.0],
                [-g * (-kC + g * kCy * uC), -g * kC * a, g * kC, 0.0, 1.0 - g * kCg * uC],
                [0.0, -sp, 0.0, 1.0, -a],
                [0.0, 0.0, -sf, 0.0, 1.0],
-               [self.kM * g + self.cM, 0.0, 0.0, 1.0, -1.0]]
+               [self.kM * g + self.cM + dfr, 0.0, 0.0, 1.0, -1.0]]
         return r, jac
 
     def stage(self, yb, g: float, x1: float, v1: float) -> list[float]:
@@ -499,7 +520,7 @@ class TwoChamberModel:
         started from the valve rates of the base point and the piston velocity at frozen chamber
         forces: full steps first (exact within the valves' linear pieces), then, if the pieces
         keep changing, a backtracking line search on the sum of |residuals| [N]."""
-        fb = yb[1] - yb[2]
+        fb = yb[1] - yb[2] + (self.ffr * math.tanh(yb[6] / self.v_eps) if self.ffr else 0.0)
         w0 = (self.cM * v1 - fb + self.kM * (x1 - yb[0])) / (self.cM + self.kM * g)
         q = [w0, yb[4], yb[5], yb[1], yb[2]]
         r, jac = self._residual(q, yb, g, x1, v1, True)
@@ -532,7 +553,7 @@ class TwoChamberModel:
             raise ConvergenceError(f"two-chamber stage: Newton stalled at a residual of {rn:.3g} N "
                                    f"(tolerance {self._tol:.3g} N)")
         w, up, uf, fR, gC = q
-        return [yb[0] + g * w, fR, gC, yb[3], up, uf]
+        return [yb[0] + g * w, fR, gC, yb[3], up, uf, w]
 
     def diagnostics(self, y, x1: float, v1: float) -> dict[str, float]:
         """Mount elongation [m], chamber forces [N] and valve rates [m/s] of the state y."""

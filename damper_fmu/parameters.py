@@ -17,7 +17,8 @@ Two-chamber model (``models.TwoChamberModel``, a twin-tube form): 37 tunable par
     L_R, L_C [m] chamber lengths, air [1], f_res [N], k_gas [N/m],
     Fc_01..Fc_28 [N]  ordinates of the damping table at Fc_v01..Fc_v28 [m/s] (Table 2's abscissae
     with the midpoints added: the valves' knees need the finer layout),
-and the fixed check-valve slope check_damping [N s/m]. Its preset is a fit to the virtual rig's
+the fixed check-valve slope check_damping [N s/m] and the effect elements (seal friction inside the
+mounts, at the piston velocity). Its preset is a fit to the virtual rig's
 twin-tube damper (research/results), a plausible railway yaw damper, not a paper value.
 """
 from __future__ import annotations
@@ -39,6 +40,8 @@ __all__ = [
     "densify_abscissae",
     "MODEL_PARAMETERS",
     "MODEL_KINDS",
+    "EFFECT_MODELS",
+    "FRICTION_INSIDE",
     "check_rule",
     "defaults",
     "tunable_names",
@@ -249,7 +252,14 @@ TWOCHAMBER_PARAMETERS: tuple[Parameter, ...] = (
     Parameter("check_damping", "N.s/m", "Slope of the piston and intake check valves (fixed)", 1e3, 1e0, 1e6,
               tunable=False),
     *[p for p in _FC_TC if not p.tunable],
+    *EFFECT_PARAMETERS,
 )
+
+#: Models that carry the effect elements (damper_fmu.effects), and where the friction acts: the
+#: lumped model adds it at the actuator; the two-chamber model has a piston, and seal friction acts
+#: between rod and cylinder, inside the mounts (research: outside, a 150 N friction was fitted as 26 N).
+EFFECT_MODELS = ("lumped", "twochamber")
+FRICTION_INSIDE = ("twochamber",)
 
 MODEL_PARAMETERS: dict[str, tuple[Parameter, ...]] = {
     "lumped": LUMPED_PARAMETERS,

@@ -32,7 +32,7 @@ from pythonfmu.enums import Fmi2Initial, Fmi2Status
 from damper_fmu.integrator import (DEFAULT_MAX_STEP, DEFAULT_TOLERANCE, EXTRAPOLATE,
                                    INPUT_INTERPOLATION_DESCRIPTION, Simulator)
 from damper_fmu.models import ConvergenceError, make_model
-from damper_fmu.parameters import MODEL_PARAMETERS, UNIT_DEFINITIONS, check_values
+from damper_fmu.parameters import EFFECT_MODELS, MODEL_PARAMETERS, UNIT_DEFINITIONS, check_values
 
 START_VALUES_FILE = "start_values.json"
 
@@ -112,7 +112,7 @@ class DamperSlave(Fmi2Slave):
         self.register_variable(UnitReal("force", unit="N", causality=Fmi2Causality.output,
                                         variability=Fmi2Variability.continuous, initial=Fmi2Initial.exact,
                                         start=0.0, description="Damper force, positive in tension"))
-        if kind == "lumped":
+        if kind in EFFECT_MODELS:
             self.register_variable(UnitReal(
                 "oil_temperature", unit="degC", causality=Fmi2Causality.input,
                 variability=Fmi2Variability.continuous,
@@ -140,7 +140,7 @@ class DamperSlave(Fmi2Slave):
             "internal_tolerance", causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
             description="Local error tolerance of the internal steps, relative to the damper's force scale "
                         "(largest |Fc,O| ordinate); 0: fixed steps of max_internal_step"))
-        if kind == "lumped":
+        if kind in EFFECT_MODELS:
             self.register_variable(Integer(
                 "thermal_source", causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
                 description="Oil temperature of the thermal drift element: 0 internal thermal balance, "

@@ -94,6 +94,19 @@ def test_two_chamber_kernel_equals_python_reference(seed):
                             simulate("twochamber", t, x, v, backend="python", **kw))
 
 
+@pytest.mark.parametrize("effect", [1, 3, 4, 8])
+def test_two_chamber_kernel_equals_python_reference_with_effects(effect):
+    """Friction inside the mounts, free play, thermal drift on the valves, and all together."""
+    rng = np.random.default_rng(50 + effect)
+    p = random_params("twochamber", rng)
+    p.update(EFFECTS[effect])
+    t, x, v = random_stroke(rng)
+    for mode, temperature in ((REPLAY, None), (EXTRAPOLATE, 20.0 + 15.0 * (t - t[0]))):
+        kw = dict(params=p, input_mode=mode, temperature=temperature)
+        assert_equal_forces(simulate("twochamber", t, x, v, backend="native", **kw),
+                            simulate("twochamber", t, x, v, backend="python", **kw))
+
+
 @pytest.mark.parametrize("effect", range(len(EFFECTS)))
 def test_kernel_equals_python_reference_with_effects(effect):
     rng = np.random.default_rng(7 + effect)

@@ -141,3 +141,14 @@ def test_tuner_fits_a_two_chamber_damper_unlike_the_preset_to_the_noise_floor(tm
     est = json.loads((tmp_path / "out" / "parameters.json").read_text())["twochamber"]["values"]
     for name, tol in (("area_ratio", 0.05), ("k_R", 0.1), ("k_C", 0.1)):
         assert abs(est[name] / truth[name] - 1.0) <= tol, (name, est[name], truth[name])
+
+
+@pytest.mark.parametrize("v", [-0.02, 0.01])
+def test_seal_friction_acts_inside_the_mounts_and_adds_at_steady_speed(v):
+    """At constant speed the seal friction (at the piston, inside the mounts) adds Ff tanh(v / v_eps)
+    to the steady force."""
+    p = {**defaults("twochamber"), "friction_force": 150.0}
+    t = np.arange(0.0, 2.0, 1e-3)
+    base = simulate("twochamber", t, v * t, np.full(t.size, v))
+    with_f = simulate("twochamber", t, v * t, np.full(t.size, v), params=p)
+    assert abs(with_f[-1] - base[-1] - 150.0 * np.tanh(v / p["friction_velocity"])) < 1e-6 * abs(base[-1])

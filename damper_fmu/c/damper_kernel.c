@@ -119,6 +119,15 @@ static double table_primitive(const DkTable *t, double x) {
 
 /* ---- parameters and models ------------------------------------------------------------------- */
 
+/* effect parameters e[0..10] in the order of parameters.EFFECT_PARAMETERS */
+static void effects_init(DkModel *m, const double *e) {
+    m->ff = e[0]; m->v_eps = e[1]; m->f0 = e[2]; m->gap = e[3]; m->beta = e[4];
+    m->heat_c = e[5]; m->heat_g = e[6]; m->t_ref = e[7]; m->tau = e[8]; m->delay = e[9];
+    m->m_eq = e[10];
+    m->effects_active = m->ff != 0.0 || m->f0 != 0.0 || m->gap != 0.0 || m->beta != 0.0 ||
+                        m->tau != 0.0 || m->delay != 0.0 || m->m_eq != 0.0;
+}
+
 int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg, size_t msglen) {
     int np, i;
     const DkParamSpec *sp = specs(kind, &np);
@@ -150,14 +159,7 @@ int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg, size_
                        p + 5, DK_NFK, "Fk", msg, msglen)) return DK_ERROR;
         if (table_init(&m->fc, p + 5 + 2 * DK_NFK + DK_NFC, p + 5 + DK_NFK, DK_NFC, "Fc", msg, msglen))
             return DK_ERROR;
-        {
-            const double *e = p + 5 + 2 * DK_NFK + 2 * DK_NFC;
-            m->ff = e[0]; m->v_eps = e[1]; m->f0 = e[2]; m->gap = e[3]; m->beta = e[4];
-            m->heat_c = e[5]; m->heat_g = e[6]; m->t_ref = e[7]; m->tau = e[8]; m->delay = e[9];
-            m->m_eq = e[10];
-            m->effects_active = m->ff != 0.0 || m->f0 != 0.0 || m->gap != 0.0 || m->beta != 0.0 ||
-                                m->tau != 0.0 || m->delay != 0.0 || m->m_eq != 0.0;
-        }
+        effects_init(m, p + 5 + 2 * DK_NFK + 2 * DK_NFC);
     } else if (kind == DK_MAXWELL) {
         m->ks = p[0]; m->c = p[1];
     } else if (kind == DK_TWOCHAMBER) {
@@ -178,6 +180,8 @@ int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg, size_
         for (k = m->fc.n - 1; k >= 0; k--)
             if (m->fc.xs[k] < 0.0) { xs[np_] = -r * m->fc.xs[k]; fs[np_] = -m->fc.fs[k] / r; np_++; }
         if (table_init(&m->vf, xs, fs, np_, "foot valve", msg, msglen)) return DK_ERROR;
+        effects_init(m, p + DK_NTC + 1 + 2 * DK_NFC_TC);
+        m->friction_inside = 1;
     } else {
         m->ks = p[0];
         if (table_init(&m->fc, p + 1 + DK_NFC, p + 1, DK_NFC, "Fc", msg, msglen)) return DK_ERROR;
@@ -196,7 +200,11 @@ static double force_scale(const DkModel *m) {
 
 static double model_force(const DkModel *m, const double *y, double x1, double v1) {
     if (m->kind == DK_LUMPED) return m->kB * (x1 - y[0]) + m->cB * (v1 - y[3]);
-    if (m->kind == DK_TWOCHAMBER) return y[1] - y[2] + m->kgas * (x1 - y[3]);
+    if (m->kind == DK_TWOCHAMBER) {
+        double f = y[1] - y[2] + m->kgas * (x1 - y[3]);
+        if (m->ff != 0.0) f += m->ff * tanh(y[6] / m->v_eps);
+        return f;
+    }
     return m->ks * (x1 - y[0]);
 }
 
@@ -431,16 +439,20 @@ static void tc_stiffness(const DkModel *m, double y, double fR, double gC, doubl
 static double tc_residual(const DkModel *m, const double *q, const double *yb, double g, double x1, double v1,
                           double *r, double J[5][5]) {
     double w = q[0], up = q[1], uf = q[2], fR = q[3], gC = q[4], a = m->ar, y = yb[0] + g * w, k[6];
-    double uR, uC, sp, sf;
+    double uR, uC, sp, sf, ds = m->damping_scale, fr = 0.0, dfr = 0.0;
     int ip = segment(&m->vp, up), jf = segment(&m->vf, uf);
     tc_stiffness(m, y, fR, gC, k);
     uR = w - up; uC = -w + a * up - uf;
-    sp = m->vp.slope[ip]; sf = m->vf.slope[jf];
+    sp = ds * m->vp.slope[ip]; sf = ds * m->vf.slope[jf];
+    if (m->ff != 0.0) {
+        double th = tanh(w / m->v_eps);
+        fr = m->ff * th; dfr = m->ff * (1.0 - th * th) / m->v_eps;
+    }
     r[0] = fR - yb[1] - g * k[0] * uR;
     r[1] = gC - yb[2] - g * k[3] * uC;
-    r[2] = fR - a * gC - (m->vp.intercept[ip] + sp * up);
-    r[3] = gC - (m->vf.intercept[jf] + sf * uf);
-    r[4] = fR - gC - m->kM * (x1 - y) - m->cM * (v1 - w);
+    r[2] = fR - a * gC - (ds * m->vp.intercept[ip] + sp * up);
+    r[3] = gC - (ds * m->vf.intercept[jf] + sf * uf);
+    r[4] = fR - gC + fr - m->kM * (x1 - y) - m->cM * (v1 - w);
     if (J) {
         J[0][0] = -g * (k[0] + g * k[1] * uR); J[0][1] = g * k[0]; J[0][2] = 0.0;
         J[0][3] = 1.0 - g * k[2] * uR; J[0][4] = 0.0;
@@ -448,14 +460,14 @@ static double tc_residual(const DkModel *m, const double *q, const double *yb, d
         J[1][3] = 0.0; J[1][4] = 1.0 - g * k[5] * uC;
         J[2][0] = 0.0; J[2][1] = -sp; J[2][2] = 0.0; J[2][3] = 1.0; J[2][4] = -a;
         J[3][0] = 0.0; J[3][1] = 0.0; J[3][2] = -sf; J[3][3] = 0.0; J[3][4] = 1.0;
-        J[4][0] = m->kM * g + m->cM; J[4][1] = 0.0; J[4][2] = 0.0; J[4][3] = 1.0; J[4][4] = -1.0;
+        J[4][0] = m->kM * g + m->cM + dfr; J[4][1] = 0.0; J[4][2] = 0.0; J[4][3] = 1.0; J[4][4] = -1.0;
     }
     return fabs(r[0]) + fabs(r[1]) + fabs(r[2]) + fabs(r[3]) + fabs(r[4]);
 }
 
 static int tc_stage(DkModel *m, const double *yb, double g, double x1, double v1, double *out, char *msg,
                     size_t msglen) {
-    double fb = yb[1] - yb[2], q[5], r[5], J[5][5], d[5], qt[5], rt[5], rn, rnt = 0.0;
+    double fb = yb[1] - yb[2] + (m->ff != 0.0 ? m->ff * tanh(yb[6] / m->v_eps) : 0.0), q[5], r[5], J[5][5], d[5], qt[5], rt[5], rn, rnt = 0.0;
     int it, i, h;
     if (m->tc_tol == 0.0) m->tc_tol = TC_TOL * force_scale(m);
     q[0] = (m->cM * v1 - fb + m->kM * (x1 - yb[0])) / (m->cM + m->kM * g);
@@ -490,6 +502,7 @@ static int tc_stage(DkModel *m, const double *yb, double g, double x1, double v1
         return DK_ERROR;
     }
     out[0] = yb[0] + g * q[0]; out[1] = q[3]; out[2] = q[4]; out[3] = yb[3]; out[4] = q[1]; out[5] = q[2];
+    out[6] = q[0];
     return DK_OK;
 }
 
@@ -505,7 +518,7 @@ static int stage(DkModel *m, const double *yb, double g, double x1, double v1, d
     return maxwell_table_stage(m, yb, g, x1, out, msg, msglen);
 }
 
-static int n_state(const DkModel *m) { return m->kind == DK_LUMPED || m->kind == DK_TWOCHAMBER ? 6 : 1; }
+static int n_state(const DkModel *m) { return m->kind == DK_LUMPED ? 6 : m->kind == DK_TWOCHAMBER ? 7 : 1; }
 
 static double valve_gain(const DkModel *m, double u) {
     const DkTable *fc = &m->fc;
@@ -569,7 +582,7 @@ static int effects_output(DkSim *s, double f_model, double h, double v_eff, doub
     const DkModel *m = &s->model;
     DkEffectsState *e = &s->e;
     double f = (e->engaged || m->gap == 0.0) ? f_model : 0.0, target, t0, f0, t1, f1;
-    if (m->ff != 0.0) f += m->ff * tanh(v_eff / m->v_eps);
+    if (m->ff != 0.0 && !m->friction_inside) f += m->ff * tanh(v_eff / m->v_eps);
     if (m->tau != 0.0 && (e->engaged || m->gap == 0.0)) f += m->tau * vg * a1;
     if (m->m_eq != 0.0) f += m->m_eq * a1;
     f += m->f0;
@@ -635,13 +648,13 @@ int dk_sim_initialize(DkSim *s, double x1, double v1, double t0) {
     }
     memset(s->y, 0, sizeof s->y);
     if (m->kind == DK_LUMPED) { s->y[0] = x1; s->y[3] = v1; s->y[4] = v1; }
-    else if (m->kind == DK_TWOCHAMBER) { s->y[0] = x1; s->y[3] = x1; }
+    else if (m->kind == DK_TWOCHAMBER) { s->y[0] = x1; s->y[3] = x1; s->y[6] = v1; }
     else s->y[0] = x1;
     s->x1 = x1; s->v1 = v1; s->time = t0; s->h_next = s->max_step; s->nsamples = 0;
     s->force = model_force(m, s->y, x1, v1);
-    if (m->kind == DK_LUMPED && m->effects_active) {
+    if (m->effects_active) {
         effects_initialize(s, x1, s->force);
-        s->force += m->f0 + (m->ff != 0.0 ? m->ff * tanh(v1 / m->v_eps) : 0.0);
+        s->force += m->f0 + (m->ff != 0.0 && !m->friction_inside ? m->ff * tanh(v1 / m->v_eps) : 0.0);
     }
     return DK_OK;
 }
@@ -687,12 +700,12 @@ static int sdirk(DkSim *s, const Traj *tr, const double *y, double *yout, double
                  double tau, double H, double *xs, double *vs) {
     DkModel *m = &s->model;
     int ns = n_state(m), i;
-    double g = GAMMA_ * H, y1[6], yb[6];
+    double g = GAMMA_ * H, y1[DK_NSTATE], yb[DK_NSTATE];
     double t1 = tau + g, t2 = tau + H;
     double xa = tr->x0 + t1 * (tr->v0 + t1 * (tr->c2 + t1 * tr->c3));
     double va = tr->v0 + t1 * (2.0 * tr->c2 + 3.0 * tr->c3 * t1);
     double xb, vb;
-    int fx = m->kind == DK_LUMPED && m->effects_active;
+    int fx = m->effects_active;
     if (fx) play(m, x_eff, engaged, &xa, &va);
     if (stage(m, y, g, xa, va, y1, s->msg, sizeof s->msg)) return DK_ERROR;
     xb = tr->x0 + t2 * (tr->v0 + t2 * (tr->c2 + t2 * tr->c3));
@@ -706,8 +719,8 @@ static int sdirk(DkSim *s, const Traj *tr, const double *y, double *yout, double
 
 int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
     DkModel *m = &s->model;
-    int ns = n_state(m), i, fx = m->kind == DK_LUMPED && m->effects_active;
-    double xh, vh, d, y[6], xs, vs, x_eff = s->e.x_eff, va0, f;
+    int ns = n_state(m), i, fx = m->effects_active;
+    double xh, vh, d, y[DK_NSTATE], xs, vs, x_eff = s->e.x_eff, va0, f;
     int engaged = s->e.engaged;
     Traj tr;
     if (!(isfinite(x1) && isfinite(v1))) {
@@ -743,7 +756,7 @@ int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
         if (n < 1) n = 1;
         H = h / n;
         for (k = 0; k < n; k++) {
-            double yn[6];
+            double yn[DK_NSTATE];
             if (sdirk(s, &tr, y, yn, &x_eff, &engaged, k * H, H, &xs, &vs)) return DK_ERROR;
             memcpy(y, yn, sizeof y);
         }
@@ -751,7 +764,7 @@ int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
         double tol = s->tolerance * force_scale(m), tau = 0.0;
         double H = s->h_next < s->max_step ? s->h_next : s->max_step;
         for (;;) {
-            double proposed = H, yf[6], ym[6], y2[6], xe1 = x_eff, xe2, x2, v2, err, fac, dummy_x, dummy_v;
+            double proposed = H, yf[DK_NSTATE], ym[DK_NSTATE], y2[DK_NSTATE], xe1 = x_eff, xe2, x2, v2, err, fac, dummy_x, dummy_v;
             int en1 = engaged, en2, last = tau + H >= h * (1.0 - 1e-12);
             double xf = x_eff;
             int enf = engaged;

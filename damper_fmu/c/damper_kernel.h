@@ -29,7 +29,8 @@
 #define DK_NPAR_LUMPED (5 + 2 * DK_NFK + 2 * DK_NFC + DK_NEFFECT)
 #define DK_NPAR_MAXWELL 2
 #define DK_NPAR_MAXWELL_TABLE (1 + 2 * DK_NFC)
-#define DK_NPAR_TWOCHAMBER (DK_NTC + 1 + 2 * DK_NFC_TC)
+#define DK_NPAR_TWOCHAMBER (DK_NTC + 1 + 2 * DK_NFC_TC + DK_NEFFECT)
+#define DK_NSTATE 7 /* largest model state (two-chamber) */
 #define DK_NPAR_MAX (DK_NPAR_TWOCHAMBER > DK_NPAR_LUMPED ? DK_NPAR_TWOCHAMBER : DK_NPAR_LUMPED)
 
 #define DK_MAXPTS 32
@@ -62,9 +63,10 @@ typedef struct {
        piston- and foot-valve tables; Newton tolerance [N] */
     double kM, cM, kR0, kC0, ar, LR, LC, air, fres, kgas, tc_tol;
     DkTable vp, vf;
-    /* effects (lumped only) */
+    /* effects (lumped and two-chamber); friction_inside: the two-chamber model's seal friction acts at
+       the piston inside the mounts (its stage), not at the output */
     double ff, v_eps, f0, gap, beta, heat_c, heat_g, t_ref, tau, delay, m_eq;
-    int effects_active;
+    int effects_active, friction_inside;
 } DkModel;
 
 typedef struct {
@@ -79,7 +81,7 @@ typedef struct {
     DkModel model;
     double max_step, tolerance;
     int input_mode;
-    double y[6];
+    double y[DK_NSTATE];
     double x1, v1, force, time, h_next;
     int nsamples;
     double st[4], sv[4];        /* master's velocity samples, newest first */

@@ -43,6 +43,9 @@
 #define NDIAG 1
 #endif
 
+/* models with the effect elements (thermal drift: the oil_temperature input, thermal_source) */
+#define HAS_EFFECTS (DK_MODEL_KIND == DK_LUMPED || DK_MODEL_KIND == DK_TWOCHAMBER)
+
 #define VR_STROKE 0
 #define VR_VELOCITY 1
 #define VR_FORCE 2
@@ -194,7 +197,7 @@ static int check_inputs(Instance *c) {
         fail(c, "input out of range: %s", d);
         return 1;
     }
-    if (DK_MODEL_KIND == DK_LUMPED && s->thermal_source && !isfinite(s->temperature)) {
+    if (HAS_EFFECTS && s->thermal_source && !isfinite(s->temperature)) {
         fail(c, "non-finite input: %s", "oil_temperature");
         return 1;
     }
@@ -239,7 +242,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component comp) {
         return fail(c, "%s", "stroke_limit and velocity_limit must be positive");
     }
     if (build(c) || check_inputs(c)) { s->state = ST_ERROR; return fmi2Error; }
-    s->sim.has_temperature = DK_MODEL_KIND == DK_LUMPED && s->thermal_source;
+    s->sim.has_temperature = HAS_EFFECTS && s->thermal_source;
     s->sim.temperature_input = s->temperature;
     if (dk_sim_initialize(&s->sim, s->stroke, s->velocity, s->time)) {
         s->state = ST_ERROR;
@@ -280,7 +283,7 @@ fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
         if (r == VR_STROKE) value[i] = s->stroke;
         else if (r == VR_VELOCITY) value[i] = s->velocity;
         else if (r == VR_FORCE) value[i] = s->state >= ST_STEP ? s->sim.force : 0.0;
-        else if (r == VR_TEMPERATURE && DK_MODEL_KIND == DK_LUMPED) value[i] = s->temperature;
+        else if (r == VR_TEMPERATURE && HAS_EFFECTS) value[i] = s->temperature;
         else if (r >= VR_DIAG && r < VR_DIAG + NDIAG) {
             if (!have_diag) {
                 if (s->state >= ST_STEP) dk_diagnostics(&s->sim, diag); else memset(diag, 0, sizeof diag);
@@ -315,7 +318,7 @@ fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
         int after_init = s->state >= ST_STEP;
         if (r == VR_STROKE) s->stroke = value[i];
         else if (r == VR_VELOCITY) s->velocity = value[i];
-        else if (r == VR_TEMPERATURE && DK_MODEL_KIND == DK_LUMPED) s->temperature = value[i];
+        else if (r == VR_TEMPERATURE && HAS_EFFECTS) s->temperature = value[i];
         else if (r == VR_MAX_STEP || r == VR_TOLERANCE || r == VR_STROKE_LIMIT || r == VR_VELOCITY_LIMIT) {
             if (after_init) return fail(c, "%s", "the integrator settings and input limits are fixed parameters: "
                                                 "set them before fmi2ExitInitializationMode");
@@ -344,7 +347,7 @@ fmi2Status fmi2GetInteger(fmi2Component comp, const fmi2ValueReference vr[], siz
     if (!c) return fmi2Error;
     for (i = 0; i < n; i++) {
         if (vr[i] == VR_INPUT_INTERPOLATION) value[i] = c->s.input_interpolation;
-        else if (vr[i] == VR_THERMAL_SOURCE && DK_MODEL_KIND == DK_LUMPED) value[i] = c->s.thermal_source;
+        else if (vr[i] == VR_THERMAL_SOURCE && HAS_EFFECTS) value[i] = c->s.thermal_source;
         else return fail(c, "%s", "fmi2GetInteger: unknown value reference");
     }
     return fmi2OK;
@@ -361,7 +364,7 @@ fmi2Status fmi2SetInteger(fmi2Component comp, const fmi2ValueReference vr[], siz
         if (vr[i] == VR_INPUT_INTERPOLATION) {
             if (value[i] != 0 && value[i] != 1) return fail(c, "%s", "input_interpolation must be 0 or 1");
             c->s.input_interpolation = value[i];
-        } else if (vr[i] == VR_THERMAL_SOURCE && DK_MODEL_KIND == DK_LUMPED) {
+        } else if (vr[i] == VR_THERMAL_SOURCE && HAS_EFFECTS) {
             if (value[i] != 0 && value[i] != 1) return fail(c, "%s", "thermal_source must be 0 or 1");
             c->s.thermal_source = value[i];
         } else return fail(c, "%s", "fmi2SetInteger: unknown value reference");
@@ -541,7 +544,7 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
     }
     if (s->dirty && build(c)) return fmi2Error;
     if (check_inputs(c)) return fmi2Error;
-    s->sim.has_temperature = DK_MODEL_KIND == DK_LUMPED && s->thermal_source;
+    s->sim.has_temperature = HAS_EFFECTS && s->thermal_source;
     s->sim.temperature_input = s->temperature;
     if (dk_sim_step(&s->sim, h, s->stroke, s->velocity, s->accel_set ? s->accel : NAN)) {
         snprintf(d, sizeof d, "step at t = %.9g s failed: %s", t, s->sim.msg);
