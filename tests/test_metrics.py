@@ -216,3 +216,13 @@ def test_noise_estimate_is_not_lowered_by_the_rigs_anti_alias_filter():
     f, psd = welch(force, fs=fs, nperseg=1024)
     low = np.sqrt(np.median(psd[(f > 0.01 * fs) & (f < 0.1 * fs)]) * fs / 2)  # the level in the fit band
     assert 0.97 * low <= noise_std(force, fs) <= 1.1 * low
+
+
+def test_pooled_mse_is_the_mse_of_all_samples_together():
+    from tuner.metrics import error_metrics, pooled_mse
+
+    rng = np.random.default_rng(4)
+    a, b = rng.normal(0, 3, 50), rng.normal(1, 7, 150)
+    rows = [error_metrics(a, np.zeros(50)).to_dict(), error_metrics(b, np.zeros(150)).to_dict()]
+    assert pooled_mse(rows) == pytest.approx(np.mean(np.concatenate([a, b]) ** 2))
+    assert pooled_mse([]) == float("inf")

@@ -327,9 +327,10 @@ def cmd_fit(args) -> int:
         raise ValueError("--population must be >= 2")
     t0 = time.perf_counter()
     budget = args.population * args.iterations / (20 * 150)  # relative to the default run's
-    weights = {f"fit {m}": {"lumped": 60.0, "maxwell": 8.0, "maxwell_table": 30.0}[m] * budget for m in models}
+    weights = {f"fit {m}": {"lumped": 60.0, "maxwell": 8.0, "maxwell_table": 30.0, "twochamber": 60.0}[m] * budget
+               for m in models}
     weights.update({"validate and export": 12.0, "report": 8.0})
-    if not args.no_diagnose and "lumped" in models:
+    if not args.no_diagnose and any(m in ("lumped", "twochamber") for m in models):
         weights["diagnosis"] = 70.0
     _start_job(args, weights)
     try:
@@ -342,6 +343,8 @@ def cmd_fit(args) -> int:
 
 
 def _fit_job(args, models) -> Path:
+    from damper_fmu.parameters import EFFECT_MODELS
+
     from tuner.identification.fit import FitSettings, fit
 
     ident, valid, name = _load(args)
@@ -361,17 +364,26 @@ def _fit_job(args, models) -> Path:
                   "files": {t.name: str(t.source) for t in ident + valid},
                   "command": " ".join(sys.argv)}
     _log(f"output folder: {out}")
-    diagnosis = not args.no_diagnose and valid and "lumped" in models
+    diagnosis = not args.no_diagnose and valid and any(m in EFFECT_MODELS for m in models)
     if not diagnosis and _OUT is not None:
         _OUT.weights.pop("diagnosis", None)
     metrics = fit(ident, valid, out, settings, provenance=provenance, log=_OUT or _log)  # the progress display when a job runs
     _print_summary(metrics)
     if diagnosis:
-        _run_diagnosis(ident, valid, out, args, json.loads((out / "parameters.json").read_text())["lumped"]["values"])
+        _run_diagnosis(ident, valid, out, args, *_fitted_base(out))
     return out
 
 
-def _run_diagnosis(ident, valid, out, args, base_params=None) -> dict:
+def _fitted_base(folder: Path) -> tuple:
+    """(base parameters, kind, how it was chosen) for a diagnosis after the fit in ``folder``."""
+    from tuner.diagnosis.diagnose import choose_base
+
+    kind, values, choice = choose_base(json.loads((folder / "parameters.json").read_text()),
+                                       json.loads((folder / "metrics.json").read_text()))
+    return values, kind, choice
+
+
+def _run_diagnosis(ident, valid, out, args, base_params=None, base_model=None, base_choice=None) -> dict:
     from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
 
     settings = DiagnosisSettings(fit_rate_hz=args.fit_rate, warmup_s=args.warmup, workers=args.workers,
@@ -383,8 +395,9 @@ def _run_diagnosis(ident, valid, out, args, base_params=None) -> dict:
     from tuner.progress import stage
 
     stage(_OUT, "diagnosis")
-    _log("\ndiagnosis: refitting the lumped model extended by each candidate effect ...")
-    result = diagnose(ident, valid, out, settings, base_params=base_params, log=_OUT or _log)
+    _log(f"\ndiagnosis: refitting the {base_model or 'base'} model extended by each candidate effect ...")
+    result = diagnose(ident, valid, out, settings, base_params=base_params, base_model=base_model,
+                      base_choice=base_choice, log=_OUT or _log)
     from tuner.results.report import make_diagnosis_report, make_report
 
     stage(_OUT, "report")
@@ -396,34 +409,37 @@ def _run_diagnosis(ident, valid, out, args, base_params=None) -> dict:
 
 
 def cmd_diagnose(args) -> int:
+    from damper_fmu.parameters import MODEL_KINDS
+
     _check_engine(args)
     if not args.dataset and not args.identification:
         args.dataset = DEFAULT_DATASET  # by default the bundled dataset
     ident, valid, name = _load(args)
     if not valid:
         raise ValueError("the diagnosis needs validation tests: its decision is the held-out gain")
-    base = None
+    base, base_kind, base_choice = None, None, None
     if args.from_fit:
         pj = args.from_fit / "parameters.json"
-        if not pj.exists():
-            raise ValueError(f"--from {args.from_fit}: no parameters.json (not a fit output folder)")
-        base = json.loads(pj.read_text()).get("lumped", {}).get("values")
-        if base is None:
-            raise ValueError(f"--from {args.from_fit}: no lumped model in parameters.json")
+        if not pj.exists() or not (args.from_fit / "metrics.json").exists():
+            raise ValueError(f"--from {args.from_fit}: no parameters.json and metrics.json (not a fit output folder)")
+        try:
+            base, base_kind, base_choice = _fitted_base(args.from_fit)
+        except ValueError as err:
+            raise ValueError(f"--from {args.from_fit}: {err}") from None
     out = args.out or _free_folder(DEFAULT_RESULTS / f"{name}-diagnosis")
     if out.exists() and any(out.iterdir()):
         raise FileExistsError(f"output folder {out} exists and is not empty: choose another --out")
     out.mkdir(parents=True, exist_ok=True)
     if base is not None and args.from_fit.resolve() != out.resolve():
-        for f in ("parameters.json", "metrics.json", "simulations.npz", "history_lumped.json",
-                  "history_maxwell.json"):
+        for f in ("parameters.json", "metrics.json", "simulations.npz",
+                  *[f"history_{m}.json" for m in MODEL_KINDS]):
             if (args.from_fit / f).exists():
                 (out / f).write_bytes((args.from_fit / f).read_bytes())
     _log(f"output folder: {out}")
     t0 = time.perf_counter()
     _start_job(args, {"diagnosis": 70.0 if base is not None else 130.0, "report": 5.0})
     try:
-        _run_diagnosis(ident, valid, out, args, base)  # it states the verdict once
+        _run_diagnosis(ident, valid, out, args, base, base_kind, base_choice)  # it states the verdict once
     finally:
         _end_job()
     _tidy_checkpoints(out, args.keep_checkpoints)
@@ -495,7 +511,8 @@ def main(argv=None) -> int:
     p_diag = sub.add_parser("diagnose", help="what the fitted model gets wrong, the cause, the gain")
     _add_fit_options(p_diag)
     p_diag.add_argument("--from", dest="from_fit", type=Path, help="output folder of an earlier fit (its "
-                        "lumped parameters are the base model; otherwise the base model is identified here)")
+                        "best-validated lumped or two-chamber model is the base; otherwise both are identified "
+                        "here and the better one on held-out data is kept)")
     p_ins = sub.add_parser("inspect", help="what the reader understands of rig files (columns, units, ranges)")
     p_ins.add_argument("files", nargs="*", type=Path, metavar="FILE", help="rig test files (CSV/TSV/Parquet)")
     p_ins.add_argument("--dataset", type=Path, help="a dataset folder with manifest.json instead of files")

@@ -14,7 +14,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-__all__ = ["ErrorMetrics", "error_metrics", "fitness", "variation_percent", "compare_to_maxwell",
+__all__ = ["ErrorMetrics", "error_metrics", "pooled_mse", "fitness", "variation_percent", "compare_to_maxwell",
            "PolyOddEven", "polyfit_odd_even"]
 
 
@@ -73,6 +73,15 @@ def error_metrics(measured, simulated) -> ErrorMetrics:
         peak_measured=float(np.max(np.abs(f_exp))),
         fitness=n / sse if sse > 0 else math.inf,
     )
+
+
+def pooled_mse(rows) -> float:
+    """MSE [N^2] pooled over several tests from their ``error_metrics`` dicts (sample-weighted:
+    the MSE of all their samples together); inf without samples."""
+    se = n = 0.0
+    for m in rows:
+        se, n = se + m["mse"] * m["n"], n + m["n"]
+    return se / n if n else math.inf
 
 
 def fitness(measured, simulated) -> float:

@@ -418,7 +418,7 @@ def run_row(task: dict) -> dict:
     message, traceback): a failed row does not stop the others. ``done.json`` is written last.
     """
     from tuner.data.reading import DataError
-    from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
+    from tuner.diagnosis.diagnose import DiagnosisSettings, choose_base, diagnose
     from tuner.identification.fit import FitSettings, fit
 
     folder = Path(task["folder"])
@@ -450,12 +450,14 @@ def run_row(task: dict) -> dict:
             if not valid:
                 raise DataError(f"{task['where']}: diagnose needs validation files (its decision is the held-out "
                                     f"gain); fill 'validation' or set diagnose = false")
-            if "lumped" not in settings.models:
-                raise ValueError(f"{task['where']}: diagnose needs the lumped model in 'models'")
-            base = json.loads((folder / "parameters.json").read_text())["lumped"]["values"]
+            try:
+                kind, base, choice = choose_base(json.loads((folder / "parameters.json").read_text()),
+                                                 json.loads((folder / "metrics.json").read_text()))
+            except ValueError as err:
+                raise ValueError(f"{task['where']}: {err} in 'models'") from None
             ds = DiagnosisSettings(fit_rate_hz=settings.fit_rate_hz, warmup_s=settings.warmup_s,
                                    workers=task["workers"], engine=settings.engine, seed=settings.seed)
-            diagnose(ident, valid, folder, ds, base_params=base, log=log)
+            diagnose(ident, valid, folder, ds, base_params=base, base_model=kind, base_choice=choice, log=log)
             from tuner.results.report import make_report
 
             make_report(folder)

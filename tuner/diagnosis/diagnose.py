@@ -1,9 +1,12 @@
-"""Diagnosis: what the fitted lumped model gets wrong, which physical effect causes it, the model
+"""Diagnosis: what the fitted base model gets wrong, which physical effect causes it, the model
 extended by that effect, and the gain measured on held-out data.
 
 Procedure (``diagnose``):
-1. Base model: the lumped model identified on the identification tests (taken from an earlier fit
-   or identified here: seeded Firefly + least-squares polish, as ``tuner.identification.fit``).
+1. Base model: the base form with the lowest held-out MSE among BASE_MODELS (the paper's lumped
+   model and the two-chamber form of a twin-tube damper: a base that cannot represent the damper
+   leaves a form error larger than the effects), identified on the identification tests (taken
+   from an earlier fit, ``choose_base``, or identified here: seeded Firefly + least-squares polish,
+   as ``tuner.identification.fit``).
 2. Residuals (measured - simulated force) of the base model on every test: evidence numbers and
    figures (``tuner.diagnosis.residuals``): in time, against velocity and stroke, around velocity reversals,
    against frequency, drift over the test and against the temperature channel.
@@ -23,12 +26,13 @@ Procedure (``diagnose``):
    (``effect_intervals``: block sandwich, ``tuner.diagnosis.significance``).
 4. Forward selection (``_next_cause``): further causes are added one at a time on the same rules
    against the model of the causes found so far.
-5. Unexplained: a final identification RMSE above ``UNEXPLAINED_RATIO`` x the noise is reported as
+5. Unexplained: a final identification RMSE above ``UNEXPLAINED_RATIO`` x the residual floor (the
+   force noise and the force the stroke noise makes through the model, ``_stroke_noise_force``) is reported as
    a model-form error the catalogue does not explain (cause 'unexplained' when nothing was named).
 6. Output: ``diagnosis.json`` (cause, causes, selection steps, unexplained, ranking, effect
    parameters with units, intervals and typical ranges, validation MSE/AME before and after per
    test in the Table 3 definition, evidence), figures, and the extended model as a tuned FMU
-   (``fmu/DamperLumped_<causes>_tuned.fmu``).
+   (``fmu/<model identifier>_<causes>_tuned.fmu``, e.g. ``DamperLumped_friction_tuned.fmu``).
 
 Search bounds (``search_bounds``) cover twice the catalogue's typical range
 (``damper_fmu.parameters.EFFECT_TYPICAL``, the one source), force scales at least 10 % of the
@@ -45,21 +49,25 @@ from pathlib import Path
 
 import numpy as np
 
-from damper_fmu.parameters import EFFECT_IDENTIFIED, EFFECT_PARAMETERS, EFFECT_TYPICAL, defaults
+from damper_fmu.parameters import EFFECT_IDENTIFIED, EFFECT_MODELS, EFFECT_PARAMETERS, EFFECT_TYPICAL, defaults
 
 from tuner.data.reading import RigTest
 from tuner.data.preprocess import prepare
 from tuner.identification.engine import Engine
 from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidence, residual_figures
-from tuner.metrics import noise_std
+from tuner.metrics import noise_std, pooled_mse
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.polish import polish
 from tuner.progress import advance
 from tuner.results.report import fmt_quantity
 
-__all__ = ["DiagnosisSettings", "diagnose", "decide", "cross_check", "CANDIDATES", "ExtendedParametrization"]
+__all__ = ["DiagnosisSettings", "diagnose", "decide", "cross_check", "choose_base", "CANDIDATES", "BASE_MODELS",
+           "ExtendedParametrization"]
 
 CANDIDATES = tuple(EFFECT_IDENTIFIED)
+#: base forms the diagnosis chooses from (the models that carry the effect catalogue): the lumped
+#: model of the paper, and the two-chamber form of a twin-tube damper
+BASE_MODELS = EFFECT_MODELS
 PENALTY_PER_PARAMETER = 0.02
 ACCEPT_SCORE = 0.05
 #: fewest independent residual blocks for a confidence interval to be trusted
@@ -144,10 +152,52 @@ class DiagnosisSettings:
     final_jacobians: int = 100  # continued refit of the leading candidate: a cap, it stops when converged
     max_causes: int = 3  # forward selection stops here at the latest
     candidates: tuple = CANDIDATES
+    #: base model: 'auto' (identify every one of BASE_MODELS, keep the lowest held-out MSE), or a kind
+    base_model: str = "auto"
     diff_band_hz: float | None = None  # as tuner.identification.fit.FitSettings
     damping_abscissae_m_s: tuple | None = None  # as tuner.identification.fit.FitSettings (without a base fit given)
     elastic_abscissae_m: tuple | None = None
     extra: dict = field(default_factory=dict)
+
+
+def _stroke_noise_force(kind: str, params: dict, tests: list[RigTest], signals: list, settings) -> float:
+    """Force [N rms, fit band] that the stroke channel's noise makes in the simulation: the model
+    driven by the measured stroke plus white noise at the stroke's own noise level (``noise_std`` of
+    the stroke, scaled to the fit band), minus the same without it; pooled over the tests, seed 0."""
+    import dataclasses
+
+    from tuner.identification.fit import validation_run
+
+    rng = np.random.default_rng(0)
+    se = n = 0.0
+    for t, s in zip(tests, signals):
+        sigma = noise_std(t.stroke, t.sample_rate) * math.sqrt(min(1.0, settings.fit_rate_hz / t.sample_rate))
+        noisy = dataclasses.replace(s, stroke=s.stroke + rng.normal(0.0, sigma, s.stroke.size))
+        d = (validation_run(kind, params, noisy, settings.engine)[0] - validation_run(kind, params, s, settings.engine)[0])
+        se, n = se + float(np.sum(d[s.mask] ** 2)), n + int(s.mask.sum())
+    return math.sqrt(se / n)
+
+
+def _pooled_mse(kind: str, params: dict, signals: list, engine: str) -> float:
+    """Validation MSE [N^2] pooled over the tests (``validation_run``, the Table 3 definition)."""
+    from tuner.identification.fit import validation_run
+
+    return pooled_mse([validation_run(kind, params, s, engine)[1] for s in signals])
+
+
+def choose_base(parameters: dict, metrics: dict) -> tuple[str, dict, dict]:
+    """The base form for a diagnosis after a fit: among the fitted models that carry the effect
+    catalogue (BASE_MODELS), the one with the lowest held-out MSE pooled over the validation tests
+    (``metrics.json`` of ``tuner.identification.fit.fit``). Returns (kind, its parameter values,
+    the comparison). ValueError when no such model was fitted."""
+    kinds = [k for k in BASE_MODELS if k in parameters]
+    if not kinds:
+        raise ValueError(f"the diagnosis needs one of {', '.join(BASE_MODELS)} among the fitted models")
+    mse = {k: pooled_mse([t["models"][k] for t in metrics["tests"].values() if t["role"] == "validation"])
+           for k in kinds}
+    kind = min(kinds, key=lambda k: mse[k])
+    return kind, parameters[kind]["values"], {"chosen": kind, "by": "held-out MSE of the fitted models "
+                                              "(Table 3 definition)", "validation_mse": mse}
 
 
 def _split_mse(residual: np.ndarray | None, lengths: list[int]) -> list[tuple[float, float]]:
@@ -382,9 +432,15 @@ def decide(ranking: list[dict]) -> tuple[str, dict, list[dict]]:
 
 
 def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path,
-             settings: DiagnosisSettings | None = None, *, base_params: dict | None = None, log=print) -> dict:
-    """Run the diagnosis and write ``diagnosis.json`` (and figures, extended FMU) into ``out``."""
-    from tuner.identification.fit import FitSettings, data_digest, identify, initial_guess, table_abscissae, to_signals, validation_run
+             settings: DiagnosisSettings | None = None, *, base_params: dict | None = None,
+             base_model: str | None = None, base_choice: dict | None = None, log=print) -> dict:
+    """Run the diagnosis and write ``diagnosis.json`` (and figures, extended FMU) into ``out``.
+
+    base_params: the values of an earlier fit of ``base_model`` (default 'lumped'); without them the
+    base is identified here (``settings.base_model``: 'auto' identifies every one of BASE_MODELS and
+    keeps the one with the lowest held-out MSE); base_choice: how the caller chose it (reported)."""
+    from tuner.identification.fit import (FitSettings, data_digest, identify, initial_guess, model_abscissae,
+                                          table_abscissae, to_signals, validation_run)
 
     settings = settings or DiagnosisSettings()
     if not identification or not validation:
@@ -400,25 +456,46 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     stroke_range = max(float(np.ptp(s.stroke[s.mask])) for s in sig_id)
     axes = table_abscissae(sig_id, peak, damping=settings.damping_abscissae_m_s,
                            elastic=settings.elastic_abscissae_m)
-    if base_params is not None:  # the fit's own tables
-        axes = {k: base_params.get(k, v) for k, v in axes.items()}
-    par = Parametrization("lumped", "improved", force_limit=float(f"{1.5 * peak:.2g}"), fixed=axes)
+
+    def parametrization(kind: str, given: dict | None) -> Parametrization:
+        fixed = model_abscissae(kind, axes)
+        if given is not None:  # the fit's own tables
+            fixed = {k: given.get(k, v) for k, v in fixed.items()}
+        return Parametrization(kind, "improved", force_limit=float(f"{1.5 * peak:.2g}"), fixed=fixed)
+
+    if base_params is not None:
+        kind = base_model or "lumped"
+        par = parametrization(kind, base_params)
+    else:
+        kinds = BASE_MODELS if settings.base_model == "auto" else (settings.base_model,)
+        unknown = [k for k in kinds if k not in EFFECT_MODELS]
+        if unknown:
+            raise ValueError(f"base model {unknown[0]!r}: choose 'auto' or one of {', '.join(EFFECT_MODELS)}")
+        fitted = {}
+        for kind in kinds:
+            par_k = parametrization(kind, None)
+            log(f"diagnosis: identifying the base {kind} model ...")
+            fs = FitSettings(models=(kind,), fit_rate_hz=settings.fit_rate_hz, warmup_s=settings.warmup_s,
+                             iterations=settings.base_iterations, workers=settings.workers, seed=settings.seed,
+                             engine=settings.engine, polish_jacobians=settings.base_polish_jacobians)
+            values, _ = identify(kind, sig_id, fs, par_k, out / "checkpoints" / f"diagnosis_base_{kind}.json",
+                                 data_digest(identification), log)
+            fitted[kind] = (par_k, values, _pooled_mse(kind, values, sig_val, settings.engine))
+        kind = min(fitted, key=lambda k: fitted[k][2])
+        par, base_params = fitted[kind][:2]
+        base_choice = {"chosen": kind, "by": "held-out MSE of the identified base models (Table 3 definition)",
+                       "validation_mse": {k: v[2] for k, v in fitted.items()}}
+        if len(fitted) > 1:
+            log("diagnosis: base form " + kind + " (held-out MSE " + ", ".join(
+                f"{k} {math.sqrt(v[2]):.1f} N rms" for k, v in fitted.items()) + ")")
     engine_path = None
     if settings.engine == "fmu":
         from build_fmu import ensure_fmu
 
-        engine_path = ensure_fmu("lumped")
-
-    if base_params is None:
-        log("diagnosis: identifying the base lumped model ...")
-        fs = FitSettings(models=("lumped",), fit_rate_hz=settings.fit_rate_hz, warmup_s=settings.warmup_s,
-                         iterations=settings.base_iterations, workers=settings.workers, seed=settings.seed,
-                         engine=settings.engine, polish_jacobians=settings.base_polish_jacobians)
-        base_params, _ = identify("lumped", sig_id, fs, par, out / "checkpoints" / "diagnosis_base.json",
-                                   data_digest(identification), log)
-    base = defaults("lumped")
+        engine_path = ensure_fmu(kind)
+    base = defaults(kind)
     base.update({k: v for k, v in base_params.items() if k in base})
-    guess = {**defaults("lumped"), **initial_guess("lumped", sig_id, par)}
+    guess = {**defaults(kind), **initial_guess(kind, sig_id, par)}
     for p in EFFECT_PARAMETERS:  # the base model has every effect off
         base[p.name] = guess[p.name] = p.default
 
@@ -432,10 +509,15 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
                              for t in identification]))
     log(f"diagnosis: force measurement noise about {noise:.1f} N rms in the {settings.fit_rate_hz / 2:g} Hz fit band "
         f"(from the spectrum of the identification tests)")
+    # the stroke channel's noise reaches the simulated force through the model's series stiffness: no
+    # model of the damper can remove it from the residual, so it belongs to the floor of "explained"
+    stroke_noise_n = _stroke_noise_force(kind, base, identification, sig_id, settings)
+    floor = math.hypot(noise, stroke_noise_n)
+    log(f"diagnosis: stroke noise through the base model {stroke_noise_n:.1f} N rms; residual floor {floor:.1f} N")
 
     # residual analysis of the base model (evidence, joint screen, figures)
     tr = [TestResidual(p.name, p.role or "", p.time, p.stroke, p.stroke_velocity, p.force,
-                       validation_run("lumped", base, s, settings.engine)[0], s.mask, s.temperature)
+                       validation_run(kind, base, s, settings.engine)[0], s.mask, s.temperature)
           for p, s in zip([*prep_id, *prep_val], [*sig_id, *sig_val])]
     evidence = residual_evidence(tr, noise_n=noise)
     figures = [str(Path(f).relative_to(out)) for f in residual_figures(tr, out / "figures")]
@@ -449,7 +531,7 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     lengths = [int(s.mask.sum()) for s in sig_val]
     n_val = sum(lengths)
     ranking = []
-    with Engine("lumped", sig_id, **kw) as eid, Engine("lumped", sig_val, **kw) as ev:
+    with Engine(kind, sig_id, **kw) as eid, Engine(kind, sig_val, **kw) as ev:
         r_base_val = ev.residuals_batch([base])[0]
         mse_base = float(r_base_val @ r_base_val) / n_val
         sse_base_id = eid.sse_batch([base])[0]
@@ -580,11 +662,12 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     # what the final model leaves: at the noise, or structured beyond what the catalogue explains
     final_rmse = best["identification_rmse_n"] if causes else none_row["identification_rmse_n"]
     unexplained = None
-    if final_rmse > UNEXPLAINED_RATIO * noise:
+    if final_rmse > UNEXPLAINED_RATIO * floor:
         pooled = (evidence.get("general") or {}).get("pooled") or {}
         bands = pooled.get("band_fraction") or {}
         r2 = {e: d.get("r2") or 0.0 for e, d in (evidence.get("effects") or {}).items()}
-        unexplained = {"identification_rmse_n": final_rmse, "noise_std_n": noise, "ratio": final_rmse / noise,
+        unexplained = {"identification_rmse_n": final_rmse, "noise_std_n": noise, "floor_n": floor,
+                       "stroke_noise_force_n": stroke_noise_n, "ratio": final_rmse / floor,
                        "dominant_band": max(bands, key=bands.get) if bands else None,
                        "band_fraction": bands, "best_signature": max(r2, key=r2.get) if r2 else None,
                        "best_signature_r2": max(r2.values()) if r2 else None,
@@ -599,8 +682,8 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     after_params = refits[key][0].to_params(refits[key][1]) if causes else base
     validation = {}
     for s in sig_val:
-        mb = validation_run("lumped", base, s, settings.engine)[1]
-        ma = validation_run("lumped", after_params, s, settings.engine)[1] if causes else mb
+        mb = validation_run(kind, base, s, settings.engine)[1]
+        ma = validation_run(kind, after_params, s, settings.engine)[1] if causes else mb
         validation[s.name] = {"mse_before": mb["mse"], "ame_before": mb["ame"], "mse_after": ma["mse"],
                               "ame_after": ma["ame"], "mse_change_pct": 100 * (ma["mse"] / mb["mse"] - 1)}
     effect_parameters = {}
@@ -615,18 +698,20 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
               "unexplained": unexplained, "ranking": ranking, "effect_parameters": effect_parameters,
               "validation": validation, "evidence": evidence, "figures": figures,
               "note": " ".join(NOTES[c] for c in causes if c in NOTES), "noise_std_n": noise,
+              "stroke_noise_force_n": stroke_noise_n, "residual_floor_n": floor,
               "settings": {**{k: v for k, v in settings.__dict__.items() if k != "extra"},
                            "penalty_per_parameter": PENALTY_PER_PARAMETER, "accept_score": ACCEPT_SCORE,
                            "unexplained_ratio": UNEXPLAINED_RATIO, "min_blocks": MIN_BLOCKS,
                            "elapsed_s": time.perf_counter() - t_start},
+              "base_model": kind, "base_choice": base_choice,
               "base_parameters": {k: base[k] for k in par.names}}
     (out / "diagnosis.json").write_text(json.dumps(result, indent=2, default=_json_default))
     if causes:
-        from build_fmu import build
+        from build_fmu import SLAVES, build
 
         ext, z, _ = refits[key]
-        path = build("lumped", out / "fmu", start_values=ext.to_params(z),
-                     filename=f"DamperLumped_{'_'.join(causes)}_tuned.fmu")
+        path = build(kind, out / "fmu", start_values=ext.to_params(z),
+                     filename=f"{SLAVES[kind]}_{'_'.join(causes)}_tuned.fmu")
         log(f"extended model exported: {path}")
     log(verdict)
     return result
@@ -671,7 +756,9 @@ def _verdict(causes: list[str], best: dict, none_row: dict, rejected: list[dict]
                     f"{100 * (1 - low):.0f} % beyond")
         text = ("unexplained: " if not causes else text + ". Not explained: ") + (
             f"the remaining residual, {unexplained['identification_rmse_n']:.3g} N rms, is "
-            f"{unexplained['ratio']:.1f} x the measurement noise ({noise:.2g} N): a model-form error that "
+            f"{unexplained['ratio']:.1f} x the residual floor ({unexplained['floor_n']:.2g} N: force noise "
+            f"{noise:.2g} N, stroke noise through the model {unexplained['stroke_noise_force_n']:.2g} N): a "
+            f"model-form error that "
             f"no catalogue effect explains{where}{sig}") + ("" if causes else "; " + text.replace(
                 "cause: none (", "no named cause: ").rstrip(")"))
     return text

@@ -58,7 +58,7 @@ QUALITY_AME_PCT = 10.0
 class FitSettings:
     """Run settings (units in the names). Defaults: the paper's Firefly budget."""
 
-    models: tuple = ("lumped", "maxwell")
+    models: tuple = ("lumped", "maxwell", "twochamber")
     fit_rate_hz: float = 200.0
     warmup_s: float = 0.5
     population: int = 20

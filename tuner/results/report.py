@@ -1023,10 +1023,20 @@ def diagnosis_section_html(out_dir) -> str:
                     f"{100 * scr['r2_all']:.0f} %: the most any linear mix of catalogue effects could remove</li>")
     figs = "".join(f"<figure><img src='{e(f)}' alt='{e(f)}'></figure>" for f in d.get("figures", []))
     s = d["settings"]
+    base_kind = d.get("base_model", "lumped")
+    choice = d.get("base_choice") or {}
+    base_text = (f"<p>Base model: <b>{e(MODEL_LABEL.get(base_kind, base_kind))}</b>"
+                 + (", chosen by " + e(choice.get("by", "")) + ": " + ", ".join(
+                     f"{e(MODEL_LABEL.get(k, k))} {math.sqrt(v):.3g} N rms" for k, v in choice["validation_mse"].items())
+                    if choice.get("validation_mse") else "") + ".</p>")
+    floor_text = (f" The residual floor is {d['residual_floor_n']:.3g} N: the force noise and the "
+                  f"{d['stroke_noise_force_n']:.3g} N the stroke channel's noise makes through the model."
+                  if d.get("residual_floor_n") else "")
     return (
         "<section id='diagnosis'><h2>Diagnosis: what the model gets wrong, and why</h2>"
         f"<p class='verdict'>{e(d['verdict'])}{'. ' + e(d['note']) if d.get('note') else ''}</p>"
-        "<p>Each candidate effect was added to the lumped model and the extended model refitted on the "
+        + base_text +
+        "<p>Each candidate effect was added to the base model and the extended model refitted on the "
         "identification tests; the decision rests on the validation (held-out) MSE: score = -ln(MSE_ext / "
         f"MSE_base) - {s['penalty_per_parameter']} per extra parameter, a cause is named when its score exceeds "
         f"{s['accept_score']}.</p>"
@@ -1039,8 +1049,8 @@ def diagnosis_section_html(out_dir) -> str:
         "three residual correlation times), because the residuals are correlated and the textbook interval "
         "would be far too narrow. Causes are added one at a time (forward selection) while the next one "
         "earns its score against the model of the causes found so far. When the final model's residual stays "
-        f"above {s.get('unexplained_ratio', 2)} x the noise, the report says so: a model-form error the catalogue "
-        "does not explain.</p>"
+        f"above {s.get('unexplained_ratio', 2)} x the residual floor, the report says so: a model-form error the "
+        f"catalogue does not explain.{floor_text}</p>"
         f"<table>{head.format(ref=chr(39) + 'none' + chr(39))}{rows}</table>{steps}"
         + (f"<h3>Effect parameters vs plausible ranges</h3><table><tr><th>parameter</th><th>fitted</th>"
            f"<th>typical range</th><th>plausible</th></tr>{eff}</table>" if eff else "")
