@@ -375,13 +375,14 @@ _TC_TOL = 1e-10
 _TC_MAX_NEWTON = 60
 _TC_PLAIN = 12
 _TC_MAX_HALVINGS = 40
+_TC_MAX_NESTED = 200
 
 
-def _solve5(a: list[list[float]], b: list[float]) -> list[float] | None:
-    """Solve the 5x5 system a x = b by Gaussian elimination with partial pivoting (a, b copied);
-    None when singular. Written as the C kernel's ``solve5``, operation for operation."""
+def _solve(a: list[list[float]], b: list[float]) -> list[float] | None:
+    """Solve the n x n system a x = b (n <= 5) by Gaussian elimination with partial pivoting (a, b
+    copied); None when singular. Written as the C kernel's ``solve_n``, operation for operation."""
     m = [row[:] + [bi] for row, bi in zip(a, b)]
-    n = 5
+    n = len(b)
     for k in range(n):
         p = k
         for i in range(k + 1, n):
@@ -528,7 +529,7 @@ class TwoChamberModel:
         for it in range(_TC_MAX_NEWTON):
             if rn <= self._tol:
                 break
-            d = _solve5(jac, r)
+            d = _solve(jac, r)
             if d is None:
                 raise ConvergenceError("two-chamber stage: singular Jacobian")
             if it < _TC_PLAIN:  # plain Newton: exact within the valves' pieces, usually done in 2-4
@@ -549,11 +550,80 @@ class TwoChamberModel:
                 break
             q, rn = qt, rnt
             r, jac = self._residual(q, yb, g, x1, v1, True)
-        if not rn <= self._tol:
-            raise ConvergenceError(f"two-chamber stage: Newton stalled at a residual of {rn:.3g} N "
-                                   f"(tolerance {self._tol:.3g} N)")
+        if not rn <= self._tol:  # e.g. a steep seal friction at a reversal: the nested solve
+            q = self._stage_nested(yb, g, x1, v1, w0, rn)
         w, up, uf, fR, gC = q
         return [yb[0] + g * w, fR, gC, yb[3], up, uf, w]
+
+    def _valves_given_w(self, w: float, p4: list[float], yb, g: float, x1: float, v1: float):
+        """The chamber and valve equations (residuals 0-3) solved for (up, uf, fR, gC) at the piston
+        velocity w [m/s], from p4; returns (p4, d(fR - gC)/dw [N s/m], |r0..r3| sum) -- the same
+        Newton iteration as ``stage`` on four unknowns; the derivative by implicit differentiation."""
+        q = [w, *p4]
+        r, jac = self._residual(q, yb, g, x1, v1, True)
+        rn = abs(r[0]) + abs(r[1]) + abs(r[2]) + abs(r[3])
+        for it in range(_TC_MAX_NEWTON):
+            if rn <= self._tol:
+                break
+            d = _solve([row[1:] for row in jac[:4]], r[:4])
+            if d is None:
+                break
+            if it < _TC_PLAIN:
+                q = [w] + [qi - di for qi, di in zip(q[1:], d)]
+                r, jac = self._residual(q, yb, g, x1, v1, True)
+                rn = abs(r[0]) + abs(r[1]) + abs(r[2]) + abs(r[3])
+                continue
+            lam, accepted = 1.0, False
+            for _ in range(_TC_MAX_HALVINGS):
+                qt = [w] + [qi - lam * di for qi, di in zip(q[1:], d)]
+                rt, _ = self._residual(qt, yb, g, x1, v1, False)
+                rnt = abs(rt[0]) + abs(rt[1]) + abs(rt[2]) + abs(rt[3])
+                if rnt < rn:
+                    accepted = True
+                    break
+                lam *= 0.5
+            if not accepted:
+                break
+            q, rn = qt, rnt
+            r, jac = self._residual(q, yb, g, x1, v1, True)
+        dq = _solve([row[1:] for row in jac[:4]], [-row[0] for row in jac[:4]])
+        dfw = 0.0 if dq is None else dq[2] - dq[3]
+        return q[1:], dfw, rn
+
+    def _stage_nested(self, yb, g: float, x1: float, v1: float, w0: float, rn0: float) -> list[float]:
+        """Fallback of ``stage``: a safeguarded Newton iteration (bisection once bracketed) on the
+        mount balance, residual 4, which increases with the piston velocity w when the chamber and
+        valve equations are solved for each w (``_valves_given_w``). Robust where the joint Newton
+        iteration is not (a steep seal friction tanh(w / v_eps) at a reversal)."""
+        p4 = [yb[4], yb[5], yb[1], yb[2]]
+        w, lo, hi = w0, -math.inf, math.inf
+        for _ in range(_TC_MAX_NESTED):
+            p4, dfw, rn4 = self._valves_given_w(w, p4, yb, g, x1, v1)
+            if not rn4 <= self._tol:
+                break
+            r, _ = self._residual([w, *p4], yb, g, x1, v1, False)
+            if abs(r[4]) <= self._tol:
+                return [w, *p4]
+            fr_slope = 0.0
+            if self.ffr:
+                th = math.tanh(w / self.v_eps)
+                fr_slope = self.ffr * (1.0 - th * th) / self.v_eps
+            slope = dfw + fr_slope + self.kM * g + self.cM
+            if r[4] > 0.0:
+                hi = w
+            else:
+                lo = w
+            wn = w - r[4] / slope
+            if not lo < wn < hi:
+                if math.isinf(lo) or math.isinf(hi):
+                    wn = w - 2.0 * r[4] / slope  # outside the one known side: a longer step
+                else:
+                    wn = 0.5 * (lo + hi)
+            if not math.isinf(lo) and not math.isinf(hi) and hi - lo <= 1e-15 * (1.0 + abs(w)):
+                break
+            w = wn
+        raise ConvergenceError(f"two-chamber stage: Newton stalled at a residual of {rn0:.3g} N and the nested "
+                               f"solve did not converge either (tolerance {self._tol:.3g} N)")
 
     def diagnostics(self, y, x1: float, v1: float) -> dict[str, float]:
         """Mount elongation [m], chamber forces [N] and valve rates [m/s] of the state y."""

@@ -19,8 +19,9 @@ from tuner.cli.batch import ManifestError, add_parser, cmd_batch, main, read_fle
 from tuner.results.fleet_summary import find_outliers  # noqa: E402
 
 #: small Firefly budget: the batch machinery is tested here, not the identification
-SMALL = ["--population", "6", "--iterations", "4", "--polish", "3"]
-SMALL_SETTINGS = {"population": 6, "iterations": 4, "polish_jacobians": 3}
+#: a small fit of the paper's two models: these tests are about the fleet, not the model forms
+SMALL = ["--population", "6", "--iterations", "4", "--polish", "3", "--models", "lumped+maxwell"]
+SMALL_SETTINGS = {"population": 6, "iterations": 4, "polish_jacobians": 3, "models": ("lumped", "maxwell")}
 #: (row id, type, rig damper, dataset seed, hidden effects): two types, one damper with friction
 DAMPERS = [("A1", "A", "lumped", 1, {}), ("A2", "A", "lumped", 2, {}), ("A3", "A", "lumped", 3, {"friction": 250.0}),
            ("B1", "B", "twin-tube", 2, {}), ("B2", "B", "twin-tube", 5, {})]

@@ -202,3 +202,27 @@ def test_two_effects_hidden_together_are_both_named(tmp_path):
         assert p["value"] == pytest.approx(EFFECTS[e].model_sign * value, rel=0.3)
         assert p["interval_95"][0] > 0.0  # significant
     assert (tmp_path / "out" / "fmu" / f"DamperLumped_{'_'.join(res['causes'])}_tuned.fmu").exists()
+
+
+def test_the_diagnosis_base_is_the_fitted_form_with_the_lower_pooled_held_out_mse():
+    """choose_base pools the validation tests sample-weighted (a long test counts more) and ignores
+    models without the effect catalogue (Maxwell) and the identification tests."""
+    from tuner.diagnosis.diagnose import choose_base
+
+    def row(mse, n):
+        return {"mse": mse, "n": n}
+
+    params = {m: {"values": {"tag": m}} for m in ("lumped", "maxwell", "twochamber")}
+    metrics = {"tests": {
+        "id": {"role": "identification", "models": {"lumped": row(1.0, 100), "maxwell": row(0.1, 100),
+                                                    "twochamber": row(900.0, 100)}},
+        "short": {"role": "validation", "models": {"lumped": row(100.0, 10), "maxwell": row(1.0, 10),
+                                                   "twochamber": row(10.0, 10)}},
+        "long": {"role": "validation", "models": {"lumped": row(20.0, 1000), "maxwell": row(1.0, 1000),
+                                                  "twochamber": row(30.0, 1000)}}}}
+    kind, values, choice = choose_base(params, metrics)
+    assert kind == "lumped" and values == {"tag": "lumped"}
+    assert choice["validation_mse"]["lumped"] == pytest.approx((100.0 * 10 + 20.0 * 1000) / 1010)
+    assert "maxwell" not in choice["validation_mse"]
+    with pytest.raises(ValueError, match="lumped"):
+        choose_base({"maxwell": params["maxwell"]}, metrics)

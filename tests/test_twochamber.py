@@ -152,3 +152,32 @@ def test_seal_friction_acts_inside_the_mounts_and_adds_at_steady_speed(v):
     base = simulate("twochamber", t, v * t, np.full(t.size, v))
     with_f = simulate("twochamber", t, v * t, np.full(t.size, v), params=p)
     assert abs(with_f[-1] - base[-1] - 150.0 * np.tanh(v / p["friction_velocity"])) < 1e-6 * abs(base[-1])
+
+
+@needs_c
+def test_a_steep_seal_friction_at_fixed_steps_is_solved_the_same_in_c_and_python(monkeypatch):
+    """300 N of seal friction (tanh over 0.5 mm/s) on the bundled data's first test at the tuner's
+    fixed 1 ms steps: at the start the joint Newton iteration stalls and the nested solve (safeguarded
+    Newton on the mount balance) takes over, in C as in Python."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    import damper_fmu.models as models
+    from tuner.data.preprocess import prepare
+    from tuner.data.reading import load_dataset
+    from tuner.identification.engine import simulate_signals
+    from tuner.identification.fit import to_signals
+
+    calls = []
+    nested = models.TwoChamberModel._stage_nested
+    monkeypatch.setattr(models.TwoChamberModel, "_stage_nested", lambda self, *a: calls.append(1) or nested(self, *a))
+    test = load_dataset(Path(__file__).resolve().parents[1] / "data" / "default")[0]
+    s = to_signals(prepare(test, 200.0), 0.5)
+    n = 60
+    s = replace(s, time=s.time[:n], stroke=s.stroke[:n], stroke_velocity=s.stroke_velocity[:n], force=s.force[:n],
+                mask=s.mask[:n], temperature=None)
+    p = {**defaults("twochamber"), "friction_force": 300.0}
+    py = simulate_signals("twochamber", p, s, engine="inprocess")
+    assert calls, "the case no longer exercises the nested solve"
+    c = simulate_signals("twochamber", p, s, engine="native")
+    assert np.abs(py - c).max() <= 1e-9 * np.abs(py).max()

@@ -387,26 +387,28 @@ static int maxwell_table_stage(DkModel *m, const double *yb, double g, double x1
 #define TC_MAX_NEWTON 60
 #define TC_PLAIN 12
 #define TC_MAX_HALVINGS 40
+#define TC_MAX_NESTED 200
 
-static int solve5(double a[5][5], const double *b, double *x) {
+/* n x n (n <= 5) Gaussian elimination with partial pivoting; DK_ERROR when singular */
+static int solve_n(double a[5][5], const double *b, double *x, int n) {
     double m[5][6];
     int i, j, k, p;
-    for (i = 0; i < 5; i++) { for (j = 0; j < 5; j++) m[i][j] = a[i][j]; m[i][5] = b[i]; }
-    for (k = 0; k < 5; k++) {
+    for (i = 0; i < n; i++) { for (j = 0; j < n; j++) m[i][j] = a[i][j]; m[i][n] = b[i]; }
+    for (k = 0; k < n; k++) {
         p = k;
-        for (i = k + 1; i < 5; i++)
+        for (i = k + 1; i < n; i++)
             if (fabs(m[i][k]) > fabs(m[p][k])) p = i;
         if (fabs(m[p][k]) < 1e-300) return DK_ERROR;
         if (p != k)
-            for (j = 0; j < 6; j++) { double t = m[k][j]; m[k][j] = m[p][j]; m[p][j] = t; }
-        for (i = k + 1; i < 5; i++) {
+            for (j = 0; j <= n; j++) { double t = m[k][j]; m[k][j] = m[p][j]; m[p][j] = t; }
+        for (i = k + 1; i < n; i++) {
             double f = m[i][k] / m[k][k];
-            for (j = k; j < 6; j++) m[i][j] -= f * m[k][j];
+            for (j = k; j <= n; j++) m[i][j] -= f * m[k][j];
         }
     }
-    for (i = 4; i >= 0; i--) {
-        double s_ = m[i][5];
-        for (j = i + 1; j < 5; j++) s_ -= m[i][j] * x[j];
+    for (i = n - 1; i >= 0; i--) {
+        double s_ = m[i][n];
+        for (j = i + 1; j < n; j++) s_ -= m[i][j] * x[j];
         x[i] = s_ / m[i][i];
     }
     return DK_OK;
@@ -465,19 +467,101 @@ static double tc_residual(const DkModel *m, const double *q, const double *yb, d
     return fabs(r[0]) + fabs(r[1]) + fabs(r[2]) + fabs(r[3]) + fabs(r[4]);
 }
 
+/* the chamber and valve equations (residuals 0-3) solved for p4 = (up, uf, fR, gC) at the piston
+   velocity w; *dfw = d(fR - gC)/dw; returns the sum of |r0..r3| (models.py: _valves_given_w) */
+static double tc_valves_given_w(DkModel *m, double w, double *p4, const double *yb, double g, double x1,
+                                double v1, double *dfw) {
+    double q[5], r[5], J[5][5], A[5][5], d[5], qt[5], rt[5], rhs[5], rn, rnt = 0.0;
+    int it, i, j, h;
+    q[0] = w;
+    for (i = 0; i < 4; i++) q[i + 1] = p4[i];
+    tc_residual(m, q, yb, g, x1, v1, r, J);
+    rn = fabs(r[0]) + fabs(r[1]) + fabs(r[2]) + fabs(r[3]);
+    for (it = 0; it < TC_MAX_NEWTON; it++) {
+        int accepted = 0;
+        double lam = 1.0;
+        if (rn <= m->tc_tol) break;
+        for (i = 0; i < 4; i++) for (j = 0; j < 4; j++) A[i][j] = J[i][j + 1];
+        if (solve_n(A, r, d, 4)) break;
+        if (it < TC_PLAIN) {
+            for (i = 0; i < 4; i++) q[i + 1] = q[i + 1] - d[i];
+            tc_residual(m, q, yb, g, x1, v1, r, J);
+            rn = fabs(r[0]) + fabs(r[1]) + fabs(r[2]) + fabs(r[3]);
+            continue;
+        }
+        for (h = 0; h < TC_MAX_HALVINGS; h++) {
+            qt[0] = w;
+            for (i = 0; i < 4; i++) qt[i + 1] = q[i + 1] - lam * d[i];
+            tc_residual(m, qt, yb, g, x1, v1, rt, NULL);
+            rnt = fabs(rt[0]) + fabs(rt[1]) + fabs(rt[2]) + fabs(rt[3]);
+            if (rnt < rn) { accepted = 1; break; }
+            lam *= 0.5;
+        }
+        if (!accepted) break;
+        for (i = 0; i < 5; i++) q[i] = qt[i];
+        rn = rnt;
+        tc_residual(m, q, yb, g, x1, v1, r, J);
+    }
+    for (i = 0; i < 4; i++) {
+        for (j = 0; j < 4; j++) A[i][j] = J[i][j + 1];
+        rhs[i] = -J[i][0];
+    }
+    *dfw = solve_n(A, rhs, d, 4) ? 0.0 : d[2] - d[3];
+    for (i = 0; i < 4; i++) p4[i] = q[i + 1];
+    return rn;
+}
+
+/* fallback of tc_stage: safeguarded Newton (bisection once bracketed) on the mount balance, which
+   increases with w when the other equations are solved for each w (models.py: _stage_nested) */
+static int tc_stage_nested(DkModel *m, const double *yb, double g, double x1, double v1, double w0, double rn0,
+                           double *q, char *msg, size_t msglen) {
+    double p4[4], w = w0, lo = -INFINITY, hi = INFINITY, r[5], qq[5];
+    int it, i;
+    p4[0] = yb[4]; p4[1] = yb[5]; p4[2] = yb[1]; p4[3] = yb[2];
+    for (it = 0; it < TC_MAX_NESTED; it++) {
+        double dfw, rn4, fr_slope = 0.0, slope, wn;
+        rn4 = tc_valves_given_w(m, w, p4, yb, g, x1, v1, &dfw);
+        if (!(rn4 <= m->tc_tol)) break;
+        qq[0] = w;
+        for (i = 0; i < 4; i++) qq[i + 1] = p4[i];
+        tc_residual(m, qq, yb, g, x1, v1, r, NULL);
+        if (fabs(r[4]) <= m->tc_tol) {
+            for (i = 0; i < 5; i++) q[i] = qq[i];
+            return DK_OK;
+        }
+        if (m->ff != 0.0) {
+            double th = tanh(w / m->v_eps);
+            fr_slope = m->ff * (1.0 - th * th) / m->v_eps;
+        }
+        slope = dfw + fr_slope + m->kM * g + m->cM;
+        if (r[4] > 0.0) hi = w; else lo = w;
+        wn = w - r[4] / slope;
+        if (!(lo < wn && wn < hi)) {
+            if (isinf(lo) || isinf(hi)) wn = w - 2.0 * r[4] / slope;
+            else wn = 0.5 * (lo + hi);
+        }
+        if (!isinf(lo) && !isinf(hi) && hi - lo <= 1e-15 * (1.0 + fabs(w))) break;
+        w = wn;
+    }
+    snprintf(msg, msglen, "two-chamber stage: Newton stalled at a residual of %.3g N and the nested solve did not "
+             "converge either (tolerance %.3g N)", rn0, m->tc_tol);
+    return DK_ERROR;
+}
+
 static int tc_stage(DkModel *m, const double *yb, double g, double x1, double v1, double *out, char *msg,
                     size_t msglen) {
-    double fb = yb[1] - yb[2] + (m->ff != 0.0 ? m->ff * tanh(yb[6] / m->v_eps) : 0.0), q[5], r[5], J[5][5], d[5], qt[5], rt[5], rn, rnt = 0.0;
+    double fb = yb[1] - yb[2] + (m->ff != 0.0 ? m->ff * tanh(yb[6] / m->v_eps) : 0.0), q[5], w0, r[5], J[5][5], d[5], qt[5], rt[5], rn, rnt = 0.0;
     int it, i, h;
     if (m->tc_tol == 0.0) m->tc_tol = TC_TOL * force_scale(m);
     q[0] = (m->cM * v1 - fb + m->kM * (x1 - yb[0])) / (m->cM + m->kM * g);
     q[1] = yb[4]; q[2] = yb[5]; q[3] = yb[1]; q[4] = yb[2];
+    w0 = q[0];
     rn = tc_residual(m, q, yb, g, x1, v1, r, J);
     for (it = 0; it < TC_MAX_NEWTON; it++) {
         int accepted = 0;
         double lam = 1.0;
         if (rn <= m->tc_tol) break;
-        if (solve5(J, r, d)) {
+        if (solve_n(J, r, d, 5)) {
             snprintf(msg, msglen, "two-chamber stage: singular Jacobian");
             return DK_ERROR;
         }
@@ -496,11 +580,7 @@ static int tc_stage(DkModel *m, const double *yb, double g, double x1, double v1
         for (i = 0; i < 5; i++) q[i] = qt[i];
         rn = tc_residual(m, q, yb, g, x1, v1, r, J);
     }
-    if (!(rn <= m->tc_tol)) {
-        snprintf(msg, msglen, "two-chamber stage: Newton stalled at a residual of %.3g N (tolerance %.3g N)",
-                 rn, m->tc_tol);
-        return DK_ERROR;
-    }
+    if (!(rn <= m->tc_tol) && tc_stage_nested(m, yb, g, x1, v1, w0, rn, q, msg, msglen)) return DK_ERROR;
     out[0] = yb[0] + g * q[0]; out[1] = q[3]; out[2] = q[4]; out[3] = yb[3]; out[4] = q[1]; out[5] = q[2];
     out[6] = q[0];
     return DK_OK;
