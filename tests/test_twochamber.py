@@ -129,7 +129,7 @@ def test_tuner_fits_a_two_chamber_damper_unlike_the_preset_to_the_noise_floor(tm
                                roles=("identification", "identification", "validation"), noise_n=20.0)
     tests = load_dataset(path)
     (tmp_path / "out").mkdir()
-    settings = FitSettings(models=("twochamber",), population=20, iterations=0, workers=0, engine="native")
+    settings = FitSettings(models=("twochamber",), population=20, iterations=0, workers=2, engine="native")
     metrics = fit([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
                   tmp_path / "out", settings, log=lambda m: None)
     band_noise = Resampler.design(1000.0, 200.0).apply(np.random.default_rng(0).normal(0.0, 20.0, 200_000)).std()
