@@ -353,8 +353,8 @@ def main(argv=None) -> int:
         _build_here(spec["kind"], Path(spec["target"]), spec["start_values"], spec["settings"])
         return 0
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("kinds", nargs="*", default=["lumped", "maxwell", "maxwell_table"],
-                    help=f"FMUs to build, from {sorted(PY_SLAVES)} (default: the three damper models)")
+    ap.add_argument("kinds", nargs="*", default=list(SLAVES),
+                    help=f"FMUs to build, from {sorted(PY_SLAVES)} (default: the four damper models)")
     ap.add_argument("--out", type=Path, default=None, help="output folder (default build/fmu)")
     ap.add_argument("--force", action="store_true", help="rebuild even if up to date")
     ap.add_argument("--python", action="store_true", help="also build the pythonfmu FMUs (*Py.fmu)")

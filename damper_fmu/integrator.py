@@ -13,7 +13,8 @@ once whole and once as two halves; their difference, measured as the silent-bloc
 implies [N], must stay below ``tolerance`` x the model's force scale (largest |Fc,O| ordinate),
 else H shrinks (by 5 when a stage's Newton solve fails: a smaller step is an easier solve);
 the next H follows the usual third-root rule (local error ~ H^3), capped by ``max_step``. The two-halves result is kept. ``tolerance = 0`` gives fixed sub-steps of at most
-``max_step`` (used for step-refinement studies).
+``max_step`` (used for step-refinement studies and the identification); a sub-step whose stage
+solve fails is taken as two halves, up to ``MAX_SPLITS`` times.
 
 Inputs within a communication step [t, t + h] (``input_mode``): the stroke the damper sees is a
 cubic Hermite curve (stroke and velocity consistent, the stroke continuous across communication
@@ -62,6 +63,8 @@ INPUT_INTERPOLATION_DESCRIPTION = (
     "step, for a runner that sets them ahead (tuner.identification.runner); with simulate_fmu it lags one step.")
 #: Smallest internal step [s] before the integrator gives up.
 MIN_STEP = 1e-12
+#: Fixed steps (tolerance 0): how many times a sub-step whose stage solve fails is halved.
+MAX_SPLITS = 8
 
 
 def velocity_extrapolation(samples) -> tuple[float, float, float]:
@@ -199,15 +202,26 @@ class Simulator:
 
         y = self.y
         xs, vs = xh, vh
+        def split(y, ps, tau, H, depth):
+            """A fixed sub-step; one whose stage solve fails is taken as two halves (recursively)."""
+            try:
+                return sdirk(y, ps, tau, H)
+            except ConvergenceError:
+                if depth >= MAX_SPLITS:
+                    raise
+                ym, pm, _, _ = split(y, ps, tau, 0.5 * H, depth + 1)
+                return split(ym, pm, tau + 0.5 * H, 0.5 * H, depth + 1)
+
         if self.tolerance == 0.0:
             n = max(1, math.ceil(h / self.max_step - 1e-9))
             H = h / n
             for k in range(n):
-                y, pstate, xs, vs = sdirk(y, pstate, k * H, H)
+                y, pstate, xs, vs = split(y, pstate, k * H, H, 0)
         else:
             tol = self.tolerance * model.force_scale()
             tau = 0.0
             H = min(self.h_next, self.max_step)
+            failure = None
             while True:
                 proposed = H
                 last = tau + H >= h * (1.0 - 1e-12)
@@ -220,6 +234,8 @@ class Simulator:
                     err = model.error_norm(yf, y2)
                 except ConvergenceError as exc:  # a stage solve failed: retry with a smaller step
                     err, failure = math.inf, exc
+                else:
+                    failure = None
                 fac = 4.0 if err == 0.0 else min(4.0, max(0.2, 0.9 * (tol / err) ** (1.0 / 3.0)))
                 if err <= tol:
                     y, pstate, xs, vs = y2, p2, x2, v2
@@ -231,7 +247,8 @@ class Simulator:
                 else:
                     H *= fac
                     if H < MIN_STEP:
-                        why = f"last: {failure}" if err == math.inf else f"error {err:.3g} N, tolerance {tol:.3g} N"
+                        why = (f"last: {failure}" if failure is not None and err == math.inf else
+                               f"error {err:.3g} N, tolerance {tol:.3g} N")
                         raise ConvergenceError(f"internal step fell below {MIN_STEP:g} s at t = "
                                                f"{self.time + tau:.9g} s ({why})")
         self.y = y

@@ -43,7 +43,7 @@ def parameter_header(start_values: dict[str, dict[str, float]] | None = None) ->
     start_values = start_values or {}
     lines = ["/* Generated from damper_fmu/parameters.py by damper_fmu/native.py: do not edit. */",
              "#ifndef DAMPER_PARAMS_H", "#define DAMPER_PARAMS_H",
-             "typedef struct { const char *name; const char *unit; double start, low, high; int check, fixed; }"
+             "typedef struct { const char *name; const char *unit; double start, low, high; int check, fixed, effect; }"
              " DkParamSpec;",
              "#define DK_CHECK_NONE 0", "#define DK_CHECK_POSITIVE 1", "#define DK_CHECK_RANGE 2"]
     for kind, params in MODEL_PARAMETERS.items():
@@ -53,7 +53,8 @@ def parameter_header(start_values: dict[str, dict[str, float]] | None = None) ->
         lines.append(f"static const DkParamSpec DK_PARAMS_{tag}[{len(params)}] = {{")
         for p in params:
             lines.append(f'    {{"{p.name}", "{p.unit}", {float(sv.get(p.name, p.default))!r}, {p.low!r}, '
-                         f'{p.high!r}, {_CHECK[check_rule(p)]}, {int(not (p.tunable or p.effect))}}},')
+                         f'{p.high!r}, {_CHECK[check_rule(p)]}, {int(not (p.tunable or p.effect))}, '
+                         f'{int(p.effect is not None)}}},')
         lines.append("};")
     lines.append("#endif")
     return "\n".join(lines).replace("inf,", "INFINITY,") + "\n"

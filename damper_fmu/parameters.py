@@ -12,7 +12,7 @@ both tables pass through F(0) = 0, so the zero abscissa carries no parameter. Th
 ``fixed`` parameters (set before a run, not identified): the paper chooses them per damper.
 The reference preset is the paper's Table 2; the bounds are the paper's section 2.3 values.
 
-Two-chamber model (``models.TwoChamberModel``, a twin-tube form): 37 tunable parameters
+Two-chamber model (``models.TwoChamberModel``, a twin-tube form): 38 tunable parameters
     k_M [N/m], c_M [N s/m] mounts, k_R, k_C [N/m] chamber stiffnesses, area_ratio [1],
     L_R, L_C [m] chamber lengths, air [1], f_res [N], k_gas [N/m],
     Fc_01..Fc_28 [N]  ordinates of the damping table at Fc_v01..Fc_v28 [m/s] (Table 2's abscissae

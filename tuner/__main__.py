@@ -1,7 +1,7 @@
 """Command line of the damper tuner.
 
-    python -m tuner                      identify lumped + Maxwell models on the bundled dataset,
-                                         validate, report (results/default[-N])
+    python -m tuner                      identify the lumped, Maxwell and two-chamber models on the
+                                         bundled dataset, validate, diagnose, report (results/default[-N])
     python -m tuner fit ...              the same on your own data (see --help)
     python -m tuner generate --out DIR   virtual test campaign -> a six-test dataset
     python -m tuner diagnose ...         what the fitted model gets wrong and why (see --help)
@@ -312,7 +312,7 @@ def _check_engine(args) -> None:
 
 
 def cmd_fit(args) -> int:
-    from damper_fmu.parameters import MODEL_KINDS
+    from damper_fmu.parameters import EFFECT_MODELS, MODEL_KINDS
 
     _check_engine(args)
 
@@ -330,7 +330,7 @@ def cmd_fit(args) -> int:
     weights = {f"fit {m}": {"lumped": 60.0, "maxwell": 8.0, "maxwell_table": 30.0, "twochamber": 60.0}[m] * budget
                for m in models}
     weights.update({"validate and export": 12.0, "report": 8.0})
-    if not args.no_diagnose and any(m in ("lumped", "twochamber") for m in models):
+    if not args.no_diagnose and any(m in EFFECT_MODELS for m in models):
         weights["diagnosis"] = 70.0
     _start_job(args, weights)
     try:

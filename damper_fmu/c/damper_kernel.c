@@ -10,6 +10,7 @@
 
 #define MAX_NEWTON 12
 #define MIN_STEP 1e-12
+#define MAX_SPLITS 8
 
 static double GAMMA_, C21_;
 
@@ -141,8 +142,8 @@ int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg, size_
             return DK_ERROR;
         }
         if (sp[i].check == DK_CHECK_RANGE && !(sp[i].low <= v && v <= sp[i].high)) {
-            snprintf(msg, msglen, "effect parameter %s = %g %s outside [%g, %g]", sp[i].name, v, sp[i].unit,
-                     sp[i].low, sp[i].high);
+            snprintf(msg, msglen, "%sparameter %s = %g %s outside [%g, %g]", sp[i].effect ? "effect " : "",
+                     sp[i].name, v, sp[i].unit, sp[i].low, sp[i].high);
             return DK_ERROR;
         }
         if (sp[i].check == DK_CHECK_POSITIVE && !(v > 0.0)) {
@@ -797,6 +798,23 @@ static int sdirk(DkSim *s, const Traj *tr, const double *y, double *yout, double
     return DK_OK;
 }
 
+/* a fixed sub-step; one whose stage solve fails is taken as two halves, recursively (integrator.py: split) */
+static int sdirk_split(DkSim *s, const Traj *tr, const double *y, double *yout, double *x_eff, int *engaged,
+                       double tau, double H, double *xs, double *vs, int depth) {
+    double xe = *x_eff, ym[DK_NSTATE];
+    int en = *engaged;
+    if (sdirk(s, tr, y, yout, &xe, &en, tau, H, xs, vs) == DK_OK) {
+        *x_eff = xe; *engaged = en;
+        return DK_OK;
+    }
+    if (depth >= MAX_SPLITS) return DK_ERROR;
+    xe = *x_eff; en = *engaged;
+    if (sdirk_split(s, tr, y, ym, &xe, &en, tau, 0.5 * H, xs, vs, depth + 1)) return DK_ERROR;
+    if (sdirk_split(s, tr, ym, yout, &xe, &en, tau + 0.5 * H, 0.5 * H, xs, vs, depth + 1)) return DK_ERROR;
+    *x_eff = xe; *engaged = en;
+    return DK_OK;
+}
+
 int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
     DkModel *m = &s->model;
     int ns = n_state(m), i, fx = m->effects_active;
@@ -837,7 +855,7 @@ int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
         H = h / n;
         for (k = 0; k < n; k++) {
             double yn[DK_NSTATE];
-            if (sdirk(s, &tr, y, yn, &x_eff, &engaged, k * H, H, &xs, &vs)) return DK_ERROR;
+            if (sdirk_split(s, &tr, y, yn, &x_eff, &engaged, k * H, H, &xs, &vs, 0)) return DK_ERROR;
             memcpy(y, yn, sizeof y);
         }
     } else {

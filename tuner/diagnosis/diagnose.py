@@ -163,7 +163,9 @@ class DiagnosisSettings:
 def _stroke_noise_force(kind: str, params: dict, tests: list[RigTest], signals: list, settings) -> float:
     """Force [N rms, fit band] that the stroke channel's noise makes in the simulation: the model
     driven by the measured stroke plus white noise at the stroke's own noise level (``noise_std`` of
-    the stroke, scaled to the fit band), minus the same without it; pooled over the tests, seed 0."""
+    the stroke, scaled to the fit band), minus the same without it; pooled over the tests, seed 0.
+    The velocity input is left as measured: the differentiator's band (20 Hz and up) keeps the
+    stroke noise's share in it small, and the series stiffness acts on the stroke."""
     import dataclasses
 
     from tuner.identification.fit import validation_run
@@ -175,7 +177,7 @@ def _stroke_noise_force(kind: str, params: dict, tests: list[RigTest], signals: 
         noisy = dataclasses.replace(s, stroke=s.stroke + rng.normal(0.0, sigma, s.stroke.size))
         d = (validation_run(kind, params, noisy, settings.engine)[0] - validation_run(kind, params, s, settings.engine)[0])
         se, n = se + float(np.sum(d[s.mask] ** 2)), n + int(s.mask.sum())
-    return math.sqrt(se / n)
+    return math.sqrt(se / n) if n else 0.0
 
 
 def _pooled_mse(kind: str, params: dict, signals: list, engine: str) -> float:

@@ -232,7 +232,7 @@ def _worker_residuals(params):
 class Engine:
     """Evaluates candidates of one model on the identification tests.
 
-    model: 'lumped' | 'maxwell' | 'maxwell_table'; engine: 'fmu' | 'inprocess'; workers: number
+    model: a kind of damper_fmu.parameters.MODEL_KINDS; engine: 'fmu' | 'inprocess'; workers: number
     of worker processes (0: evaluate in this process); fmu_path: the model's FMU (engine 'fmu').
     """
 

@@ -36,7 +36,7 @@ _K_LOW, _K_HIGH = 0.2, 3.0
 
 
 class Parametrization:
-    """Scaled design vector <-> parameters of ``model`` ('lumped', 'maxwell', 'maxwell_table').
+    """Scaled design vector <-> parameters of ``model`` (a kind of ``damper_fmu.parameters.MODEL_KINDS``).
 
     fixed: parameter values kept constant (abscissae and anything not identified), SI units.
     """
