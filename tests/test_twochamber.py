@@ -128,7 +128,7 @@ def test_tuner_fits_a_two_chamber_damper_unlike_the_preset_to_the_noise_floor(tm
     from tuner.identification.fit import FitSettings, fit
 
     truth = unlike_the_preset()
-    path = write_model_dataset(tmp_path / "data", "twochamber", truth, seed=3, durations=(8.0, 8.0, 5.0),
+    path = write_model_dataset(tmp_path / "data", "twochamber", truth, seed=3, durations=(6.0, 6.0, 4.0),
                                roles=("identification", "identification", "validation"), noise_n=20.0)
     tests = load_dataset(path)
     (tmp_path / "out").mkdir()
