@@ -375,15 +375,17 @@ def _fit_job(args, models) -> Path:
 
 
 def _fitted_base(folder: Path) -> tuple:
-    """(base parameters, kind, how it was chosen) for a diagnosis after the fit in ``folder``."""
+    """(base parameters, kind, how it was chosen, the other fitted bases) for a diagnosis after the fit
+    in ``folder``."""
     from tuner.diagnosis.diagnose import choose_base
 
-    kind, values, choice = choose_base(json.loads((folder / "parameters.json").read_text()),
-                                       json.loads((folder / "metrics.json").read_text()))
-    return values, kind, choice
+    kind, values, choice, others = choose_base(json.loads((folder / "parameters.json").read_text()),
+                                               json.loads((folder / "metrics.json").read_text()))
+    return values, kind, choice, others
 
 
-def _run_diagnosis(ident, valid, out, args, base_params=None, base_model=None, base_choice=None) -> dict:
+def _run_diagnosis(ident, valid, out, args, base_params=None, base_model=None, base_choice=None,
+                   other_bases=None) -> dict:
     from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
 
     settings = DiagnosisSettings(fit_rate_hz=args.fit_rate, warmup_s=args.warmup, workers=args.workers,
@@ -397,7 +399,7 @@ def _run_diagnosis(ident, valid, out, args, base_params=None, base_model=None, b
     stage(_OUT, "diagnosis")
     _log(f"\ndiagnosis: refitting the {base_model or 'base'} model extended by each candidate effect ...")
     result = diagnose(ident, valid, out, settings, base_params=base_params, base_model=base_model,
-                      base_choice=base_choice, log=_OUT or _log)
+                      base_choice=base_choice, other_bases=other_bases, log=_OUT or _log)
     from tuner.results.report import make_diagnosis_report, make_report
 
     stage(_OUT, "report")
@@ -417,13 +419,13 @@ def cmd_diagnose(args) -> int:
     ident, valid, name = _load(args)
     if not valid:
         raise ValueError("the diagnosis needs validation tests: its decision is the held-out gain")
-    base, base_kind, base_choice = None, None, None
+    base, base_kind, base_choice, others = None, None, None, None
     if args.from_fit:
         pj = args.from_fit / "parameters.json"
         if not pj.exists() or not (args.from_fit / "metrics.json").exists():
             raise ValueError(f"--from {args.from_fit}: no parameters.json and metrics.json (not a fit output folder)")
         try:
-            base, base_kind, base_choice = _fitted_base(args.from_fit)
+            base, base_kind, base_choice, others = _fitted_base(args.from_fit)
         except ValueError as err:
             raise ValueError(f"--from {args.from_fit}: {err}") from None
     out = args.out or _free_folder(DEFAULT_RESULTS / f"{name}-diagnosis")
@@ -439,7 +441,7 @@ def cmd_diagnose(args) -> int:
     t0 = time.perf_counter()
     _start_job(args, {"diagnosis": 70.0 if base is not None else 130.0, "report": 5.0})
     try:
-        _run_diagnosis(ident, valid, out, args, base, base_kind, base_choice)  # it states the verdict once
+        _run_diagnosis(ident, valid, out, args, base, base_kind, base_choice, others)  # it states the verdict once
     finally:
         _end_job()
     _tidy_checkpoints(out, args.keep_checkpoints)

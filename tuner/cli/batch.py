@@ -451,13 +451,14 @@ def run_row(task: dict) -> dict:
                 raise DataError(f"{task['where']}: diagnose needs validation files (its decision is the held-out "
                                     f"gain); fill 'validation' or set diagnose = false")
             try:
-                kind, base, choice = choose_base(json.loads((folder / "parameters.json").read_text()),
-                                                 json.loads((folder / "metrics.json").read_text()))
+                kind, base, choice, others = choose_base(json.loads((folder / "parameters.json").read_text()),
+                                                         json.loads((folder / "metrics.json").read_text()))
             except ValueError as err:
                 raise ValueError(f"{task['where']}: {err} in 'models'") from None
             ds = DiagnosisSettings(fit_rate_hz=settings.fit_rate_hz, warmup_s=settings.warmup_s,
                                    workers=task["workers"], engine=settings.engine, seed=settings.seed)
-            diagnose(ident, valid, folder, ds, base_params=base, base_model=kind, base_choice=choice, log=log)
+            diagnose(ident, valid, folder, ds, base_params=base, base_model=kind, base_choice=choice,
+                     other_bases=others, log=log)
             from tuner.results.report import make_report
 
             make_report(folder)

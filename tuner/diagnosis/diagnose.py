@@ -187,19 +187,20 @@ def _pooled_mse(kind: str, params: dict, signals: list, engine: str) -> float:
     return pooled_mse([validation_run(kind, params, s, engine)[1] for s in signals])
 
 
-def choose_base(parameters: dict, metrics: dict) -> tuple[str, dict, dict]:
+def choose_base(parameters: dict, metrics: dict) -> tuple[str, dict, dict, dict]:
     """The base form for a diagnosis after a fit: among the fitted models that carry the effect
     catalogue (BASE_MODELS), the one with the lowest held-out MSE pooled over the validation tests
     (``metrics.json`` of ``tuner.identification.fit.fit``). Returns (kind, its parameter values,
-    the comparison). ValueError when no such model was fitted."""
+    the comparison, {kind: values} of the other fitted base forms, the diagnosis's fallbacks). ValueError when no such model was fitted."""
     kinds = [k for k in BASE_MODELS if k in parameters]
     if not kinds:
         raise ValueError(f"the diagnosis needs one of {', '.join(BASE_MODELS)} among the fitted models")
     mse = {k: pooled_mse([t["models"][k] for t in metrics["tests"].values() if t["role"] == "validation"])
            for k in kinds}
     kind = min(kinds, key=lambda k: mse[k])
+    others = {k: parameters[k]["values"] for k in sorted(kinds, key=lambda k: mse[k]) if k != kind}
     return kind, parameters[kind]["values"], {"chosen": kind, "by": "held-out MSE of the fitted models "
-                                              "(Table 3 definition)", "validation_mse": mse}
+                                              "(Table 3 definition)", "validation_mse": mse}, others
 
 
 def _split_mse(residual: np.ndarray | None, lengths: list[int]) -> list[tuple[float, float]]:
@@ -435,14 +436,19 @@ def decide(ranking: list[dict]) -> tuple[str, dict, list[dict]]:
 
 def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path,
              settings: DiagnosisSettings | None = None, *, base_params: dict | None = None,
-             base_model: str | None = None, base_choice: dict | None = None, log=print) -> dict:
+             base_model: str | None = None, base_choice: dict | None = None,
+             other_bases: dict | None = None, log=print) -> dict:
     """Run the diagnosis and write ``diagnosis.json`` (and figures, extended FMU) into ``out``.
 
     base_params: the values of an earlier fit of ``base_model`` (default 'lumped'); without them the
     base is identified here (``settings.base_model``: 'auto' identifies every one of BASE_MODELS and
-    keeps the one with the lowest held-out MSE); base_choice: how the caller chose it (reported)."""
-    from tuner.identification.fit import (FitSettings, data_digest, identify, initial_guess, model_abscissae,
-                                          table_abscissae, to_signals, validation_run)
+    keeps the one with the lowest held-out MSE); base_choice: how the caller chose it (reported);
+    other_bases: {kind: values} of the other fitted base forms (``choose_base``).
+
+    The base is chosen before any effect is added; when the diagnosis on it leaves a residual above
+    the floor (a large effect can make both bare bases fit badly, and then the wrong form may win),
+    it is repeated on the other base forms and the final model with the lowest held-out MSE is kept."""
+    from tuner.identification.fit import FitSettings, data_digest, identify, model_abscissae, table_abscissae, to_signals
 
     settings = settings or DiagnosisSettings()
     if not identification or not validation:
@@ -459,6 +465,18 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     axes = table_abscissae(sig_id, peak, damping=settings.damping_abscissae_m_s,
                            elastic=settings.elastic_abscissae_m)
 
+    # measurement noise of the force [N] within the fit band, from the spectrum of the measured force
+    # (tuner.metrics.noise_std; broadband signal such as the harmonics of a characteristic's kinks
+    # biases it high, the conservative side); white noise keeps the share fit_rate / sample_rate of
+    # its power after the anti-aliased resampling to the fit rate. The base model's residual is no
+    # better a source: its model-form error is broadband at the velocity reversals (measured: 10x the
+    # noise on lumped-damper data). An effect whose force is below the noise is not resolved.
+    noise = float(np.median([noise_std(t.force, t.sample_rate) * math.sqrt(min(1.0, settings.fit_rate_hz / t.sample_rate))
+                             for t in identification]))
+    log(f"diagnosis: force measurement noise about {noise:.1f} N rms in the {settings.fit_rate_hz / 2:g} Hz fit band "
+        f"(from the spectrum of the identification tests)")
+    data = _Data(identification, prep_id, prep_val, sig_id, sig_val, peak, stroke_range, noise)
+
     def parametrization(kind: str, given: dict | None) -> Parametrization:
         fixed = model_abscissae(kind, axes)
         if given is not None:  # the fit's own tables
@@ -467,7 +485,9 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
 
     if base_params is not None:
         kind = base_model or "lumped"
-        par = parametrization(kind, base_params)
+        bases = {kind: (parametrization(kind, base_params), base_params)}
+        bases.update({k: (parametrization(k, v), v) for k, v in (other_bases or {}).items()
+                      if k != kind and k in EFFECT_MODELS})
     else:
         kinds = BASE_MODELS if settings.base_model == "auto" else (settings.base_model,)
         unknown = [k for k in kinds if k not in EFFECT_MODELS]
@@ -484,12 +504,73 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
                                  data_digest(identification), log)
             fitted[kind] = (par_k, values, _pooled_mse(kind, values, sig_val, settings.engine))
         kind = min(fitted, key=lambda k: fitted[k][2])
-        par, base_params = fitted[kind][:2]
+        bases = {k: fitted[k][:2] for k in sorted(fitted, key=lambda k: fitted[k][2])}
         base_choice = {"chosen": kind, "by": "held-out MSE of the identified base models (Table 3 definition)",
                        "validation_mse": {k: v[2] for k, v in fitted.items()}}
         if len(fitted) > 1:
             log("diagnosis: base form " + kind + " (held-out MSE " + ", ".join(
                 f"{k} {math.sqrt(v[2]):.1f} N rms" for k, v in fitted.items()) + ")")
+
+    runs = {kind: _diagnose_on(kind, *bases[kind], data, settings, out, "figures", log)}
+    for other in [k for k in bases if k != kind]:
+        first = runs[kind]
+        if first["unexplained"] is None:
+            break
+        log(f"diagnosis: the {kind} base leaves {first['unexplained']['ratio']:.1f} x the residual floor: "
+            f"repeated on the {other} base (the base is chosen again by the final models' held-out MSE)")
+        runs[other] = _diagnose_on(other, *bases[other], data, settings, out, f"figures/base_{other}", log)
+    if len(runs) > 1:
+        final = {k: r["final_validation_mse"] for k, r in runs.items()}
+        first, kind = kind, min(final, key=final.get)
+        base_choice = {**(base_choice or {}), "chosen": kind, "first_choice": first,
+                       "after_diagnosis": {k: {"causes": r["causes"], "validation_mse": final[k]}
+                                           for k, r in runs.items()},
+                       "by": "held-out MSE of the final models (the first choice left a residual above the floor)"}
+        log("diagnosis: final base form " + kind + " (held-out MSE of the final models " + ", ".join(
+            f"{k} {math.sqrt(v):.1f} N rms" for k, v in final.items()) + ")")
+    run = runs[kind]
+    result = {k: v for k, v in run.items() if k not in ("after_params", "final_validation_mse")}
+    result["settings"] = {**{k: v for k, v in settings.__dict__.items() if k != "extra"},
+                          "penalty_per_parameter": PENALTY_PER_PARAMETER, "accept_score": ACCEPT_SCORE,
+                          "unexplained_ratio": UNEXPLAINED_RATIO, "min_blocks": MIN_BLOCKS,
+                          "elapsed_s": time.perf_counter() - t_start}
+    result["base_choice"] = base_choice
+    (out / "diagnosis.json").write_text(json.dumps(result, indent=2, default=_json_default))
+    if run["causes"]:
+        from build_fmu import SLAVES, build
+
+        path = build(kind, out / "fmu", start_values=run["after_params"],
+                     filename=f"{SLAVES[kind]}_{'_'.join(run['causes'])}_tuned.fmu")
+        log(f"extended model exported: {path}")
+    log(result["verdict"])
+    return result
+
+
+@dataclass
+class _Data:
+    """The prepared tests of one diagnosis (independent of the base form): the rig tests, their
+    preprocessed forms and fit signals, peak force [N], stroke range [m], force noise [N rms]."""
+
+    identification: list
+    prep_id: list
+    prep_val: list
+    sig_id: list
+    sig_val: list
+    peak: float
+    stroke_range: float
+    noise: float
+
+
+def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: _Data, settings: DiagnosisSettings,
+                 out: Path, figures_sub: str, log) -> dict:
+    """The diagnosis on one base form (steps 2-5 of the module docstring; figures into ``out /
+    figures_sub``): the result fields of ``diagnosis.json`` for it, plus ``after_params`` (the final model's values) and
+    ``final_validation_mse`` [N^2] (pooled, Table 3 definition)."""
+    from tuner.identification.fit import initial_guess, validation_run
+
+    identification, prep_id, prep_val = data.identification, data.prep_id, data.prep_val
+    sig_id, sig_val, peak, stroke_range, noise = data.sig_id, data.sig_val, data.peak, data.stroke_range, data.noise
+
     engine_path = None
     if settings.engine == "fmu":
         from build_fmu import ensure_fmu
@@ -501,16 +582,6 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     for p in EFFECT_PARAMETERS:  # the base model has every effect off
         base[p.name] = guess[p.name] = p.default
 
-    # measurement noise of the force [N] within the fit band, from the spectrum of the measured force
-    # (tuner.metrics.noise_std; broadband signal such as the harmonics of a characteristic's kinks
-    # biases it high, the conservative side); white noise keeps the share fit_rate / sample_rate of
-    # its power after the anti-aliased resampling to the fit rate. The base model's residual is no
-    # better a source: its model-form error is broadband at the velocity reversals (measured: 10x the
-    # noise on lumped-damper data). An effect whose force is below the noise is not resolved.
-    noise = float(np.median([noise_std(t.force, t.sample_rate) * math.sqrt(min(1.0, settings.fit_rate_hz / t.sample_rate))
-                             for t in identification]))
-    log(f"diagnosis: force measurement noise about {noise:.1f} N rms in the {settings.fit_rate_hz / 2:g} Hz fit band "
-        f"(from the spectrum of the identification tests)")
     # the stroke channel's noise reaches the simulated force through the model's series stiffness: no
     # model of the damper can remove it from the residual, so it belongs to the floor of "explained"
     stroke_noise_n = _stroke_noise_force(kind, base, identification, sig_id, settings)
@@ -522,7 +593,7 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
                        validation_run(kind, base, s, settings.engine)[0], s.mask, s.temperature)
           for p, s in zip([*prep_id, *prep_val], [*sig_id, *sig_val])]
     evidence = residual_evidence(tr, noise_n=noise)
-    figures = [str(Path(f).relative_to(out)) for f in residual_figures(tr, out / "figures")]
+    figures = [str(Path(f).relative_to(out)) for f in residual_figures(tr, out / figures_sub)]
     scr = evidence["joint_screen"]
     log("diagnosis: joint screen of the residual on all catalogue signatures: "
         + (" + ".join(f"{e} ({scr['terms'][e]['contribution_n']:.3g} N)" for e in scr["kept"]) or "nothing")
@@ -682,10 +753,11 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     # reported before/after figures: the validation definition of Table 3 (tuner.identification.fit.validation_run:
     # the FMU at its own steps), so that "before" is the Table 3 figure of the same base model
     after_params = refits[key][0].to_params(refits[key][1]) if causes else base
-    validation = {}
+    validation, final_metrics = {}, []
     for s in sig_val:
         mb = validation_run(kind, base, s, settings.engine)[1]
         ma = validation_run(kind, after_params, s, settings.engine)[1] if causes else mb
+        final_metrics.append(ma)
         validation[s.name] = {"mse_before": mb["mse"], "ame_before": mb["ame"], "mse_after": ma["mse"],
                               "ame_after": ma["ame"], "mse_change_pct": 100 * (ma["mse"] / mb["mse"] - 1)}
     effect_parameters = {}
@@ -696,27 +768,13 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
                                     "plausible_range": [lo, hi], "plausible": bool(lo <= abs(v) <= hi)}
 
     verdict = _verdict(causes, best, none_row, unresolved, unexplained, noise)
-    result = {"cause": cause, "causes": causes, "verdict": verdict, "selection": selection,
-              "unexplained": unexplained, "ranking": ranking, "effect_parameters": effect_parameters,
-              "validation": validation, "evidence": evidence, "figures": figures,
-              "note": " ".join(NOTES[c] for c in causes if c in NOTES), "noise_std_n": noise,
-              "stroke_noise_force_n": stroke_noise_n, "residual_floor_n": floor,
-              "settings": {**{k: v for k, v in settings.__dict__.items() if k != "extra"},
-                           "penalty_per_parameter": PENALTY_PER_PARAMETER, "accept_score": ACCEPT_SCORE,
-                           "unexplained_ratio": UNEXPLAINED_RATIO, "min_blocks": MIN_BLOCKS,
-                           "elapsed_s": time.perf_counter() - t_start},
-              "base_model": kind, "base_choice": base_choice,
-              "base_parameters": {k: base[k] for k in par.names}}
-    (out / "diagnosis.json").write_text(json.dumps(result, indent=2, default=_json_default))
-    if causes:
-        from build_fmu import SLAVES, build
-
-        ext, z, _ = refits[key]
-        path = build(kind, out / "fmu", start_values=ext.to_params(z),
-                     filename=f"{SLAVES[kind]}_{'_'.join(causes)}_tuned.fmu")
-        log(f"extended model exported: {path}")
-    log(verdict)
-    return result
+    return {"cause": cause, "causes": causes, "verdict": verdict, "selection": selection,
+            "unexplained": unexplained, "ranking": ranking, "effect_parameters": effect_parameters,
+            "validation": validation, "evidence": evidence, "figures": figures,
+            "note": " ".join(NOTES[c] for c in causes if c in NOTES), "noise_std_n": noise,
+            "stroke_noise_force_n": stroke_noise_n, "residual_floor_n": floor,
+            "base_model": kind, "base_parameters": {k: base[k] for k in par.names},
+            "after_params": after_params, "final_validation_mse": pooled_mse(final_metrics)}
 
 
 def _interval_text(row: dict) -> str:

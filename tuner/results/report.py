@@ -1029,6 +1029,13 @@ def diagnosis_section_html(out_dir) -> str:
                  + (", chosen by " + e(choice.get("by", "")) + ": " + ", ".join(
                      f"{e(MODEL_LABEL.get(k, k))} {math.sqrt(v):.3g} N rms" for k, v in choice["validation_mse"].items())
                     if choice.get("validation_mse") else "") + ".</p>")
+    if choice.get("after_diagnosis"):  # the first choice left a residual above the floor: both diagnosed
+        base_text += ("<p>The first choice, " + e(MODEL_LABEL.get(choice["first_choice"], choice["first_choice"]))
+                      + ", left a residual above the floor, so the diagnosis was repeated on every base form and "
+                      "the final model with the lowest held-out MSE kept: " + ", ".join(
+                          f"{e(MODEL_LABEL.get(k, k))} with {e(' + '.join(v['causes']) or 'no cause')} "
+                          f"{math.sqrt(v['validation_mse']):.3g} N rms" for k, v in choice["after_diagnosis"].items())
+                      + ".</p>")
     floor_text = (f" The residual floor is {d['residual_floor_n']:.3g} N: the force noise and the "
                   f"{d['stroke_noise_force_n']:.3g} N the stroke channel's noise makes through the model."
                   if d.get("residual_floor_n") else "")
