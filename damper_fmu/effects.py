@@ -6,13 +6,14 @@ extension +, SI units; temperatures in degC.
 
 * ``friction``: F += Ff tanh(v_eff / v_eps), in parallel (seals and guides; v_eff: the stroke
   velocity the damper sees, after the free play). In the two-chamber model the seal friction acts
-  at the piston velocity inside the mounts (``models.TwoChamberModel``), not here
-  (``friction_inside``).
+  at the piston velocity inside the mounts (``models.TwoChamberModel``), not here (``inside``).
 * ``preload``: F += F0 (un-tared reservoir gas force or load-cell offset; F0 < 0 for a gas force
   pushing the rod out).
 * ``free_play``: dead band of total width g in series at the actuator end (backlash operator on
   the stroke): while the actuator crosses the gap the damper sees no motion and the load cell
-  reads no damper force.
+  reads no damper force. In the two-chamber model the dead band is in its mount instead
+  (``models.TwoChamberModel``, ``inside``): the mount carries no force inside the gap, so the
+  chambers unload while the actuator crosses it, as on a real damper.
 * ``thermal_drift``: the damping characteristic is scaled by exp(-beta (T - T_ref)); T is the
   measured oil temperature (input, ``thermal_source = 1``) or follows the thermal balance
   C dT/dt = F v - G (T - T_ref) (``thermal_source = 0``).
@@ -38,12 +39,14 @@ __all__ = ["Effects"]
 class Effects:
     """Effect elements of one simulation run; ``active`` is False when all are off."""
 
-    def __init__(self, params: dict, friction_inside: bool = False):
+    def __init__(self, params: dict, inside: bool = False):
+        """inside: the model carries the seal friction and the free play itself (two-chamber model):
+        the friction force is not added here and the gap is 0 here."""
         p = params
         self.ff, self.v_eps = p.get("friction_force", 0.0), p.get("friction_velocity", 5e-4)
-        self.friction_inside = friction_inside
+        self.inside = inside
         self.f0 = p.get("preload_force", 0.0)
-        self.gap = p.get("free_play", 0.0)
+        self.gap = 0.0 if inside else p.get("free_play", 0.0)
         self.beta = p.get("thermal_beta", 0.0)
         self.heat_c, self.heat_g = p.get("thermal_capacity", 4000.0), p.get("thermal_conductance", 5.0)
         self.t_ref = p.get("thermal_reference", 20.0)
@@ -103,7 +106,7 @@ class Effects:
         [N s/m]: c0 - Fc'(v_eff); temperature_input [degC] or None.
         """
         f = f_model if (self.engaged or not self.gap) else 0.0
-        if self.ff and not self.friction_inside:
+        if self.ff and not self.inside:
             f += self.ff * math.tanh(v_eff / self.v_eps)
         if self.tau and (self.engaged or not self.gap):
             f += self.tau * valve_gain * a1

@@ -41,7 +41,7 @@ import numpy as np
 
 from .effects import Effects
 from .models import ConvergenceError, make_model
-from .parameters import EFFECT_MODELS, FRICTION_INSIDE
+from .parameters import EFFECT_MODELS, EFFECTS_INSIDE
 
 __all__ = ["EXTRAPOLATE", "REPLAY", "GAMMA", "DEFAULT_MAX_STEP", "DEFAULT_TOLERANCE", "INPUT_INTERPOLATION_DESCRIPTION", "Simulator",
            "simulate", "velocity_extrapolation"]
@@ -150,7 +150,7 @@ class Simulator:
         e = self.effects
         if e is not None and e.active:
             e.initialize(x1, self.force)
-            self.force += e.f0 + (e.ff * math.tanh(v1 / e.v_eps) if e.ff and not e.friction_inside else 0.0)
+            self.force += e.f0 + (e.ff * math.tanh(v1 / e.v_eps) if e.ff and not e.inside else 0.0)
         return self.force
 
     def step(self, h: float, x1: float, v1: float, accel: float | None = None) -> float:
@@ -290,7 +290,7 @@ class Simulator:
 
 
 def _effects(model) -> Effects | None:
-    return Effects(model.params, model.kind in FRICTION_INSIDE) if model.kind in EFFECT_MODELS else None
+    return Effects(model.params, model.kind in EFFECTS_INSIDE) if model.kind in EFFECT_MODELS else None
 
 
 def _check_input(x1: float, v1: float) -> None:

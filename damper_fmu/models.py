@@ -376,6 +376,17 @@ _TC_MAX_NEWTON = 60
 _TC_PLAIN = 12
 _TC_MAX_HALVINGS = 40
 _TC_MAX_NESTED = 200
+#: smoothing width [m] of the two-chamber mount's dead band (free play); the gap's edges are kinks
+#: smoothed over this width (the limit gap -> 0 is the mount without play)
+PLAY_SMOOTHING = 1e-5
+
+
+def _sigmoid(z: float) -> float:
+    """1 / (1 + exp(-z)), without overflow; as the C kernel's ``sigmoid``."""
+    if z >= 0.0:
+        return 1.0 / (1.0 + math.exp(-z))
+    ez = math.exp(z)
+    return ez / (1.0 + ez)
 
 
 def _solve(a: list[list[float]], b: list[float]) -> list[float] | None:
@@ -421,6 +432,8 @@ class TwoChamberModel:
         self.LR, self.LC, self.air, self.fres, self.kgas = p["L_R"], p["L_C"], p["air"], p["f_res"], p["k_gas"]
         self.fc = _table(p, "Fc", "v")
         self.ffr, self.v_eps = p["friction_force"], p["friction_velocity"]
+        #: free play [m]: a dead band in the mount spring (effect; 0 = base model), see ``mount``
+        self.gap = p["free_play"]
         #: factor on the valve characteristics (thermal drift effect; 1 = base model)
         self.damping_scale = 1.0
         cchk, r = p["check_damping"], 1.0 - self.a
@@ -449,6 +462,23 @@ class TwoChamberModel:
     def force_scale(self) -> float:
         """Force scale [N] of the integrator's error tolerance: the largest |Fc,O| ordinate."""
         return max(abs(f) for f in self.fc.fs)
+
+    def mount(self, e: float, edot: float) -> tuple[float, float, float]:
+        """Mount force [N] at elongation e [m] and rate edot [m/s] (tension +) with its partials
+        (dF/de [N/m], dF/dedot [N s/m]). Without free play k_M e + c_M edot. With a free play g
+        the spring has a dead band of width g and the damper acts only where the spring is
+        engaged, smoothed over PLAY_SMOOTHING (as the rig's mount): inside the gap the mount
+        carries no force and the chambers unload."""
+        if not self.gap:
+            return self.kM * e + self.cM * edot, self.kM, self.cM
+        h, w = 0.5 * self.gap, PLAY_SMOOTHING
+        z1, z2 = (e - h) / w, (-e - h) / w
+        # dead band: softplus((e - h) / w) - softplus((-e - h) / w), times w
+        d = w * (max(z1, 0.0) + math.log1p(math.exp(-abs(z1))) - max(z2, 0.0) - math.log1p(math.exp(-abs(z2))))
+        s1, s2 = _sigmoid(z1), _sigmoid(z2)
+        chi = s1 + s2
+        dchi = (s1 * (1.0 - s1) - s2 * (1.0 - s2)) / w
+        return self.kM * d + self.cM * chi * edot, self.kM * chi + self.cM * dchi * edot, self.cM * chi
 
     def error_norm(self, ya, yb) -> float:
         """Difference [N] between two states, as the chamber forces they imply."""
@@ -500,18 +530,23 @@ class TwoChamberModel:
         if self.ffr:
             th = math.tanh(w / self.v_eps)
             fr, dfr = self.ffr * th, self.ffr * (1.0 - th * th) / self.v_eps
+        if self.gap:
+            fm, fe, fd = self.mount(x1 - y, v1 - w)
+            r4, dr4 = fR - gC + fr - fm, g * fe + fd + dfr
+        else:
+            r4, dr4 = fR - gC + fr - self.kM * (x1 - y) - self.cM * (v1 - w), self.kM * g + self.cM + dfr
         r = [fR - yb[1] - g * kR * uR,
              gC - yb[2] - g * kC * uC,
              fR - a * gC - (ds * self.fp.intercept[ip] + sp * up),
              gC - (ds * self.ff.intercept[jf] + sf * uf),
-             fR - gC + fr - self.kM * (x1 - y) - self.cM * (v1 - w)]
+             r4]
         if not jacobian:
             return r, None
         jac = [[-g * (kR + g * kRy * uR), g * kR, 0.0, 1.0 - g * kRf * uR, 0.0],
                [-g * (-kC + g * kCy * uC), -g * kC * a, g * kC, 0.0, 1.0 - g * kCg * uC],
                [0.0, -sp, 0.0, 1.0, -a],
                [0.0, 0.0, -sf, 0.0, 1.0],
-               [self.kM * g + self.cM + dfr, 0.0, 0.0, 1.0, -1.0]]
+               [dr4, 0.0, 0.0, 1.0, -1.0]]
         return r, jac
 
     def stage(self, yb, g: float, x1: float, v1: float) -> list[float]:
@@ -554,6 +589,7 @@ class TwoChamberModel:
             q = self._stage_nested(yb, g, x1, v1, w0, rn)
         w, up, uf, fR, gC = q
         return [yb[0] + g * w, fR, gC, yb[3], up, uf, w]
+
 
     def _valves_given_w(self, w: float, p4: list[float], yb, g: float, x1: float, v1: float):
         """The chamber and valve equations (residuals 0-3) solved for (up, uf, fR, gC) at the piston
@@ -608,7 +644,11 @@ class TwoChamberModel:
             if self.ffr:
                 th = math.tanh(w / self.v_eps)
                 fr_slope = self.ffr * (1.0 - th * th) / self.v_eps
-            slope = dfw + fr_slope + self.kM * g + self.cM
+            if self.gap:
+                _, fe, fd = self.mount(x1 - (yb[0] + g * w), v1 - w)
+                slope = dfw + fr_slope + g * fe + fd
+            else:
+                slope = dfw + fr_slope + self.kM * g + self.cM
             if r[4] > 0.0:
                 hi = w
             else:

@@ -41,7 +41,7 @@ __all__ = [
     "MODEL_PARAMETERS",
     "MODEL_KINDS",
     "EFFECT_MODELS",
-    "FRICTION_INSIDE",
+    "EFFECTS_INSIDE",
     "check_rule",
     "defaults",
     "tunable_names",
@@ -255,11 +255,13 @@ TWOCHAMBER_PARAMETERS: tuple[Parameter, ...] = (
     *EFFECT_PARAMETERS,
 )
 
-#: Models that carry the effect elements (damper_fmu.effects), and where the friction acts: the
-#: lumped model adds it at the actuator; the two-chamber model has a piston, and seal friction acts
-#: between rod and cylinder, inside the mounts (research: outside, a 150 N friction was fitted as 26 N).
+#: Models that carry the effect elements (damper_fmu.effects), and where friction and free play act:
+#: the lumped model adds them at the actuator; the two-chamber model has a piston and a mount, and
+#: seal friction acts between rod and cylinder, inside the mounts (research: outside, a 150 N friction
+#: was fitted as 26 N), the free play in the mount (outside, the chambers stayed loaded across the gap:
+#: a twin-tube damper's 0.3 mm play fitted as 0).
 EFFECT_MODELS = ("lumped", "twochamber")
-FRICTION_INSIDE = ("twochamber",)
+EFFECTS_INSIDE = ("twochamber",)
 
 MODEL_PARAMETERS: dict[str, tuple[Parameter, ...]] = {
     "lumped": LUMPED_PARAMETERS,

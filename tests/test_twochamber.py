@@ -187,10 +187,11 @@ def test_a_steep_seal_friction_at_fixed_steps_is_solved_the_same_in_c_and_python
 
 
 @needs_c
-def test_free_play_at_fixed_steps_runs_by_halving_the_failed_sub_steps():
-    """A 0.2 mm free play under a 3 Hz, 10 mm sine at fixed 1 ms and 0.5 ms steps: the stage solve at
-    the gap's engagement fails at 1 ms, the sub-step is retried as halves; C equals Python, and the
-    force approaches the error-controlled one as the step shrinks."""
+def test_free_play_at_fixed_steps_is_accurate_and_converges():
+    """A 0.2 mm free play under a 3 Hz, 10 mm sine at the tuner's fixed 1 ms and at 0.5 ms steps: C
+    equals Python, the force is within 0.2 % of its peak of the error-controlled one at 1 ms (the
+    dead band is smoothed over 10 um, resolved at these speeds; a kinematic play on the stroke was
+    820 N rms off) and closer at 0.5 ms."""
     t = np.arange(0.0, 1.0, 1e-3)
     x, v = 0.01 * np.sin(2 * np.pi * 3 * t), 0.01 * 2 * np.pi * 3 * np.cos(2 * np.pi * 3 * t)
     p = {**defaults("twochamber"), "free_play": 2e-4}
@@ -201,4 +202,32 @@ def test_free_play_at_fixed_steps_runs_by_halving_the_failed_sub_steps():
         py = simulate("twochamber", t, x, v, params=p, tolerance=0.0, max_step=h, backend="python")
         assert np.abs(c - py).max() <= 1e-9 * np.abs(py).max()
         rms.append(np.sqrt(np.mean((c - ref) ** 2)))
-    assert rms[1] < rms[0] / 3.0 and rms[1] < 1e-3 * np.abs(ref).max(), rms
+    assert rms[0] < 2e-3 * np.abs(ref).max() and rms[1] < rms[0], rms
+
+
+@needs_c
+def test_free_play_is_a_dead_band_in_the_mount_the_force_vanishes_for_gap_over_speed_at_each_reversal():
+    """A triangle stroke at 50 mm/s: with a 0.5 mm free play the mount carries no force while the
+    actuator crosses the gap, so after each reversal the force (gas spring off) stays near zero for
+    about gap / speed = 10 ms; without play it crosses zero at once. As the gap tends to zero the model
+    tends to the one without play."""
+    v0, amp, gap = 0.05, 0.01, 5e-4
+    t = np.arange(0.0, 1.6, 1e-4)
+    period = 4 * amp / v0
+    ph = (t / period) % 1.0
+    x = amp * np.where(ph < 0.5, -1 + 4 * ph, 3 - 4 * ph)
+    v = np.where(ph < 0.5, v0, -v0)
+    base = {**defaults("twochamber"), "k_gas": 0.0}
+    f0 = simulate("twochamber", t, x, v, params=base, tolerance=1e-7, max_step=1e-4)
+    fg = simulate("twochamber", t, x, v, params={**base, "free_play": gap}, tolerance=1e-7, max_step=1e-4)
+    peak = np.abs(f0).max()
+    reversals = [k for k in range(1, t.size) if v[k] != v[k - 1] and t[k] > period]
+    assert len(reversals) >= 2
+    for k in reversals:
+        window = slice(k, k + int(0.03 / 1e-4))
+        quiet_gap = np.count_nonzero(np.abs(fg[window]) < 0.01 * peak) * 1e-4
+        quiet_none = np.count_nonzero(np.abs(f0[window]) < 0.01 * peak) * 1e-4
+        assert 0.7 * gap / v0 <= quiet_gap <= 1.2 * gap / v0, (t[k], quiet_gap)
+        assert quiet_none <= 0.1 * gap / v0, (t[k], quiet_none)
+    tiny = simulate("twochamber", t, x, v, params={**base, "free_play": 1e-9}, tolerance=1e-7, max_step=1e-4)
+    assert np.abs(tiny - f0).max() <= 1e-3 * peak

@@ -182,7 +182,11 @@ int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg, size_
             if (m->fc.xs[k] < 0.0) { xs[np_] = -r * m->fc.xs[k]; fs[np_] = -m->fc.fs[k] / r; np_++; }
         if (table_init(&m->vf, xs, fs, np_, "foot valve", msg, msglen)) return DK_ERROR;
         effects_init(m, p + DK_NTC + 1 + 2 * DK_NFC_TC);
-        m->friction_inside = 1;
+        m->inside = 1;
+        m->tc_gap = m->gap;  /* the free play is the mount's dead band (models.py: TwoChamberModel.mount) */
+        m->gap = 0.0;
+        m->effects_active = m->ff != 0.0 || m->f0 != 0.0 || m->beta != 0.0 || m->tau != 0.0 || m->delay != 0.0 ||
+                            m->m_eq != 0.0;
     } else {
         m->ks = p[0];
         if (table_init(&m->fc, p + 1 + DK_NFC, p + 1, DK_NFC, "Fc", msg, msglen)) return DK_ERROR;
@@ -389,6 +393,7 @@ static int maxwell_table_stage(DkModel *m, const double *yb, double g, double x1
 #define TC_PLAIN 12
 #define TC_MAX_HALVINGS 40
 #define TC_MAX_NESTED 200
+#define TC_PLAY_SMOOTHING 1e-5  /* m, models.py: PLAY_SMOOTHING */
 
 /* n x n (n <= 5) Gaussian elimination with partial pivoting; DK_ERROR when singular */
 static int solve_n(double a[5][5], const double *b, double *x, int n) {
@@ -439,10 +444,28 @@ static void tc_stiffness(const DkModel *m, double y, double fR, double gC, doubl
     k[0] = kR; k[1] = kRy; k[2] = kRf; k[3] = kC; k[4] = kCy; k[5] = kCg;
 }
 
+static double sigmoid(double z) {
+    double ez;
+    if (z >= 0.0) return 1.0 / (1.0 + exp(-z));
+    ez = exp(z);
+    return ez / (1.0 + ez);
+}
+
+/* mount force at elongation e, rate edot, with dF/de (*fe) and dF/dedot (*fd): a dead band of width
+   tc_gap in the spring, the damper acting where engaged (models.py: TwoChamberModel.mount) */
+static double tc_mount(const DkModel *m, double e, double edot, double *fe, double *fd) {
+    double h = 0.5 * m->tc_gap, w = TC_PLAY_SMOOTHING, z1 = (e - h) / w, z2 = (-e - h) / w;
+    double d = w * (fmax(z1, 0.0) + log1p(exp(-fabs(z1))) - fmax(z2, 0.0) - log1p(exp(-fabs(z2))));
+    double s1 = sigmoid(z1), s2 = sigmoid(z2), chi = s1 + s2, dchi = (s1 * (1.0 - s1) - s2 * (1.0 - s2)) / w;
+    *fe = m->kM * chi + m->cM * dchi * edot;
+    *fd = m->cM * chi;
+    return m->kM * d + m->cM * chi * edot;
+}
+
 static double tc_residual(const DkModel *m, const double *q, const double *yb, double g, double x1, double v1,
                           double *r, double J[5][5]) {
     double w = q[0], up = q[1], uf = q[2], fR = q[3], gC = q[4], a = m->ar, y = yb[0] + g * w, k[6];
-    double uR, uC, sp, sf, ds = m->damping_scale, fr = 0.0, dfr = 0.0;
+    double uR, uC, sp, sf, ds = m->damping_scale, fr = 0.0, dfr = 0.0, dr4;
     int ip = segment(&m->vp, up), jf = segment(&m->vf, uf);
     tc_stiffness(m, y, fR, gC, k);
     uR = w - up; uC = -w + a * up - uf;
@@ -455,7 +478,14 @@ static double tc_residual(const DkModel *m, const double *q, const double *yb, d
     r[1] = gC - yb[2] - g * k[3] * uC;
     r[2] = fR - a * gC - (ds * m->vp.intercept[ip] + sp * up);
     r[3] = gC - (ds * m->vf.intercept[jf] + sf * uf);
-    r[4] = fR - gC + fr - m->kM * (x1 - y) - m->cM * (v1 - w);
+    if (m->tc_gap != 0.0) {
+        double fe, fd, fm = tc_mount(m, x1 - y, v1 - w, &fe, &fd);
+        r[4] = fR - gC + fr - fm;
+        dr4 = g * fe + fd + dfr;
+    } else {
+        r[4] = fR - gC + fr - m->kM * (x1 - y) - m->cM * (v1 - w);
+        dr4 = m->kM * g + m->cM + dfr;
+    }
     if (J) {
         J[0][0] = -g * (k[0] + g * k[1] * uR); J[0][1] = g * k[0]; J[0][2] = 0.0;
         J[0][3] = 1.0 - g * k[2] * uR; J[0][4] = 0.0;
@@ -463,7 +493,7 @@ static double tc_residual(const DkModel *m, const double *q, const double *yb, d
         J[1][3] = 0.0; J[1][4] = 1.0 - g * k[5] * uC;
         J[2][0] = 0.0; J[2][1] = -sp; J[2][2] = 0.0; J[2][3] = 1.0; J[2][4] = -a;
         J[3][0] = 0.0; J[3][1] = 0.0; J[3][2] = -sf; J[3][3] = 0.0; J[3][4] = 1.0;
-        J[4][0] = m->kM * g + m->cM + dfr; J[4][1] = 0.0; J[4][2] = 0.0; J[4][3] = 1.0; J[4][4] = -1.0;
+        J[4][0] = dr4; J[4][1] = 0.0; J[4][2] = 0.0; J[4][3] = 1.0; J[4][4] = -1.0;
     }
     return fabs(r[0]) + fabs(r[1]) + fabs(r[2]) + fabs(r[3]) + fabs(r[4]);
 }
@@ -534,7 +564,11 @@ static int tc_stage_nested(DkModel *m, const double *yb, double g, double x1, do
             double th = tanh(w / m->v_eps);
             fr_slope = m->ff * (1.0 - th * th) / m->v_eps;
         }
-        slope = dfw + fr_slope + m->kM * g + m->cM;
+        if (m->tc_gap != 0.0) {
+            double fe, fd;
+            tc_mount(m, x1 - (yb[0] + g * w), v1 - w, &fe, &fd);
+            slope = dfw + fr_slope + g * fe + fd;
+        } else slope = dfw + fr_slope + m->kM * g + m->cM;
         if (r[4] > 0.0) hi = w; else lo = w;
         wn = w - r[4] / slope;
         if (!(lo < wn && wn < hi)) {
@@ -663,7 +697,7 @@ static int effects_output(DkSim *s, double f_model, double h, double v_eff, doub
     const DkModel *m = &s->model;
     DkEffectsState *e = &s->e;
     double f = (e->engaged || m->gap == 0.0) ? f_model : 0.0, target, t0, f0, t1, f1;
-    if (m->ff != 0.0 && !m->friction_inside) f += m->ff * tanh(v_eff / m->v_eps);
+    if (m->ff != 0.0 && !m->inside) f += m->ff * tanh(v_eff / m->v_eps);
     if (m->tau != 0.0 && (e->engaged || m->gap == 0.0)) f += m->tau * vg * a1;
     if (m->m_eq != 0.0) f += m->m_eq * a1;
     f += m->f0;
@@ -735,7 +769,7 @@ int dk_sim_initialize(DkSim *s, double x1, double v1, double t0) {
     s->force = model_force(m, s->y, x1, v1);
     if (m->effects_active) {
         effects_initialize(s, x1, s->force);
-        s->force += m->f0 + (m->ff != 0.0 && !m->friction_inside ? m->ff * tanh(v1 / m->v_eps) : 0.0);
+        s->force += m->f0 + (m->ff != 0.0 && !m->inside ? m->ff * tanh(v1 / m->v_eps) : 0.0);
     }
     return DK_OK;
 }

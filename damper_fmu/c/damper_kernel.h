@@ -63,10 +63,11 @@ typedef struct {
        piston- and foot-valve tables; Newton tolerance [N] */
     double kM, cM, kR0, kC0, ar, LR, LC, air, fres, kgas, tc_tol;
     DkTable vp, vf;
-    /* effects (lumped and two-chamber); friction_inside: the two-chamber model's seal friction acts at
-       the piston inside the mounts (its stage), not at the output */
-    double ff, v_eps, f0, gap, beta, heat_c, heat_g, t_ref, tau, delay, m_eq;
-    int effects_active, friction_inside;
+    /* effects (lumped and two-chamber); inside: the two-chamber model's seal friction acts at the
+       piston inside the mounts (its stage), not at the output, and its free play (tc_gap) is a
+       dead band in its mount (gap 0) */
+    double ff, v_eps, f0, gap, beta, heat_c, heat_g, t_ref, tau, delay, m_eq, tc_gap;
+    int effects_active, inside;
 } DkModel;
 
 typedef struct {
