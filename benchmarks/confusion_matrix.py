@@ -68,7 +68,8 @@ def run_case(case: dict) -> dict:
            "causes": res["causes"], "extra_causes": [c for c in res["causes"][1:] if c != truth],
            "unexplained_ratio": (res.get("unexplained") or {}).get("ratio"),
            "score": res["ranking"][0]["score"], "elapsed_s": time.perf_counter() - t0, "seed": case["seed"],
-           "screen": res["evidence"]["joint_screen"]["kept"]}
+           "screen": res["evidence"]["joint_screen"]["kept"], "base": res["base_model"],
+           "first_base": (res.get("base_choice") or {}).get("first_choice", res["base_model"])}
     if truth != "none":
         name, factor = EFFECTS[truth].model_parameter, EFFECTS[truth].model_sign
         ext = next(r for r in res["ranking"] if r["effect"] == truth)
@@ -118,7 +119,9 @@ def main(argv=None) -> int:
                   f"{'+'.join(row['causes']) or row['named']:14s} score {row['score']:+.3f}" +
                   (f"  fitted {row['fitted']:.4g} ({100 * row['relative_error']:+.0f} %), "
                    f"MSE {row['mse_change_pct']:+.1f} %" if truth != "none" else "")
-                  + f"  screen {'+'.join(row['screen']) or '-'}  [{row['elapsed_s']:.0f} s]", flush=True)
+                  + f"  screen {'+'.join(row['screen']) or '-'}  base {row['base']}"
+                  + (f" (first {row['first_base']})" if row["first_base"] != row["base"] else "")
+                  + f"  [{row['elapsed_s']:.0f} s]", flush=True)
     rows = [done[i] for i in range(len(cases))]
     write_atomic(a.out / "confusion.json", json.dumps({"rows": rows}, indent=1))
     labels = ["none", "unexplained", *CANDIDATES]
