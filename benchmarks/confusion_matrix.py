@@ -11,6 +11,12 @@ range with a seeded generator and never passed to the diagnosis), the diagnosis 
 confusion matrix, the detection rate per effect, the false-cause rate on clean data and the
 magnitude error of correct detections. Writes confusion.json.
 
+For a hidden effect the same seed's clean dataset is generated too (the same strokes and sensor
+noise): their difference is the force the effect adds [N rms] on the identification and on the
+validation tests, printed beside the measured noise. The decision is the held-out gain, so a run
+whose effect moves the validation force by less than the noise cannot be named; the detection
+rate is also given without those runs.
+
 The runs are independent and go to the fleet executor of ``tuner.cli.batch`` (one run = one task):
 by default a local process pool of ``os.cpu_count()`` processes, ``--scheduler local:N`` a Dask
 LocalCluster, ``--scheduler tcp://HOST:PORT`` a running Dask cluster (so a cluster can run the
@@ -47,6 +53,17 @@ from tuner.results.fleet_summary import write_atomic  # noqa: E402
 from tuner.diagnosis.diagnose import CANDIDATES, DiagnosisSettings, diagnose  # noqa: E402
 
 
+def effect_force_n(tests, clean, role: str) -> float:
+    """Force [N rms] a hidden effect adds to the measured force: the dataset minus the same seed's
+    clean one (same strokes, same sensor noise), pooled over the tests of ``role``."""
+    se = n = 0.0
+    for a, b in zip(tests, clean):
+        if a.role == role:
+            d = a.force - b.force
+            se, n = se + float(d @ d), n + d.size
+    return (se / n) ** 0.5
+
+
 def run_case(case: dict) -> dict:
     """One blind diagnosis: generate the case's dataset, diagnose it, return the result row."""
     truth, effects = case["truth"], case["effects"]
@@ -58,6 +75,12 @@ def run_case(case: dict) -> dict:
                                 oil_temperatures=CHAMBER_TEMPERATURES_C if case["chamber"] else None,
                                 log=lambda m: None)
         tests = load_dataset(data)
+        effect_force = {}
+        if truth != "none":  # what the hidden effect does to the measured force: the same seed without it
+            clean = load_dataset(generate_dataset(
+                tmp / "clean", seed=case["seed"], effects={}, t_end=case["t_end"], damper=case["damper"],
+                oil_temperatures=CHAMBER_TEMPERATURES_C if case["chamber"] else None, log=lambda m: None))
+            effect_force = {r: effect_force_n(tests, clean, r) for r in ("identification", "validation")}
         res = diagnose([t for t in tests if t.role == "identification"],
                        [t for t in tests if t.role == "validation"], tmp / "out",
                        DiagnosisSettings(engine=fastest_engine(), workers=case["workers"], base_iterations=0),
@@ -69,6 +92,8 @@ def run_case(case: dict) -> dict:
            "unexplained_ratio": (res.get("unexplained") or {}).get("ratio"),
            "score": res["ranking"][0]["score"], "elapsed_s": time.perf_counter() - t0, "seed": case["seed"],
            "screen": res["evidence"]["joint_screen"]["kept"], "base": res["base_model"],
+           "effect_force_id_n": effect_force.get("identification"),
+           "effect_force_val_n": effect_force.get("validation"), "noise_n": res["noise_std_n"],
            "first_base": (res.get("base_choice") or {}).get("first_choice", res["base_model"])}
     if truth != "none":
         name, factor = EFFECTS[truth].model_parameter, EFFECTS[truth].model_sign
@@ -119,6 +144,9 @@ def main(argv=None) -> int:
                   f"{'+'.join(row['causes']) or row['named']:14s} score {row['score']:+.3f}" +
                   (f"  fitted {row['fitted']:.4g} ({100 * row['relative_error']:+.0f} %), "
                    f"MSE {row['mse_change_pct']:+.1f} %" if truth != "none" else "")
+                  + (f"  effect force {row['effect_force_id_n']:.3g} / {row['effect_force_val_n']:.3g} N "
+                     f"(identification / validation; noise {row['noise_n']:.3g} N)"
+                     if row.get("effect_force_val_n") is not None else "")
                   + f"  screen {'+'.join(row['screen']) or '-'}  base {row['base']}"
                   + (f" (first {row['first_base']})" if row["first_base"] != row["base"] else "")
                   + f"  [{row['elapsed_s']:.0f} s]", flush=True)
@@ -143,6 +171,14 @@ def main(argv=None) -> int:
                       "median_magnitude_error": float(np.median(errs)) if errs else None}
         extra = f", median |magnitude error| {100 * np.median(errs):.0f} %" if errs else ""
         label = "clean (no false cause)" if t == "none" else t
+        # runs whose hidden effect moves the held-out force by less than the noise: the decision is the
+        # held-out gain, so no such run can be named
+        weak = [r for r in rows if r["truth"] == t and t != "none" and (r.get("effect_force_val_n") or 0.0) < r["noise_n"]]
+        summary[t]["below_noise_runs"] = len(weak)
+        if weak:
+            n_ok = sum(1 for r in weak if r["named"] == t)
+            extra += (f"; {len(weak)} runs with the effect's held-out force below the noise ({n_ok} named), "
+                      f"{ok - n_ok}/{n - len(weak)} of the others")
         print(f"  {label:24s} {ok}/{n} = {100 * ok / n:.0f} %{extra}")
     # the joint screen (residual on all catalogue signatures at once, before any refit): how often its
     # largest kept term is the hidden effect, and how often it keeps a term on clean data
