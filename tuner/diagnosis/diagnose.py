@@ -6,7 +6,10 @@ Procedure (``diagnose``):
    model and the two-chamber form of a twin-tube damper: a base that cannot represent the damper
    leaves a form error larger than the effects), identified on the identification tests (taken
    from an earlier fit, ``choose_base``, or identified here: seeded Firefly + least-squares polish,
-   as ``tuner.identification.fit``).
+   as ``tuner.identification.fit``). The choice is made before any effect is added; when the
+   diagnosis on it (steps 2-5) leaves a residual above the floor, it is repeated on the other base
+   form and the final model with the lowest held-out MSE is kept (a large effect can make both bare
+   bases fit badly, and then the wrong form may validate better).
 2. Residuals (measured - simulated force) of the base model on every test: evidence numbers and
    figures (``tuner.diagnosis.residuals``): in time, against velocity and stroke, around velocity reversals,
    against frequency, drift over the test and against the temperature channel.
@@ -191,7 +194,8 @@ def choose_base(parameters: dict, metrics: dict) -> tuple[str, dict, dict, dict]
     """The base form for a diagnosis after a fit: among the fitted models that carry the effect
     catalogue (BASE_MODELS), the one with the lowest held-out MSE pooled over the validation tests
     (``metrics.json`` of ``tuner.identification.fit.fit``). Returns (kind, its parameter values,
-    the comparison, {kind: values} of the other fitted base forms, the diagnosis's fallbacks). ValueError when no such model was fitted."""
+    the comparison, {kind: values} of the other fitted base forms: the diagnosis's fallbacks).
+    ValueError when no such model was fitted."""
     kinds = [k for k in BASE_MODELS if k in parameters]
     if not kinds:
         raise ValueError(f"the diagnosis needs one of {', '.join(BASE_MODELS)} among the fitted models")
@@ -564,8 +568,8 @@ class _Data:
 def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: _Data, settings: DiagnosisSettings,
                  out: Path, figures_sub: str, log) -> dict:
     """The diagnosis on one base form (steps 2-5 of the module docstring; figures into ``out /
-    figures_sub``): the result fields of ``diagnosis.json`` for it, plus ``after_params`` (the final model's values) and
-    ``final_validation_mse`` [N^2] (pooled, Table 3 definition)."""
+    figures_sub``): the result fields of ``diagnosis.json`` for it, plus ``after_params`` (the final
+    model's values) and ``final_validation_mse`` [N^2] (pooled, Table 3 definition)."""
     from tuner.identification.fit import initial_guess, validation_run
 
     identification, prep_id, prep_val = data.identification, data.prep_id, data.prep_val
