@@ -119,9 +119,11 @@ def main(argv=None) -> int:
     ap.add_argument("--chamber", action="store_true", help="each manoeuvre at its own oil temperature")
     ap.add_argument("--effects", default=",".join(["none", *CANDIDATES]))
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "confusion")
+    ap.add_argument("--seed-offset", type=int, default=0,
+                    help="shifts every dataset seed and the magnitude draws: new seeds for a rerun (default 0)")
     a = ap.parse_args(argv)
     a.out.mkdir(parents=True, exist_ok=True)
-    rng = np.random.default_rng(20231121)
+    rng = np.random.default_rng(20231121 + a.seed_offset)
     truths = [e.strip() for e in a.effects.split(",")]
     cases = []  # in the order of the sequential benchmark: the same seeds and magnitudes
     for truth in truths:
@@ -130,7 +132,7 @@ def main(argv=None) -> int:
             if truth != "none":
                 spec = EFFECTS[truth]
                 effects[truth] = float(rng.uniform(spec.low, spec.high))
-            cases.append({"truth": truth, "effects": effects, "seed": 1000 + 17 * k + 3 * len(cases),
+            cases.append({"truth": truth, "effects": effects, "seed": 1000 + a.seed_offset + 17 * k + 3 * len(cases),
                           "t_end": a.t_end, "damper": a.damper, "chamber": a.chamber, "workers": a.workers})
     done = {}
     with FleetExecutor(a.scheduler) as ex:
