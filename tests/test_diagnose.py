@@ -5,11 +5,13 @@ on the virtual rig with the effect switched on at a magnitude drawn inside its d
 realistic range by a seeded generator (never passed to the diagnosis); the diagnosis must name
 it, fit its magnitude within 30 % and cut the pooled validation MSE by at least 30 %.
 
-The rig carries the ``lumped`` damper here (its hydraulics are the paper's Table 2 lumped model),
-so the base model has no model-form error and what is tested is the diagnosis itself. On the
-physical twin-tube damper the base model keeps a model-form error of ~3 % of the peak force,
-larger than most realistic effects: there only clean data (no false cause) is asserted
-(benchmarks/confusion_matrix.py measures the rest; see the README).
+Two dampers on the rig: the ``lumped`` damper (its hydraulics are the paper's Table 2 lumped
+model), where the base model has no model-form error and what is tested is the diagnosis itself,
+and the physical twin-tube damper, which no model here generated: the diagnosis must choose the
+two-chamber base form (the lumped model keeps ~3 % of the peak force of form error there) and name
+the effect on it. Friction (twin-tube), clean data (both) and two effects together (lumped) run in
+CI; every other single effect runs with DAMPER_FULL_TESTS=1, and benchmarks/confusion_matrix.py
+measures the rates over many seeds (README).
 Every manoeuvre runs at its own oil temperature (a climatic-chamber campaign, the same design for
 every test, clean data included), so temperature dependence is observable.
 """
@@ -104,6 +106,31 @@ def test_free_play_in_the_twin_tube_damper_is_named_after_the_base_is_chosen_aga
     assert res["base_model"] == "twochamber", res["base_choice"]
     assert res["causes"] == ["free_play"], res["verdict"]
     assert res["effect_parameters"]["free_play"]["value"] == pytest.approx(value, rel=0.2)
+
+
+#: twin-tube single-effect blind tests beyond CI's friction, all seven candidates (3-14 min each; free
+#: play above). Valve lag is not among them: the rig's valve lag acts on its blow-off valves, which
+#: open only in the switch manoeuvre, an identification test; the held-out tests, on which every
+#: verdict rests, see 0.1-0.5 N of it (benchmarks/confusion_matrix.py prints that force), so no
+#: verdict can be earned for it with this campaign.
+TWIN_TUBE_FULL = ("preload", "thermal_drift", "time_delay", "inertia")
+#: relative magnitude tolerance: inertia's force on railway strokes is of the order of the noise on
+#: this damper (10-19 N against 10 N), and its fitted mass scatters by up to 67 % in the benchmark
+TWIN_TUBE_REL = {"inertia": 0.7}
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(os.environ.get("DAMPER_FULL_TESTS") != "1", reason="3-6 min each: DAMPER_FULL_TESTS=1")
+@pytest.mark.parametrize("effect", TWIN_TUBE_FULL)
+def test_an_effect_hidden_in_the_twin_tube_damper_is_named_blind_on_the_two_chamber_base(tmp_path, effect):
+    spec = EFFECTS[effect]
+    seed = zlib.crc32(f"twin-tube {effect}".encode()) % 1000
+    value = float(np.random.default_rng(seed).uniform(spec.low, spec.high))
+    res = run_diagnosis(tmp_path, {effect: value}, seed=seed, damper="twin-tube")
+    assert res["base_model"] == "twochamber", res["base_choice"]
+    assert res["causes"] == [effect], (res["verdict"], [(r["effect"], round(r["score"], 3)) for r in res["ranking"]])
+    fitted = res["effect_parameters"][spec.model_parameter]["value"]
+    assert fitted == pytest.approx(spec.model_sign * value, rel=TWIN_TUBE_REL.get(effect, 0.3))
 
 
 #: the CI suite (10 min on 2 cores) runs the blind detection as friction and inertia hidden together
