@@ -4,7 +4,8 @@ with the date, the machine and its load noted, as the README states them.
     python benchmarks/bench_main_job.py [--tests] [--tests-args "-m 'not slow'"]
 
 Run it in a fresh virtual environment from a clean clone (the README's two commands) so that the
-FMU builds are part of the figure. Prints one block; nothing is asserted.
+FMU builds are part of the figure. Prints one block; nothing is asserted on the times. Exits 1
+when the main job or the suite failed.
 """
 from __future__ import annotations
 
@@ -52,6 +53,7 @@ def main() -> int:
         wall, rc, lb, la, tail = _timed([sys.executable, "-m", "tuner", "fit", "--dataset", str(ROOT / "data" / "default"),
                                          "--out", str(out)], ROOT)
         print(f"main job: {wall:.0f} s, exit {rc}, load average before {lb[0]:.2f}, after {la[0]:.2f}")
+        failed = rc != 0
         if rc:
             print(tail)
     if args.tests:
@@ -59,7 +61,8 @@ def main() -> int:
         summary = [ln for ln in tail.splitlines() if " passed" in ln or " failed" in ln]
         print(f"test suite: {wall / 60:.1f} min, exit {rc}, load average before {lb[0]:.2f}, after {la[0]:.2f}; "
               f"{summary[-1].strip() if summary else ''}")
-    return 0
+        failed = failed or rc != 0
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":
