@@ -108,11 +108,12 @@ def test_free_play_in_the_twin_tube_damper_is_named_after_the_base_is_chosen_aga
     assert res["effect_parameters"]["free_play"]["value"] == pytest.approx(value, rel=0.2)
 
 
-#: twin-tube single-effect blind tests beyond CI's friction, all seven candidates (3-14 min each; free
-#: play above). Valve lag is not among them: the rig's valve lag acts on its blow-off valves, which
-#: open only in the switch manoeuvre, an identification test; the held-out tests, on which every
-#: verdict rests, see 0.1-0.5 N of it (benchmarks/confusion_matrix.py prints that force), so no
-#: verdict can be earned for it with this campaign.
+#: twin-tube single-effect blind tests beyond CI's friction, all seven candidates (2-3 min each, 8.6 min
+#: for the four on 2026-11-24; free play above). Valve lag is not among them: the rig's valve lag acts
+#: on its blow-off valves, which open only in the switch manoeuvre, an identification test; the
+#: held-out tests, on which every verdict rests, see 0.1-3.3 N rms of it against 10 N of noise
+#: (benchmarks/confusion_matrix.py prints that force), so no verdict can be earned for it with this
+#: campaign (README, "What it can and cannot see").
 TWIN_TUBE_FULL = ("preload", "thermal_drift", "time_delay", "inertia")
 #: relative magnitude tolerance: inertia's force on railway strokes is of the order of the noise on
 #: this damper (10-19 N against 10 N), and its fitted mass scatters by up to 67 % in the benchmark
@@ -120,7 +121,7 @@ TWIN_TUBE_REL = {"inertia": 0.7}
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(os.environ.get("DAMPER_FULL_TESTS") != "1", reason="3-6 min each: DAMPER_FULL_TESTS=1")
+@pytest.mark.skipif(os.environ.get("DAMPER_FULL_TESTS") != "1", reason="2-3 min each: DAMPER_FULL_TESTS=1")
 @pytest.mark.parametrize("effect", TWIN_TUBE_FULL)
 def test_an_effect_hidden_in_the_twin_tube_damper_is_named_blind_on_the_two_chamber_base(tmp_path, effect):
     spec = EFFECTS[effect]
@@ -135,7 +136,7 @@ def test_an_effect_hidden_in_the_twin_tube_damper_is_named_blind_on_the_two_cham
 
 #: the CI suite (10 min on 2 cores) runs the blind detection as friction and inertia hidden together
 #: in the lumped damper (below) and friction in the twin-tube damper (above); the single effects on
-#: the lumped damper run with DAMPER_FULL_TESTS=1 (all seven, about 7 min) and in
+#: the lumped damper run with DAMPER_FULL_TESTS=1 (all seven, 5.6 min on 2026-11-24) and in
 #: benchmarks/confusion_matrix.py (5/5 each with five seeds, 2026-11-23); a preload's residual
 #: signature is also checked analytically in tests/test_residuals.py
 FULL = os.environ.get("DAMPER_FULL_TESTS") == "1"
