@@ -530,11 +530,8 @@ class TwoChamberModel:
         if self.ffr:
             th = math.tanh(w / self.v_eps)
             fr, dfr = self.ffr * th, self.ffr * (1.0 - th * th) / self.v_eps
-        if self.gap:
-            fm, fe, fd = self.mount(x1 - y, v1 - w)
-            r4, dr4 = fR - gC + fr - fm, g * fe + fd + dfr
-        else:
-            r4, dr4 = fR - gC + fr - self.kM * (x1 - y) - self.cM * (v1 - w), self.kM * g + self.cM + dfr
+        fm, fe, fd = self.mount(x1 - y, v1 - w)
+        r4, dr4 = fR - gC + fr - fm, g * fe + fd + dfr
         r = [fR - yb[1] - g * kR * uR,
              gC - yb[2] - g * kC * uC,
              fR - a * gC - (ds * self.fp.intercept[ip] + sp * up),
@@ -590,7 +587,6 @@ class TwoChamberModel:
         w, up, uf, fR, gC = q
         return [yb[0] + g * w, fR, gC, yb[3], up, uf, w]
 
-
     def _valves_given_w(self, w: float, p4: list[float], yb, g: float, x1: float, v1: float):
         """The chamber and valve equations (residuals 0-3) solved for (up, uf, fR, gC) at the piston
         velocity w [m/s], from p4; returns (p4, d(fR - gC)/dw [N s/m], |r0..r3| sum) -- the same
@@ -644,11 +640,8 @@ class TwoChamberModel:
             if self.ffr:
                 th = math.tanh(w / self.v_eps)
                 fr_slope = self.ffr * (1.0 - th * th) / self.v_eps
-            if self.gap:
-                _, fe, fd = self.mount(x1 - (yb[0] + g * w), v1 - w)
-                slope = dfw + fr_slope + g * fe + fd
-            else:
-                slope = dfw + fr_slope + self.kM * g + self.cM
+            _, fe, fd = self.mount(x1 - (yb[0] + g * w), v1 - w)
+            slope = dfw + fr_slope + g * fe + fd
             if r[4] > 0.0:
                 hi = w
             else:

@@ -454,9 +454,10 @@ static double sigmoid(double z) {
 /* mount force at elongation e, rate edot, with dF/de (*fe) and dF/dedot (*fd): a dead band of width
    tc_gap in the spring, the damper acting where engaged (models.py: TwoChamberModel.mount) */
 static double tc_mount(const DkModel *m, double e, double edot, double *fe, double *fd) {
-    double h = 0.5 * m->tc_gap, w = TC_PLAY_SMOOTHING, z1 = (e - h) / w, z2 = (-e - h) / w;
-    double d = w * (fmax(z1, 0.0) + log1p(exp(-fabs(z1))) - fmax(z2, 0.0) - log1p(exp(-fabs(z2))));
-    double s1 = sigmoid(z1), s2 = sigmoid(z2), chi = s1 + s2, dchi = (s1 * (1.0 - s1) - s2 * (1.0 - s2)) / w;
+    double h = 0.5 * m->tc_gap, w = TC_PLAY_SMOOTHING, z1 = (e - h) / w, z2 = (-e - h) / w, d, s1, s2, chi, dchi;
+    if (m->tc_gap == 0.0) { *fe = m->kM; *fd = m->cM; return m->kM * e + m->cM * edot; }
+    d = w * (fmax(z1, 0.0) + log1p(exp(-fabs(z1))) - fmax(z2, 0.0) - log1p(exp(-fabs(z2))));
+    s1 = sigmoid(z1); s2 = sigmoid(z2); chi = s1 + s2; dchi = (s1 * (1.0 - s1) - s2 * (1.0 - s2)) / w;
     *fe = m->kM * chi + m->cM * dchi * edot;
     *fd = m->cM * chi;
     return m->kM * d + m->cM * chi * edot;
@@ -465,7 +466,7 @@ static double tc_mount(const DkModel *m, double e, double edot, double *fe, doub
 static double tc_residual(const DkModel *m, const double *q, const double *yb, double g, double x1, double v1,
                           double *r, double J[5][5]) {
     double w = q[0], up = q[1], uf = q[2], fR = q[3], gC = q[4], a = m->ar, y = yb[0] + g * w, k[6];
-    double uR, uC, sp, sf, ds = m->damping_scale, fr = 0.0, dfr = 0.0, dr4;
+    double uR, uC, sp, sf, ds = m->damping_scale, fr = 0.0, dfr = 0.0, fe, fd, fm;
     int ip = segment(&m->vp, up), jf = segment(&m->vf, uf);
     tc_stiffness(m, y, fR, gC, k);
     uR = w - up; uC = -w + a * up - uf;
@@ -478,14 +479,8 @@ static double tc_residual(const DkModel *m, const double *q, const double *yb, d
     r[1] = gC - yb[2] - g * k[3] * uC;
     r[2] = fR - a * gC - (ds * m->vp.intercept[ip] + sp * up);
     r[3] = gC - (ds * m->vf.intercept[jf] + sf * uf);
-    if (m->tc_gap != 0.0) {
-        double fe, fd, fm = tc_mount(m, x1 - y, v1 - w, &fe, &fd);
-        r[4] = fR - gC + fr - fm;
-        dr4 = g * fe + fd + dfr;
-    } else {
-        r[4] = fR - gC + fr - m->kM * (x1 - y) - m->cM * (v1 - w);
-        dr4 = m->kM * g + m->cM + dfr;
-    }
+    fm = tc_mount(m, x1 - y, v1 - w, &fe, &fd);
+    r[4] = fR - gC + fr - fm;
     if (J) {
         J[0][0] = -g * (k[0] + g * k[1] * uR); J[0][1] = g * k[0]; J[0][2] = 0.0;
         J[0][3] = 1.0 - g * k[2] * uR; J[0][4] = 0.0;
@@ -493,7 +488,7 @@ static double tc_residual(const DkModel *m, const double *q, const double *yb, d
         J[1][3] = 0.0; J[1][4] = 1.0 - g * k[5] * uC;
         J[2][0] = 0.0; J[2][1] = -sp; J[2][2] = 0.0; J[2][3] = 1.0; J[2][4] = -a;
         J[3][0] = 0.0; J[3][1] = 0.0; J[3][2] = -sf; J[3][3] = 0.0; J[3][4] = 1.0;
-        J[4][0] = dr4; J[4][1] = 0.0; J[4][2] = 0.0; J[4][3] = 1.0; J[4][4] = -1.0;
+        J[4][0] = g * fe + fd + dfr; J[4][1] = 0.0; J[4][2] = 0.0; J[4][3] = 1.0; J[4][4] = -1.0;
     }
     return fabs(r[0]) + fabs(r[1]) + fabs(r[2]) + fabs(r[3]) + fabs(r[4]);
 }
@@ -564,11 +559,11 @@ static int tc_stage_nested(DkModel *m, const double *yb, double g, double x1, do
             double th = tanh(w / m->v_eps);
             fr_slope = m->ff * (1.0 - th * th) / m->v_eps;
         }
-        if (m->tc_gap != 0.0) {
+        {
             double fe, fd;
             tc_mount(m, x1 - (yb[0] + g * w), v1 - w, &fe, &fd);
             slope = dfw + fr_slope + g * fe + fd;
-        } else slope = dfw + fr_slope + m->kM * g + m->cM;
+        }
         if (r[4] > 0.0) hi = w; else lo = w;
         wn = w - r[4] / slope;
         if (!(lo < wn && wn < hi)) {

@@ -517,10 +517,10 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
 
     runs = {kind: _diagnose_on(kind, *bases[kind], data, settings, out, "figures", log)}
     for other in [k for k in bases if k != kind]:
-        first = runs[kind]
-        if first["unexplained"] is None:
+        first_run = runs[kind]
+        if first_run["unexplained"] is None:
             break
-        log(f"diagnosis: the {kind} base leaves {first['unexplained']['ratio']:.1f} x the residual floor: "
+        log(f"diagnosis: the {kind} base leaves {first_run['unexplained']['ratio']:.1f} x the residual floor: "
             f"repeated on the {other} base (the base is chosen again by the final models' held-out MSE)")
         runs[other] = _diagnose_on(other, *bases[other], data, settings, out, f"figures/base_{other}", log)
     if len(runs) > 1:
