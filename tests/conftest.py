@@ -1,4 +1,5 @@
-"""Shared fixtures: built FMUs (rebuilt only when their sources changed)."""
+"""Shared fixtures: built FMUs (rebuilt only when their sources changed); the ``full`` marker."""
+import os
 import sys
 from pathlib import Path
 
@@ -17,3 +18,14 @@ def fmu_paths():
     paths = {kind: ensure_fmu(kind) for kind in (*kinds, "empty")}
     paths.update({f"{kind}_py": ensure_fmu(kind, flavour="python") for kind in kinds})
     return paths
+
+
+def pytest_collection_modifyitems(config, items):
+    """Tests marked ``full`` (benchmark-length checks, minutes each) run only with DAMPER_FULL_TESTS=1;
+    otherwise they are deselected (not skipped: nothing here stops them from running)."""
+    if os.environ.get("DAMPER_FULL_TESTS") == "1":
+        return
+    keep = [it for it in items if it.get_closest_marker("full") is None]
+    if len(keep) != len(items):
+        config.hook.pytest_deselected(items=[it for it in items if it.get_closest_marker("full") is not None])
+        items[:] = keep

@@ -10,13 +10,12 @@ model), where the base model has no model-form error and what is tested is the d
 and the physical twin-tube damper, which no model here generated: the diagnosis must choose the
 two-chamber base form (the lumped model keeps ~3 % of the peak force of form error there) and name
 the effect on it. Friction (twin-tube), clean data (both) and two effects together (lumped) run in
-CI; every other single effect runs with DAMPER_FULL_TESTS=1, and benchmarks/confusion_matrix.py
+CI; every other single effect is marked ``full`` and runs with DAMPER_FULL_TESTS=1, and benchmarks/confusion_matrix.py
 measures the rates over many seeds (README).
 Every manoeuvre runs at its own oil temperature (a climatic-chamber campaign, the same design for
 every test, clean data included), so temperature dependence is observable.
 """
 import json
-import os
 import zlib
 
 import numpy as np
@@ -94,8 +93,7 @@ def test_friction_hidden_in_the_twin_tube_damper_is_named_on_the_two_chamber_bas
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(os.environ.get("DAMPER_FULL_TESTS") != "1", reason="about 8 min: DAMPER_FULL_TESTS=1 "
-                    "(benchmarks/confusion_matrix.py --damper twin-tube --effects free_play measures it)")
+@pytest.mark.full  # about 8 min (benchmarks/confusion_matrix.py --damper twin-tube --effects free_play measures it)
 def test_free_play_in_the_twin_tube_damper_is_named_after_the_base_is_chosen_again(tmp_path):
     """The physical twin-tube damper with a free play drawn in its typical range: a gap makes both bare
     bases fit badly and the base chosen first may be the wrong form; its diagnosis leaves a residual
@@ -121,7 +119,7 @@ TWIN_TUBE_REL = {"inertia": 0.7}
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(os.environ.get("DAMPER_FULL_TESTS") != "1", reason="2-3 min each: DAMPER_FULL_TESTS=1")
+@pytest.mark.full  # 2-3 min each
 @pytest.mark.parametrize("effect", TWIN_TUBE_FULL)
 def test_an_effect_hidden_in_the_twin_tube_damper_is_named_blind_on_the_two_chamber_base(tmp_path, effect):
     spec = EFFECTS[effect]
@@ -139,12 +137,11 @@ def test_an_effect_hidden_in_the_twin_tube_damper_is_named_blind_on_the_two_cham
 #: the lumped damper run with DAMPER_FULL_TESTS=1 (all seven, 5.6 min on 2026-11-24) and in
 #: benchmarks/confusion_matrix.py (5/5 each with five seeds, 2026-11-23); a preload's residual
 #: signature is also checked analytically in tests/test_residuals.py
-FULL = os.environ.get("DAMPER_FULL_TESTS") == "1"
-CI_EFFECTS = ()
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("effect", [e for e in EFFECTS if FULL or e in CI_EFFECTS])
+@pytest.mark.full
+@pytest.mark.parametrize("effect", list(EFFECTS))
 def test_a_hidden_effect_is_named_blind_with_its_magnitude_and_a_30_percent_gain(tmp_path, effect):
     spec = EFFECTS[effect]
     value = float(np.random.default_rng(zlib.crc32(effect.encode())).uniform(spec.low, spec.high))
