@@ -28,7 +28,7 @@ MODELS = ("lumped", "maxwell", "maxwell_table")
 def _lumped_values():
     """Preset with M_C at its upper bound, Fk,O = K_LIN x exactly and an odd Fc,O."""
     v = defaults("lumped")
-    v["M_C"] = 20.0
+    v["M_C"] = _bounds("lumped")["M_C"][1]
     for i in range(1, 11):
         v[f"Fk_{i:02d}"] = K_LIN * v[f"Fk_x{i:02d}"]
     for i in range(1, 8):             # Fc_v01..07 are -(Fc_v14..08): mirror the positive side
@@ -178,8 +178,8 @@ def test_identification_tests_marked_and_bound_flags(full_report):
     _, text, _ = full_report
     assert "identification (fit data)" in text
     flags = dict(re.findall(r'<span class="flag" data-param="([^"]+)">([^<]*)</span>', text))
-    assert flags["M_C"] == "AT UPPER BOUND"          # set to exactly 20 kg, the upper bound
-    assert flags["M_O"] == ""                         # 16.5 kg within [1, 20] kg
+    assert flags["M_C"] == "AT UPPER BOUND"          # set to exactly its upper bound
+    assert flags["M_O"] == ""                         # 16.5 kg well within [1, 40] kg
     assert flags["k_B"] == ""                         # 4.08e8 N/m: 94 % of the log range
     assert flags["k_s"] == ""
 

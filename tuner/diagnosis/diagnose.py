@@ -44,6 +44,7 @@ damper.
 """
 from __future__ import annotations
 
+import copy
 import json
 import math
 import time
@@ -132,6 +133,13 @@ class ExtendedParametrization:
         zb = self.base.from_params(params)
         ze = [(params.get(n, 0.0) - lo) / (hi - lo) for n, (lo, hi) in zip(self.extra, self.extra_bounds)]
         return np.concatenate([zb, np.clip(ze, 0.0, 1.0)])
+
+    def local_space(self) -> "ExtendedParametrization":
+        """The same with the base in its local solver's coordinates (``Parametrization.local_space``)."""
+        local = copy.copy(self)
+        local.base = self.base.local_space()
+        local.names = local.base.names + self.extra
+        return local
 
     def describe(self) -> str:
         return f"{self.base.describe()}; plus {', '.join(self.extra)} (linear within the search bounds)"
@@ -452,7 +460,8 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     The base is chosen before any effect is added; when the diagnosis on it leaves a residual above
     the floor (a large effect can make both bare bases fit badly, and then the wrong form may win),
     it is repeated on the other base forms and the final model with the lowest held-out MSE is kept."""
-    from tuner.identification.fit import FitSettings, data_digest, identify, model_abscissae, table_abscissae, to_signals
+    from tuner.identification.fit import (FitSettings, data_digest, default_force_limit, identify, model_abscissae,
+                                          table_abscissae, to_signals)
 
     settings = settings or DiagnosisSettings()
     if not identification or not validation:
@@ -485,7 +494,7 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
         fixed = model_abscissae(kind, axes)
         if given is not None:  # the fit's own tables
             fixed = {k: given.get(k, v) for k, v in fixed.items()}
-        return Parametrization(kind, "improved", force_limit=float(f"{1.5 * peak:.2g}"), fixed=fixed)
+        return Parametrization(kind, "improved", force_limit=default_force_limit(sig_id, axes), fixed=fixed)
 
     if base_params is not None:
         kind = base_model or "lumped"
@@ -680,6 +689,35 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: _Data
                 + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
                 + f"  effect {row['effect_rms_n']:.3g} N rms{'' if row['resolved'] else ' (below the noise)'}")
         advance(log, 0.7)
+
+        def promote(effects) -> None:
+            """One best model: when a refit of one of ``effects`` fits the identification data better with
+            its effect switched off than the base refit does, that point is the base ('none') and every
+            score is taken against it again, so 'none' never loses to an effect of size zero."""
+            nonlocal z_none, g_none, mse_none, none_row
+            offs = [(e, {**refits[e][0].to_params(refits[e][1]), **{n: 0.0 for n in refits[e][0].extra}})
+                    for e in effects]
+            if not offs:
+                return
+            sse = eid.sse_batch([p for _, p in offs])
+            k = int(np.argmin(sse))
+            if not (np.isfinite(sse[k]) and eid.n_samples / sse[k] > g_none):
+                return
+            effect, params = offs[k]
+            z_none, g_none = par.from_params(params), eid.n_samples / float(sse[k])
+            r = ev.residuals_batch([par.to_params(z_none)])[0]
+            mse_none = float(r @ r) / n_val if r is not None else mse_none
+            none_row = _held_out("none", par.to_params(z_none), [], g_none, none_row["evaluations"] + len(offs),
+                                 mse_none)
+            none_row["from_refit_of"] = effect
+            for row in ranking:
+                row["validation_mse_change_pct"] = 100 * (row["validation_mse"] / mse_none - 1)
+                row["score"] = (-math.log(row["validation_mse"] / mse_none) - PENALTY_PER_PARAMETER * len(row["parameters"])
+                                if math.isfinite(row["validation_mse"]) else -math.inf)
+            log(f"  none           the {effect} refit with its effect off fits better than the base refit: it is "
+                f"the base now (identification RMSE {none_row['identification_rmse_n']:.1f} N); scores taken again")
+
+        promote(list(refits))
         # the leading candidate's refit is continued to convergence (absorbed effects converge slowly),
         # and so is the base refit, so that the continuation is not credited to the effect
         lead = max(ranking, key=lambda r: r["score"] if r["resolved"] else -math.inf, default=None)
@@ -699,6 +737,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: _Data
                 + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
                 + f"  identification RMSE {row['identification_rmse_n']:.1f} N (none: "
                 + f"{none_row['identification_rmse_n']:.1f} N)")
+            promote([lead["effect"]])
         advance(log, 0.8)
         # significance: a confidence interval of the magnitude (correlated residuals: block
         # sandwich) for every extension that earned its score with a force above the noise

@@ -12,11 +12,17 @@ Two schemes:
 * ``improved`` (default): the same bounds, but parameters flagged ``log_scale`` are searched in
   log space, and the tables are monotone by construction, parametrised by the slope of each
   piece, going outward from zero on each side: F_k = F_{k-1} + s_k (x_k - x_{k-1}).
-  Fc,O: damping slopes s_k log-uniform in [1e-3, 1] x F_max / |v_1| (v_1: the abscissa nearest
+  Fc,O: damping slopes s_k log-uniform in [1e-4, 1] x F_max / |v_1| (v_1: the abscissa nearest
   to zero; the upper end reaches the limit within the first piece), ordinates capped at F_max.
+  (The floor was 1e-3 until 2026-11-24: a blow-off plateau flatter than that, 0.08 % of the top
+  slope on a random damper of the class, was out of reach and cost the truth 10 N of RMSE.)
   Fk,O: stiffnesses s_k log-uniform within 0.2-3 times the reference spring.
   Random tables are then diverse shapes (blow-off knees anywhere) rather than tables that hit the
   limit within two pieces, which is what independent fractions of the headroom produce.
+
+``LocalSpace`` maps the same design space for the local solver (``tuner.identification.polish``):
+table ordinates by their increments (linear), the rest as above. The force is nearly linear in
+the ordinates, and far from linear in log-slopes, so Gauss-Newton steps go much further there.
 
 The force limit F_max [N] and the reference spring k_ref [N/m] come from the caller (the tuner
 derives F_max from the measured forces; the paper used 3e4 N and 1.5e7 N/m for its yaw damper).
@@ -29,7 +35,7 @@ import numpy as np
 
 from damper_fmu.parameters import MODEL_PARAMETERS, check_values
 
-__all__ = ["Parametrization", "SCHEMES"]
+__all__ = ["Parametrization", "LocalSpace", "SCHEMES"]
 
 SCHEMES = ("paper", "improved")
 _K_LOW, _K_HIGH = 0.2, 3.0
@@ -129,12 +135,16 @@ class Parametrization:
                         f, x0 = min(f + slope * abs(x - x0), cap), x
         return np.clip(np.array([z[n] for n in self.names]), 0.0, 1.0)
 
+    def local_space(self):
+        """Coordinates for the local solver: ``LocalSpace`` of the 'improved' scheme; the 'paper' scheme's own."""
+        return LocalSpace(self) if self.scheme == "improved" else self
+
     def _fc_slopes(self) -> tuple[float, float]:
         """log bounds of the Fc,O piece slopes [N s/m] (improved scheme)."""
         v1 = min(abs(self.fixed[n.replace("Fc_", "Fc_v")]) for n in self.names if n.startswith("Fc_")) \
             if any(n.startswith("Fc_") for n in self.names) else 1.0
         top = self.force_limit / v1
-        return math.log(1e-3 * top), math.log(top)
+        return math.log(1e-4 * top), math.log(top)
 
     def _fk_slopes(self) -> tuple[float, float]:
         """log bounds of the Fk,O piece stiffnesses [N/m] (improved scheme)."""
@@ -150,3 +160,64 @@ class Parametrization:
                 f"{self.force_limit:.3g} N; Fk,O stiffnesses log-uniform in {_K_LOW:g}-{_K_HIGH:g} x "
                 f"{self.spring_reference:.3g} N/m")
 
+
+
+class LocalSpace:
+    """The design space of an ``improved`` Parametrization in coordinates u in [0, 1]^d for a local solver.
+
+    Table ordinates (Fc_, Fk_): the increment F_k - F_(k-1) outward from zero on each side, linear
+    between the Parametrization's slope bounds times the piece's width, the cumulative force capped
+    as there; log-scaled parameters: their logarithm; the others: linear between their bounds. Every
+    point maps into the Parametrization's space, so ``par.from_params(space.to_params(u))`` is exact.
+    """
+
+    def __init__(self, par: Parametrization):
+        if par.scheme != "improved":
+            raise ValueError("LocalSpace needs the 'improved' parametrization (monotone tables)")
+        self.par = par
+        self._items = []  # (name, kind, lo, hi, previous ordinate or None, sign of the side, cap)
+        table = set()
+        for prefix, axis, (llo, lhi), cap in (("Fc", "v", par._fc_slopes(), par.force_limit),
+                                              ("Fk", "x", par._fk_slopes(), math.inf)):
+            for side in par._sides(prefix, axis):
+                x0, prev = 0.0, None
+                for x, n in side:
+                    dx = abs(x - x0)
+                    self._items.append((n, "increment", math.exp(llo) * dx, math.exp(lhi) * dx, prev,
+                                        math.copysign(1.0, x), cap))
+                    table.add(n)
+                    x0, prev = x, n
+        for n in par.names:
+            if n in table:
+                continue
+            lo, hi = par.bounds[n]
+            if par.log_scale[n]:
+                self._items.append((n, "log", math.log(lo), math.log(hi), None, 1.0, math.inf))
+            else:
+                self._items.append((n, "linear", lo, hi, None, 1.0, math.inf))
+        self.names = [it[0] for it in self._items]
+        self.dimension = len(self._items)
+
+    def to_params(self, u) -> dict[str, float]:
+        """Parameters (SI, with the fixed ones) of u (clipped into [0, 1]^d)."""
+        u = np.clip(np.asarray(u, dtype=float), 0.0, 1.0)
+        out = dict(self.par.fixed)
+        for (n, kind, lo, hi, prev, sign, cap), ui in zip(self._items, u.tolist()):
+            v = lo + ui * (hi - lo)
+            if kind == "increment":
+                out[n] = sign * min((abs(out[prev]) if prev else 0.0) + v, cap)
+            else:
+                out[n] = math.exp(v) if kind == "log" else v
+        return out
+
+    def from_params(self, params: dict) -> np.ndarray:
+        """u of ``params`` (completed with the fixed values; clipped into [0, 1]^d)."""
+        p = {**self.par.fixed, **params}
+        u = []
+        for n, kind, lo, hi, prev, sign, cap in self._items:
+            if kind == "increment":
+                v = min(abs(p[n]), cap) - (min(abs(p[prev]), cap) if prev else 0.0)
+            else:
+                v = math.log(p[n]) if kind == "log" else p[n]
+            u.append((v - lo) / (hi - lo))
+        return np.clip(np.array(u), 0.0, 1.0)
