@@ -177,6 +177,11 @@ def test_clean_data_gives_no_false_cause_and_a_complete_diagnosis_json(tmp_path,
     if damper == "lumped":   # a model that can represent the data: no signature carries force above the noise
         assert saved["evidence"]["joint_screen"]["kept"] == [], saved["evidence"]["joint_screen"]
     assert all("score" in r and "validation_mse_change_pct" in r for r in saved["ranking"])
+    # one best model: no candidate's refit fits the identification data better with its effect off
+    # than 'none' does (such a point becomes 'none'), so no effect of size zero can win
+    none_rmse = next(r for r in saved["ranking"] if r["effect"] == "none")["identification_rmse_n"]
+    assert all(none_rmse <= r["identification_rmse_effect_off_n"] * (1 + 1e-12)
+               for r in saved["ranking"] if r["effect"] != "none")
     assert set(saved["validation"]) == {"val1_straight_250", "val2_curve_R6000_306", "val3_curve_R500_86"}
     for v in saved["validation"].values():
         assert v["mse_after"] == v["mse_before"]  # no cause: the model is unchanged

@@ -574,6 +574,12 @@ class _Data:
     noise: float
 
 
+def _score(mse: float, mse_ref: float, n_params: int) -> float:
+    """Score of a model with ``n_params`` more parameters than the reference: -ln(MSE / MSE_ref) minus
+    PENALTY_PER_PARAMETER per parameter, pooled validation MSEs [N^2]; -inf when it cannot be simulated."""
+    return -math.log(mse / mse_ref) - PENALTY_PER_PARAMETER * n_params if math.isfinite(mse) else -math.inf
+
+
 def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: _Data, settings: DiagnosisSettings,
                  out: Path, figures_sub: str, log) -> dict:
     """The diagnosis on one base form (steps 2-5 of the module docstring; figures into ``out /
@@ -635,7 +641,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: _Data
             per_test = _split_mse(r_val, lengths)
             mse = math.inf if r_val is None else float(r_val @ r_val) / n_val
             ratio = mse / mse_ref
-            score = -math.log(ratio) - PENALTY_PER_PARAMETER * len(new) if math.isfinite(ratio) else -math.inf
+            score = _score(mse, mse_ref, len(new))
             values = {n: params[n] for n in extra}
             contribution = 0.0
             if new:
@@ -700,6 +706,9 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: _Data
             if not offs:
                 return
             sse = eid.sse_batch([p for _, p in offs])
+            for (effect, _), sse_e in zip(offs, sse):
+                row = next(r for r in ranking if r["effect"] == effect)
+                row["identification_rmse_effect_off_n"] = math.sqrt(sse_e / eid.n_samples)
             k = int(np.argmin(sse))
             if not (np.isfinite(sse[k]) and eid.n_samples / sse[k] > g_none):
                 return
@@ -712,8 +721,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: _Data
             none_row["from_refit_of"] = effect
             for row in ranking:
                 row["validation_mse_change_pct"] = 100 * (row["validation_mse"] / mse_none - 1)
-                row["score"] = (-math.log(row["validation_mse"] / mse_none) - PENALTY_PER_PARAMETER * len(row["parameters"])
-                                if math.isfinite(row["validation_mse"]) else -math.inf)
+                row["score"] = _score(row["validation_mse"], mse_none, len(row["parameters"]))
             log(f"  none           the {effect} refit with its effect off fits better than the base refit: it is "
                 f"the base now (identification RMSE {none_row['identification_rmse_n']:.1f} N); scores taken again")
 

@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from damper_fmu.parameters import (FC_ABSCISSAE, FK_ABSCISSAE, FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS, defaults,
-                                   densify_abscissae)
+from damper_fmu.parameters import (EFFECT_MODELS, FC_ABSCISSAE, FK_ABSCISSAE, FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS,
+                                   defaults, densify_abscissae)
 
 from tuner.identification import firefly
 from tuner.data.reading import RigTest
@@ -45,10 +45,19 @@ from tuner.progress import advance, stage
 from tuner.results.report import make_report
 
 __all__ = ["FitSettings", "fit", "initial_guess", "to_signals", "validation_run", "identify", "data_digest",
-           "table_abscissae", "default_force_limit", "model_abscissae", "quality_gate", "STRETCH_BEYOND", "QUALITY_AME_PCT"]
+           "table_abscissae", "default_force_limit", "model_abscissae", "quality_gate", "STRETCH_BEYOND", "QUALITY_AME_PCT",
+           "RACE_RATIO", "RESTART_LADDER"]
 
 #: The tables keep the paper's Table 2 abscissae until the data reach this many times the last one.
 STRETCH_BEYOND = 1.5
+#: Log-scaled parameters whose decade decides the basin a local refinement ends in: the data-driven
+#: start is refined again with each one a decade up and down (measured: a random lumped damper ended
+#: at 2.0x the floor with k_B 8e7 N/m and c_B 100x too low from every start near the preset, and at
+#: the floor from k_B 1e9 N/m; 1 of 17 random dampers with the two starts alone).
+RESTART_LADDER = {"lumped": ("k_B",)}
+#: A base form whose refinement leaves more than this many times another base form's identification
+#: RMSE is clearly the wrong form: its refinement is not restarted (``identify``, ``rival``).
+RACE_RATIO = 3.0
 #: Quality gate [% of the test's peak force]: a model whose AME exceeds it on a held-out test does
 #: not describe the data (the lumped model reaches 1-3 % on yaw-damper data; Maxwell 5-15 %).
 QUALITY_AME_PCT = 10.0
@@ -230,8 +239,12 @@ def data_digest(tests: list[RigTest]) -> str:
 
 
 def identify(model: str, signals: list[Signals], settings: FitSettings, par: Parametrization,
-              ckpt: Path, digest: str, log) -> tuple[dict, dict]:
-    """Run Firefly for one model; return (best parameters, history dict)."""
+              ckpt: Path, digest: str, log, *, rival: tuple[str, float] | None = None) -> tuple[dict, dict]:
+    """Run Firefly and the local refinements for one model; return (best parameters, history dict).
+
+    rival: (model, identification RMSE [N]) of another base form already fitted to the same data;
+    when the first refinement leaves more than ``RACE_RATIO`` x its RMSE, this form is clearly the
+    wrong one and gets no restart (the effort goes to the contender)."""
     opts = firefly.FireflyOptions(population=settings.population, max_iterations=settings.iterations,
                                   stop_tol=settings.stop_tol)
     key = _settings_hash(settings, digest, model)
@@ -283,16 +296,28 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         z_best, g_best, polish_evals = result.x_best, result.fitness_best, 0
         last_failure = eng.last_failure
         polish_info = {"fitness": [], "stop": "no local refinement (--polish 0)", "converged": False, "jacobians": 0}
-        local_runs = []
+        local_runs, race = [], None
         if settings.polish_jacobians > 0:
             # restarts: the Firefly population often collapses into one basin, on random dampers sometimes
             # a degenerate one (silent blocks as pure dashpots, 2.2x the floor) that the data-driven start
             # avoids; the best refinement wins (benchmarks/convergence.py)
             starts = [("Firefly best", result.x_best)]
-            guess = par.from_params(initial_guess(model, signals, par))
+            guess_p = initial_guess(model, signals, par)
+            guess = par.from_params(guess_p)
             if not np.allclose(guess, result.x_best):
                 starts.append(("data-driven start", guess))
+            for name in RESTART_LADDER.get(model, ()):
+                lo, hi = par.bounds[name]
+                for factor in (10.0, 0.1):
+                    value = min(max(guess_p[name] * factor, lo), hi)
+                    starts.append((f"data-driven start with {name} = {value:.3g}", par.from_params({**guess_p, name: value})))
             for label, z0 in starts:
+                if local_runs and rival and local_runs[0]["rmse_n"] > RACE_RATIO * rival[1]:
+                    race = {"rival": rival[0], "rival_rmse_n": rival[1], "ratio": local_runs[0]["rmse_n"] / rival[1],
+                            "skipped": [lab for lab, _ in starts[1:]]}
+                    log(f"[{model}] no restart: {race['ratio']:.1f} x the {rival[0]} form's RMSE, "
+                        f"clearly the wrong form for this damper")
+                    break
                 log(f"[{model}] local refinement from the {label} (projected Levenberg-Marquardt until converged, "
                     f"at most {settings.polish_jacobians} Jacobians of {par.dimension} parallel simulations)")
                 z, g, n_ev, info = polish(eng, par, z0, max_jacobians=settings.polish_jacobians, log=log)
@@ -328,6 +353,7 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         "polish_stop": polish_info["stop"],
         "polish_jacobians": int(polish_info["jacobians"]),
         "local_refinements": local_runs,
+        "race": race,  # None, or the restarts skipped as a clearly wrong form (RACE_RATIO)
         "converged": bool(polish_info["converged"]),
         "polish_evaluations": int(polish_evals),
         "evaluation_count": int(result.evaluations + polish_evals),
@@ -440,7 +466,10 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
         fixed = model_abscissae(model, axes)
         par = Parametrization(model, settings.parametrization, force_limit=force_limit,
                               spring_reference=settings.spring_reference_n_per_m, fixed=fixed)
-        best, hist = identify(model, signals, settings, par, out / "checkpoints" / f"{model}.json", digest, log)
+        fitted_bases = [(m, histories[m]["identification_rmse_n"]) for m in histories if m in EFFECT_MODELS]
+        best, hist = identify(model, signals, settings, par, out / "checkpoints" / f"{model}.json", digest, log,
+                              rival=min(fitted_bases, key=lambda r: r[1]) if model in EFFECT_MODELS and fitted_bases
+                              else None)
         params[model] = {"values": best, "units": dict(par.units),
                          "bounds": {n: list(par.bounds[n]) for n in par.names},
                          "parametrization": settings.parametrization}
