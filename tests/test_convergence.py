@@ -45,7 +45,7 @@ def test_a_clearly_wrong_base_form_gets_no_restart(tmp_path):
     hist = {m: json.loads((tmp_path / "out" / f"history_{m}.json").read_text()) for m in settings.models}
     runs = {m: h["local_refinements"] for m, h in hist.items()}
     assert [r["start"] for r in runs["lumped"]][:2] == ["Firefly best", "data-driven start"]
-    assert len(runs["lumped"]) == 4  # and the k_B ladder (RESTART_LADDER)
+    assert len(runs["lumped"]) == 6  # and the k_B and c_B ladder (RESTART_LADDER)
     assert hist["lumped"]["race"] is None
     lumped = hist["lumped"]["identification_rmse_n"]
     wrong = runs["twochamber"][0]["rmse_n"] > RACE_RATIO * lumped
