@@ -256,10 +256,11 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
             raise ValueError(f"{ckpt} was written with other settings or data; start a new output folder")
         state = firefly.FireflyState.from_dict(saved["state"])
         log(f"[{model}] resuming from iteration {state.iteration} ({state.evaluations} evaluations)")
+    guess_p = initial_guess(model, signals, par)  # seeds the first population and restarts the refinement
+    guess = par.from_params(guess_p)
     initial = None
     if settings.init == "seeded" and state is None:
-        initial = np.array([par.from_params(initial_guess(model, signals, par)),
-                            par.from_params(defaults(model))])
+        initial = np.array([guess, par.from_params(defaults(model))])
     engine_path = None
     if settings.engine == "fmu":
         from build_fmu import ensure_fmu
@@ -303,8 +304,6 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
             # a degenerate one (silent blocks as pure dashpots, 2.2x the floor) that the data-driven start
             # avoids; the best refinement wins (benchmarks/convergence.py)
             starts = [("Firefly best", result.x_best)]
-            guess_p = initial_guess(model, signals, par)
-            guess = par.from_params(guess_p)
             if not np.allclose(guess, result.x_best):
                 starts.append(("data-driven start", guess))
             for name in RESTART_LADDER.get(model, ()):
