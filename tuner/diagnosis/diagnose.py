@@ -9,7 +9,9 @@ Procedure (``diagnose``):
    as ``tuner.identification.fit``). The choice is made before any effect is added; when the
    diagnosis on it (steps 2-5) leaves a residual above the floor, it is repeated on the other base
    form and the final model with the lowest held-out MSE is kept (a large effect can make both bare
-   bases fit badly, and then the wrong form may validate better).
+   bases fit badly, and then the wrong form may validate better) - but only when the other form can
+   plausibly win (its bare fit validates within ``RACE_RATIO`` x the first's RMSE) and the first
+   base's refit converged (an unfinished fit is no evidence of a wrong form).
 2. Residuals (measured - simulated force) of the base model on every test: evidence numbers and
    figures (``tuner.diagnosis.residuals``): in time, against velocity and stroke, around velocity reversals,
    against frequency, drift over the test and against the temperature channel.
@@ -32,6 +34,9 @@ Procedure (``diagnose``):
 5. Unexplained: a final identification RMSE above ``UNEXPLAINED_RATIO`` x the residual floor (the
    force noise and the force the stroke noise makes through the model, ``_stroke_noise_force``) is reported as
    a model-form error the catalogue does not explain (cause 'unexplained' when nothing was named).
+   With nothing named, the base refit is first continued until its first-order test holds
+   (``final_jacobians`` cap); if it still has not converged, the verdict says so and claims no
+   form error.
 6. Output: ``diagnosis.json`` (cause, causes, selection steps, unexplained, ranking, effect
    parameters with units, intervals and typical ranges, validation MSE/AME before and after per
    test in the Table 3 definition, evidence), figures, and the extended model as a tuned FMU
@@ -459,9 +464,11 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
 
     The base is chosen before any effect is added; when the diagnosis on it leaves a residual above
     the floor (a large effect can make both bare bases fit badly, and then the wrong form may win),
-    it is repeated on the other base forms and the final model with the lowest held-out MSE is kept."""
-    from tuner.identification.fit import (FitSettings, data_digest, default_force_limit, identify, model_abscissae,
-                                          table_abscissae, to_signals)
+    it is repeated on the other base forms that can plausibly win (bare held-out RMSE within
+    ``RACE_RATIO`` x the first's; not at all when the first base's refit did not converge) and the
+    final model with the lowest held-out MSE is kept; ``base_choice['not_repeated_on']`` says why not."""
+    from tuner.identification.fit import (RACE_RATIO, FitSettings, data_digest, default_force_limit, identify,
+                                          model_abscissae, table_abscissae, to_signals)
 
     settings = settings or DiagnosisSettings()
     if not identification or not validation:
@@ -525,13 +532,32 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
                 f"{k} {math.sqrt(v[2]):.1f} N rms" for k, v in fitted.items()) + ")")
 
     runs = {kind: _diagnose_on(kind, *bases[kind], data, settings, out, "figures", log)}
+    skipped = {}
     for other in [k for k in bases if k != kind]:
         first_run = runs[kind]
-        if first_run["unexplained"] is None:
+        left = first_run["unexplained"]
+        if left is None:
             break
-        log(f"diagnosis: the {kind} base leaves {first_run['unexplained']['ratio']:.1f} x the residual floor: "
+        if left.get("fit_converged") is False:
+            skipped[other] = "the first base's refit did not converge: its residual is no evidence of a wrong form"
+            log(f"diagnosis: the {kind} base leaves {left['ratio']:.1f} x the residual floor, but its refit did not "
+                f"converge: not repeated on the {other} base (an unfinished fit is no evidence of a wrong form)")
+            continue
+        # the other form can plausibly win only if its bare fit was not clearly worse (the fit's race rule)
+        rmse_first = math.sqrt(first_run["base_validation_mse"])
+        rmse_other = math.sqrt(_pooled_mse(other, bases[other][1], sig_val, settings.engine))
+        if rmse_other > RACE_RATIO * rmse_first:
+            skipped[other] = (f"its bare fit validates at {rmse_other:.3g} N rms, {rmse_other / rmse_first:.1f} x "
+                              f"the {kind} base's {rmse_first:.3g} N (more than {RACE_RATIO:g} x: it cannot "
+                              f"plausibly win)")
+            log(f"diagnosis: the {kind} base leaves {left['ratio']:.1f} x the residual floor; not repeated on the "
+                f"{other} base: {skipped[other]}")
+            continue
+        log(f"diagnosis: the {kind} base leaves {left['ratio']:.1f} x the residual floor: "
             f"repeated on the {other} base (the base is chosen again by the final models' held-out MSE)")
         runs[other] = _diagnose_on(other, *bases[other], data, settings, out, f"figures/base_{other}", log)
+    if skipped:
+        base_choice = {**(base_choice or {}), "not_repeated_on": skipped}
     if len(runs) > 1:
         final = {k: r["final_validation_mse"] for k, r in runs.items()}
         first, kind = kind, min(final, key=final.get)
@@ -542,7 +568,7 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
         log("diagnosis: final base form " + kind + " (held-out MSE of the final models " + ", ".join(
             f"{k} {math.sqrt(v):.1f} N rms" for k, v in final.items()) + ")")
     run = runs[kind]
-    result = {k: v for k, v in run.items() if k not in ("after_params", "final_validation_mse")}
+    result = {k: v for k, v in run.items() if k not in ("after_params", "final_validation_mse", "base_validation_mse")}
     result["settings"] = {**{k: v for k, v in settings.__dict__.items() if k != "extra"},
                           "penalty_per_parameter": PENALTY_PER_PARAMETER, "accept_score": ACCEPT_SCORE,
                           "unexplained_ratio": UNEXPLAINED_RATIO, "min_blocks": MIN_BLOCKS,
@@ -659,6 +685,15 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: _Data
                     "evaluations": int(evals)}
 
         refits = {}
+        # {causes key ('' for none): whether its last refit settled: met its first-order test, or stalled
+        # (no damped step helps) where the gain its Gauss-Newton step still predicts cannot bring it
+        # within UNEXPLAINED_RATIO x the floor; a spent budget never settles}
+        converged_fits = {}
+
+        def settled(info: dict, g: float) -> bool:
+            reachable = math.sqrt(max(0.0, 1.0 - info["predicted"]) / g) if g > 0 else math.inf
+            return bool(info["converged"] or (not info["budget_spent"] and reachable > UNEXPLAINED_RATIO * floor))
+
         jac_base = _base_jacobian(eid, par, par.from_params(base))  # shared by every candidate
         # 'none' is a candidate like the others: the base model refitted from the same starts with
         # the same local effort (an unfinished base fit would otherwise be credited to any effect)
@@ -730,14 +765,16 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: _Data
         # and so is the base refit, so that the continuation is not credited to the effect
         lead = max(ranking, key=lambda r: r["score"] if r["resolved"] else -math.inf, default=None)
         if lead and lead["score"] > ACCEPT_SCORE and lead["resolved"] and settings.final_jacobians > 0:
-            z_none, g_none, n, _ = polish(eid, par, z_none, max_jacobians=settings.final_jacobians,
-                                          log=lambda m: None)
+            z_none, g_none, n, none_info = polish(eid, par, z_none, max_jacobians=settings.final_jacobians,
+                                                  log=lambda m: None)
+            converged_fits[""] = settled(none_info, g_none)
             r_none = ev.residuals_batch([par.to_params(z_none)])[0]
             mse_none = float(r_none @ r_none) / n_val if r_none is not None else mse_none
             none_row = _held_out("none", par.to_params(z_none), [], g_none, ev_none + n, mse_none)
             ext, z, evals = refits[lead["effect"]]
-            z, g, n, _ = polish(eid, ext, z, max_jacobians=settings.final_jacobians, log=lambda m: None)
+            z, g, n, lead_info = polish(eid, ext, z, max_jacobians=settings.final_jacobians, log=lambda m: None)
             refits[lead["effect"]] = (ext, z, evals + n)
+            converged_fits[lead["effect"]] = settled(lead_info, g)
             ranking[ranking.index(lead)] = row = _held_out(lead["effect"], ext.to_params(z), ext.extra, g,
                                                            evals + n, mse_none)
             log(f"  {lead['effect']:14s} refined (base refit continued alike): " + ", ".join(
@@ -782,6 +819,26 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: _Data
             refits["+".join(causes)] = step["refit"]
             best = step["row"]
             del step["refit"], step["row"]
+        # an "unexplained" verdict (a model-form error) must rest on a converged fit, not an unfinished
+        # one: with nothing named and the residual above the floor, the base refit is continued until
+        # its first-order test holds (or the cap, reported)
+        if (not causes and none_row["identification_rmse_n"] > UNEXPLAINED_RATIO * floor
+                and settings.final_jacobians > 0 and "" not in converged_fits):
+            z_c, g_c, n, info = polish(eid, par, z_none, max_jacobians=settings.final_jacobians, log=lambda m: None)
+            converged_fits[""] = settled(info, g_c)
+            log(f"  none           base refit continued before any 'unexplained': identification RMSE "
+                f"{none_row['identification_rmse_n']:.1f} -> {1 / math.sqrt(g_c):.1f} N, {info['stop']}")
+            if g_c > g_none:
+                z_none, g_none = z_c, g_c
+                r_none = ev.residuals_batch([par.to_params(z_none)])[0]
+                mse_none = float(r_none @ r_none) / n_val if r_none is not None else mse_none
+                none_row = _held_out("none", par.to_params(z_none), [], g_none, none_row["evaluations"] + n,
+                                     mse_none)
+                for row in ranking:
+                    if row["effect"] != "none":
+                        row["validation_mse_change_pct"] = 100 * (row["validation_mse"] / mse_none - 1)
+                        row["score"] = _score(row["validation_mse"], mse_none, len(row["parameters"]))
+                ranking[next(i for i, r in enumerate(ranking) if r["effect"] == "none")] = none_row
 
     # what the final model leaves: at the noise, or structured beyond what the catalogue explains
     final_rmse = best["identification_rmse_n"] if causes else none_row["identification_rmse_n"]
@@ -797,16 +854,20 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: _Data
                        "best_signature_r2": max(r2.values()) if r2 else None,
                        "linear_share": pooled.get("linear_share"), "band_linear_share": pooled.get("band_linear_share"),
                        "loop": pooled.get("loop"),
-                       "catalogue_r2_all": (evidence.get("joint_screen") or {}).get("r2_all")}
+                       "catalogue_r2_all": (evidence.get("joint_screen") or {}).get("r2_all"),
+                       # whether the final refit settled (converged, or the gain its last Gauss-Newton
+                       # step predicts cannot reach the floor); None: not continued
+                       "fit_converged": converged_fits.get("+".join(causes))}
         if not causes:
             cause = "unexplained"
     key = "+".join(causes)
     # reported before/after figures: the validation definition of Table 3 (tuner.identification.fit.validation_run:
     # the FMU at its own steps), so that "before" is the Table 3 figure of the same base model
     after_params = refits[key][0].to_params(refits[key][1]) if causes else base
-    validation, final_metrics = {}, []
+    validation, final_metrics, base_metrics = {}, [], []
     for s in sig_val:
         mb = validation_run(kind, base, s, settings.engine)[1]
+        base_metrics.append(mb)
         ma = validation_run(kind, after_params, s, settings.engine)[1] if causes else mb
         final_metrics.append(ma)
         validation[s.name] = {"mse_before": mb["mse"], "ame_before": mb["ame"], "mse_after": ma["mse"],
@@ -825,7 +886,8 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: _Data
             "note": " ".join(NOTES[c] for c in causes if c in NOTES), "noise_std_n": noise,
             "stroke_noise_force_n": stroke_noise_n, "residual_floor_n": floor,
             "base_model": kind, "base_parameters": {k: base[k] for k in par.names},
-            "after_params": after_params, "final_validation_mse": pooled_mse(final_metrics)}
+            "after_params": after_params, "final_validation_mse": pooled_mse(final_metrics),
+            "base_validation_mse": pooled_mse(base_metrics)}
 
 
 def _interval_text(row: dict) -> str:
@@ -865,12 +927,14 @@ def _verdict(causes: list[str], best: dict, none_row: dict, rejected: list[dict]
             low_t = sum(v["time_share"] for k, v in loop.items() if k.startswith("below"))
             sig += (f"; {100 * low:.0f} % of it at speeds below the blow-off knee ({100 * low_t:.0f} % of the time), "
                     f"{100 * (1 - low):.0f} % beyond")
+        what = ("a model-form error that no catalogue effect explains" if unexplained.get("fit_converged") is not False
+                else "but the refit did not converge within its Jacobian cap, so this may be an unfinished fit: "
+                     "it is NOT shown to be a model-form error")
         text = ("unexplained: " if not causes else text + ". Not explained: ") + (
             f"the remaining residual, {unexplained['identification_rmse_n']:.3g} N rms, is "
             f"{unexplained['ratio']:.1f} x the residual floor ({unexplained['floor_n']:.2g} N: force noise "
-            f"{noise:.2g} N, stroke noise through the model {unexplained['stroke_noise_force_n']:.2g} N): a "
-            f"model-form error that "
-            f"no catalogue effect explains{where}{sig}") + ("" if causes else "; " + text.replace(
+            f"{noise:.2g} N, stroke noise through the model {unexplained['stroke_noise_force_n']:.2g} N): "
+            f"{what}{where}{sig}") + ("" if causes else "; " + text.replace(
                 "cause: none (", "no named cause: ").rstrip(")"))
     return text
 

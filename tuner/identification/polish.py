@@ -61,7 +61,9 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print):
     engine: tuner.identification.engine.Engine; par: a tuner.identification.parametrization.Parametrization
     (or the diagnosis' extension of one), refined in the coordinates of its ``local_space()``.
     info: {"fitness": G = N / SSE at the start and after every accepted step, "stop": why it
-    stopped, "converged": bool (module docstring), "jacobians": int}.
+    stopped, "converged": bool (module docstring), "jacobians": int, "predicted": the share of the
+    SSE the last Gauss-Newton step predicted it would remove (the locally reachable gain; 1.0 before
+    any Jacobian), "budget_spent": bool (stopped by ``max_jacobians`` while still improving)}.
     """
     space = par.local_space()
     n = engine.n_samples
@@ -75,10 +77,11 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print):
     r = residuals([u])[0]
     if r is None:
         return np.asarray(z0, float), 0.0, used["evals"], {
-            "fitness": [], "stop": "start point cannot be simulated", "converged": False, "jacobians": 0}
+            "fitness": [], "stop": "start point cannot be simulated", "converged": False, "jacobians": 0,
+            "predicted": 1.0, "budget_spent": False}
     cost = float(r @ r)
     fitness = [n / cost]
-    lam, jacobians, step = 1e-3, 0, STEP
+    lam, jacobians, step, predicted = 1e-3, 0, STEP, 1.0
     stop, converged = f"budget of {max_jacobians} Jacobians spent while still improving", False
     while jacobians < max_jacobians:
         h = np.where(u + step <= 1.0, step, -step)
@@ -130,4 +133,5 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print):
         fitness.append(n / cost)
     z = par.from_params(space.to_params(u))
     return z, n / cost, used["evals"], {"fitness": fitness, "stop": stop, "converged": converged,
-                                        "jacobians": jacobians}
+                                        "jacobians": jacobians, "predicted": predicted,
+                                        "budget_spent": stop.startswith("budget")}
