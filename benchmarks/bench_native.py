@@ -37,7 +37,7 @@ from build_fmu import ensure_fmu  # noqa: E402
 from tuner.data.preprocess import prepare  # noqa: E402
 from tuner.data.reading import load_dataset  # noqa: E402
 from tuner.identification.engine import Engine  # noqa: E402
-from tuner.identification.fit import to_signals  # noqa: E402
+from tuner.identification.problem import to_signals  # noqa: E402
 from tuner.identification.parametrization import Parametrization  # noqa: E402
 
 FIT_RATE, WARMUP = 200.0, 0.5

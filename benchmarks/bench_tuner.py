@@ -39,7 +39,8 @@ from tuner.identification import firefly  # noqa: E402
 from tuner.data.preprocess import prepare  # noqa: E402
 from tuner.data.reading import load_dataset  # noqa: E402
 from tuner.identification.engine import Engine  # noqa: E402
-from tuner.identification.fit import FitSettings, initial_guess, to_signals  # noqa: E402
+from tuner.identification.fit import FitSettings, initial_guess  # noqa: E402
+from tuner.identification.problem import to_signals  # noqa: E402
 from tuner.metrics import error_metrics  # noqa: E402
 from tuner.identification.parametrization import Parametrization  # noqa: E402
 from tuner.identification.polish import polish  # noqa: E402

@@ -29,7 +29,8 @@ sys.path.insert(0, str(ROOT))
 from damper_fmu import simulate  # noqa: E402
 from tuner.data.preprocess import prepare  # noqa: E402
 from tuner.data.reading import load_dataset  # noqa: E402
-from tuner.identification.fit import FitSettings, identify, to_signals  # noqa: E402
+from tuner.identification.fit import FitSettings, identify  # noqa: E402
+from tuner.identification.problem import to_signals  # noqa: E402
 from tuner.identification.parametrization import Parametrization  # noqa: E402
 
 VARIANTS = {"paper": ("paper", "random"), "+log+mono": ("improved", "random"), "+seeded": ("improved", "seeded")}

@@ -39,10 +39,11 @@ if str(ROOT) not in sys.path:
 
 from campaign.damper_class import OVERSAMPLING, SAMPLE_RATE_HZ, write_class_dataset  # noqa: E402
 from campaign.sensors import SensorChain  # noqa: E402
-from tuner.data.preprocess import Resampler, prepare  # noqa: E402
+from tuner.data.preprocess import Resampler  # noqa: E402
 from tuner.data.reading import load_dataset, read_manifest  # noqa: E402
 from tuner.identification.engine import simulate_signals  # noqa: E402
-from tuner.identification.fit import FitSettings, fit, model_abscissae, table_abscissae, to_signals  # noqa: E402
+from tuner.identification.fit import FitSettings, fit  # noqa: E402
+from tuner.identification.problem import Problem, model_abscissae  # noqa: E402
 
 RATIO = 1.2
 
@@ -61,9 +62,9 @@ def truth_rmse(model: str, folder: Path, settings: FitSettings, engine: str) -> 
     table abscissae are the truth's)."""
     truth = read_manifest(folder)["generator"]["parameters"]
     ident = [t for t in load_dataset(folder) if t.role == "identification"]
-    signals = [to_signals(prepare(t, settings.fit_rate_hz), settings.warmup_s) for t in ident]
-    peak = max(float(np.abs(s.force[s.mask]).max()) for s in signals)
-    fixed = model_abscissae(model, table_abscissae(signals, peak, settings.spring_reference_n_per_m))
+    problem = Problem.build(ident, [], settings.data())
+    signals = problem.sig_id
+    fixed = model_abscissae(model, problem.axes)
     same = all(math.isclose(truth[k], v, rel_tol=1e-12) for k, v in fixed.items())
     res = [(simulate_signals(model, truth, s, engine=engine) - s.force)[s.mask] for s in signals]
     r = np.concatenate(res)

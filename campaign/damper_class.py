@@ -44,7 +44,7 @@ STROKE_KINDS = ("campaign", "multisine", "sweep", "hunting")
 NOISE_RANGE_N = (5.0, 50.0)
 SAMPLE_RATE_HZ = 500.0
 #: peak stroke velocity [m/s]: below 1.5 x Table 2's last rate (100 mm/s), so that the tuner keeps the
-#: paper's abscissae, on which the random tables are drawn (``tuner.identification.fit.STRETCH_BEYOND``)
+#: paper's abscissae, on which the random tables are drawn (``tuner.identification.problem.STRETCH_BEYOND``)
 MAX_VELOCITY = 0.14
 #: largest damping-table ordinate [N] of a draw (redrawn above): the elastic abscissae stay Table 2's too
 MAX_TABLE_FORCE = 3.5e4

@@ -12,7 +12,8 @@ from damper_fmu.parameters import EFFECT_PARAMETERS, defaults
 from tuner.data.reading import load_dataset
 from tuner.data.preprocess import prepare
 from tuner.identification.engine import Engine
-from tuner.identification.fit import FitSettings, data_digest, identify, table_abscissae, to_signals, validation_run
+from tuner.identification.fit import FitSettings, identify, validation_run
+from tuner.identification.problem import data_digest, table_abscissae, to_signals
 from tuner.metrics import noise_std
 from tuner.identification.parametrization import Parametrization
 

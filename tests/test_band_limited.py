@@ -9,7 +9,7 @@ from damper_fmu import defaults, simulate
 from tuner.data.reading import RigTest
 from tuner.data.preprocess import Resampler, prepare
 from tuner.identification.engine import oversampling, simulate_signals
-from tuner.identification.fit import to_signals
+from tuner.identification.problem import to_signals
 
 
 def _data(seed=3, noise_n=20.0):

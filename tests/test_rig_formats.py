@@ -226,7 +226,7 @@ def test_tables_cover_a_faster_dampers_velocity_range():
     parametrization's bounds follow the stretched elongations."""
     from damper_fmu.parameters import FC_ABSCISSAE, FK_ABSCISSAE
     from tuner.identification.engine import Signals
-    from tuner.identification.fit import table_abscissae
+    from tuner.identification.problem import table_abscissae
     from tuner.identification.parametrization import Parametrization
 
     t = np.arange(0, 5.0, 5e-3)

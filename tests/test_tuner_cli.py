@@ -108,7 +108,8 @@ def test_seeded_initial_guess_reads_the_damping_table_from_quasi_static_data(tmp
     """The data-driven seed recovers Fc,O where the data is quasi-static (slow strokes)."""
     from tuner.data.reading import load_dataset
     from tuner.data.preprocess import prepare
-    from tuner.identification.fit import initial_guess, to_signals
+    from tuner.identification.fit import initial_guess
+    from tuner.identification.problem import to_signals
     from tuner.identification.parametrization import Parametrization
 
     p = defaults("maxwell_table")
@@ -186,6 +187,44 @@ def test_diagnosis_before_is_the_table3_figure_of_the_same_model(tmp_path):
         table3 = metrics["tests"][t.name]["models"]["lumped"]
         assert res["validation"][t.name]["mse_before"] == pytest.approx(table3["mse"], rel=1e-9)
         assert res["validation"][t.name]["ame_before"] == pytest.approx(table3["ame"], rel=1e-9)
+
+
+def test_fit_and_diagnosis_share_one_problem_prepared_once(tmp_path, monkeypatch):
+    """One problem definition: the tests are prepared once for the fit and the diagnosis after it, and
+    the diagnosis works with the fit's force limit (before, it ignored --force-limit); a problem built
+    with other settings than the stage's is refused."""
+    import tuner.identification.problem as problem_module
+    from tuner.data.reading import load_dataset
+    from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
+    from tuner.identification.engine import fastest_engine
+    from tuner.identification.fit import FitSettings, fit
+
+    path = write_model_dataset(tmp_path / "d", "lumped", defaults("lumped"), seed=4, durations=(4.0, 3.0),
+                               roles=("identification", "validation"), noise_n=20.0)
+    tests = load_dataset(path)
+    ident = [t for t in tests if t.role == "identification"]
+    valid = [t for t in tests if t.role == "validation"]
+    calls = []
+    real_prepare = problem_module.prepare
+    monkeypatch.setattr(problem_module, "prepare", lambda t, *a, **k: calls.append(t.name) or real_prepare(t, *a, **k))
+    settings = FitSettings(models=("lumped",), population=4, iterations=1, workers=0, engine=fastest_engine(),
+                           polish_jacobians=1, force_limit_n=31000.0)
+    problem = problem_module.Problem.build(ident, valid, settings.data())
+    assert problem.force_limit_n == 31000.0 and problem.parametrization("lumped").force_limit == 31000.0
+    (tmp_path / "fit").mkdir()
+    metrics = fit(ident, valid, tmp_path / "fit", settings, problem=problem, log=lambda m: None)
+    base = json.loads((tmp_path / "fit" / "parameters.json").read_text())["lumped"]["values"]
+    res = diagnose(ident, valid, tmp_path / "diag", DiagnosisSettings(engine=fastest_engine(), workers=0,
+                                                                      candidates=(), polish_jacobians=1),
+                   base_params=base, problem=problem, log=lambda m: None)
+    assert sorted(calls) == sorted(t.name for t in ident + valid)  # each test prepared once
+    assert metrics["settings"]["force_limit_n_used"] == res["settings"]["problem"]["force_limit_n_used"] == 31000.0
+    with pytest.raises(ValueError, match="problem"):
+        fit(ident, valid, tmp_path / "fit2", FitSettings(models=("lumped",), fit_rate_hz=100.0), problem=problem,
+            log=lambda m: None)
+    with pytest.raises(ValueError, match="prepared at 200 Hz"):
+        diagnose(ident, valid, tmp_path / "diag2", DiagnosisSettings(fit_rate_hz=100.0), base_params=base,
+                 problem=problem, log=lambda m: None)
 
 
 def test_end_summary_and_summary_json(maxwell_data, tmp_path, capsys):

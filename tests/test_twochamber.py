@@ -169,7 +169,7 @@ def test_a_steep_seal_friction_at_fixed_steps_is_solved_the_same_in_c_and_python
     from tuner.data.preprocess import prepare
     from tuner.data.reading import load_dataset
     from tuner.identification.engine import simulate_signals
-    from tuner.identification.fit import to_signals
+    from tuner.identification.problem import to_signals
 
     calls = []
     nested = models.TwoChamberModel._stage_nested

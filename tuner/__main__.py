@@ -346,6 +346,7 @@ def _fit_job(args, models) -> Path:
     from damper_fmu.parameters import EFFECT_MODELS
 
     from tuner.identification.fit import FitSettings, fit
+    from tuner.identification.problem import Problem
 
     ident, valid, name = _load(args)
     out = args.out or _free_folder(DEFAULT_RESULTS / name)
@@ -367,10 +368,12 @@ def _fit_job(args, models) -> Path:
     diagnosis = not args.no_diagnose and valid and any(m in EFFECT_MODELS for m in models)
     if not diagnosis and _OUT is not None:
         _OUT.weights.pop("diagnosis", None)
-    metrics = fit(ident, valid, out, settings, provenance=provenance, log=_OUT or _log)  # the progress display when a job runs
+    problem = Problem.build(ident, valid, settings.data())  # prepared once, for the fit and the diagnosis
+    metrics = fit(ident, valid, out, settings, provenance=provenance, problem=problem,
+                  log=_OUT or _log)  # the progress display when a job runs
     _print_summary(metrics)
     if diagnosis:
-        _run_diagnosis(ident, valid, out, args, *_fitted_base(out))
+        _run_diagnosis(ident, valid, out, args, *_fitted_base(out), problem=problem)
     return out
 
 
@@ -385,11 +388,12 @@ def _fitted_base(folder: Path) -> tuple:
 
 
 def _run_diagnosis(ident, valid, out, args, base_params=None, base_model=None, base_choice=None,
-                   other_bases=None) -> dict:
+                   other_bases=None, problem=None) -> dict:
     from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
 
     settings = DiagnosisSettings(fit_rate_hz=args.fit_rate, warmup_s=args.warmup, workers=args.workers,
                                  engine=args.engine, seed=args.seed, diff_band_hz=args.diff_band,
+                                 force_limit_n=getattr(args, "force_limit", None),
                                  damping_abscissae_m_s=None if args.damping_abscissae is None else
                                  tuple(1e-3 * v for v in args.damping_abscissae),
                                  elastic_abscissae_m=None if args.elastic_abscissae is None else
@@ -399,7 +403,7 @@ def _run_diagnosis(ident, valid, out, args, base_params=None, base_model=None, b
     stage(_OUT, "diagnosis")
     _log(f"\ndiagnosis: refitting the {base_model or 'base'} model extended by each candidate effect ...")
     result = diagnose(ident, valid, out, settings, base_params=base_params, base_model=base_model,
-                      base_choice=base_choice, other_bases=other_bases, log=_OUT or _log)
+                      base_choice=base_choice, other_bases=other_bases, problem=problem, log=_OUT or _log)
     from tuner.results.report import make_diagnosis_report, make_report
 
     stage(_OUT, "report")

@@ -420,6 +420,7 @@ def run_row(task: dict) -> dict:
     from tuner.data.reading import DataError
     from tuner.diagnosis.diagnose import DiagnosisSettings, choose_base, diagnose
     from tuner.identification.fit import FitSettings, fit
+    from tuner.identification.problem import Problem
 
     folder = Path(task["folder"])
     started, t0 = _now(), time.perf_counter()
@@ -445,7 +446,8 @@ def run_row(task: dict) -> dict:
         settings = FitSettings(**s, workers=task["workers"])
         provenance = {"files": {t.name: str(t.source) for t in ident + valid},
                       "command": f"python -m tuner batch ({task['where']})", "batch_row": task["id"]}
-        fit(ident, valid, folder, settings, provenance=provenance, log=log)
+        problem = Problem.build(ident, valid, settings.data())  # prepared once, for the fit and the diagnosis
+        fit(ident, valid, folder, settings, provenance=provenance, problem=problem, log=log)
         if task["diagnose"]:
             if not valid:
                 raise DataError(f"{task['where']}: diagnose needs validation files (its decision is the held-out "
@@ -458,7 +460,7 @@ def run_row(task: dict) -> dict:
             ds = DiagnosisSettings(fit_rate_hz=settings.fit_rate_hz, warmup_s=settings.warmup_s,
                                    workers=task["workers"], engine=settings.engine, seed=settings.seed)
             diagnose(ident, valid, folder, ds, base_params=base, base_model=kind, base_choice=choice,
-                     other_bases=others, log=log)
+                     other_bases=others, problem=problem, log=log)
             from tuner.results.report import make_report
 
             make_report(folder)

@@ -61,12 +61,12 @@ import numpy as np
 from damper_fmu.parameters import EFFECT_IDENTIFIED, EFFECT_MODELS, EFFECT_PARAMETERS, EFFECT_TYPICAL, defaults
 
 from tuner.data.reading import RigTest
-from tuner.data.preprocess import prepare
 from tuner.identification.engine import Engine
 from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidence, residual_figures
-from tuner.metrics import noise_std, pooled_mse
+from tuner.metrics import pooled_mse
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.polish import polish
+from tuner.identification.problem import DataSettings, Problem, in_band_noise_of
 from tuner.progress import advance
 from tuner.results.report import fmt_quantity
 
@@ -170,16 +170,23 @@ class DiagnosisSettings:
     candidates: tuple = CANDIDATES
     #: base model: 'auto' (identify every one of BASE_MODELS, keep the lowest held-out MSE), or a kind
     base_model: str = "auto"
-    diff_band_hz: float | None = None  # as tuner.identification.fit.FitSettings
-    damping_abscissae_m_s: tuple | None = None  # as tuner.identification.fit.FitSettings (without a base fit given)
+    diff_band_hz: float | None = None  # as tuner.identification.problem.DataSettings
+    damping_abscissae_m_s: tuple | None = None  # as DataSettings (without a base fit given)
     elastic_abscissae_m: tuple | None = None
+    force_limit_n: float | None = None  # as DataSettings
     extra: dict = field(default_factory=dict)
+
+    def data(self) -> DataSettings:
+        """The problem definition when the diagnosis prepares the tests itself (no fit's problem given)."""
+        return DataSettings(fit_rate_hz=self.fit_rate_hz, warmup_s=self.warmup_s, diff_band_hz=self.diff_band_hz,
+                            damping_abscissae_m_s=self.damping_abscissae_m_s,
+                            elastic_abscissae_m=self.elastic_abscissae_m, force_limit_n=self.force_limit_n)
 
 
 def _stroke_noise_force(kind: str, params: dict, tests: list[RigTest], signals: list, settings) -> float:
     """Force [N rms, fit band] that the stroke channel's noise makes in the simulation: the model
-    driven by the measured stroke plus white noise at the stroke's own noise level (``noise_std`` of
-    the stroke, scaled to the fit band), minus the same without it; pooled over the tests, seed 0.
+    driven by the measured stroke plus white noise at the stroke's own noise level (``in_band_noise_of``
+    the stroke), minus the same without it; pooled over the tests, seed 0.
     The velocity input is left as measured: the differentiator's band (20 Hz and up) keeps the
     stroke noise's share in it small, and the series stiffness acts on the stroke."""
     import dataclasses
@@ -189,7 +196,7 @@ def _stroke_noise_force(kind: str, params: dict, tests: list[RigTest], signals: 
     rng = np.random.default_rng(0)
     se = n = 0.0
     for t, s in zip(tests, signals):
-        sigma = noise_std(t.stroke, t.sample_rate) * math.sqrt(min(1.0, settings.fit_rate_hz / t.sample_rate))
+        sigma = in_band_noise_of(t, settings.fit_rate_hz, "stroke")
         noisy = dataclasses.replace(s, stroke=s.stroke + rng.normal(0.0, sigma, s.stroke.size))
         d = (validation_run(kind, params, noisy, settings.engine)[0] - validation_run(kind, params, s, settings.engine)[0])
         se, n = se + float(np.sum(d[s.mask] ** 2)), n + int(s.mask.sum())
@@ -454,21 +461,22 @@ def decide(ranking: list[dict]) -> tuple[str, dict, list[dict]]:
 def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path,
              settings: DiagnosisSettings | None = None, *, base_params: dict | None = None,
              base_model: str | None = None, base_choice: dict | None = None,
-             other_bases: dict | None = None, log=print) -> dict:
+             other_bases: dict | None = None, problem: Problem | None = None, log=print) -> dict:
     """Run the diagnosis and write ``diagnosis.json`` (and figures, extended FMU) into ``out``.
 
     base_params: the values of an earlier fit of ``base_model`` (default 'lumped'); without them the
     base is identified here (``settings.base_model``: 'auto' identifies every one of BASE_MODELS and
     keeps the one with the lowest held-out MSE); base_choice: how the caller chose it (reported);
-    other_bases: {kind: values} of the other fitted base forms (``choose_base``).
+    other_bases: {kind: values} of the other fitted base forms (``choose_base``); problem: the tests
+    prepared by the fit before (``tuner.identification.problem``: the same fit rate, abscissae and
+    force limit), built from ``settings.data()`` when not given.
 
     The base is chosen before any effect is added; when the diagnosis on it leaves a residual above
     the floor (a large effect can make both bare bases fit badly, and then the wrong form may win),
     it is repeated on the other base forms that can plausibly win (bare held-out RMSE within
     ``RACE_RATIO`` x the first's; not at all when the first base's refit did not converge) and the
     final model with the lowest held-out MSE is kept; ``base_choice['not_repeated_on']`` says why not."""
-    from tuner.identification.fit import (RACE_RATIO, FitSettings, data_digest, default_force_limit, identify,
-                                          model_abscissae, table_abscissae, to_signals)
+    from tuner.identification.fit import RACE_RATIO, FitSettings, identify
 
     settings = settings or DiagnosisSettings()
     if not identification or not validation:
@@ -476,32 +484,27 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     out = Path(out)
     (out / "checkpoints").mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
-    prep_id = [prepare(t, settings.fit_rate_hz, diff_band_hz=settings.diff_band_hz) for t in identification]
-    prep_val = [prepare(t, settings.fit_rate_hz, diff_band_hz=settings.diff_band_hz) for t in validation]
-    sig_id = [to_signals(p, settings.warmup_s) for p in prep_id]
-    sig_val = [to_signals(p, settings.warmup_s) for p in prep_val]
-    peak = max(float(np.abs(s.force[s.mask]).max()) for s in sig_id)
-    stroke_range = max(float(np.ptp(s.stroke[s.mask])) for s in sig_id)
-    axes = table_abscissae(sig_id, peak, damping=settings.damping_abscissae_m_s,
-                           elastic=settings.elastic_abscissae_m)
-
-    # measurement noise of the force [N] within the fit band, from the spectrum of the measured force
-    # (tuner.metrics.noise_std; broadband signal such as the harmonics of a characteristic's kinks
-    # biases it high, the conservative side); white noise keeps the share fit_rate / sample_rate of
-    # its power after the anti-aliased resampling to the fit rate. The base model's residual is no
-    # better a source: its model-form error is broadband at the velocity reversals (measured: 10x the
-    # noise on lumped-damper data). An effect whose force is below the noise is not resolved.
-    noise = float(np.median([noise_std(t.force, t.sample_rate) * math.sqrt(min(1.0, settings.fit_rate_hz / t.sample_rate))
-                             for t in identification]))
-    log(f"diagnosis: force measurement noise about {noise:.1f} N rms in the {settings.fit_rate_hz / 2:g} Hz fit band "
-        f"(from the spectrum of the identification tests)")
-    data = _Data(identification, prep_id, prep_val, sig_id, sig_val, peak, stroke_range, noise)
+    if problem is None:
+        problem = Problem.build(identification, validation, settings.data())
+    elif [t.name for t in problem.identification] != [t.name for t in identification] or \
+            [t.name for t in problem.validation] != [t.name for t in validation]:
+        raise ValueError("diagnose: the problem given was built from other tests")
+    elif (problem.settings.fit_rate_hz, problem.settings.warmup_s) != (settings.fit_rate_hz, settings.warmup_s):
+        raise ValueError(f"diagnose: the problem was prepared at {problem.settings.fit_rate_hz:g} Hz with "
+                         f"{problem.settings.warmup_s:g} s warm-up, the settings ask for {settings.fit_rate_hz:g} Hz "
+                         f"and {settings.warmup_s:g} s")
+    data, sig_id, sig_val = problem, problem.sig_id, problem.sig_val
+    # force noise in the fit band (``in_band_noise``: from the spectrum of the measured force; the
+    # base model's residual is no better a source: its model-form error is broadband at the velocity
+    # reversals, measured 10x the noise on lumped-damper data). An effect whose force is below it is
+    # not resolved.
+    noise = problem.noise_n
+    log(f"diagnosis: force measurement noise about {noise:.1f} N rms in the {problem.settings.fit_rate_hz / 2:g} Hz "
+        f"fit band (from the spectrum of the identification tests)")
 
     def parametrization(kind: str, given: dict | None) -> Parametrization:
-        fixed = model_abscissae(kind, axes)
-        if given is not None:  # the fit's own tables
-            fixed = {k: given.get(k, v) for k, v in fixed.items()}
-        return Parametrization(kind, "improved", force_limit=default_force_limit(sig_id, axes), fixed=fixed)
+        # the local solver needs monotone tables: the 'improved' scheme whatever the fit used
+        return problem.parametrization(kind, fixed_from=given, scheme="improved")
 
     if base_params is not None:
         kind = base_model or "lumped"
@@ -521,7 +524,7 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
                              iterations=settings.base_iterations, workers=settings.workers, seed=settings.seed,
                              engine=settings.engine, polish_jacobians=settings.base_polish_jacobians)
             values, _ = identify(kind, sig_id, fs, par_k, out / "checkpoints" / f"diagnosis_base_{kind}.json",
-                                 data_digest(identification), log)
+                                 problem.digest, log)
             fitted[kind] = (par_k, values, _pooled_mse(kind, values, sig_val, settings.engine))
         kind = min(fitted, key=lambda k: fitted[k][2])
         bases = {k: fitted[k][:2] for k in sorted(fitted, key=lambda k: fitted[k][2])}
@@ -572,6 +575,8 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     result["settings"] = {**{k: v for k, v in settings.__dict__.items() if k != "extra"},
                           "penalty_per_parameter": PENALTY_PER_PARAMETER, "accept_score": ACCEPT_SCORE,
                           "unexplained_ratio": UNEXPLAINED_RATIO, "min_blocks": MIN_BLOCKS,
+                          "problem": {"data_settings": problem.settings.__dict__, "force_limit_n_used": problem.force_limit_n,
+                                      "table_abscissae": problem.axes},
                           "elapsed_s": time.perf_counter() - t_start}
     result["base_choice"] = base_choice
     (out / "diagnosis.json").write_text(json.dumps(result, indent=2, default=_json_default))
@@ -585,28 +590,13 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     return result
 
 
-@dataclass
-class _Data:
-    """The prepared tests of one diagnosis (independent of the base form): the rig tests, their
-    preprocessed forms and fit signals, peak force [N], stroke range [m], force noise [N rms]."""
-
-    identification: list
-    prep_id: list
-    prep_val: list
-    sig_id: list
-    sig_val: list
-    peak: float
-    stroke_range: float
-    noise: float
-
-
 def _score(mse: float, mse_ref: float, n_params: int) -> float:
     """Score of a model with ``n_params`` more parameters than the reference: -ln(MSE / MSE_ref) minus
     PENALTY_PER_PARAMETER per parameter, pooled validation MSEs [N^2]; -inf when it cannot be simulated."""
     return -math.log(mse / mse_ref) - PENALTY_PER_PARAMETER * n_params if math.isfinite(mse) else -math.inf
 
 
-def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: _Data, settings: DiagnosisSettings,
+def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Problem, settings: DiagnosisSettings,
                  out: Path, figures_sub: str, log) -> dict:
     """The diagnosis on one base form (steps 2-5 of the module docstring; figures into ``out /
     figures_sub``): the result fields of ``diagnosis.json`` for it, plus ``after_params`` (the final
@@ -614,7 +604,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: _Data
     from tuner.identification.fit import initial_guess, validation_run
 
     identification, prep_id, prep_val = data.identification, data.prep_id, data.prep_val
-    sig_id, sig_val, peak, stroke_range, noise = data.sig_id, data.sig_val, data.peak, data.stroke_range, data.noise
+    sig_id, sig_val, peak, stroke_range, noise = data.sig_id, data.sig_val, data.peak_n, data.stroke_range_m, data.noise_n
 
     engine_path = None
     if settings.engine == "fmu":

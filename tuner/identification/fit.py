@@ -30,26 +30,23 @@ from pathlib import Path
 
 import numpy as np
 
-from damper_fmu.parameters import (EFFECT_MODELS, FC_ABSCISSAE, FK_ABSCISSAE, FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS,
-                                   defaults, densify_abscissae)
+from damper_fmu.parameters import EFFECT_MODELS, FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS, defaults
 
 from tuner.identification import firefly
 from tuner.data.reading import RigTest
 from tuner.data.preprocess import prepare
-from tuner.identification.engine import IDENTIFICATION_STEP, Engine, Signals, oversampling, simulate_signals
+from tuner.identification.engine import IDENTIFICATION_STEP, Engine, Signals, simulate_signals
 from tuner.identification.full_rate import MIN_RATE_RATIO, comparison_rate, full_rate_check
 from tuner.metrics import error_metrics, noise_std
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.polish import polish
+from tuner.identification.problem import DataSettings, Problem, to_signals
 from tuner.progress import advance, stage
 from tuner.results.report import make_report
 
-__all__ = ["FitSettings", "fit", "initial_guess", "to_signals", "validation_run", "identify", "data_digest",
-           "table_abscissae", "default_force_limit", "model_abscissae", "quality_gate", "STRETCH_BEYOND", "QUALITY_AME_PCT",
+__all__ = ["FitSettings", "fit", "initial_guess", "validation_run", "identify", "quality_gate", "QUALITY_AME_PCT",
            "RACE_RATIO", "RESTART_LADDER"]
 
-#: The tables keep the paper's Table 2 abscissae until the data reach this many times the last one.
-STRETCH_BEYOND = 1.5
 #: Log-scaled parameters whose decade decides the basin a local refinement ends in: the data-driven
 #: start is refined again with each one a decade up and down (measured on random lumped dampers: one
 #: ended at 2.0x the floor with k_B 8e7 N/m from every start near the preset, and at the floor from
@@ -94,92 +91,13 @@ class FitSettings:
         d["models"] = list(self.models)
         return d
 
-
-def to_signals(p, warmup_s: float, oversample: int | None = None) -> Signals:
-    """Engine input from a PreparedTest; samples before time[0] + warmup_s do not count.
-
-    oversample: factor of the band-limited comparison (``tuner.identification.engine``); by default the one that
-    puts the simulation grid at the identification step when the data was low-passed to the fit
-    rate, else 1 (data at its own rate, not filtered). Samples the low-pass does not fully cover
-    (tens of ms at each end) do not count either.
-    """
-    if oversample is None:
-        oversample = oversampling(p.sample_rate) if p.resampler is not None else 1
-    mask = (p.time - p.time[0]) >= warmup_s
-    temp = p.channels.get("temperature")
-    s = Signals(p.name, p.time, p.stroke, p.stroke_velocity, p.force, mask,
-                None if temp is None else np.asarray(temp, dtype=float), int(oversample))
-    k0, n = s.band_limited_span()
-    mask[:k0] = False
-    mask[k0 + n:] = False
-    if mask.sum() < 10:
-        raise ValueError(f"test {p.name!r}: warm-up of {warmup_s} s leaves fewer than 10 samples")
-    return s
-
-
-def _given(name: str, values, preset: tuple) -> tuple:
-    xs = tuple(float(v) for v in values)
-    if len(xs) != len(preset) or any(x == 0 for x in xs) or list(xs) != sorted(xs) or \
-            sum(x < 0 for x in xs) != sum(x < 0 for x in preset):
-        raise ValueError(f"{name}: need {len(preset)} increasing nonzero values, {sum(x < 0 for x in preset)} of "
-                         f"them negative (like Table 2's {preset}), got {xs}")
-    return xs
-
-
-def table_abscissae(tests: list[Signals], peak_force: float, spring_reference: float = FK_REFERENCE_STIFFNESS,
-                    damping=None, elastic=None) -> dict:
-    """Fixed abscissae of the Fc,O [m/s] and Fk,O [m] tables for this data, as parameter values.
-
-    Table 2's layout unless the data go beyond it: when the identification tests' peak stroke
-    velocity exceeds ``STRETCH_BEYOND`` x the last rate abscissa (100 mm/s), every rate abscissa
-    is stretched by the same factor so that the last one is 5 % above the peak (the knee region
-    keeps its share of points); the elongation abscissae likewise when the reference spring's
-    elongation at the peak force, ``peak_force / spring_reference``, exceeds 1.5 x the last one
-    (2 mm). Up to 1.5 x the last piece is extrapolated by its fitted slope; the paper's layout is
-    kept there so the tables compare with Table 2. ``damping``/``elastic``: abscissae given by
-    the user (SI), used as they are.
-    """
-    vpeak = max(float(np.max(np.abs(s.stroke_velocity[s.mask]))) for s in tests)
-    if damping is not None:
-        fc = _given("damping abscissae", damping, FC_ABSCISSAE)
-    else:
-        last = max(abs(v) for v in FC_ABSCISSAE)
-        k = 1.05 * vpeak / last if vpeak > STRETCH_BEYOND * last else 1.0
-        fc = tuple(v * k for v in FC_ABSCISSAE)
-    if elastic is not None:
-        fk = _given("elastic abscissae", elastic, FK_ABSCISSAE)
-    else:
-        last = max(abs(x) for x in FK_ABSCISSAE)
-        e = peak_force / spring_reference
-        k = 1.05 * e / last if e > STRETCH_BEYOND * last else 1.0
-        fk = tuple(x * k for x in FK_ABSCISSAE)
-    out = {f"Fc_v{i:02d}": v for i, v in enumerate(fc, start=1)}
-    out.update({f"Fk_x{i:02d}": x for i, x in enumerate(fk, start=1)})
-    return out
-
-
-def default_force_limit(tests: list[Signals], axes: dict) -> float:
-    """Limit [N] of the damping table's ordinates (``Parametrization.force_limit``) for these tests and the
-    :func:`table_abscissae` ``axes``: 1.5 x the identification tests' peak force, times the ratio of the
-    last rate abscissa to the data's peak stroke velocity where the data do not reach it (the ordinates
-    beyond the data extrapolate the table; a random damper whose data reached 59 of 100 mm/s had its
-    100 mm/s ordinate at 1.6 x the peak force, and the plain 1.5 x cap held the fit 4.5x above the floor).
-    Two significant digits."""
-    peak = max(float(np.abs(s.force[s.mask]).max()) for s in tests)
-    vpeak = max(float(np.max(np.abs(s.stroke_velocity[s.mask]))) for s in tests)
-    vlast = max(abs(v) for k, v in axes.items() if k.startswith("Fc_v"))
-    return float(f"{1.5 * peak * max(1.0, vlast / max(vpeak, 1e-12)):.2g}")
-
-
-def model_abscissae(model: str, axes: dict) -> dict:
-    """The fixed abscissae of ``model`` from the :func:`table_abscissae` of the data: the lumped and
-    table-Maxwell models take them as they are; the two-chamber model's damping table has the
-    midpoints added (``damper_fmu.parameters.densify_abscissae``)."""
-    names = {p.name for p in MODEL_PARAMETERS[model]}
-    if model == "twochamber":
-        fc = [axes[k] for k in sorted(axes) if k.startswith("Fc_v")]
-        return {f"Fc_v{i:02d}": v for i, v in enumerate(densify_abscissae(fc), start=1)}
-    return {k: v for k, v in axes.items() if k in names}
+    def data(self) -> DataSettings:
+        """The settings that define the identification problem (``tuner.identification.problem``)."""
+        return DataSettings(fit_rate_hz=self.fit_rate_hz, warmup_s=self.warmup_s, diff_band_hz=self.diff_band_hz,
+                            damping_abscissae_m_s=self.damping_abscissae_m_s,
+                            elastic_abscissae_m=self.elastic_abscissae_m, force_limit_n=self.force_limit_n,
+                            spring_reference_n_per_m=self.spring_reference_n_per_m,
+                            parametrization=self.parametrization)
 
 
 def initial_guess(model: str, tests: list[Signals], par: Parametrization) -> dict:
@@ -228,15 +146,6 @@ def _settings_hash(settings: FitSettings, data_digest: str, model: str) -> str:
     free = ("workers", "extra", "iterations", "stop_tol", "polish_jacobians")
     keep = {k: v for k, v in settings.to_dict().items() if k not in free}
     return hashlib.sha256(json.dumps([keep, data_digest, model], sort_keys=True, default=str).encode()).hexdigest()[:16]
-
-
-def data_digest(tests: list[RigTest]) -> str:
-    h = hashlib.sha256()
-    for t in tests:
-        h.update(t.name.encode())
-        for a in (t.time, t.stroke, t.force):
-            h.update(np.ascontiguousarray(a).tobytes())
-    return h.hexdigest()
 
 
 def identify(model: str, signals: list[Signals], settings: FitSettings, par: Parametrization,
@@ -433,28 +342,27 @@ def quality_gate(tests: dict, models) -> dict:
 
 
 def fit(identification: list[RigTest], validation: list[RigTest], out: Path, settings: FitSettings,
-        *, provenance: dict | None = None, log=print) -> dict:
+        *, provenance: dict | None = None, problem: Problem | None = None, log=print) -> dict:
     """Identify every model in ``settings.models``, validate, write the output folder.
 
     Returns the metrics dict (also written to metrics.json). ``out`` must exist (the CLI decides
-    about overwriting); checkpoints in ``out/checkpoints`` are resumed when present.
+    about overwriting); checkpoints in ``out/checkpoints`` are resumed when present. ``problem``: the
+    tests already prepared (``Problem.build(identification, validation, settings.data())``), so that
+    a diagnosis after the fit works on the same problem; built here when not given.
     """
     if not identification:
         raise ValueError("no identification test given")
+    if problem is None:
+        problem = Problem.build(identification, validation, settings.data())
+    elif problem.settings != settings.data():
+        raise ValueError(f"fit: the problem was built with {problem.settings}, the fit settings ask for "
+                         f"{settings.data()}")
     out = Path(out)
     (out / "checkpoints").mkdir(parents=True, exist_ok=True)
-    digest = data_digest(identification)
-    prep_id = [prepare(t, settings.fit_rate_hz, diff_band_hz=settings.diff_band_hz) for t in identification]
-    signals = [to_signals(p, settings.warmup_s) for p in prep_id]
-    peak = max(float(np.abs(s.force[s.mask]).max()) for s in signals)
-
-    # measurement noise in the fit band [N] (tuner.metrics.noise_std; see tuner.diagnosis.diagnose): what a
-    # fit of a model that can represent the data reaches, reported beside the identification RMSE
-    noise = float(np.median([noise_std(t.force, t.sample_rate) * math.sqrt(min(1.0, settings.fit_rate_hz / t.sample_rate))
-                             for t in identification]))
-    axes = table_abscissae(signals, peak, settings.spring_reference_n_per_m, settings.damping_abscissae_m_s,
-                           settings.elastic_abscissae_m)
-    force_limit = settings.force_limit_n or default_force_limit(signals, axes)
+    digest, prep_id, signals, peak = problem.digest, problem.prep_id, problem.sig_id, problem.peak_n
+    # measurement noise in the fit band [N]: what a fit of a model that can represent the data
+    # reaches, reported beside the identification RMSE
+    noise, axes, force_limit = problem.noise_n, problem.axes, problem.force_limit_n
     log(f"identification: {len(signals)} tests, {sum(int(s.mask.sum()) for s in signals)} samples at "
         f"{settings.fit_rate_hz:g} Hz; peak force {peak:.0f} N -> Fc,O limit {force_limit:.3g} N")
     log(f"table abscissae: Fc,O rates up to {1e3 * axes['Fc_v14']:.4g} mm/s, Fk,O elongations up to "
@@ -463,9 +371,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
     params, histories = {}, {}
     for model in settings.models:
         stage(log, f"fit {model}")
-        fixed = model_abscissae(model, axes)
-        par = Parametrization(model, settings.parametrization, force_limit=force_limit,
-                              spring_reference=settings.spring_reference_n_per_m, fixed=fixed)
+        par = problem.parametrization(model)
         fitted_bases = [(m, histories[m]["identification_rmse_n"]) for m in histories if m in EFFECT_MODELS]
         best, hist = identify(model, signals, settings, par, out / "checkpoints" / f"{model}.json", digest, log,
                               rival=min(fitted_bases, key=lambda r: r[1]) if model in EFFECT_MODELS and fitted_bases
@@ -486,9 +392,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
     stage(log, "validate and export")
     log(f"validating through the FMU (forces compared in the {settings.fit_rate_hz / 2:g} Hz fit band) ...")
     tests_out, arrays = {}, {}
-    prep_val = [prepare(t, settings.fit_rate_hz, diff_band_hz=settings.diff_band_hz) for t in validation]
-    for t, p in zip([*identification, *validation], [*prep_id, *prep_val]):
-        s = to_signals(p, settings.warmup_s)
+    for t, p, s in zip([*identification, *validation], [*prep_id, *problem.prep_val], [*signals, *problem.sig_val]):
         arrays[f"{t.name}__time"], arrays[f"{t.name}__stroke"] = p.time, p.stroke
         arrays[f"{t.name}__force"] = p.force
         models_m = {}

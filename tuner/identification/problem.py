@@ -1,0 +1,218 @@
+"""The identification problem: the rig tests prepared once, for every stage that uses them.
+
+``Problem.build(identification, validation, DataSettings(...))`` resamples and differentiates every
+test (``tuner.data.preprocess.prepare``), turns them into engine signals, and derives what the fit,
+the diagnosis, the batch runner and the benchmarks all need from the data: the peak force [N], the
+stroke range [m], the force noise in the fit band [N rms], the table abscissae, the Fc,O force
+limit [N] and a digest for resuming. ``problem.parametrization(kind)`` gives the design space of a
+model on it. One place, so that the stages cannot disagree about the data (before: the fit and the
+diagnosis each prepared the tests, and the diagnosis ignored ``--force-limit``).
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from damper_fmu.parameters import FC_ABSCISSAE, FK_ABSCISSAE, FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS, densify_abscissae
+
+from tuner.data.preprocess import prepare
+from tuner.data.reading import RigTest
+from tuner.identification.engine import Signals, oversampling
+from tuner.identification.parametrization import Parametrization
+from tuner.metrics import noise_std
+
+__all__ = ["DataSettings", "Problem", "in_band_noise", "to_signals", "table_abscissae", "model_abscissae",
+           "default_force_limit", "data_digest", "STRETCH_BEYOND"]
+
+#: The tables keep the paper's Table 2 abscissae until the data reach this many times the last one.
+STRETCH_BEYOND = 1.5
+
+
+@dataclass(frozen=True)
+class DataSettings:
+    """How the rig tests become an identification problem (units in the names).
+
+    fit_rate_hz: rate the tests are resampled to (anti-aliased) and compared at; warmup_s: samples
+    before time[0] + warmup_s do not count; diff_band_hz: band [Hz] within which the stroke
+    differentiator is accurate to 0.5 % (None: from each test's stroke spectrum); damping/elastic
+    abscissae: the Fc,O rates [m/s] (14) and Fk,O elongations [m] (10), None: from the data;
+    force_limit_n: cap on the Fc,O ordinates (None: ``default_force_limit``); parametrization:
+    'improved' (monotone tables, needed by the local solver) or 'paper'."""
+
+    fit_rate_hz: float = 200.0
+    warmup_s: float = 0.5
+    diff_band_hz: float | None = None
+    damping_abscissae_m_s: tuple | None = None
+    elastic_abscissae_m: tuple | None = None
+    force_limit_n: float | None = None
+    spring_reference_n_per_m: float = FK_REFERENCE_STIFFNESS
+    parametrization: str = "improved"
+
+
+def in_band_noise(tests: list[RigTest], fit_rate_hz: float, channel: str = "force") -> float:
+    """Measurement noise of ``channel`` ('force' [N] or 'stroke' [m]) left in the fit band, rms:
+    ``tuner.metrics.noise_std`` of each test at its own rate, scaled by sqrt(fit_rate / sample_rate)
+    (white noise keeps that share of its power after the anti-aliased resampling), median over the
+    tests. The spectrum estimate is biased high by broadband signal (the harmonics of a
+    characteristic's kinks): the conservative side for "is this effect above the noise"."""
+    return float(np.median([in_band_noise_of(t, fit_rate_hz, channel) for t in tests]))
+
+
+def in_band_noise_of(test: RigTest, fit_rate_hz: float, channel: str = "force") -> float:
+    """``in_band_noise`` of one test."""
+    return noise_std(getattr(test, channel), test.sample_rate) * math.sqrt(min(1.0, fit_rate_hz / test.sample_rate))
+
+
+def to_signals(p, warmup_s: float, oversample: int | None = None) -> Signals:
+    """Engine input from a PreparedTest; samples before time[0] + warmup_s do not count.
+
+    oversample: factor of the band-limited comparison (``tuner.identification.engine``); by default the one that
+    puts the simulation grid at the identification step when the data was low-passed to the fit
+    rate, else 1 (data at its own rate, not filtered). Samples the low-pass does not fully cover
+    (tens of ms at each end) do not count either.
+    """
+    if oversample is None:
+        oversample = oversampling(p.sample_rate) if p.resampler is not None else 1
+    mask = (p.time - p.time[0]) >= warmup_s
+    temp = p.channels.get("temperature")
+    s = Signals(p.name, p.time, p.stroke, p.stroke_velocity, p.force, mask,
+                None if temp is None else np.asarray(temp, dtype=float), int(oversample))
+    k0, n = s.band_limited_span()
+    mask[:k0] = False
+    mask[k0 + n:] = False
+    if mask.sum() < 10:
+        raise ValueError(f"test {p.name!r}: warm-up of {warmup_s} s leaves fewer than 10 samples")
+    return s
+
+
+def _given(name: str, values, preset: tuple) -> tuple:
+    xs = tuple(float(v) for v in values)
+    if len(xs) != len(preset) or any(x == 0 for x in xs) or list(xs) != sorted(xs) or \
+            sum(x < 0 for x in xs) != sum(x < 0 for x in preset):
+        raise ValueError(f"{name}: need {len(preset)} increasing nonzero values, {sum(x < 0 for x in preset)} of "
+                         f"them negative (like Table 2's {preset}), got {xs}")
+    return xs
+
+
+def table_abscissae(tests: list[Signals], peak_force: float, spring_reference: float = FK_REFERENCE_STIFFNESS,
+                    damping=None, elastic=None) -> dict:
+    """Fixed abscissae of the Fc,O [m/s] and Fk,O [m] tables for this data, as parameter values.
+
+    Table 2's layout unless the data go beyond it: when the identification tests' peak stroke
+    velocity exceeds ``STRETCH_BEYOND`` x the last rate abscissa (100 mm/s), every rate abscissa
+    is stretched by the same factor so that the last one is 5 % above the peak (the knee region
+    keeps its share of points); the elongation abscissae likewise when the reference spring's
+    elongation at the peak force, ``peak_force / spring_reference``, exceeds 1.5 x the last one
+    (2 mm). Up to 1.5 x the last piece is extrapolated by its fitted slope; the paper's layout is
+    kept there so the tables compare with Table 2. ``damping``/``elastic``: abscissae given by
+    the user (SI), used as they are.
+    """
+    vpeak = max(float(np.max(np.abs(s.stroke_velocity[s.mask]))) for s in tests)
+    if damping is not None:
+        fc = _given("damping abscissae", damping, FC_ABSCISSAE)
+    else:
+        last = max(abs(v) for v in FC_ABSCISSAE)
+        k = 1.05 * vpeak / last if vpeak > STRETCH_BEYOND * last else 1.0
+        fc = tuple(v * k for v in FC_ABSCISSAE)
+    if elastic is not None:
+        fk = _given("elastic abscissae", elastic, FK_ABSCISSAE)
+    else:
+        last = max(abs(x) for x in FK_ABSCISSAE)
+        e = peak_force / spring_reference
+        k = 1.05 * e / last if e > STRETCH_BEYOND * last else 1.0
+        fk = tuple(x * k for x in FK_ABSCISSAE)
+    out = {f"Fc_v{i:02d}": v for i, v in enumerate(fc, start=1)}
+    out.update({f"Fk_x{i:02d}": x for i, x in enumerate(fk, start=1)})
+    return out
+
+
+def default_force_limit(tests: list[Signals], axes: dict) -> float:
+    """Limit [N] of the damping table's ordinates (``Parametrization.force_limit``) for these tests and the
+    :func:`table_abscissae` ``axes``: 1.5 x the identification tests' peak force, times the ratio of the
+    last rate abscissa to the data's peak stroke velocity where the data do not reach it (the ordinates
+    beyond the data extrapolate the table; a random damper whose data reached 59 of 100 mm/s had its
+    100 mm/s ordinate at 1.6 x the peak force, and the plain 1.5 x cap held the fit 4.5x above the floor).
+    Two significant digits."""
+    peak = max(float(np.abs(s.force[s.mask]).max()) for s in tests)
+    vpeak = max(float(np.max(np.abs(s.stroke_velocity[s.mask]))) for s in tests)
+    vlast = max(abs(v) for k, v in axes.items() if k.startswith("Fc_v"))
+    return float(f"{1.5 * peak * max(1.0, vlast / max(vpeak, 1e-12)):.2g}")
+
+
+def model_abscissae(model: str, axes: dict) -> dict:
+    """The fixed abscissae of ``model`` from the :func:`table_abscissae` of the data: the lumped and
+    table-Maxwell models take them as they are; the two-chamber model's damping table has the
+    midpoints added (``damper_fmu.parameters.densify_abscissae``)."""
+    names = {p.name for p in MODEL_PARAMETERS[model]}
+    if model == "twochamber":
+        fc = [axes[k] for k in sorted(axes) if k.startswith("Fc_v")]
+        return {f"Fc_v{i:02d}": v for i, v in enumerate(densify_abscissae(fc), start=1)}
+    return {k: v for k, v in axes.items() if k in names}
+
+
+def data_digest(tests: list[RigTest]) -> str:
+    h = hashlib.sha256()
+    for t in tests:
+        h.update(t.name.encode())
+        for a in (t.time, t.stroke, t.force):
+            h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
+
+
+@dataclass
+class Problem:
+    """Rig tests prepared for identification and validation (build with ``Problem.build``).
+
+    prep_id/prep_val: the PreparedTests (fit rate, differentiated stroke); sig_id/sig_val: their
+    engine signals; peak_n: peak |force| of the identification tests [N] (counted samples);
+    stroke_range_m: the largest stroke range of an identification test [m]; noise_n: force noise in
+    the fit band [N rms] (``in_band_noise``); axes: the table abscissae (``table_abscissae``);
+    force_limit_n: the Fc,O ordinate cap [N] (the settings' or ``default_force_limit``); digest: of
+    the identification data (resume keys)."""
+
+    settings: DataSettings
+    identification: list
+    validation: list
+    prep_id: list = field(repr=False)
+    prep_val: list = field(repr=False)
+    sig_id: list = field(repr=False)
+    sig_val: list = field(repr=False)
+    peak_n: float
+    stroke_range_m: float
+    noise_n: float
+    axes: dict
+    force_limit_n: float
+    digest: str
+
+    @classmethod
+    def build(cls, identification: list[RigTest], validation: list[RigTest],
+              settings: DataSettings | None = None) -> "Problem":
+        settings = settings or DataSettings()
+        if not identification:
+            raise ValueError("no identification test given")
+        prep_id = [prepare(t, settings.fit_rate_hz, diff_band_hz=settings.diff_band_hz) for t in identification]
+        prep_val = [prepare(t, settings.fit_rate_hz, diff_band_hz=settings.diff_band_hz) for t in validation]
+        sig_id = [to_signals(p, settings.warmup_s) for p in prep_id]
+        sig_val = [to_signals(p, settings.warmup_s) for p in prep_val]
+        peak = max(float(np.abs(s.force[s.mask]).max()) for s in sig_id)
+        axes = table_abscissae(sig_id, peak, settings.spring_reference_n_per_m, settings.damping_abscissae_m_s,
+                               settings.elastic_abscissae_m)
+        return cls(settings=settings, identification=list(identification), validation=list(validation),
+                   prep_id=prep_id, prep_val=prep_val, sig_id=sig_id, sig_val=sig_val, peak_n=peak,
+                   stroke_range_m=max(float(np.ptp(s.stroke[s.mask])) for s in sig_id),
+                   noise_n=in_band_noise(identification, settings.fit_rate_hz), axes=axes,
+                   force_limit_n=settings.force_limit_n or default_force_limit(sig_id, axes),
+                   digest=data_digest(identification))
+
+    def parametrization(self, kind: str, fixed_from: dict | None = None, scheme: str | None = None) -> Parametrization:
+        """The design space of model ``kind`` on this data: the table abscissae fixed (those of
+        ``fixed_from``, an earlier fit's values, where given), the force limit and scheme of the
+        settings (``scheme`` overrides it)."""
+        fixed = model_abscissae(kind, self.axes)
+        if fixed_from is not None:
+            fixed = {k: fixed_from.get(k, v) for k, v in fixed.items()}
+        return Parametrization(kind, scheme or self.settings.parametrization, force_limit=self.force_limit_n,
+                               spring_reference=self.settings.spring_reference_n_per_m, fixed=fixed)
