@@ -110,3 +110,26 @@ def test_dominant_rate_separates_beating_modes():
     rate, freq = dominant_rate(t, Z)
     assert rate == pytest.approx(-0.02, abs=2e-3)
     assert freq == pytest.approx(6.96, abs=0.01)
+
+
+def test_vehicle_command(maxwell_fmu, tmp_path, capsys):
+    """``python -m tuner vehicle``: side-by-side table, JSON and a figure per scenario; the Maxwell FMU's
+    time-domain critical speed next to its eigenvalue one; a missing FMU is a clear error (exit 2)."""
+    import json
+
+    from tuner.__main__ import main
+
+    out = tmp_path / "veh"
+    code = main(["vehicle", "--fmus", str(maxwell_fmu), "--out", str(out), "--quiet", "--scenarios",
+                 "critical_speed", "curve_entry", "--v-min", "700", "--v-max", "900", "--tol", "10"])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "critical speed [km/h]" in text and "curve_entry: peak bogie yaw [mrad]" in text
+    data = json.loads((out / "vehicle.json").read_text())
+    r = data["results"]["DamperMaxwell"]
+    cs = r["critical_speed"]
+    assert cs["critical_speed_kmh"] == pytest.approx(cs["eigenvalue_critical_speed_kmh"], rel=0.02)
+    assert r["curve_entry"]["peak_damper_force_n"] > 1e3
+    assert (out / "critical_speed.png").is_file() and (out / "curve_entry.png").is_file()
+    assert main(["vehicle", "--fmus", str(tmp_path / "missing.fmu"), "--out", str(out)]) == 2
+    assert "missing.fmu" in capsys.readouterr().err

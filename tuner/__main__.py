@@ -8,6 +8,7 @@
     python -m tuner inspect FILES        what the reader understands of rig files (see --help)
     python -m tuner batch MANIFEST       a fleet: one fit per manifest row, local pool or Dask (see --help)
     python -m tuner report DIR           rebuild the report of a fit output folder
+    python -m tuner vehicle --fmus F...  the damper FMUs in a vehicle: critical speed, curve, ride (see --help)
 
 Exit status: 0 success, 2 bad input or arguments (message on stderr), 130 interrupted.
 """
@@ -529,6 +530,9 @@ def main(argv=None) -> int:
     from tuner.cli.batch import add_parser as add_batch_parser
 
     add_batch_parser(sub)
+    from tuner.cli.vehicle import add_parser as add_vehicle_parser
+
+    add_vehicle_parser(sub)
     if not argv:
         argv = ["fit", "--dataset", str(DEFAULT_DATASET)]
     args = ap.parse_args(argv)
