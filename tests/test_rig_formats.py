@@ -183,8 +183,9 @@ def test_inspect_prints_what_was_understood(tmp_path, capsys, ref):
     p = tmp_path / "fast.csv"
     pd.DataFrame({"t [s]": t, "pos [mm]": -1e3 * x, "load [kN]": -f / 1e3, "Oil temp": 40.0 + 0 * t}) \
         .to_csv(p, index=False)
-    code = main(["inspect", str(p), "--time-col", "t", "--stroke-col", "pos", "--force-col", "load",
-                 "--stroke-sign", "-1", "--force-sign", "-1", "--json"])
+    args = ["inspect", str(p), "--time-col", "t", "--stroke-col", "pos", "--force-col", "load",
+            "--stroke-sign", "-1", "--force-sign", "-1"]
+    code = main(args)
     out = capsys.readouterr().out
     assert code == 0
     assert "stroke in mm, force in kN" in out
@@ -194,7 +195,8 @@ def test_inspect_prints_what_was_understood(tmp_path, capsys, ref):
     assert "'Oil temp'" in out and "--temperature-col" in out
     import json as _json
 
-    figures = _json.loads(out[out.index("[\n"):])
+    assert main(args + ["--json"]) == 0
+    figures = _json.loads(capsys.readouterr().out)  # the JSON alone on stdout
     assert figures[0]["coverage"]["velocity_peak_m_s"] == pytest.approx(2 * np.pi * 1.5 * 0.05, rel=0.01)
 
 
@@ -314,3 +316,55 @@ def test_a_flipped_sign_is_refused_because_a_damper_absorbs_power(tmp_path, ref,
         assert g.metadata["read"]["plausibility"]["force_velocity_correlation"] > 0.3
     else:
         load_test(p)
+
+
+def test_columns_nobody_asked_for_do_not_refuse_the_file_and_keep_their_declared_units(tmp_path):
+    """A logger's file: a sample-rate constant written once in the first row, an empty trailing
+    column, a thermocouple in volts next to the oil temperature in degC. The columns in use are read
+    in their declared units; the incomplete ones are left out with a warning naming them; the volt
+    column is a channel in V (not taken for the oil temperature)."""
+    rate = 300.0
+    t = np.arange(2000) / rate
+    x_mm = 5.0 * np.sin(2 * np.pi * t)
+    path = tmp_path / "logger.csv"
+    with open(path, "w") as f:
+        f.write("Time (s),Displacement (mm),Load (kN),Force (V),Temperature (V),fs,\n")
+        for i in range(t.size):
+            f.write(f"{t[i]:.5f},{x_mm[i]:.4f},{3 * x_mm[i]:.4f},{0.1 * x_mm[i]:.4f},{1.5 + 1e-3 * i:.4f},"
+                    f"{'300' if i == 0 else ''},\n")
+    (test,) = load_tests(path, time_col="Time (s)", stroke_col="Displacement (mm)", force_col="Load (kN)")
+    assert np.allclose(test.stroke, 1e-3 * x_mm, atol=1e-7) and np.allclose(test.force, 3e3 * x_mm, atol=0.1)
+    assert test.channel_units["Force (V)"] == "V" and test.channel_units["Temperature (V)"] == "V"
+    assert "temperature" not in test.channels
+    read = test.metadata["read"]
+    assert "fs" in read["ignored"] and "fs" not in test.channels
+    warnings = " ".join(test.metadata["warnings"])
+    assert "'fs' not read" in warnings and "not a temperature unit" in warnings
+    # a channel the user asks for must still be complete
+    with pytest.raises(DataError, match="'fs' is NaN"):
+        load_tests(path, time_col="Time (s)", stroke_col="Displacement (mm)", force_col="Load (kN)",
+                   extra_cols=["fs"])
+
+
+def test_a_force_in_kn_read_as_n_is_flagged_by_the_damper_class(tmp_path):
+    """A yaw damper's 76 mm stroke with a force column of 18 N peak (kN values read as N, above the
+    hard 200 N s/m floor): read with a warning naming the yaw range and suggesting kN; silent with
+    --damper-class any, and silent on the bundled yaw-damper campaign."""
+    from tuner.data.reading import DAMPER_CLASSES
+
+    t = np.arange(3000) / 200.0
+    x_mm = 38.0 * np.sin(2 * np.pi * 0.5 * t)
+    f = 300.0 * np.gradient(x_mm, t) / 1000.0  # 300 N s/m: a 3e5 N s/m damper's kN figures
+    p = tmp_path / "yaw.csv"
+    pd.DataFrame({"time": t, "stroke [mm]": x_mm, "force [N]": f}).to_csv(p, index=False)
+    (test,) = load_tests(p)
+    (warning,) = [w for w in test.metadata["warnings"] if "apparent damping" in w]
+    assert "below the yaw damper range" in warning and "Is it in 'kN'?" in warning
+    (test,) = load_tests(p, damper_class="any")
+    assert not any("apparent damping" in w for w in test.metadata.get("warnings", []))
+    with pytest.raises(ValueError, match="unknown damper class"):
+        load_tests(p, damper_class="bogie")
+    lo, hi = DAMPER_CLASSES["yaw"]
+    for t_ in load_dataset(DEFAULT_DATASET):
+        assert lo <= t_.metadata["read"]["plausibility"]["apparent_damping_n_s_per_m"] <= hi
+        assert not any("apparent damping" in w for w in t_.metadata.get("warnings", []))

@@ -164,11 +164,14 @@ def _add_data_options(g) -> None:
                         "as keys (time_col, stroke_unit, force_sign ...), for every file and per file name")
     g.add_argument("--accept-implausible", action="store_true",
                    help="read data that fails the physical plausibility checks (units) as declared")
+    g.add_argument("--damper-class", default=None, choices=["yaw", "primary", "secondary", "any"],
+                   help="the kind of railway damper tested (default yaw): a test whose apparent damping is "
+                        "outside that class's range is read with a warning (a force in kN read as N)")
 
 
 _DATA_OPTIONS = ("time_col", "stroke_col", "force_col", "velocity_col", "temperature_col", "test_col", "time_unit",
                  "stroke_unit", "force_unit", "velocity_unit", "temperature_unit", "stroke_sign", "force_sign",
-                 "t_start", "t_end")
+                 "t_start", "t_end", "damper_class")
 
 
 def _column_options(args) -> tuple[dict, dict]:
@@ -245,7 +248,7 @@ def _add_fit_options(ap: argparse.ArgumentParser) -> None:
 def _load(args, file_role: str | None = "identification"):
     """(identification tests, validation tests, name) from --dataset or the files; ``file_role``: the
     role of --identification files (None for ``inspect``, which only reads them)."""
-    from tuner.data.reading import load_dataset, load_files
+    from tuner.data.reading import DEFAULT_DAMPER_CLASS, load_dataset, load_files
 
     common, per_file = _column_options(args)
 
@@ -255,7 +258,8 @@ def _load(args, file_role: str | None = "identification"):
     if args.dataset and (args.identification or args.validation):
         raise ValueError("give either --dataset or --identification/--validation files, not both")
     if args.dataset:
-        tests = load_dataset(args.dataset, check_plausible=not args.accept_implausible)
+        tests = load_dataset(args.dataset, check_plausible=not args.accept_implausible,
+                             damper_class=args.damper_class or DEFAULT_DAMPER_CLASS)
         ident = [t for t in tests if t.role == "identification"]
         valid = [t for t in tests if t.role == "validation"]
         name = args.dataset.resolve().name
@@ -270,9 +274,10 @@ def _load(args, file_role: str | None = "identification"):
     from tuner.data.summary import format_summary
 
     rate, band = _fit_rate_and_band(args)
-    _log("data as read:")
-    for t in ident + valid:
-        _log(format_summary(t, rate, band))
+    if not getattr(args, "json", False):  # inspect --json: the JSON alone on stdout
+        _log("data as read:")
+        for t in ident + valid:
+            _log(format_summary(t, rate, band))
     names = [t.name for t in ident + valid]
     if len(set(names)) != len(names):
         raise ValueError(f"test names must be unique, got {names}")

@@ -60,6 +60,14 @@ MIN_FORCE_PEAK_N = 1.0
 MAX_FORCE_PEAK_N = 2e6
 MIN_DAMPING_N_S_PER_M = 200.0
 MAX_DAMPING_N_S_PER_M = 1e8
+#: Apparent damping rms(F) / rms(v) [N s/m] of railway dampers by class: outside its class's range a
+#: test is read with a warning (a force in kN read as N gives 1000x too little). Yaw dampers: 1.0e5 to
+#: 1.1e6 on the bundled campaign and on the random dampers of ``campaign.damper_class`` (stiff low-speed
+#: slopes, blow-off above a few cm/s), widened 3x each way; primary and secondary (vertical and lateral)
+#: dampers are an order of magnitude softer. 'any' checks only the hard limits above.
+DAMPER_CLASSES = {"yaw": (3e4, 3e6), "primary": (3e3, 3e5), "secondary": (3e3, 3e5),
+                  "any": (MIN_DAMPING_N_S_PER_M, MAX_DAMPING_N_S_PER_M)}
+DEFAULT_DAMPER_CLASS = "yaw"
 MIN_FORCE_VELOCITY_CORRELATION = -0.05
 MIN_SAMPLE_RATE_HZ = 10.0
 
@@ -176,6 +184,24 @@ def check_signals(source, time, stroke, force, channels=None, *, dt_tol=0.01,
     return rate
 
 
+def class_warning(source, figures: dict, damper_class: str = DEFAULT_DAMPER_CLASS, units=None) -> str | None:
+    """A warning when the apparent damping of :func:`plausibility`'s ``figures`` lies outside the
+    range of ``damper_class`` (``DAMPER_CLASSES``), with the force unit that would bring it inside;
+    None inside. ValueError for an unknown class."""
+    if damper_class not in DAMPER_CLASSES:
+        raise ValueError(f"unknown damper class {damper_class!r}; choose from {', '.join(DAMPER_CLASSES)}")
+    c_app = figures.get("apparent_damping_n_s_per_m")
+    lo, hi = DAMPER_CLASSES[damper_class]
+    if c_app is None or lo <= c_app <= hi:
+        return None
+    fu = (units or {}).get("force", "N")
+    return (f"{source}: apparent damping {c_app:.3g} N s/m (rms force / rms stroke velocity) is "
+            f"{'below' if c_app < lo else 'above'} the {damper_class} damper range {lo:.0e}-{hi:.0e} N s/m "
+            f"(force read in {fu!r})." + _suggest(FORCE_UNITS, fu, lambda r: lo <= c_app * r <= hi)
+            + " Check --force-unit/--stroke-unit, or name the damper class with --damper-class "
+            + "/".join(DAMPER_CLASSES))
+
+
 def plausibility(source, time, stroke, force, velocity=None, rate=None, units=None) -> dict:
     """Refuse a test that is not physically a damper on a rig, in either direction.
 
@@ -208,7 +234,7 @@ def plausibility(source, time, stroke, force, velocity=None, rate=None, units=No
             f"{source}: implausible stroke: range {srange:.4g} m, peak velocity {vpeak:.4g} m/s (a damper rig "
             f"moves <= {MAX_STROKE_RANGE_M:g} m at <= {MAX_VELOCITY_M_S:g} m/s) with stroke in {su!r}."
             + _suggest(STROKE_UNITS, su, lambda r: srange * r <= MAX_STROKE_RANGE_M and vpeak * r <= MAX_VELOCITY_M_S
-                       and srange * r >= MIN_STROKE_RANGE_M) + f" Use --stroke-unit." + tail)
+                       and srange * r >= MIN_STROKE_RANGE_M) + " Use --stroke-unit." + tail)
     if srange < MIN_STROKE_RANGE_M:
         raise DataError(
             f"{source}: implausible stroke: range {srange * 1e6:.3g} um (< {MIN_STROKE_RANGE_M * 1e6:g} um, under a "
@@ -355,7 +381,7 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
                velocity_unit=None, temperature_unit=None, stroke_sign=1, force_sign=1, rate_hz=None,
                t_start=None, t_end=None, extra_cols=None, channel_units=None, name=None, role=None,
                scenario=None, sample_rate_hz=None, metadata=None, dt_tol=0.01,
-               check_plausible=True) -> list[RigTest]:
+               check_plausible=True, damper_class=DEFAULT_DAMPER_CLASS) -> list[RigTest]:
     """Read one rig file; return its test(s) in SI units (one per value of ``test_col``).
 
     Columns (``*_col``): a header, a header without its unit, or a 1-based position.
@@ -370,7 +396,8 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
     writing compression positive. ``t_start``/``t_end`` [s from the first sample] select a
     segment. Duplicated or irregular stamps are regularised with a warning (see
     :func:`_regularise`). ``extra_cols``: channel columns to keep (None: every other column).
-    ``check_plausible``: refuse physically implausible strokes/forces (:func:`check_plausible`).
+    ``check_plausible``: refuse physically implausible strokes/forces (:func:`check_plausible`);
+    ``damper_class``: warn when the apparent damping is outside that class's range (:func:`class_warning`).
     What was understood goes to ``metadata['read']``, warnings to ``metadata['warnings']``.
     Raises DataError on any problem.
     """
@@ -397,7 +424,14 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
         use["temperature"] = raw.find(temperature_col, "temperature", source)
     elif (extra_cols is None or "temperature" in extra_cols) and \
             "temperature" in [raw.names[c].lower() for c in found if c not in use.values()]:
-        use["temperature"] = raw.find("temperature", "temperature", source)
+        col = raw.find("temperature", "temperature", source)
+        declared = raw.units.get(col)
+        if declared and declared not in TEMPERATURE_UNITS:  # e.g. a thermocouple's raw volts
+            warn.append(f"{source}: column {col!r} is in {declared!r}, not a temperature unit "
+                        f"({', '.join(TEMPERATURE_UNITS)}): kept as a plain channel, not as the oil temperature; "
+                        f"give --temperature-col with a column in degC or K to use one")
+        else:
+            use["temperature"] = col
     if test_col is not None:
         use["test"] = raw.find(test_col, "test id", source)
     if len(set(use.values())) != len(use):
@@ -408,6 +442,7 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
         if looks:
             warn.append(f"{source}: column(s) {looks} look like a temperature but are not used as the oil "
                         f"temperature; give --temperature-col NAME to use one (the thermal analysis needs it)")
+    asked_extra = extra_cols is not None
     if extra_cols is None:
         extra_cols = rest
     elif "temperature" in use:
@@ -448,8 +483,21 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
             TEMPERATURE_UNITS, tu, "temperature", source)
         units["temperature"] = tu
         ch_units["temperature"] = "degC"
+    dropped = []
     for c in extra_cols:
-        v = _numeric(raw, c, source)
+        try:
+            v = _numeric(raw, c, source)
+            if not asked_extra:
+                check_finite(source, c, v, raw.lines)
+        except DataError as err:
+            if asked_extra:  # a channel the user asked for must be readable
+                raise
+            # a column nobody asked for (a constant written once, an empty trailing column) is no
+            # reason to refuse the file
+            warn.append(f"{source}: column {c!r} not read ({str(err).removeprefix(source + ': ')}); only the "
+                        f"columns in use and complete extra ones are kept")
+            dropped.append(c)
+            continue
         u = declared_ch.get(c, declared_ch.get(raw.names[c], ""))
         if u in TEMPERATURE_UNITS:
             v = v + TEMPERATURE_UNITS[u]
@@ -483,16 +531,17 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
         if sample_rate_hz is not None and abs(rate / float(sample_rate_hz) - 1.0) > dt_tol:
             raise DataError(f"{label}: time column gives {rate:.6g} Hz but the manifest "
                             f"says sample_rate_hz = {sample_rate_hz}")
-        read_checks = None
+        read_checks, class_note = None, None
         if check_plausible:
             read_checks = plausibility(label, tg, cg["stroke"], cg["force"], cg.get("velocity"), rate, units)
-        read = {"columns": dict(use), "ignored": [c for c in rest if c not in extra_cols],
+            class_note = class_warning(label, read_checks, damper_class, units)
+        read = {"columns": dict(use), "ignored": [c for c in rest if c not in extra_cols or c in dropped],
                 "channels": list(channels), "units": units, "time": time_kind,
                 "signs": {"stroke": stroke_sign, "force": force_sign},
                 "delimiter": raw.delimiter, "decimal": raw.decimal, "regularised": note,
                 "segment_s": [t_start, t_end] if (t_start is not None or t_end is not None) else None,
                 "plausibility": read_checks}
-        warns = list(warn) + ([f"{label}: {note}"] if note else [])
+        warns = list(warn) + ([f"{label}: {note}"] if note else []) + ([class_note] if class_note else [])
         out.append(RigTest(
             name=(name or stem) + ("" if gid is None else f"-{gid}"), role=role,
             scenario="" if scenario is None else str(scenario), time=tg, stroke=cg["stroke"],
@@ -520,7 +569,7 @@ def load_files(paths, role, **column_options) -> list[RigTest]:
 
 COLUMN_OPTIONS = ("time_col", "stroke_col", "force_col", "velocity_col", "temperature_col", "test_col",
                   "time_unit", "stroke_unit", "force_unit", "velocity_unit", "temperature_unit", "stroke_sign",
-                  "force_sign", "rate_hz", "t_start", "t_end", "check_plausible")
+                  "force_sign", "rate_hz", "t_start", "t_end", "check_plausible", "damper_class")
 
 
 def read_column_mapping(path) -> tuple[dict, dict]:
@@ -614,9 +663,9 @@ def read_manifest(folder) -> dict:
     return man
 
 
-def load_dataset(folder, *, dt_tol=0.01, check_plausible=True) -> list[RigTest]:
-    """Read every test of a dataset folder (manifest order) in SI units; ``check_plausible``
-    as in :func:`load_tests`. Raises DataError."""
+def load_dataset(folder, *, dt_tol=0.01, check_plausible=True, damper_class=DEFAULT_DAMPER_CLASS) -> list[RigTest]:
+    """Read every test of a dataset folder (manifest order) in SI units; ``check_plausible`` and
+    ``damper_class`` as in :func:`load_tests`. Raises DataError."""
     folder = Path(folder)
     man = read_manifest(folder)
     units = man.get("units", {})
@@ -629,5 +678,6 @@ def load_dataset(folder, *, dt_tol=0.01, check_plausible=True) -> list[RigTest]:
             channel_units={k: v for k, v in units.items() if k not in known},
             name=e["name"], role=e["role"], scenario=e["scenario"],
             sample_rate_hz=e["sample_rate_hz"], dt_tol=dt_tol, check_plausible=check_plausible,
+            damper_class=damper_class,
             metadata={k: v for k, v in e.items() if k not in MANIFEST_TEST_KEYS}))
     return out
