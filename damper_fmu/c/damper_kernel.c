@@ -10,6 +10,10 @@
 
 #define MAX_NEWTON 12
 #define MIN_STEP 1e-12
+/* relative slack of the sub-step division (integrator.py: STEP_RTOL): a communication step that
+   differs from a whole number of max_step by float jitter ((k+1)h - kh) is taken as that number of
+   max_step, and no step ends in a sliver sub-step */
+#define STEP_RTOL 1e-6
 #define MAX_SPLITS 8
 
 static double GAMMA_, C21_;
@@ -854,9 +858,15 @@ int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
         snprintf(s->msg, sizeof s->msg, "non-finite input: stroke=%g, stroke_velocity=%g", x1, v1);
         return DK_ERROR;
     }
-    if (!(h > 0.0)) {
-        snprintf(s->msg, sizeof s->msg, "step size must be positive, got %g", h);
+    if (!(h > 0.0 && isfinite(h))) {
+        snprintf(s->msg, sizeof s->msg, "step size must be a positive finite number, got %g", h);
         return DK_ERROR;
+    }
+    {   /* a step within STEP_RTOL of a whole number of max_step is taken as exactly that (integrator.py) */
+        double n = ceil(h / (s->max_step * (1.0 + STEP_RTOL))), hn;
+        if (n < 1.0) n = 1.0;
+        hn = n * s->max_step;
+        if (fabs(h - hn) <= STEP_RTOL * hn) h = hn;
     }
     if (s->input_mode == DK_EXTRAPOLATE) {
         double a, j, sn;
@@ -878,7 +888,7 @@ int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
     for (i = 0; i < ns; i++) y[i] = s->y[i];
     xs = xh; vs = vh;
     if (s->tolerance == 0.0) {
-        int n = (int)ceil(h / s->max_step - 1e-9), k;
+        int n = (int)ceil(h / (s->max_step * (1.0 + STEP_RTOL))), k;
         double H;
         if (n < 1) n = 1;
         H = h / n;
@@ -892,7 +902,7 @@ int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
         double H = s->h_next < s->max_step ? s->h_next : s->max_step;
         for (;;) {
             double proposed = H, yf[DK_NSTATE], ym[DK_NSTATE], y2[DK_NSTATE], xe1 = x_eff, xe2, x2, v2, err, fac, dummy_x, dummy_v;
-            int en1 = engaged, en2, last = tau + H >= h * (1.0 - 1e-12);
+            int en1 = engaged, en2, last = tau + H * (1.0 + STEP_RTOL) >= h;
             double xf = x_eff;
             int enf = engaged;
             if (last) H = h - tau;
