@@ -80,7 +80,7 @@ def _source_hash(flavour: str) -> str:
         h.update(pythonfmu.__version__.encode())
         files = [*PACKAGE.glob("*.py"), *SRC.glob("*.py")]
     else:
-        files = [*C_DIR.glob("*.[ch]"), PACKAGE / "parameters.py", PACKAGE / "models.py",
+        files = [*C_DIR.glob("*.[ch]"), *FMI2_HEADERS.glob("*.h"), PACKAGE / "parameters.py", PACKAGE / "models.py",
                  PACKAGE / "integrator.py", Path(__file__)]
     for f in sorted(files):
         h.update(f.name.encode())
@@ -169,11 +169,14 @@ def _platform_folder() -> str:
     return f"{system}{bits}"
 
 
-def _fmi_headers() -> list[Path]:
-    import fmpy
+#: the standard FMI 2.0.x headers of the Modelica Association, unmodified (BSD-2, the licence is in
+#: them; see damper_fmu/c/fmi2/ORIGIN). fmpy's copies are altered to ignore FMI2_FUNCTION_PREFIX, which
+#: source-code import of several FMUs into one program needs.
+FMI2_HEADERS = C_DIR / "fmi2"
 
-    folder = Path(fmpy.__file__).parent / "c-code"
-    return [folder / n for n in ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")]
+
+def _fmi_headers() -> list[Path]:
+    return [FMI2_HEADERS / n for n in ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")]
 
 
 def _model_description(kind: str, identifier: str, guid: str, start_values: dict, settings: dict) -> bytes:
@@ -194,8 +197,9 @@ def _model_description(kind: str, identifier: str, guid: str, start_values: dict
         "canSerializeFMUstate": "true", "providesDirectionalDerivative": "false",
         "canNotUseMemoryManagementFunctions": "true", "canBeInstantiatedOnlyOncePerProcess": "false"})
     files = SubElement(cs, "SourceFiles")
-    for name in ("fmi2_damper.c", "damper_kernel.c"):
-        SubElement(files, "File", {"name": name})
+    # one translation unit (fmi2_damper.c includes damper_kernel.c): only the fmi2 functions have
+    # external linkage
+    SubElement(files, "File", {"name": "fmi2_damper.c"})
     units = SubElement(root, "UnitDefinitions")
     used = sorted({p.unit for p in params} | {"m", "m/s", "N", "s", "degC"} |
                   {u for u, _ in DIAGNOSTICS[kind].values()})
@@ -292,13 +296,12 @@ def _build_native(kind: str, target: Path, start_values: dict, settings: dict) -
             '<fmiBuildDescription fmiVersion="3.0">\n'
             f'  <BuildConfiguration modelIdentifier="{identifier}">\n'
             '    <SourceFileSet language="C99">\n'
-            '      <SourceFile name="fmi2_damper.c"/>\n      <SourceFile name="damper_kernel.c"/>\n'
+            '      <SourceFile name="fmi2_damper.c"/>\n'
             '    </SourceFileSet>\n    <Library name="m"/>\n  </BuildConfiguration>\n</fmiBuildDescription>\n')
         suffix = {"win": ".dll", "darwin": ".dylib"}.get(_platform_folder()[:-2], ".so")
         binary = tmp / "binaries" / _platform_folder() / f"{identifier}{suffix}"
         binary.parent.mkdir(parents=True)
-        cmd = [cc, *native.CFLAGS, "-shared", "-fvisibility=default", "-I", str(src),
-               str(src / "fmi2_damper.c"), str(src / "damper_kernel.c"), "-o", str(binary), "-lm"]
+        cmd = [cc, *native.CFLAGS, "-shared", "-I", str(src), str(src / "fmi2_damper.c"), "-o", str(binary), "-lm"]
         proc = subprocess.run(cmd, capture_output=True, text=True)
         if proc.returncode != 0:
             raise RuntimeError(f"compiling {identifier} failed ({' '.join(cmd)}):\n{proc.stderr.strip()}")

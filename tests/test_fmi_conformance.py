@@ -1,6 +1,13 @@
 """The native FMUs driven as different FMI masters drive them (issue 28): the step size as
 (k+1)h - kh, ... Each test states the master behaviour it stands for."""
+import json
 import math
+import re
+import shutil
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+import zipfile
 
 import numpy as np
 import pytest
@@ -112,3 +119,157 @@ def test_a_step_a_hair_longer_than_max_step_takes_one_sub_step(tolerance):
     sim = Simulator(make_model("lumped"), max_step=H / 2, tolerance=tolerance)
     sim.initialize(0.0, 0.1)
     assert [sim.step(H, 1e-4 * k, 0.1) for k in range(5)] != results[H]
+
+
+# -- symbols and source import -------------------------------------------------------------------
+
+def _unzip(path, dest):
+    with zipfile.ZipFile(path) as z:
+        z.extractall(dest)
+    return dest
+
+
+def _standard_function_names(header):
+    """The FMI 2.0 function names as the standard header lists them (#define fmi2X fmi2FullName(fmi2X))."""
+    return set(re.findall(r"#define\s+(fmi2\w+)\s+fmi2FullName\(\1\)", header.read_text()))
+
+
+@pytest.mark.skipif(shutil.which("nm") is None, reason="needs nm")
+@pytest.mark.parametrize("kind", KINDS)
+def test_binary_exports_the_fmi_functions_only(fmu_paths, kind, tmp_path):
+    """nm -D: the defined dynamic symbols are exactly the FMI 2.0 functions of the standard header."""
+    d = _unzip(fmu_paths[kind], tmp_path)
+    binary = next((d / "binaries").rglob("*.so"))
+    out = subprocess.run(["nm", "-D", "--defined-only", str(binary)], capture_output=True, text=True,
+                         check=True).stdout
+    symbols = {line.split()[-1] for line in out.splitlines() if line.strip()}
+    standard = _standard_function_names(d / "sources" / "fmi2Functions.h")
+    assert len(standard) == 44
+    assert symbols == standard
+
+
+TWO_FMU_HOST = r"""
+#include <stdio.h>
+#include <stdlib.h>
+#include <math.h>
+#include "fmi2FunctionTypes.h"
+#define DECLARE(P) \
+    fmi2InstantiateTYPE P##fmi2Instantiate; fmi2SetupExperimentTYPE P##fmi2SetupExperiment; \
+    fmi2EnterInitializationModeTYPE P##fmi2EnterInitializationMode; \
+    fmi2ExitInitializationModeTYPE P##fmi2ExitInitializationMode; fmi2SetRealTYPE P##fmi2SetReal; \
+    fmi2GetRealTYPE P##fmi2GetReal; fmi2DoStepTYPE P##fmi2DoStep; fmi2FreeInstanceTYPE P##fmi2FreeInstance;
+DECLARE(DamperLumped_)
+DECLARE(DamperTwoChamber_)
+static void logger(fmi2ComponentEnvironment e, fmi2String n, fmi2Status s, fmi2String c, fmi2String m, ...) {
+    (void)e; (void)c; fprintf(stderr, "%s [%d]: %s\n", n, (int)s, m);
+}
+#define RUN(P, GUID) do { \
+    fmi2CallbackFunctions cb = {logger, calloc, free, NULL, NULL}; \
+    fmi2ValueReference in[2] = {0, 1}, out = 2; \
+    fmi2Real u[2], f; int k; \
+    fmi2Component c = P##fmi2Instantiate(#P, fmi2CoSimulation, GUID, "", &cb, fmi2False, fmi2False); \
+    if (!c) return 1; \
+    P##fmi2SetupExperiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0); \
+    P##fmi2EnterInitializationMode(c); \
+    u[0] = 0.0; u[1] = 5e-3 * W; P##fmi2SetReal(c, in, 2, u); \
+    if (P##fmi2ExitInitializationMode(c) != fmi2OK) return 2; \
+    for (k = 0; k < 500; k++) { \
+        u[0] = 5e-3 * sin(W * k * 1e-3); u[1] = 5e-3 * W * cos(W * k * 1e-3); \
+        P##fmi2SetReal(c, in, 2, u); \
+        if (P##fmi2DoStep(c, k * 1e-3, 1e-3, fmi2True) != fmi2OK) return 3; \
+        P##fmi2GetReal(c, &out, 1, &f); printf(#P " %.17g\n", f); \
+    } \
+    P##fmi2FreeInstance(c); } while (0)
+#define W (2.0 * 3.141592653589793 * 5.0)
+int main(int argc, char **argv) {
+    if (argc < 3) return 9;
+    RUN(DamperLumped_, argv[1]);
+    RUN(DamperTwoChamber_, argv[2]);
+    return 0;
+}
+"""
+
+
+@pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None, reason="needs a C compiler")
+def test_two_fmus_sources_compile_into_one_program_with_the_function_prefix(fmu_paths, tmp_path):
+    """Source-code import: the sources/ of DamperLumped and DamperTwoChamber, each compiled with
+    FMI2_FUNCTION_PREFIX=<modelIdentifier>_ as buildDescription.xml lists them, link into one
+    executable (no duplicate symbol) whose forces equal the shipped binaries' (run by fmpy)."""
+    cc = shutil.which("cc") or shutil.which("gcc")
+    objects, guids, ref = [], [], {}
+    for kind in ("lumped", "twochamber"):
+        d = _unzip(fmu_paths[kind], tmp_path / kind)
+        md = read_model_description(str(fmu_paths[kind]))
+        ident = md.coSimulation.modelIdentifier
+        bd = ET.parse(d / "sources" / "buildDescription.xml").getroot()
+        sources = [f.get("name") for f in bd.iter("SourceFile")]
+        for name in sources:
+            obj = tmp_path / f"{ident}_{name}.o"
+            subprocess.run([cc, "-c", "-std=c99", "-O2", f"-DFMI2_FUNCTION_PREFIX={ident}_", "-I", str(d / "sources"),
+                            str(d / "sources" / name), "-o", str(obj)], check=True)
+            objects.append(str(obj))
+        guids.append(md.guid)
+        exact, _ = exact_and_jittered(500)
+        ref[ident] = stroke_run(fmu_paths[kind], exact)
+    host = tmp_path / "host.c"
+    host.write_text(TWO_FMU_HOST)
+    exe = tmp_path / "host"
+    link = subprocess.run([cc, "-std=c99", "-O2", "-I", str(tmp_path / "lumped" / "sources"), str(host), *objects,
+                           "-o", str(exe), "-lm"], capture_output=True, text=True)
+    assert link.returncode == 0, link.stderr
+    run = subprocess.run([str(exe), *guids], capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr
+    got = {}
+    for line in run.stdout.splitlines():
+        name, value = line.split()
+        got.setdefault(name.rstrip("_"), []).append(float(value))
+    for ident, forces in ref.items():
+        np.testing.assert_allclose(got[ident], forces, rtol=0, atol=1e-9 * np.abs(forces).max())
+
+
+RTLD_GLOBAL_SCRIPT = r"""
+import ctypes, json, sys
+import numpy as np
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+paths = sys.argv[1:]
+dirs = [extract(p) for p in paths]
+mds = [read_model_description(p) for p in paths]
+for d, md in zip(dirs, mds):  # as a host that loads every FMU into the global namespace
+    import glob
+    ctypes.CDLL(glob.glob(str(d) + "/binaries/*/*.so")[0], mode=ctypes.RTLD_GLOBAL)
+out = {}
+for d, md in zip(dirs, mds):
+    f = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="x")
+    f.instantiate(); f.setupExperiment(startTime=0.0); f.enterInitializationMode()
+    w = 2 * np.pi * 5
+    f.setReal([0, 1], [0.0, 5e-3 * w]); f.exitInitializationMode()
+    forces = []
+    for k in range(400):
+        t = k * 1e-3
+        f.setReal([0, 1], [5e-3 * np.sin(w * t), 5e-3 * w * np.cos(w * t)])
+        if k == 200:  # serialize, run on, roll back through the serialized state
+            s = f.serializeFMUstate(f.getFMUstate())
+            f.doStep(t, 1e-3); f.doStep(t + 1e-3, 1e-3)
+            f.setFMUstate(f.deSerializeFMUstate(s))
+        f.doStep(t, 1e-3)
+        forces.append(f.getReal([2])[0])
+    f.terminate(); f.freeInstance()
+    out[md.coSimulation.modelIdentifier] = forces
+print(json.dumps(out))
+"""
+
+
+def test_two_fmus_loaded_with_rtld_global_in_one_process(fmu_paths, tmp_path):
+    """A host that dlopens FMUs with RTLD_GLOBAL (one process, both binaries in the global symbol
+    namespace): each FMU runs its own code, state serialization included, and gives the forces
+    it gives alone."""
+    paths = [str(fmu_paths[k]) for k in ("lumped", "twochamber")]
+    run = subprocess.run([sys.executable, "-c", RTLD_GLOBAL_SCRIPT, *paths], capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode == 0, run.stderr
+    got = json.loads(run.stdout)
+    exact, _ = exact_and_jittered(400)
+    for kind, path in zip(("lumped", "twochamber"), paths):
+        ident = read_model_description(path).coSimulation.modelIdentifier
+        np.testing.assert_array_equal(got[ident], stroke_run(path, exact))

@@ -35,13 +35,14 @@ static const DkParamSpec *specs(int kind, int *n) {
     }
 }
 
-int dk_parameter_count(int kind) {
+#ifndef DK_EMBEDDED /* the FMU wrapper does not use these */
+DK_API int dk_parameter_count(int kind) {
     int n;
     specs(kind, &n);
     return n;
 }
 
-const char *dk_parameter_names(int kind) {
+DK_API const char *dk_parameter_names(int kind) {
     static char buf[4096];
     int n, i;
     const DkParamSpec *sp = specs(kind, &n);
@@ -52,6 +53,7 @@ const char *dk_parameter_names(int kind) {
     }
     return buf;
 }
+#endif
 
 /* ---- piecewise-linear tables (tables.py) ---------------------------------------------------- */
 
@@ -133,7 +135,7 @@ static void effects_init(DkModel *m, const double *e) {
                         m->tau != 0.0 || m->delay != 0.0 || m->m_eq != 0.0;
 }
 
-int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg, size_t msglen) {
+DK_API int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg, size_t msglen) {
     int np, i;
     const DkParamSpec *sp = specs(kind, &np);
     memset(m, 0, sizeof(*m));
@@ -724,15 +726,15 @@ static int effects_output(DkSim *s, double f_model, double h, double v_eff, doub
 
 /* ---- integrator (integrator.py) -------------------------------------------------------------- */
 
-void dk_sim_clear(DkSim *s) { memset(s, 0, sizeof(*s)); }
+DK_API void dk_sim_clear(DkSim *s) { memset(s, 0, sizeof(*s)); }
 
-void dk_sim_free(DkSim *s) {
+DK_API void dk_sim_free(DkSim *s) {
     free(s->e.hist);
     s->e.hist = NULL;
     s->e.hist_cap = s->e.hist_len = s->e.hist_head = 0;
 }
 
-int dk_sim_setup(DkSim *s, int kind, const double *p, int n, double max_step, double tolerance,
+DK_API int dk_sim_setup(DkSim *s, int kind, const double *p, int n, double max_step, double tolerance,
                  int input_mode) {
     constants();
     if (!(max_step > 0.0 && isfinite(max_step))) {
@@ -754,7 +756,7 @@ int dk_sim_setup(DkSim *s, int kind, const double *p, int n, double max_step, do
     return DK_OK;
 }
 
-int dk_sim_initialize(DkSim *s, double x1, double v1, double t0) {
+DK_API int dk_sim_initialize(DkSim *s, double x1, double v1, double t0) {
     DkModel *m = &s->model;
     if (!(isfinite(x1) && isfinite(v1))) {
         snprintf(s->msg, sizeof s->msg, "non-finite input: stroke=%g, stroke_velocity=%g", x1, v1);
@@ -848,7 +850,7 @@ static int sdirk_split(DkSim *s, const Traj *tr, const double *y, double *yout, 
     return DK_OK;
 }
 
-int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
+DK_API int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
     DkModel *m = &s->model;
     int ns = n_state(m), i, fx = m->effects_active;
     double xh, vh, d, y[DK_NSTATE], xs, vs, x_eff = s->e.x_eff, va0, f;
@@ -965,7 +967,7 @@ int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
     return DK_OK;
 }
 
-int dk_sim_copy(DkSim *dst, const DkSim *src) {
+DK_API int dk_sim_copy(DkSim *dst, const DkSim *src) {
     double *hist = dst->e.hist;
     int cap = dst->e.hist_cap, i;
     *dst = *src;
@@ -985,7 +987,7 @@ int dk_sim_copy(DkSim *dst, const DkSim *src) {
     return DK_OK;
 }
 
-int dk_diagnostics(const DkSim *s, double *out) {
+DK_API int dk_diagnostics(const DkSim *s, double *out) {
     const DkModel *m = &s->model;
     const double *y = s->y;
     if (m->kind == DK_LUMPED) {
@@ -1008,7 +1010,8 @@ int dk_diagnostics(const DkSim *s, double *out) {
     return 1;
 }
 
-int dk_simulate(int kind, const double *p, int np, double max_step, double tolerance, int input_mode,
+#ifndef DK_EMBEDDED
+DK_API int dk_simulate(int kind, const double *p, int np, double max_step, double tolerance, int input_mode,
                 int n, const double *t, const double *x, const double *v, const double *temp,
                 double *out, char *msg, int msglen) {
     DkSim s;
@@ -1038,3 +1041,4 @@ fail:
     status = DK_ERROR;
     return status;
 }
+#endif
