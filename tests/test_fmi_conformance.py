@@ -12,7 +12,7 @@ import zipfile
 import numpy as np
 import pytest
 from fmpy import extract, read_model_description
-from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 
 from damper_fmu.integrator import EXTRAPOLATE, REPLAY, Simulator
 from damper_fmu.models import make_model
@@ -35,7 +35,16 @@ class Slave:
         self.dir = extract(str(path))
         self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.dir,
                              modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)
-        self.fmu.instantiate()
+        self.log = []  # (status, message) as the FMU logs them
+
+        def logger(env, instance, status, category, message):
+            self.log.append((status, message.decode("utf-8", "replace") if message else ""))
+
+        self._callbacks = fmi2CallbackFunctions()
+        self._callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+        self._callbacks.allocateMemory = defaultCallbacks.allocateMemory
+        self._callbacks.freeMemory = defaultCallbacks.freeMemory
+        self.fmu.instantiate(callbacks=self._callbacks)
 
     def start(self, x0=0.0, v0=0.0, t0=0.0, reals=None):
         self.fmu.setupExperiment(startTime=t0)
@@ -231,7 +240,7 @@ RTLD_GLOBAL_SCRIPT = r"""
 import ctypes, json, sys
 import numpy as np
 from fmpy import extract, read_model_description
-from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 paths = sys.argv[1:]
 dirs = [extract(p) for p in paths]
 mds = [read_model_description(p) for p in paths]
@@ -273,3 +282,39 @@ def test_two_fmus_loaded_with_rtld_global_in_one_process(fmu_paths, tmp_path):
     for kind, path in zip(("lumped", "twochamber"), paths):
         ident = read_model_description(path).coSimulation.modelIdentifier
         np.testing.assert_array_equal(got[ident], stroke_run(path, exact))
+
+
+# -- initialization mode -------------------------------------------------------------------------
+
+@pytest.mark.parametrize("kind", ["lumped", "twochamber"])
+@pytest.mark.parametrize("velocity", [0.0, 0.01])
+def test_initial_force_is_read_in_initialization_mode(fmu_paths, kind, velocity):
+    """Between fmi2EnterInitializationMode and fmi2ExitInitializationMode the force is the initial
+    output: the model starts force-free, so it is the preload plus the friction
+    Ff tanh(v / v_eps) at the initial velocity (parameter definitions), and it stays so on exit."""
+    preload, ff, v_eps = 1234.0, 300.0, 5e-4
+    s = Slave(fmu_paths[kind])
+    s.start(2e-3, velocity, reals={"preload_force": preload, "friction_force": ff, "friction_velocity": v_eps})
+    expected = preload + ff * math.tanh(velocity / v_eps)
+    assert s.force() == pytest.approx(expected, rel=1e-12)
+    s.fmu.exitInitializationMode()
+    assert s.force() == pytest.approx(expected, rel=1e-12)
+    s.close()
+
+
+@pytest.mark.parametrize("kind", ["maxwell", "maxwell_table"])
+def test_maxwell_initial_force_is_zero_in_initialization_mode(fmu_paths, kind):
+    s = Slave(fmu_paths[kind])
+    s.start(3e-3, 0.05)
+    assert s.force() == 0.0
+    s.close()
+
+
+def test_bad_parameters_fail_the_initial_output_with_their_name(fmu_paths):
+    """A parameter the model refuses makes the initial output an fmi2Error that names it."""
+    s = Slave(fmu_paths["lumped"])
+    s.start(reals={"M_P": 0.0})
+    with pytest.raises(Exception, match="fmi2GetReal"):
+        s.force()
+    assert any(status == 3 and "M_P" in text for status, text in s.log), s.log
+    s.fmu.freeInstance()

@@ -279,26 +279,56 @@ fmi2Status fmi2Reset(fmi2Component comp) {
 
 static int is_param(fmi2ValueReference vr) { return vr >= VR_PARAM && vr < VR_PARAM + NPAR; }
 
+/* The initial outputs (force and element outputs) before fmi2ExitInitializationMode, from the
+   parameters and inputs set so far: what the first doStep starts from (dk_sim_initialize), so a
+   master that passes initial outputs on (an SSP master, OMSimulator) starts from the right force. */
+static int initial_outputs(Instance *c, double *force, double *diag) {
+    Snapshot *s = &c->s;
+    DkSim *sim;
+    if (check_inputs(c)) return 1;
+    sim = (DkSim *)calloc(1, sizeof *sim);
+    if (!sim) { fail(c, "%s", "out of memory for the initial outputs"); return 1; }
+    dk_sim_clear(sim);
+    if (dk_sim_setup(sim, DK_MODEL_KIND, s->p, NPAR, s->max_step, s->tolerance, s->input_interpolation)) {
+        fail(c, "invalid parameters: %s", sim->msg);
+        free(sim);
+        return 1;
+    }
+    sim->has_temperature = HAS_EFFECTS && s->thermal_source;
+    sim->temperature_input = s->temperature;
+    if (dk_sim_initialize(sim, s->stroke, s->velocity, s->time)) {
+        fail(c, "initial outputs: %s", sim->msg);
+        dk_sim_free(sim);
+        free(sim);
+        return 1;
+    }
+    *force = sim->force;
+    dk_diagnostics(sim, diag);
+    dk_sim_free(sim);
+    free(sim);
+    return 0;
+}
+
 fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t n, fmi2Real value[]) {
     Instance *c = (Instance *)comp;
     size_t i;
-    double diag[8];
+    double diag[8], force0 = 0.0;
     int have_diag = 0;
     if (!c) return fmi2Error;
     for (i = 0; i < n; i++) {
         fmi2ValueReference r = vr[i];
         Snapshot *s = &c->s;
+        if ((r == VR_FORCE || (r >= VR_DIAG && r < VR_DIAG + NDIAG)) && !have_diag) {
+            /* outputs: of the last step, or the initial ones before the first */
+            if (s->state >= ST_STEP) { force0 = s->sim.force; dk_diagnostics(&s->sim, diag); }
+            else if (initial_outputs(c, &force0, diag)) return fmi2Error;
+            have_diag = 1;
+        }
         if (r == VR_STROKE) value[i] = s->stroke;
         else if (r == VR_VELOCITY) value[i] = s->velocity;
-        else if (r == VR_FORCE) value[i] = s->state >= ST_STEP ? s->sim.force : 0.0;
+        else if (r == VR_FORCE) value[i] = force0;
         else if (r == VR_TEMPERATURE && HAS_EFFECTS) value[i] = s->temperature;
-        else if (r >= VR_DIAG && r < VR_DIAG + NDIAG) {
-            if (!have_diag) {
-                if (s->state >= ST_STEP) dk_diagnostics(&s->sim, diag); else memset(diag, 0, sizeof diag);
-                have_diag = 1;
-            }
-            value[i] = diag[r - VR_DIAG];
-        }
+        else if (r >= VR_DIAG && r < VR_DIAG + NDIAG) value[i] = diag[r - VR_DIAG];
         else if (r == VR_MAX_STEP) value[i] = s->max_step;
         else if (r == VR_TOLERANCE) value[i] = s->tolerance;
         else if (r == VR_STROKE_LIMIT) value[i] = s->stroke_limit;
