@@ -226,8 +226,10 @@ def _model_description(kind: str, identifier: str, guid: str, start_values: dict
         SubElement(sv, kind_, t)
         return len(mv)
 
-    var("stroke", 0, "input", "continuous", "m", "Damper stroke, positive in extension", 0.0)
-    var("stroke_velocity", 1, "input", "continuous", "m/s", "Damper stroke velocity, positive in extension", 0.0)
+    inputs = [var("stroke", 0, "input", "continuous", "m", "Damper stroke, positive in extension", 0.0),
+              var("stroke_velocity", 1, "input", "continuous", "m/s", "Damper stroke velocity, positive in extension",
+                  0.0)]
+    model_params = []
     if kind in EFFECT_MODELS:
         var("oil_temperature", 3, "input", "continuous", "degC",
             "Measured oil temperature; used by the thermal drift element when thermal_source = 1", 20.0)
@@ -240,8 +242,8 @@ def _model_description(kind: str, identifier: str, guid: str, start_values: dict
         text = (f"{p.description} [{p.unit}]; identification bounds [{p.low:g}, {p.high:g}]" if p.tunable else
                 f"Effect '{p.effect}' (off at 0): {p.description} [{p.unit}], range [{p.low:g}, {p.high:g}]"
                 if p.effect else f"{p.description} [{p.unit}]")
-        var(p.name, 100 + i, "parameter", "tunable" if tunable else "fixed", p.unit, text,
-            start_values.get(p.name, p.default), initial="exact")
+        model_params.append(var(p.name, 100 + i, "parameter", "tunable" if tunable else "fixed", p.unit, text,
+                                start_values.get(p.name, p.default), initial="exact"))
     for name, (value, unit, text) in NATIVE_SETTINGS.items():
         var(name, _SETTING_VR[name], "parameter", "fixed", unit or None, text, settings.get(name, value),
             initial="exact")
@@ -251,13 +253,19 @@ def _model_description(kind: str, identifier: str, guid: str, start_values: dict
         var("thermal_source", 1, "parameter", "fixed", None,
             "Oil temperature of the thermal drift element: 0 internal thermal balance, 1 the oil_temperature input",
             0, initial="exact", kind_="Integer")
+    # Dependencies (fmi2_damper.c): after initialization the outputs are those of the last doStep, and
+    # fmi2SetReal of an input changes none of them before the next doStep: no direct feedthrough, so
+    # no input dependencies (an importer assuming feedthrough reports algebraic loops that do not
+    # exist). In initialization mode the outputs are computed from the stroke, the stroke velocity
+    # (friction) and the model parameters.
     ms = SubElement(root, "ModelStructure")
     outs = SubElement(ms, "Outputs")
     for i in outputs:
-        SubElement(outs, "Unknown", {"index": str(i)})
+        SubElement(outs, "Unknown", {"index": str(i), "dependencies": ""})
     init = SubElement(ms, "InitialUnknowns")
+    initial_knowns = " ".join(str(k) for k in sorted(inputs + model_params))
     for i in outputs:
-        SubElement(init, "Unknown", {"index": str(i)})
+        SubElement(init, "Unknown", {"index": str(i), "dependencies": initial_knowns})
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + tostring(root, encoding="utf-8")
 
 

@@ -318,3 +318,37 @@ def test_bad_parameters_fail_the_initial_output_with_their_name(fmu_paths):
         s.force()
     assert any(status == 3 and "M_P" in text for status, text in s.log), s.log
     s.fmu.freeInstance()
+
+
+# -- model structure -----------------------------------------------------------------------------
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_outputs_declare_no_direct_feedthrough_and_it_is_true(fmu_paths, kind):
+    """ModelStructure/Outputs: dependencies="" (no input acts on an output before the next doStep),
+    which the FMU does: after a step, new inputs leave every output unchanged until the next step.
+    The initial unknowns depend on the inputs (the friction acts at the initial velocity). fmpy's
+    validator accepts the description."""
+    md = read_model_description(str(fmu_paths[kind]))
+    from fmpy.validation import validate_fmu
+
+    assert validate_fmu(str(fmu_paths[kind])) == []
+    outputs = [v for v in md.modelVariables if v.causality == "output"]
+    inputs = {v.name for v in md.modelVariables if v.causality == "input"}
+    assert [u.variable for u in md.outputs] == outputs
+    assert all(u.dependencies == [] for u in md.outputs)
+    for u in md.initialUnknowns:
+        names = {v.name for v in u.dependencies}
+        assert {"stroke", "stroke_velocity"} <= names and names & inputs <= {"stroke", "stroke_velocity"}
+    s = Slave(fmu_paths[kind])
+    s.start(*sine(0.0))
+    s.fmu.exitInitializationMode()
+    vrs = [v.valueReference for v in outputs]
+    for k in range(20):
+        s.set_inputs(*sine(k * H))
+        s.fmu.doStep(k * H, H)
+    before = s.fmu.getReal(vrs)
+    s.set_inputs(4e-3, -0.3)  # far from the stroke reached
+    assert s.fmu.getReal(vrs) == before
+    s.fmu.doStep(20 * H, H)
+    assert s.fmu.getReal(vrs) != before
+    s.close()
