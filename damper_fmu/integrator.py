@@ -71,6 +71,10 @@ MIN_STEP = 1e-12
 #: stretched by up to STEP_RTOL rather than followed by a sliver sub-step. A sliver of 1e-15 s changed
 #: the force by up to 4e-4 of its peak.
 STEP_RTOL = 1e-6
+#: Internal step attempts in one communication step beyond which it fails: every loop is bounded.
+MAX_ATTEMPTS = 100_000
+#: Communication steps longer than this many ``max_step`` are refused.
+MAX_STEP_RATIO = 1e8
 #: Fixed steps (tolerance 0): how many times a sub-step whose stage solve fails is halved.
 MAX_SPLITS = 8
 
@@ -171,6 +175,9 @@ class Simulator:
         hn = max(1, math.ceil(h / (self.max_step * (1.0 + STEP_RTOL)))) * self.max_step
         if abs(h - hn) <= STEP_RTOL * hn:
             h = hn
+        if h / self.max_step > MAX_STEP_RATIO:
+            raise ValueError(f"communication step {h:g} s is more than {MAX_STEP_RATIO:g} internal steps of "
+                             f"{self.max_step:g} s")
         if self.input_mode == EXTRAPOLATE:
             self.samples = [(self.time, v1), *self.samples[:3]]
             if accel is not None and math.isfinite(accel):
@@ -234,7 +241,10 @@ class Simulator:
             tau = 0.0
             H = min(self.h_next, self.max_step)
             failure = None
-            while True:
+            for attempt in range(MAX_ATTEMPTS + 1):
+                if attempt == MAX_ATTEMPTS:
+                    raise ConvergenceError(f"more than {MAX_ATTEMPTS} internal step attempts in one communication "
+                                           f"step at t = {self.time + tau:.9g} s (last internal step {H:.3g} s)")
                 proposed = H
                 last = tau + H * (1.0 + STEP_RTOL) >= h
                 if last:

@@ -8,6 +8,7 @@ import subprocess
 import sys
 import xml.etree.ElementTree as ET
 import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -352,3 +353,69 @@ def test_outputs_declare_no_direct_feedthrough_and_it_is_true(fmu_paths, kind):
     s.fmu.doStep(20 * H, H)
     assert s.fmu.getReal(vrs) != before
     s.close()
+
+
+# -- an importer's build flags -------------------------------------------------------------------
+
+FLAGS_SCRIPT = r"""
+import json, math, sys
+sys.path.insert(0, sys.argv[3])
+from test_fmi_conformance import Slave, sine, H
+s = Slave(sys.argv[1])
+s.start(*sine(0.0))
+s.fmu.exitInitializationMode()
+out, error = [], None
+try:
+    for k in range(int(sys.argv[2])):
+        x, v = sine(k * H)
+        if k == 300:
+            # a NaN acceleration from the master: not used (the acceleration is estimated)
+            s.fmu.setRealInputDerivatives([s.vr["stroke_velocity"]], [1], [float("nan")])
+        if k == 1000:
+            v = float("nan")  # a NaN input: fmi2Error with a message, not a hang or a NaN force
+        s.set_inputs(x, v)
+        s.fmu.doStep(k * H, H)
+        out.append(s.force())
+except Exception as exc:
+    error = str(exc)
+print(json.dumps({"forces": out, "error": error, "log": [m for st, m in s.log if st >= 3]}))
+"""
+
+
+def _rebuild(path, tmp_path, flags):
+    """The FMU with its binary compiled from sources/ (buildDescription.xml's files) with ``flags``."""
+    cc = shutil.which("cc") or shutil.which("gcc")
+    d = _unzip(path, tmp_path / "fmu")
+    binary = next((d / "binaries").rglob("*.so"))
+    src = d / "sources"
+    files = [str(src / f.get("name")) for f in ET.parse(src / "buildDescription.xml").getroot().iter("SourceFile")]
+    subprocess.run([cc, "-std=c99", *flags, "-shared", "-fPIC", "-I", str(src), *files, "-o", str(binary), "-lm"],
+                   check=True)
+    out = tmp_path / path.name
+    with zipfile.ZipFile(out, "w") as z:
+        for f in d.rglob("*"):
+            if f.is_file():
+                z.write(f, f.relative_to(d).as_posix())
+    return out
+
+
+@pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None, reason="needs a C compiler")
+@pytest.mark.parametrize("flags", [["-O2", "-ffast-math"], ["-O2", "-ffinite-math-only"], ["-O0"],
+                                   ["-O3", "-march=native"]])
+@pytest.mark.parametrize("kind", KINDS)
+def test_importer_build_flags_give_a_result_or_an_error_never_a_hang(fmu_paths, tmp_path, kind, flags):
+    """sources/ compiled with an importer's flags, run under a time limit: the stroke gives the
+    shipped binary's forces (to the rounding the flags change), a NaN input an fmi2Error with its
+    message, in time: no hang, no NaN returned as fmi2OK."""
+    fmu = _rebuild(fmu_paths[kind], tmp_path, flags)
+    run = subprocess.run([sys.executable, "-c", FLAGS_SCRIPT, str(fmu), "1200", str(Path(__file__).parent)],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    got = json.loads(run.stdout)
+    forces = np.array(got["forces"])
+    assert len(forces) == 1000 and np.all(np.isfinite(forces))
+    assert got["error"] and "fmi2DoStep" in got["error"]
+    assert any("non-finite input" in m for m in got["log"]), got["log"]
+    exact, _ = exact_and_jittered(1000)
+    ref = stroke_run(fmu_paths[kind], exact)
+    np.testing.assert_allclose(forces, ref, rtol=0, atol=1e-9 * np.abs(ref).max())

@@ -112,8 +112,8 @@ DK_API void dk_sim_free(DkSim *s);
 DK_API int dk_sim_setup(DkSim *s, int kind, const double *p, int n, double max_step, double tolerance,
                  int input_mode);
 DK_API int dk_sim_initialize(DkSim *s, double x1, double v1, double t0);
-/* accel: stroke acceleration from the master, or NaN (estimate it) */
-DK_API int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel);
+/* accel: stroke acceleration from the master, or NULL (estimate it) */
+DK_API int dk_sim_step(DkSim *s, double h, double x1, double v1, const double *accel);
 /* copy the state (deep copy of the history) */
 DK_API int dk_sim_copy(DkSim *dst, const DkSim *src);
 /* internal element outputs: 8 values (lumped), 5 (two-chamber) or 1 (Maxwell) */

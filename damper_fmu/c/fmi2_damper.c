@@ -119,7 +119,7 @@ static void defaults(Snapshot *s) {
     s->input_interpolation = DK_START_INPUT_INTERPOLATION;
     s->thermal_source = 0;
     s->temperature = 20.0;
-    s->accel = NAN;
+    s->accel = 0.0;
     s->dirty = 1;
     s->state = ST_INSTANTIATED;
     dk_sim_clear(&s->sim);
@@ -193,7 +193,7 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component comp) {
 static int check_inputs(Instance *c) {
     Snapshot *s = &c->s;
     char d[256];
-    if (!isfinite(s->stroke) || !isfinite(s->velocity)) {
+    if (!dk_finite(s->stroke) || !dk_finite(s->velocity)) {
         snprintf(d, sizeof d, "stroke = %g m, stroke_velocity = %g m/s", s->stroke, s->velocity);
         fail(c, "non-finite input (%s)", d);
         return 1;
@@ -205,7 +205,7 @@ static int check_inputs(Instance *c) {
         fail(c, "input out of range: %s", d);
         return 1;
     }
-    if (HAS_EFFECTS && s->thermal_source && !isfinite(s->temperature)) {
+    if (HAS_EFFECTS && s->thermal_source && !dk_finite(s->temperature)) {
         fail(c, "non-finite input: %s", "oil_temperature");
         return 1;
     }
@@ -593,7 +593,7 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
     if (check_inputs(c)) return fmi2Error;
     s->sim.has_temperature = HAS_EFFECTS && s->thermal_source;
     s->sim.temperature_input = s->temperature;
-    if (dk_sim_step(&s->sim, h, s->stroke, s->velocity, s->accel_set ? s->accel : NAN)) {
+    if (dk_sim_step(&s->sim, h, s->stroke, s->velocity, s->accel_set ? &s->accel : NULL)) {
         snprintf(d, sizeof d, "step at t = %.9g s failed: %s", t, s->sim.msg);
         s->accel_set = 0;
         return fail(c, "%s", d);
