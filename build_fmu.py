@@ -299,9 +299,14 @@ def _build_native(kind: str, target: Path, start_values: dict, settings: dict) -
             shutil.copyfile(f, src / f.name)
         (src / "damper_params.h").write_text(header)
         (src / "damper_fmu_config.h").write_text(config)
+        # FMI 2.0 importers read the SourceFiles of modelDescription.xml (fmpy's CMake build does, and it
+        # drops <Library> elements whatever the version: an importer must link the C math library
+        # itself, e.g. fmpy's build_platform_binary(..., cmake_options={"CMAKE_C_STANDARD_LIBRARIES":
+        # "-lm"})). This file gives the same in the FMI 3.0 build-description layout, for tools that
+        # read it, with this FMU's FMI version.
         (src / "buildDescription.xml").write_text(
             '<?xml version="1.0" encoding="UTF-8"?>\n'
-            '<fmiBuildDescription fmiVersion="3.0">\n'
+            '<fmiBuildDescription fmiVersion="2.0">\n'
             f'  <BuildConfiguration modelIdentifier="{identifier}">\n'
             '    <SourceFileSet language="C99">\n'
             '      <SourceFile name="fmi2_damper.c"/>\n'

@@ -419,3 +419,58 @@ def test_importer_build_flags_give_a_result_or_an_error_never_a_hang(fmu_paths, 
     exact, _ = exact_and_jittered(1000)
     ref = stroke_run(fmu_paths[kind], exact)
     np.testing.assert_allclose(forces, ref, rtol=0, atol=1e-9 * np.abs(ref).max())
+
+
+# -- source builds -------------------------------------------------------------------------------
+
+def test_build_description_matches_the_model_description(fmu_paths, tmp_path):
+    """sources/buildDescription.xml declares the FMU's FMI version (2.0), the files of the model
+    description's SourceFiles and the math library."""
+    d = _unzip(fmu_paths["lumped"], tmp_path)
+    md = read_model_description(str(fmu_paths["lumped"]))
+    root = ET.parse(d / "sources" / "buildDescription.xml").getroot()
+    assert root.get("fmiVersion") == md.fmiVersion == "2.0"
+    assert [f.get("name") for f in root.iter("SourceFile")] == md.buildConfigurations[0].sourceFileSets[0].sourceFiles
+    assert [lib.get("name") for lib in root.iter("Library")] == ["m"]
+
+
+PLAIN_HOST = r"""
+#include <dlfcn.h>
+#include <stdio.h>
+int main(int argc, char **argv) {
+    void *h = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
+    if (!h) { printf("%s\n", dlerror()); return 1; }
+    return dlsym(h, "fmi2DoStep") ? 0 : 2;
+}
+"""
+
+
+@pytest.mark.skipif(shutil.which("cmake") is None or shutil.which("readelf") is None, reason="needs cmake, readelf")
+def test_fmpy_cmake_build_of_the_sources_links_libm_and_equals_the_shipped_binary(fmu_paths, tmp_path):
+    """fmpy's CMake project builds sources/; fmpy reads an FMI 2.0 FMU's SourceFiles only and drops
+    <Library> elements, so the importer passes the math library as CMake's standard libraries. The
+    binary then needs libm, loads in a C host that is not linked with libm, and gives the shipped
+    binary's forces."""
+    from fmpy.build import build_platform_binary
+
+    cc = shutil.which("cc") or shutil.which("gcc")
+    d = _unzip(fmu_paths["lumped"], tmp_path / "fmu")
+    binary = next((d / "binaries").rglob("*.so"))
+    binary.unlink()
+    (tmp_path / "build").mkdir()
+    build_platform_binary(d.resolve(), tmp_path / "build", cmake_options={"CMAKE_C_STANDARD_LIBRARIES": "-lm"})
+    needed = subprocess.run(["readelf", "-d", str(binary)], capture_output=True, text=True, check=True).stdout
+    assert "libm.so" in needed
+    host = tmp_path / "host.c"
+    host.write_text(PLAIN_HOST)
+    subprocess.run([cc, str(host), "-o", str(tmp_path / "host")], check=True)
+    assert "libm" not in subprocess.run(["ldd", str(tmp_path / "host")], capture_output=True, text=True).stdout
+    load = subprocess.run([str(tmp_path / "host"), str(binary)], capture_output=True, text=True, timeout=60)
+    assert load.returncode == 0, load.stdout
+    rebuilt = tmp_path / "rebuilt.fmu"
+    with zipfile.ZipFile(rebuilt, "w") as z:
+        for f in d.rglob("*"):
+            if f.is_file():
+                z.write(f, f.relative_to(d).as_posix())
+    exact, _ = exact_and_jittered(1000)
+    np.testing.assert_array_equal(stroke_run(rebuilt, exact), stroke_run(fmu_paths["lumped"], exact))
