@@ -1,5 +1,6 @@
 """The native FMUs driven as different FMI masters drive them (issue 28): the step size as
 (k+1)h - kh, ... Each test states the master behaviour it stands for."""
+import ctypes
 import json
 import math
 import re
@@ -474,3 +475,33 @@ def test_fmpy_cmake_build_of_the_sources_links_libm_and_equals_the_shipped_binar
                 z.write(f, f.relative_to(d).as_posix())
     exact, _ = exact_and_jittered(1000)
     np.testing.assert_array_equal(stroke_run(rebuilt, exact), stroke_run(fmu_paths["lumped"], exact))
+
+
+# -- status inquiries ----------------------------------------------------------------------------
+
+def test_status_inquiries_the_slave_cannot_answer_are_discard_without_an_error_log(fmu_paths):
+    """FMI 2.0 (4.2.3): a status the slave cannot give is fmi2Discard. Steps never pend, so
+    fmi2DoStepStatus and fmi2PendingStatus cannot be given; fmi2LastSuccessfulTime and
+    fmi2Terminated (never asked for) can."""
+    s = Slave(fmu_paths["lumped"])
+    s.start(*sine(0.0))
+    s.fmu.exitInitializationMode()
+    s.set_inputs(*sine(0.0))
+    s.fmu.doStep(0.0, H)
+    dll, c = s.fmu.dll, s.fmu.component
+    DO_STEP, PENDING, LAST_TIME, TERMINATED = 0, 1, 2, 3  # fmi2StatusKind
+    DISCARD = 2
+    for fn, ctype in (("fmi2GetStatus", ctypes.c_int), ("fmi2GetIntegerStatus", ctypes.c_int),
+                      ("fmi2GetStringStatus", ctypes.c_char_p), ("fmi2GetRealStatus", ctypes.c_double),
+                      ("fmi2GetBooleanStatus", ctypes.c_int)):
+        f = getattr(dll, fn)
+        f.restype = ctypes.c_int
+        for kind in (DO_STEP, PENDING) + ((LAST_TIME, TERMINATED) if fn in ("fmi2GetStatus",) else ()):
+            value = ctype()
+            assert f(c, kind, ctypes.byref(value)) == DISCARD, (fn, kind)
+    t = ctypes.c_double()
+    assert dll.fmi2GetRealStatus(c, LAST_TIME, ctypes.byref(t)) == 0 and t.value == H
+    b = ctypes.c_int(7)
+    assert dll.fmi2GetBooleanStatus(c, TERMINATED, ctypes.byref(b)) == 0 and b.value == 0
+    assert not [m for st, m in s.log if st >= 3], s.log
+    s.close()
