@@ -80,7 +80,7 @@ def _source_hash(flavour: str) -> str:
         h.update(pythonfmu.__version__.encode())
         files = [*PACKAGE.glob("*.py"), *SRC.glob("*.py")]
     else:
-        files = [*C_DIR.glob("*.[ch]"), PACKAGE / "parameters.py", PACKAGE / "models.py",
+        files = [*C_DIR.glob("*.[ch]"), *FMI2_HEADERS.glob("*.h"), PACKAGE / "parameters.py", PACKAGE / "models.py",
                  PACKAGE / "integrator.py", Path(__file__)]
     for f in sorted(files):
         h.update(f.name.encode())
@@ -169,11 +169,14 @@ def _platform_folder() -> str:
     return f"{system}{bits}"
 
 
-def _fmi_headers() -> list[Path]:
-    import fmpy
+#: the standard FMI 2.0.x headers of the Modelica Association, unmodified (BSD-2, the licence is in
+#: them; see damper_fmu/c/fmi2/ORIGIN). fmpy's copies are altered to ignore FMI2_FUNCTION_PREFIX, which
+#: source-code import of several FMUs into one program needs.
+FMI2_HEADERS = C_DIR / "fmi2"
 
-    folder = Path(fmpy.__file__).parent / "c-code"
-    return [folder / n for n in ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")]
+
+def _fmi_headers() -> list[Path]:
+    return [FMI2_HEADERS / n for n in ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")]
 
 
 def _model_description(kind: str, identifier: str, guid: str, start_values: dict, settings: dict) -> bytes:
@@ -194,8 +197,9 @@ def _model_description(kind: str, identifier: str, guid: str, start_values: dict
         "canSerializeFMUstate": "true", "providesDirectionalDerivative": "false",
         "canNotUseMemoryManagementFunctions": "true", "canBeInstantiatedOnlyOncePerProcess": "false"})
     files = SubElement(cs, "SourceFiles")
-    for name in ("fmi2_damper.c", "damper_kernel.c"):
-        SubElement(files, "File", {"name": name})
+    # one translation unit (fmi2_damper.c includes damper_kernel.c): only the fmi2 functions have
+    # external linkage
+    SubElement(files, "File", {"name": "fmi2_damper.c"})
     units = SubElement(root, "UnitDefinitions")
     used = sorted({p.unit for p in params} | {"m", "m/s", "N", "s", "degC"} |
                   {u for u, _ in DIAGNOSTICS[kind].values()})
@@ -222,8 +226,10 @@ def _model_description(kind: str, identifier: str, guid: str, start_values: dict
         SubElement(sv, kind_, t)
         return len(mv)
 
-    var("stroke", 0, "input", "continuous", "m", "Damper stroke, positive in extension", 0.0)
-    var("stroke_velocity", 1, "input", "continuous", "m/s", "Damper stroke velocity, positive in extension", 0.0)
+    inputs = [var("stroke", 0, "input", "continuous", "m", "Damper stroke, positive in extension", 0.0),
+              var("stroke_velocity", 1, "input", "continuous", "m/s", "Damper stroke velocity, positive in extension",
+                  0.0)]
+    model_params = []
     if kind in EFFECT_MODELS:
         var("oil_temperature", 3, "input", "continuous", "degC",
             "Measured oil temperature; used by the thermal drift element when thermal_source = 1", 20.0)
@@ -236,8 +242,8 @@ def _model_description(kind: str, identifier: str, guid: str, start_values: dict
         text = (f"{p.description} [{p.unit}]; identification bounds [{p.low:g}, {p.high:g}]" if p.tunable else
                 f"Effect '{p.effect}' (off at 0): {p.description} [{p.unit}], range [{p.low:g}, {p.high:g}]"
                 if p.effect else f"{p.description} [{p.unit}]")
-        var(p.name, 100 + i, "parameter", "tunable" if tunable else "fixed", p.unit, text,
-            start_values.get(p.name, p.default), initial="exact")
+        model_params.append(var(p.name, 100 + i, "parameter", "tunable" if tunable else "fixed", p.unit, text,
+                                start_values.get(p.name, p.default), initial="exact"))
     for name, (value, unit, text) in NATIVE_SETTINGS.items():
         var(name, _SETTING_VR[name], "parameter", "fixed", unit or None, text, settings.get(name, value),
             initial="exact")
@@ -247,13 +253,19 @@ def _model_description(kind: str, identifier: str, guid: str, start_values: dict
         var("thermal_source", 1, "parameter", "fixed", None,
             "Oil temperature of the thermal drift element: 0 internal thermal balance, 1 the oil_temperature input",
             0, initial="exact", kind_="Integer")
+    # Dependencies (fmi2_damper.c): after initialization the outputs are those of the last doStep, and
+    # fmi2SetReal of an input changes none of them before the next doStep: no direct feedthrough, so
+    # no input dependencies (an importer assuming feedthrough reports algebraic loops that do not
+    # exist). In initialization mode the outputs are computed from the stroke, the stroke velocity
+    # (friction) and the model parameters.
     ms = SubElement(root, "ModelStructure")
     outs = SubElement(ms, "Outputs")
     for i in outputs:
-        SubElement(outs, "Unknown", {"index": str(i)})
+        SubElement(outs, "Unknown", {"index": str(i), "dependencies": ""})
     init = SubElement(ms, "InitialUnknowns")
+    initial_knowns = " ".join(str(k) for k in sorted(inputs + model_params))
     for i in outputs:
-        SubElement(init, "Unknown", {"index": str(i)})
+        SubElement(init, "Unknown", {"index": str(i), "dependencies": initial_knowns})
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + tostring(root, encoding="utf-8")
 
 
@@ -287,18 +299,22 @@ def _build_native(kind: str, target: Path, start_values: dict, settings: dict) -
             shutil.copyfile(f, src / f.name)
         (src / "damper_params.h").write_text(header)
         (src / "damper_fmu_config.h").write_text(config)
+        # FMI 2.0 importers read the SourceFiles of modelDescription.xml (fmpy's CMake build does, and it
+        # drops <Library> elements whatever the version: an importer must link the C math library
+        # itself, e.g. fmpy's build_platform_binary(..., cmake_options={"CMAKE_C_STANDARD_LIBRARIES":
+        # "-lm"})). This file gives the same in the FMI 3.0 build-description layout, for tools that
+        # read it, with this FMU's FMI version.
         (src / "buildDescription.xml").write_text(
             '<?xml version="1.0" encoding="UTF-8"?>\n'
-            '<fmiBuildDescription fmiVersion="3.0">\n'
+            '<fmiBuildDescription fmiVersion="2.0">\n'
             f'  <BuildConfiguration modelIdentifier="{identifier}">\n'
             '    <SourceFileSet language="C99">\n'
-            '      <SourceFile name="fmi2_damper.c"/>\n      <SourceFile name="damper_kernel.c"/>\n'
+            '      <SourceFile name="fmi2_damper.c"/>\n'
             '    </SourceFileSet>\n    <Library name="m"/>\n  </BuildConfiguration>\n</fmiBuildDescription>\n')
         suffix = {"win": ".dll", "darwin": ".dylib"}.get(_platform_folder()[:-2], ".so")
         binary = tmp / "binaries" / _platform_folder() / f"{identifier}{suffix}"
         binary.parent.mkdir(parents=True)
-        cmd = [cc, *native.CFLAGS, "-shared", "-fvisibility=default", "-I", str(src),
-               str(src / "fmi2_damper.c"), str(src / "damper_kernel.c"), "-o", str(binary), "-lm"]
+        cmd = [cc, *native.CFLAGS, "-shared", "-I", str(src), str(src / "fmi2_damper.c"), "-o", str(binary), "-lm"]
         proc = subprocess.run(cmd, capture_output=True, text=True)
         if proc.returncode != 0:
             raise RuntimeError(f"compiling {identifier} failed ({' '.join(cmd)}):\n{proc.stderr.strip()}")

@@ -10,9 +10,28 @@
 
 #define MAX_NEWTON 12
 #define MIN_STEP 1e-12
+/* relative slack of the sub-step division (integrator.py: STEP_RTOL): a communication step that
+   differs from a whole number of max_step by float jitter ((k+1)h - kh) is taken as that number of
+   max_step, and no step ends in a sliver sub-step */
+#define STEP_RTOL 1e-6
 #define MAX_SPLITS 8
 
+/* Internal step attempts in one communication step, beyond which it fails (integrator.py:
+   MAX_ATTEMPTS): every loop of the kernel is bounded, whatever the arithmetic gives. */
+#define MAX_ATTEMPTS 100000
+/* Communication steps longer than this many max_step fail (the sub-step count is an int). */
+#define MAX_STEP_RATIO 1e8
+
 static double GAMMA_, C21_;
+
+/* Finite test on the bit pattern (exponent not all ones). -ffast-math and -ffinite-math-only let the
+   compiler fold isfinite()/isnan()/isinf() to constants, which turned a NaN into a hang or a NaN
+   force returned as fmi2OK; an importer's build flags must not do that. */
+static int dk_finite(double x) {
+    unsigned long long u;
+    memcpy(&u, &x, sizeof u);
+    return (u & 0x7ff0000000000000ULL) != 0x7ff0000000000000ULL;
+}
 
 static void constants(void) {
     if (GAMMA_ == 0.0) {
@@ -31,13 +50,14 @@ static const DkParamSpec *specs(int kind, int *n) {
     }
 }
 
-int dk_parameter_count(int kind) {
+#ifndef DK_EMBEDDED /* the FMU wrapper does not use these */
+DK_API int dk_parameter_count(int kind) {
     int n;
     specs(kind, &n);
     return n;
 }
 
-const char *dk_parameter_names(int kind) {
+DK_API const char *dk_parameter_names(int kind) {
     static char buf[4096];
     int n, i;
     const DkParamSpec *sp = specs(kind, &n);
@@ -48,6 +68,7 @@ const char *dk_parameter_names(int kind) {
     }
     return buf;
 }
+#endif
 
 /* ---- piecewise-linear tables (tables.py) ---------------------------------------------------- */
 
@@ -64,7 +85,7 @@ static int table_init(DkTable *t, const double *xs_in, const double *fs_in, int 
                       char *msg, size_t msglen) {
     int i, k = -1, j;
     for (i = 0; i < n; i++) {
-        if (!isfinite(xs_in[i]) || !isfinite(fs_in[i])) {
+        if (!dk_finite(xs_in[i]) || !dk_finite(fs_in[i])) {
             snprintf(msg, msglen, "%s table: abscissa %d or its ordinate is not finite", name, i + 1);
             return DK_ERROR;
         }
@@ -129,7 +150,7 @@ static void effects_init(DkModel *m, const double *e) {
                         m->tau != 0.0 || m->delay != 0.0 || m->m_eq != 0.0;
 }
 
-int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg, size_t msglen) {
+DK_API int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg, size_t msglen) {
     int np, i;
     const DkParamSpec *sp = specs(kind, &np);
     memset(m, 0, sizeof(*m));
@@ -137,7 +158,7 @@ int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg, size_
     if (n != np) { snprintf(msg, msglen, "expected %d parameters, got %d", np, n); return DK_ERROR; }
     for (i = 0; i < np; i++) {
         double v = p[i];
-        if (!isfinite(v)) {
+        if (!dk_finite(v)) {
             snprintf(msg, msglen, "parameter %s = %g is not finite", sp[i].name, v);
             return DK_ERROR;
         }
@@ -372,8 +393,12 @@ static int maxwell_table_stage(DkModel *m, const double *yb, double g, double x1
         if (j == i) { out[0] = yb[0] + g * vd; return DK_OK; }
         i = j;
     }
-    while (maxwell_table_residual(m, lo, kg, rhs) > 0.0) lo *= 2.0;
-    while (maxwell_table_residual(m, hi, kg, rhs) < 0.0) hi *= 2.0;
+    for (it = 0; it < 1100 && maxwell_table_residual(m, lo, kg, rhs) > 0.0; it++) lo *= 2.0;
+    for (it = 0; it < 1100 && maxwell_table_residual(m, hi, kg, rhs) < 0.0; it++) hi *= 2.0;
+    if (!dk_finite(lo) || !dk_finite(hi) || !dk_finite(rhs)) {
+        snprintf(msg, msglen, "Maxwell table stage: no bracket of the dashpot velocity (non-finite state)");
+        return DK_ERROR;
+    }
     for (it = 0; it < 200; it++) {
         double mid = 0.5 * (lo + hi);
         if (maxwell_table_residual(m, mid, kg, rhs) > 0.0) hi = mid; else lo = mid;
@@ -541,8 +566,8 @@ static double tc_valves_given_w(DkModel *m, double w, double *p4, const double *
    increases with w when the other equations are solved for each w (models.py: _stage_nested) */
 static int tc_stage_nested(DkModel *m, const double *yb, double g, double x1, double v1, double w0, double rn0,
                            double *q, char *msg, size_t msglen) {
-    double p4[4], w = w0, lo = -INFINITY, hi = INFINITY, r[5], qq[5];
-    int it, i;
+    double p4[4], w = w0, lo = 0.0, hi = 0.0, r[5], qq[5];
+    int it, i, have_lo = 0, have_hi = 0; /* bracket ends found (no infinities: see dk_finite) */
     p4[0] = yb[4]; p4[1] = yb[5]; p4[2] = yb[1]; p4[3] = yb[2];
     for (it = 0; it < TC_MAX_NESTED; it++) {
         double dfw, rn4, fr_slope = 0.0, slope, wn;
@@ -564,13 +589,14 @@ static int tc_stage_nested(DkModel *m, const double *yb, double g, double x1, do
             tc_mount(m, x1 - (yb[0] + g * w), v1 - w, &fe, &fd);
             slope = dfw + fr_slope + g * fe + fd;
         }
-        if (r[4] > 0.0) hi = w; else lo = w;
+        if (r[4] > 0.0) { hi = w; have_hi = 1; } else { lo = w; have_lo = 1; }
         wn = w - r[4] / slope;
-        if (!(lo < wn && wn < hi)) {
-            if (isinf(lo) || isinf(hi)) wn = w - 2.0 * r[4] / slope;
+        if (!((!have_lo || lo < wn) && (!have_hi || wn < hi))) {
+            if (!have_lo || !have_hi) wn = w - 2.0 * r[4] / slope;
             else wn = 0.5 * (lo + hi);
         }
-        if (!isinf(lo) && !isinf(hi) && hi - lo <= 1e-15 * (1.0 + fabs(w))) break;
+        if (have_lo && have_hi && hi - lo <= 1e-15 * (1.0 + fabs(w))) break;
+        if (!dk_finite(wn)) break;
         w = wn;
     }
     snprintf(msg, msglen, "two-chamber stage: Newton stalled at a residual of %.3g N and the nested solve did not "
@@ -633,7 +659,7 @@ static int n_state(const DkModel *m) { return m->kind == DK_LUMPED ? 6 : m->kind
 static double valve_gain(const DkModel *m, double u) {
     const DkTable *fc = &m->fc;
     int k0 = segment(fc, 0.0), i, lo = u >= 0.0 ? k0 : 0, hi = u >= 0.0 ? fc->n - 1 : k0;
-    double mx = -INFINITY;
+    double mx = fc->slope[lo < hi ? lo : 0];
     for (i = lo; i < hi; i++)
         if (fc->slope[i] > mx) mx = fc->slope[i];
     return m->damping_scale * (mx - fc->slope[segment(fc, u)]);
@@ -720,18 +746,18 @@ static int effects_output(DkSim *s, double f_model, double h, double v_eff, doub
 
 /* ---- integrator (integrator.py) -------------------------------------------------------------- */
 
-void dk_sim_clear(DkSim *s) { memset(s, 0, sizeof(*s)); }
+DK_API void dk_sim_clear(DkSim *s) { memset(s, 0, sizeof(*s)); }
 
-void dk_sim_free(DkSim *s) {
+DK_API void dk_sim_free(DkSim *s) {
     free(s->e.hist);
     s->e.hist = NULL;
     s->e.hist_cap = s->e.hist_len = s->e.hist_head = 0;
 }
 
-int dk_sim_setup(DkSim *s, int kind, const double *p, int n, double max_step, double tolerance,
+DK_API int dk_sim_setup(DkSim *s, int kind, const double *p, int n, double max_step, double tolerance,
                  int input_mode) {
     constants();
-    if (!(max_step > 0.0 && isfinite(max_step))) {
+    if (!(max_step > 0.0 && dk_finite(max_step))) {
         snprintf(s->msg, sizeof s->msg, "max_step must be a positive number of seconds, got %g", max_step);
         return DK_ERROR;
     }
@@ -739,7 +765,7 @@ int dk_sim_setup(DkSim *s, int kind, const double *p, int n, double max_step, do
         snprintf(s->msg, sizeof s->msg, "input_mode must be 0 (extrapolate) or 1 (replay), got %d", input_mode);
         return DK_ERROR;
     }
-    if (!(tolerance >= 0.0 && isfinite(tolerance))) {
+    if (!(tolerance >= 0.0 && dk_finite(tolerance))) {
         snprintf(s->msg, sizeof s->msg, "tolerance must be a non-negative number, got %g", tolerance);
         return DK_ERROR;
     }
@@ -750,9 +776,9 @@ int dk_sim_setup(DkSim *s, int kind, const double *p, int n, double max_step, do
     return DK_OK;
 }
 
-int dk_sim_initialize(DkSim *s, double x1, double v1, double t0) {
+DK_API int dk_sim_initialize(DkSim *s, double x1, double v1, double t0) {
     DkModel *m = &s->model;
-    if (!(isfinite(x1) && isfinite(v1))) {
+    if (!(dk_finite(x1) && dk_finite(v1))) {
         snprintf(s->msg, sizeof s->msg, "non-finite input: stroke=%g, stroke_velocity=%g", x1, v1);
         return DK_ERROR;
     }
@@ -844,18 +870,29 @@ static int sdirk_split(DkSim *s, const Traj *tr, const double *y, double *yout, 
     return DK_OK;
 }
 
-int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
+DK_API int dk_sim_step(DkSim *s, double h, double x1, double v1, const double *accel) {
     DkModel *m = &s->model;
     int ns = n_state(m), i, fx = m->effects_active;
     double xh, vh, d, y[DK_NSTATE], xs, vs, x_eff = s->e.x_eff, va0, f;
     int engaged = s->e.engaged;
     Traj tr;
-    if (!(isfinite(x1) && isfinite(v1))) {
+    if (!(dk_finite(x1) && dk_finite(v1))) {
         snprintf(s->msg, sizeof s->msg, "non-finite input: stroke=%g, stroke_velocity=%g", x1, v1);
         return DK_ERROR;
     }
-    if (!(h > 0.0)) {
-        snprintf(s->msg, sizeof s->msg, "step size must be positive, got %g", h);
+    if (!(h > 0.0 && dk_finite(h))) {
+        snprintf(s->msg, sizeof s->msg, "step size must be a positive finite number, got %g", h);
+        return DK_ERROR;
+    }
+    {   /* a step within STEP_RTOL of a whole number of max_step is taken as exactly that (integrator.py) */
+        double n = ceil(h / (s->max_step * (1.0 + STEP_RTOL))), hn;
+        if (n < 1.0) n = 1.0;
+        hn = n * s->max_step;
+        if (fabs(h - hn) <= STEP_RTOL * hn) h = hn;
+    }
+    if (h / s->max_step > MAX_STEP_RATIO) {
+        snprintf(s->msg, sizeof s->msg, "communication step %g s is more than %g internal steps of %g s", h,
+                 MAX_STEP_RATIO, s->max_step);
         return DK_ERROR;
     }
     if (s->input_mode == DK_EXTRAPOLATE) {
@@ -863,7 +900,7 @@ int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
         for (i = 3; i > 0; i--) { s->st[i] = s->st[i - 1]; s->sv[i] = s->sv[i - 1]; }
         s->st[0] = s->time; s->sv[0] = v1;
         if (s->nsamples < 4) s->nsamples++;
-        if (isfinite(accel)) { a = accel; j = 0.0; sn = 0.0; }
+        if (accel && dk_finite(*accel)) { a = *accel; j = 0.0; sn = 0.0; }
         else velocity_extrapolation(s, &a, &j, &sn);
         xh = x1 + h * (v1 + h * (0.5 * a + h * (j / 6.0 + 0.25 * sn * h)));
         vh = v1 + h * (a + h * (0.5 * j + sn * h));
@@ -878,7 +915,7 @@ int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
     for (i = 0; i < ns; i++) y[i] = s->y[i];
     xs = xh; vs = vh;
     if (s->tolerance == 0.0) {
-        int n = (int)ceil(h / s->max_step - 1e-9), k;
+        int n = (int)ceil(h / (s->max_step * (1.0 + STEP_RTOL))), k;
         double H;
         if (n < 1) n = 1;
         H = h / n;
@@ -890,27 +927,37 @@ int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
     } else {
         double tol = s->tolerance * force_scale(m), tau = 0.0;
         double H = s->h_next < s->max_step ? s->h_next : s->max_step;
-        for (;;) {
+        int attempt;
+        for (attempt = 0;; attempt++) {
             double proposed = H, yf[DK_NSTATE], ym[DK_NSTATE], y2[DK_NSTATE], xe1 = x_eff, xe2, x2, v2, err, fac, dummy_x, dummy_v;
-            int en1 = engaged, en2, last = tau + H >= h * (1.0 - 1e-12);
+            int en1 = engaged, en2, last = tau + H * (1.0 + STEP_RTOL) >= h;
             double xf = x_eff;
             int enf = engaged;
             if (last) H = h - tau;
-            xe2 = xe1; en2 = en1; x2 = v2 = 0.0;
-            if (sdirk(s, &tr, y, yf, &xf, &enf, tau, H, &dummy_x, &dummy_v) ||
-                sdirk(s, &tr, y, ym, &xe1, &en1, tau, 0.5 * H, &dummy_x, &dummy_v) ||
-                (xe2 = xe1, en2 = en1, sdirk(s, &tr, ym, y2, &xe2, &en2, tau + 0.5 * H, 0.5 * H, &x2, &v2))) {
-                err = INFINITY;  /* a stage solve failed (message in s->msg): retry with a smaller step */
-            } else {
-                err = error_norm(m, yf, y2);
+            int failed;
+            if (attempt >= MAX_ATTEMPTS) {
+                snprintf(s->msg, sizeof s->msg, "more than %d internal step attempts in one communication step "
+                         "at t = %.9g s (last internal step %.3g s)", MAX_ATTEMPTS, s->time + tau, H);
+                return DK_ERROR;
             }
-            if (err == 0.0) fac = 4.0;
+            xe2 = xe1; en2 = en1; x2 = v2 = 0.0;
+            /* a failed stage solve (message in s->msg) or a non-finite error: retry with a 5x smaller step */
+            failed = sdirk(s, &tr, y, yf, &xf, &enf, tau, H, &dummy_x, &dummy_v) ||
+                     sdirk(s, &tr, y, ym, &xe1, &en1, tau, 0.5 * H, &dummy_x, &dummy_v) ||
+                     (xe2 = xe1, en2 = en1, sdirk(s, &tr, ym, y2, &xe2, &en2, tau + 0.5 * H, 0.5 * H, &x2, &v2));
+            err = failed ? 0.0 : error_norm(m, yf, y2);
+            if (!failed && !dk_finite(err)) {
+                failed = 1;
+                snprintf(s->msg, sizeof s->msg, "non-finite local error estimate");
+            }
+            if (failed) fac = 0.2;
+            else if (err == 0.0) fac = 4.0;
             else {
                 fac = 0.9 * pow(tol / err, 1.0 / 3.0);
                 if (fac < 0.2) fac = 0.2;
                 if (fac > 4.0) fac = 4.0;
             }
-            if (err <= tol) {
+            if (!failed && err <= tol) {
                 memcpy(y, y2, sizeof y);
                 x_eff = xe2; engaged = en2; xs = x2; vs = v2;
                 if (last) {
@@ -922,9 +969,9 @@ int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
                 H = s->max_step < H * fac ? s->max_step : H * fac;
             } else {
                 H *= fac;
-                if (H < MIN_STEP) {
+                if (!(H >= MIN_STEP)) {
                     char why[300];
-                    if (isinf(err)) snprintf(why, sizeof why, "last: %.290s", s->msg);
+                    if (failed) snprintf(why, sizeof why, "last: %.290s", s->msg);
                     else snprintf(why, sizeof why, "error %.3g N, tolerance %.3g N", err, tol);
                     snprintf(s->msg, sizeof s->msg, "internal step fell below %g s at t = %.9g s (%s)", MIN_STEP,
                              s->time + tau, why);
@@ -947,7 +994,7 @@ int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
     } else {
         f = model_force(m, y, xs, vs);
     }
-    if (!isfinite(f)) {
+    if (!dk_finite(f)) {
         snprintf(s->msg, sizeof s->msg, "damper force became non-finite");
         return DK_ERROR;
     }
@@ -955,7 +1002,7 @@ int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel) {
     return DK_OK;
 }
 
-int dk_sim_copy(DkSim *dst, const DkSim *src) {
+DK_API int dk_sim_copy(DkSim *dst, const DkSim *src) {
     double *hist = dst->e.hist;
     int cap = dst->e.hist_cap, i;
     *dst = *src;
@@ -975,7 +1022,7 @@ int dk_sim_copy(DkSim *dst, const DkSim *src) {
     return DK_OK;
 }
 
-int dk_diagnostics(const DkSim *s, double *out) {
+DK_API int dk_diagnostics(const DkSim *s, double *out) {
     const DkModel *m = &s->model;
     const double *y = s->y;
     if (m->kind == DK_LUMPED) {
@@ -998,7 +1045,8 @@ int dk_diagnostics(const DkSim *s, double *out) {
     return 1;
 }
 
-int dk_simulate(int kind, const double *p, int np, double max_step, double tolerance, int input_mode,
+#ifndef DK_EMBEDDED
+DK_API int dk_simulate(int kind, const double *p, int np, double max_step, double tolerance, int input_mode,
                 int n, const double *t, const double *x, const double *v, const double *temp,
                 double *out, char *msg, int msglen) {
     DkSim s;
@@ -1012,7 +1060,7 @@ int dk_simulate(int kind, const double *p, int np, double max_step, double toler
     for (k = 1; k < n; k++) {
         int j = input_mode == DK_REPLAY ? k : k - 1;
         if (temp) s.temperature_input = temp[j];
-        if (dk_sim_step(&s, t[k] - t[k - 1], x[j], v[j], NAN)) {
+        if (dk_sim_step(&s, t[k] - t[k - 1], x[j], v[j], NULL)) {
             char tmp[400];
             snprintf(tmp, sizeof tmp, "%.399s", s.msg);
             snprintf(s.msg, sizeof s.msg, "step %d (t = %.9g s): %s", k, t[k - 1], tmp);
@@ -1028,3 +1076,4 @@ fail:
     status = DK_ERROR;
     return status;
 }
+#endif

@@ -92,27 +92,39 @@ typedef struct {
     char msg[512];              /* last error message */
 } DkSim;
 
-const char *dk_parameter_names(int kind);   /* comma-separated, for the consistency test */
-int dk_parameter_count(int kind);
+/* Linkage of the kernel's entry points: external in the kernel library (damper_fmu/native.py); the
+   FMU wrapper defines DK_API as static and includes damper_kernel.c, so that a binary or a program
+   made of several FMUs' sources exposes the FMI functions only. */
+#ifndef DK_API
+#define DK_API
+#endif
+
+#ifndef DK_EMBEDDED
+DK_API const char *dk_parameter_names(int kind);   /* comma-separated, for the consistency test */
+DK_API int dk_parameter_count(int kind);
+#endif
 
 /* Build the model from parameter values (count must match); checks as check_values. */
-int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg, size_t msglen);
+DK_API int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg, size_t msglen);
 
-void dk_sim_clear(DkSim *s);
-void dk_sim_free(DkSim *s);
-int dk_sim_setup(DkSim *s, int kind, const double *p, int n, double max_step, double tolerance,
+DK_API void dk_sim_clear(DkSim *s);
+DK_API void dk_sim_free(DkSim *s);
+DK_API int dk_sim_setup(DkSim *s, int kind, const double *p, int n, double max_step, double tolerance,
                  int input_mode);
-int dk_sim_initialize(DkSim *s, double x1, double v1, double t0);
-/* accel: stroke acceleration from the master, or NaN (estimate it) */
-int dk_sim_step(DkSim *s, double h, double x1, double v1, double accel);
+DK_API int dk_sim_initialize(DkSim *s, double x1, double v1, double t0);
+/* accel: stroke acceleration from the master, or NULL (estimate it) */
+DK_API int dk_sim_step(DkSim *s, double h, double x1, double v1, const double *accel);
 /* copy the state (deep copy of the history) */
-int dk_sim_copy(DkSim *dst, const DkSim *src);
+DK_API int dk_sim_copy(DkSim *dst, const DkSim *src);
 /* internal element outputs: 8 values (lumped), 5 (two-chamber) or 1 (Maxwell) */
-int dk_diagnostics(const DkSim *s, double *out);
+DK_API int dk_diagnostics(const DkSim *s, double *out);
 
+#ifndef DK_EMBEDDED
 /* Whole sampled stroke; temperature may be NULL. out[0] is the initial force. */
-int dk_simulate(int kind, const double *p, int np, double max_step, double tolerance, int input_mode,
+DK_API int dk_simulate(int kind, const double *p, int np, double max_step, double tolerance, int input_mode,
                 int n, const double *t, const double *x, const double *v, const double *temp,
                 double *out, char *msg, int msglen);
+
+#endif
 
 #endif
