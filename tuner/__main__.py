@@ -20,6 +20,8 @@ import sys
 import time
 from pathlib import Path
 
+from tuner.cli.folders import free_folder
+
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_DATASET = ROOT / "data" / "default"
 DEFAULT_RESULTS = ROOT / "results"
@@ -102,16 +104,6 @@ def _tidy_checkpoints(out: Path, keep: bool) -> None:
         shutil.rmtree(ck)
 
 
-def _free_folder(base: Path) -> Path:
-    """``base`` if free, else the first free ``base-2``, ``base-3``, ..."""
-    if not base.exists():
-        return base
-    k = 2
-    while Path(f"{base}-{k}").exists():
-        k += 1
-    return Path(f"{base}-{k}")
-
-
 def _prepare_out(out: Path, resume: bool, force: bool) -> Path:
     if out.exists() and any(out.iterdir()):
         if resume:
@@ -121,7 +113,7 @@ def _prepare_out(out: Path, resume: bool, force: bool) -> Path:
         if not force:
             raise FileExistsError(f"output folder {out} exists and is not empty: use --resume to continue "
                                   f"that run, --force to move it aside, or another --out")
-        backup = _free_folder(Path(f"{out}.old"))
+        backup = free_folder(Path(f"{out}.old"))
         out.rename(backup)
         _log(f"moved the existing {out} to {backup}")
     elif resume:
@@ -355,7 +347,7 @@ def _fit_job(args, models) -> Path:
     from tuner.identification.problem import Problem
 
     ident, valid, name = _load(args)
-    out = args.out or _free_folder(DEFAULT_RESULTS / name)
+    out = args.out or free_folder(DEFAULT_RESULTS / name)
     out = _prepare_out(out, args.resume, args.force)
     settings = FitSettings(models=models, fit_rate_hz=args.fit_rate, warmup_s=args.warmup,
                            population=args.population, iterations=args.iterations, workers=args.workers,
@@ -438,7 +430,7 @@ def cmd_diagnose(args) -> int:
             base, base_kind, base_choice, others = _fitted_base(args.from_fit)
         except ValueError as err:
             raise ValueError(f"--from {args.from_fit}: {err}") from None
-    out = args.out or _free_folder(DEFAULT_RESULTS / f"{name}-diagnosis")
+    out = args.out or free_folder(DEFAULT_RESULTS / f"{name}-diagnosis")
     if out.exists() and any(out.iterdir()):
         raise FileExistsError(f"output folder {out} exists and is not empty: choose another --out")
     out.mkdir(parents=True, exist_ok=True)

@@ -11,6 +11,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from tuner.cli.folders import free_folder
+
 __all__ = ["add_parser", "cmd_vehicle"]
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -38,15 +40,6 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
-def _free_folder(base: Path) -> Path:
-    if not base.exists():
-        return base
-    k = 2
-    while Path(f"{base}-{k}").exists():
-        k += 1
-    return Path(f"{base}-{k}")
-
-
 def cmd_vehicle(args) -> int:
     from tuner.progress import JobProgress
     from tuner.vehicle.compare import compare_fmus, format_table
@@ -56,7 +49,7 @@ def cmd_vehicle(args) -> int:
     for f in args.fmus:
         if not f.is_file():
             raise FileNotFoundError(f"damper FMU not found: {f}")
-    out = args.out if args.out is not None else _free_folder(ROOT / "results" / "vehicle")
+    out = args.out if args.out is not None else free_folder(ROOT / "results" / "vehicle")
     weights = {f"{Path(f).stem}: {s}": (6.0 if s == "critical_speed" else 1.0) for f in args.fmus for s in args.scenarios}
     log = JobProgress(weights, quiet=args.quiet)
     try:

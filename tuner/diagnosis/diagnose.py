@@ -596,6 +596,13 @@ def _score(mse: float, mse_ref: float, n_params: int) -> float:
     return -math.log(mse / mse_ref) - PENALTY_PER_PARAMETER * n_params if math.isfinite(mse) else -math.inf
 
 
+def _rescore(rows: list[dict], mse_ref: float) -> None:
+    """Take every row's held-out change and score again against a new reference MSE [N^2]."""
+    for row in rows:
+        row["validation_mse_change_pct"] = 100 * (row["validation_mse"] / mse_ref - 1)
+        row["score"] = _score(row["validation_mse"], mse_ref, len(row["parameters"]))
+
+
 def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Problem, settings: DiagnosisSettings,
                  out: Path, figures_sub: str, log) -> dict:
     """The diagnosis on one base form (steps 2-5 of the module docstring; figures into ``out /
@@ -744,9 +751,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
             none_row = _held_out("none", par.to_params(z_none), [], g_none, none_row["evaluations"] + len(offs),
                                  mse_none)
             none_row["from_refit_of"] = effect
-            for row in ranking:
-                row["validation_mse_change_pct"] = 100 * (row["validation_mse"] / mse_none - 1)
-                row["score"] = _score(row["validation_mse"], mse_none, len(row["parameters"]))
+            _rescore(ranking, mse_none)
             log(f"  none           the {effect} refit with its effect off fits better than the base refit: it is "
                 f"the base now (identification RMSE {none_row['identification_rmse_n']:.1f} N); scores taken again")
 
@@ -824,10 +829,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
                 mse_none = float(r_none @ r_none) / n_val if r_none is not None else mse_none
                 none_row = _held_out("none", par.to_params(z_none), [], g_none, none_row["evaluations"] + n,
                                      mse_none)
-                for row in ranking:
-                    if row["effect"] != "none":
-                        row["validation_mse_change_pct"] = 100 * (row["validation_mse"] / mse_none - 1)
-                        row["score"] = _score(row["validation_mse"], mse_none, len(row["parameters"]))
+                _rescore(ranking, mse_none)
                 ranking[next(i for i, r in enumerate(ranking) if r["effect"] == "none")] = none_row
 
     # what the final model leaves: at the noise, or structured beyond what the catalogue explains
