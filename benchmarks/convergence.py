@@ -87,10 +87,11 @@ def run_one(model: str, seed: int, out: Path, engine: str, durations) -> dict:
     shutil.rmtree(fit_dir, ignore_errors=True)
     fit_dir.mkdir(parents=True)
     t0 = time.perf_counter()
-    fit([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"], fit_dir,
-        settings, log=lambda m: None)
+    res = fit([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
+              settings, checkpoints=fit_dir / "checkpoints", log=lambda m: None)
     wall = time.perf_counter() - t0
-    hist = json.loads((fit_dir / f"history_{model}.json").read_text())
+    res.write(fit_dir)
+    hist = res.histories[model]
     floor, same_axes = truth_rmse(model, data, settings, "native" if engine == "fmu" else engine)
     row = {"model": model, "seed": seed, "noise_n": gen["noise_n"], "kinds": gen["kinds"],
            "in_band_noise_n": in_band_noise(gen["noise_n"], settings.fit_rate_hz),

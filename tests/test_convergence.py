@@ -28,8 +28,6 @@ def test_a_clearly_wrong_base_form_gets_no_restart(tmp_path):
     """Lumped-class data fitted with both base forms: the two-chamber form, fitted second, is only
     refined again from the data-driven start when its first refinement is within RACE_RATIO of the
     lumped form's RMSE; the lumped form, fitted first, has no rival and gets every start."""
-    import json
-
     from campaign.damper_class import write_class_dataset
     from tuner.data.reading import load_dataset
     from tuner.identification.engine import fastest_engine
@@ -39,10 +37,8 @@ def test_a_clearly_wrong_base_form_gets_no_restart(tmp_path):
     # random first population: the Firefly best is not the data-driven start, so both starts exist
     settings = FitSettings(models=("lumped", "twochamber"), population=6, iterations=3, polish_jacobians=6,
                            engine=fastest_engine(), init="random")
-    (tmp_path / "out").mkdir()
-    fit([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
-        tmp_path / "out", settings, log=lambda m: None)
-    hist = {m: json.loads((tmp_path / "out" / f"history_{m}.json").read_text()) for m in settings.models}
+    hist = fit([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
+               settings, log=lambda m: None).histories
     runs = {m: h["local_refinements"] for m, h in hist.items()}
     assert [r["start"] for r in runs["lumped"]][:2] == ["Firefly best", "data-driven start"]
     assert len(runs["lumped"]) == 6  # and the k_B and c_B ladder (RESTART_LADDER)

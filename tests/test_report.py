@@ -14,7 +14,8 @@ from matplotlib.image import imread
 
 from damper_fmu.parameters import MODEL_PARAMETERS, defaults
 from tuner.metrics import error_metrics, variation_percent
-from tuner.results.report import bound_position, eng, make_report
+from tuner.formatting import eng
+from tuner.results.report import bound_position, make_report
 
 RATE = 100.0      # [Hz]
 N = 500           # samples per test

@@ -27,9 +27,8 @@ def report(tmp_path_factory):
     ident = [t for t in tests if t.role == "identification"]
     valid = [t for t in tests if t.role == "validation"]
     out = tmp / "fit"
-    out.mkdir()
-    fit(ident, valid, out, FitSettings(models=("lumped", "maxwell"), population=4, iterations=1, workers=0,
-                                       engine=fastest_engine(), polish_jacobians=1), log=lambda m: None)
+    fit(ident, valid, FitSettings(models=("lumped", "maxwell"), population=4, iterations=1, workers=0,
+                                  engine=fastest_engine(), polish_jacobians=1), log=lambda m: None).write(out)
     base = json.loads((out / "parameters.json").read_text())["lumped"]["values"]
     diagnose(ident, valid, out, DiagnosisSettings(engine=fastest_engine(), workers=0, candidates=("friction", "inertia"),
                                                   polish_jacobians=2, final_jacobians=2),
@@ -79,7 +78,7 @@ def test_numbers_carry_at_most_four_significant_digits_outside_parameter_tables(
 
 
 def test_out_of_range_effect_values_are_flagged():
-    from tuner.results.report import effect_value  # the one formatter of fitted magnitudes
+    from tuner.formatting import effect_value  # the one formatter of fitted magnitudes
 
     assert "above its typical" in effect_value("thermal_beta", 0.05, "1/K")
     assert "below its typical" in effect_value("friction_force", 10.0, "N")

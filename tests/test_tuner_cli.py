@@ -175,11 +175,9 @@ def test_diagnosis_before_is_the_table3_figure_of_the_same_model(tmp_path):
     tests = load_dataset(path)
     ident = [t for t in tests if t.role == "identification"]
     valid = [t for t in tests if t.role == "validation"]
-    (tmp_path / "fit").mkdir()
-    metrics = fit(ident, valid, tmp_path / "fit", FitSettings(models=("lumped",), population=4, iterations=1,
-                                                            workers=0, engine=fastest_engine(), polish_jacobians=1),
-                  log=lambda m: None)
-    base = json.loads((tmp_path / "fit" / "parameters.json").read_text())["lumped"]["values"]
+    fitted = fit(ident, valid, FitSettings(models=("lumped",), population=4, iterations=1, workers=0,
+                                           engine=fastest_engine(), polish_jacobians=1), log=lambda m: None)
+    metrics, base = fitted.metrics, fitted.params["lumped"]["values"]
     res = diagnose(ident, valid, tmp_path / "diag", DiagnosisSettings(engine=fastest_engine(), workers=0,
                                                                       candidates=(), polish_jacobians=1),
                    base_params=base, log=lambda m: None)
@@ -211,17 +209,15 @@ def test_fit_and_diagnosis_share_one_problem_prepared_once(tmp_path, monkeypatch
                            polish_jacobians=1, force_limit_n=31000.0)
     problem = problem_module.Problem.build(ident, valid, settings.data())
     assert problem.force_limit_n == 31000.0 and problem.parametrization("lumped").force_limit == 31000.0
-    (tmp_path / "fit").mkdir()
-    metrics = fit(ident, valid, tmp_path / "fit", settings, problem=problem, log=lambda m: None)
-    base = json.loads((tmp_path / "fit" / "parameters.json").read_text())["lumped"]["values"]
+    fitted = fit(ident, valid, settings, problem=problem, log=lambda m: None)
+    metrics, base = fitted.metrics, fitted.params["lumped"]["values"]
     res = diagnose(ident, valid, tmp_path / "diag", DiagnosisSettings(engine=fastest_engine(), workers=0,
                                                                       candidates=(), polish_jacobians=1),
                    base_params=base, problem=problem, log=lambda m: None)
     assert sorted(calls) == sorted(t.name for t in ident + valid)  # each test prepared once
     assert metrics["settings"]["force_limit_n_used"] == res["settings"]["problem"]["force_limit_n_used"] == 31000.0
     with pytest.raises(ValueError, match="problem"):
-        fit(ident, valid, tmp_path / "fit2", FitSettings(models=("lumped",), fit_rate_hz=100.0), problem=problem,
-            log=lambda m: None)
+        fit(ident, valid, FitSettings(models=("lumped",), fit_rate_hz=100.0), problem=problem, log=lambda m: None)
     with pytest.raises(ValueError, match="prepared at 200 Hz"):
         diagnose(ident, valid, tmp_path / "diag2", DiagnosisSettings(fit_rate_hz=100.0), base_params=base,
                  problem=problem, log=lambda m: None)

@@ -120,8 +120,6 @@ def test_tuner_fits_a_two_chamber_damper_unlike_the_preset_to_the_noise_floor(tm
     """In-class data (the two-chamber model, parameters far from the preset, 20 N noise at 1 kHz):
     the product fit (``tuner.identification.fit``, data-driven start, no Firefly iteration, the
     converged local solve) reaches 1.2 x the in-band noise and finds the chamber parameters."""
-    import json
-
     from campaign.synthetic import write_model_dataset
     from tuner.data.preprocess import Resampler
     from tuner.data.reading import load_dataset
@@ -131,17 +129,17 @@ def test_tuner_fits_a_two_chamber_damper_unlike_the_preset_to_the_noise_floor(tm
     path = write_model_dataset(tmp_path / "data", "twochamber", truth, seed=3, durations=(6.0, 6.0, 4.0),
                                roles=("identification", "identification", "validation"), noise_n=20.0)
     tests = load_dataset(path)
-    (tmp_path / "out").mkdir()
     settings = FitSettings(models=("twochamber",), population=20, iterations=0, workers=2, engine="native")
-    metrics = fit([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
-                  tmp_path / "out", settings, log=lambda m: None)
+    res = fit([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
+              settings, log=lambda m: None)
+    metrics = res.metrics
     band_noise = Resampler.design(1000.0, 200.0).apply(np.random.default_rng(0).normal(0.0, 20.0, 200_000)).std()
-    hist = json.loads((tmp_path / "out" / "history_twochamber.json").read_text())
+    hist = res.histories["twochamber"]
     assert hist["converged"]
     assert hist["identification_rmse_n"] <= 1.2 * band_noise, (hist["identification_rmse_n"], band_noise)
     held_out = [t["models"]["twochamber"]["rmse"] for t in metrics["tests"].values() if t["role"] == "validation"]
     assert max(held_out) <= 1.3 * band_noise, (held_out, band_noise)
-    est = json.loads((tmp_path / "out" / "parameters.json").read_text())["twochamber"]["values"]
+    est = res.params["twochamber"]["values"]
     for name, tol in (("area_ratio", 0.05), ("k_R", 0.1), ("k_C", 0.1)):
         assert abs(est[name] / truth[name] - 1.0) <= tol, (name, est[name], truth[name])
 

@@ -340,38 +340,40 @@ def cmd_fit(args) -> int:
     return 0
 
 
-def _fit_job(args, models) -> Path:
-    from damper_fmu.parameters import EFFECT_MODELS
+def fit_settings(args, models: tuple | None = None) -> "object":
+    """The one mapping of the command line's options to ``FitSettings`` (SI units: the abscissae are
+    given in mm and mm/s); ``models``: the checked --models (default the settings' own)."""
+    from tuner.identification.fit import FitSettings
 
-    from tuner.identification.fit import FitSettings, fit
-    from tuner.identification.problem import Problem
+    return FitSettings(models=models or FitSettings().models, fit_rate_hz=args.fit_rate, warmup_s=args.warmup,
+                       population=args.population, iterations=args.iterations, workers=args.workers,
+                       seed=args.seed, engine=args.engine, parametrization=args.parametrization,
+                       init=args.init, force_limit_n=args.force_limit,
+                       stop_tol=None if args.no_stop else 1e-3, polish_jacobians=args.polish,
+                       diff_band_hz=args.diff_band,
+                       damping_abscissae_m_s=None if args.damping_abscissae is None else
+                       tuple(1e-3 * v for v in args.damping_abscissae),
+                       elastic_abscissae_m=None if args.elastic_abscissae is None else
+                       tuple(1e-3 * x for x in args.elastic_abscissae))
+
+
+def _fit_job(args, models) -> Path:
+    from tuner import job
 
     ident, valid, name = _load(args)
     out = args.out or free_folder(DEFAULT_RESULTS / name)
     out = _prepare_out(out, args.resume, args.force)
-    settings = FitSettings(models=models, fit_rate_hz=args.fit_rate, warmup_s=args.warmup,
-                           population=args.population, iterations=args.iterations, workers=args.workers,
-                           seed=args.seed, engine=args.engine, parametrization=args.parametrization,
-                           init=args.init, force_limit_n=args.force_limit,
-                           stop_tol=None if args.no_stop else 1e-3, polish_jacobians=args.polish,
-                           diff_band_hz=args.diff_band,
-                           damping_abscissae_m_s=None if args.damping_abscissae is None else
-                           tuple(1e-3 * v for v in args.damping_abscissae),
-                           elastic_abscissae_m=None if args.elastic_abscissae is None else
-                           tuple(1e-3 * x for x in args.elastic_abscissae))
+    settings = fit_settings(args, models)
     provenance = {"dataset": str(args.dataset) if args.dataset else None,
                   "files": {t.name: str(t.source) for t in ident + valid},
                   "command": " ".join(sys.argv)}
     _log(f"output folder: {out}")
-    diagnosis = not args.no_diagnose and valid and any(m in EFFECT_MODELS for m in models)
+    diagnosis = not args.no_diagnose and job.wants_diagnosis(settings, valid)
     if not diagnosis and _OUT is not None:
         _OUT.weights.pop("diagnosis", None)
-    problem = Problem.build(ident, valid, settings.data())  # prepared once, for the fit and the diagnosis
-    metrics = fit(ident, valid, out, settings, provenance=provenance, problem=problem,
-                  log=_OUT or _log)  # the progress display when a job runs
-    _print_summary(metrics)
-    if diagnosis:
-        _run_diagnosis(ident, valid, out, args, *_fitted_base(out), problem=problem)
+    result = job.run(ident, valid, out, settings, diagnose_after=diagnosis, provenance=provenance,
+                     log=_OUT or _log)  # the progress display when a job runs
+    _print_summary(result.fit.metrics)
     return out
 
 
@@ -383,33 +385,6 @@ def _fitted_base(folder: Path) -> tuple:
     kind, values, choice, others = choose_base(json.loads((folder / "parameters.json").read_text()),
                                                json.loads((folder / "metrics.json").read_text()))
     return values, kind, choice, others
-
-
-def _run_diagnosis(ident, valid, out, args, base_params=None, base_model=None, base_choice=None,
-                   other_bases=None, problem=None) -> dict:
-    from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
-
-    settings = DiagnosisSettings(fit_rate_hz=args.fit_rate, warmup_s=args.warmup, workers=args.workers,
-                                 engine=args.engine, seed=args.seed, diff_band_hz=args.diff_band,
-                                 force_limit_n=getattr(args, "force_limit", None),
-                                 damping_abscissae_m_s=None if args.damping_abscissae is None else
-                                 tuple(1e-3 * v for v in args.damping_abscissae),
-                                 elastic_abscissae_m=None if args.elastic_abscissae is None else
-                                 tuple(1e-3 * x for x in args.elastic_abscissae))
-    from tuner.progress import stage
-
-    stage(_OUT, "diagnosis")
-    _log(f"\ndiagnosis: refitting the {base_model or 'base'} model extended by each candidate effect ...")
-    result = diagnose(ident, valid, out, settings, base_params=base_params, base_model=base_model,
-                      base_choice=base_choice, other_bases=other_bases, problem=problem, log=_OUT or _log)
-    from tuner.results.report import make_diagnosis_report, make_report
-
-    stage(_OUT, "report")
-    if (out / "parameters.json").exists():  # a fit's folder: the full report with the diagnosis
-        make_report(out)
-    else:
-        make_diagnosis_report(out)
-    return result
 
 
 def cmd_diagnose(args) -> int:
@@ -443,7 +418,11 @@ def cmd_diagnose(args) -> int:
     t0 = time.perf_counter()
     _start_job(args, {"diagnosis": 70.0 if base is not None else 130.0, "report": 5.0})
     try:
-        _run_diagnosis(ident, valid, out, args, base, base_kind, base_choice, others)  # it states the verdict once
+        from tuner import job
+
+        # it states the verdict once
+        job.run_diagnosis(ident, valid, out, job.diagnosis_settings(fit_settings(args)), base_params=base,
+                          base_model=base_kind, base_choice=base_choice, other_bases=others, log=_OUT or _log)
     finally:
         _end_job()
     _tidy_checkpoints(out, args.keep_checkpoints)

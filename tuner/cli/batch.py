@@ -90,8 +90,15 @@ import time
 import traceback
 from pathlib import Path
 
-from damper_fmu.parameters import MODEL_KINDS
+from tqdm import tqdm
+
+from build_fmu import ensure_fmu
+from damper_fmu.parameters import EFFECT_MODELS, MODEL_KINDS
+from tuner import job
 from tuner.cli.run import run_handler
+from tuner.data.reading import DataError, load_dataset, load_files, load_tests
+from tuner.identification.engine import ENGINES
+from tuner.identification.fit import FitSettings
 from tuner.results.fleet_summary import OUTLIER_K, OUTLIER_TOLERANCE, write_atomic, write_summary
 
 __all__ = ["Row", "ManifestError", "read_fleet_manifest", "FleetExecutor", "parse_scheduler", "run_row", "run_batch",
@@ -142,8 +149,6 @@ class Row:
 def _loader_options() -> set:
     """Column/unit options the data reader of this version accepts (tuner.data.reading, public names)."""
     import inspect
-
-    from tuner.data.reading import load_tests
 
     names = set(inspect.signature(load_tests).parameters)
     names = {n for n in names if n.endswith(("_col", "_unit", "_sign"))}
@@ -205,8 +210,6 @@ def _split_files(value, where: str, column: str, base: Path) -> list:
 
 
 def _check_setting(name: str, value, where: str, column: str):
-    from tuner.identification.engine import ENGINES
-
     if name in ("population",) and value < 2:
         raise ManifestError(f"{where}, column {column!r}: population must be >= 2, got {value}")
     if name in ("iterations",) and value < 1:
@@ -333,8 +336,6 @@ def read_fleet_manifest(path) -> list[Row]:
 
 def _task(row: Row, out: Path, base_settings: dict, diagnose: bool, row_workers: int) -> dict:
     """The picklable description of one row's work (sent to a worker)."""
-    from tuner.identification.fit import FitSettings
-
     s = {**base_settings, **row.settings, "workers": int(row_workers)}
     s["models"] = list(s.get("models", FitSettings().models))
     do_diag = row.diagnose if row.diagnose is not None else diagnose
@@ -348,8 +349,6 @@ def _task(row: Row, out: Path, base_settings: dict, diagnose: bool, row_workers:
 
 
 def _load_row_data(task: dict):
-    from tuner.data.reading import DataError, load_dataset, load_files
-
     where = task["where"]
     if task["dataset"]:
         if not Path(task["dataset"]).is_dir():
@@ -417,11 +416,6 @@ def run_row(task: dict) -> dict:
     Runs in a worker. Every exception of the row is caught and recorded (``failed.json``: type,
     message, traceback): a failed row does not stop the others. ``done.json`` is written last.
     """
-    from tuner.data.reading import DataError
-    from tuner.diagnosis.diagnose import DiagnosisSettings, choose_base, diagnose
-    from tuner.identification.fit import FitSettings, fit
-    from tuner.identification.problem import Problem
-
     folder = Path(task["folder"])
     started, t0 = _now(), time.perf_counter()
     folder.mkdir(parents=True, exist_ok=True)
@@ -446,24 +440,14 @@ def run_row(task: dict) -> dict:
         settings = FitSettings(**s, workers=task["workers"])
         provenance = {"files": {t.name: str(t.source) for t in ident + valid},
                       "command": f"python -m tuner batch ({task['where']})", "batch_row": task["id"]}
-        problem = Problem.build(ident, valid, settings.data())  # prepared once, for the fit and the diagnosis
-        fit(ident, valid, folder, settings, provenance=provenance, problem=problem, log=log)
         if task["diagnose"]:
             if not valid:
                 raise DataError(f"{task['where']}: diagnose needs validation files (its decision is the held-out "
                                     f"gain); fill 'validation' or set diagnose = false")
-            try:
-                kind, base, choice, others = choose_base(json.loads((folder / "parameters.json").read_text()),
-                                                         json.loads((folder / "metrics.json").read_text()))
-            except ValueError as err:
-                raise ValueError(f"{task['where']}: {err} in 'models'") from None
-            ds = DiagnosisSettings(fit_rate_hz=settings.fit_rate_hz, warmup_s=settings.warmup_s,
-                                   workers=task["workers"], engine=settings.engine, seed=settings.seed)
-            diagnose(ident, valid, folder, ds, base_params=base, base_model=kind, base_choice=choice,
-                     other_bases=others, problem=problem, log=log)
-            from tuner.results.report import make_report
-
-            make_report(folder)
+            if not job.wants_diagnosis(settings, valid):
+                raise ValueError(f"{task['where']}: the diagnosis needs one of {', '.join(EFFECT_MODELS)} "
+                                 f"in 'models'")
+        job.run(ident, valid, folder, settings, diagnose_after=task["diagnose"], provenance=provenance, log=log)
         rec = _record(task, folder, started, time.perf_counter() - t0, n_lines)
         write_atomic(folder / "done.json", json.dumps(rec, indent=1, sort_keys=True))
         (folder / "failed.json").unlink(missing_ok=True)
@@ -684,8 +668,6 @@ def run_batch(manifest, out, *, scheduler: str | None = None, settings: dict | N
     manifest row: id, type, status ('done', 'failed', 'pending'), error, ran (bool: run now),
     record], "ran": [ids run now], "summary": paths, "outliers": {id: info}, "elapsed_s"}.
     """
-    from tuner.identification.fit import FitSettings
-
     rows = read_fleet_manifest(manifest)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -716,15 +698,11 @@ def run_batch(manifest, out, *, scheduler: str | None = None, settings: dict | N
     log(f"batch: {len(tasks)} rows, {n_skip} finished earlier, {len(todo)} to run on a {ex.description}; "
         f"results in {out}")
     if todo and ex.kind != "address":  # build the FMUs once here, not concurrently in every worker
-        from build_fmu import ensure_fmu
-
         for m in sorted({m for t in todo for m in t["settings"]["models"]}):
             ensure_fmu(m)
     ran = []
     try:
         if todo:
-            from tqdm import tqdm
-
             bar = tqdm(total=len(todo), unit="row", desc="fleet", file=sys.stderr,
                        disable=(not sys.stderr.isatty()) if progress is None else not progress)
             with ex:
@@ -780,8 +758,6 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
-    from tuner.identification.fit import FitSettings
-
     d = FitSettings()
     p.add_argument("manifest", type=Path, help="fleet manifest (CSV or TOML), one row per damper test session")
     p.add_argument("--out", type=Path, default=None,

@@ -58,17 +58,21 @@ from pathlib import Path
 
 import numpy as np
 
-from damper_fmu.parameters import EFFECT_IDENTIFIED, EFFECT_MODELS, EFFECT_PARAMETERS, EFFECT_TYPICAL, defaults
+from build_fmu import SLAVES, build, ensure_fmu
+from damper_fmu.parameters import (EFFECT_IDENTIFIED, EFFECT_MODELS, EFFECT_PARAMETERS, EFFECT_TYPICAL,
+                                   FK_REFERENCE_STIFFNESS, defaults)
 
 from tuner.data.reading import RigTest
-from tuner.identification.engine import Engine
 from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidence, residual_figures
-from tuner.metrics import pooled_mse
+from tuner.diagnosis.significance import block_sandwich, correlation_time, interval
+from tuner.formatting import fmt_quantity
+from tuner.identification.engine import Engine
+from tuner.identification.fit import RACE_RATIO, FitSettings, identify, initial_guess, validation_run
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.polish import polish
 from tuner.identification.problem import DataSettings, Problem, in_band_noise_of
+from tuner.metrics import pooled_mse
 from tuner.progress import advance
-from tuner.results.report import fmt_quantity
 
 __all__ = ["DiagnosisSettings", "diagnose", "decide", "cross_check", "choose_base", "CANDIDATES", "BASE_MODELS",
            "ExtendedParametrization"]
@@ -174,13 +178,16 @@ class DiagnosisSettings:
     damping_abscissae_m_s: tuple | None = None  # as DataSettings (without a base fit given)
     elastic_abscissae_m: tuple | None = None
     force_limit_n: float | None = None  # as DataSettings
+    spring_reference_n_per_m: float = FK_REFERENCE_STIFFNESS  # as DataSettings
     extra: dict = field(default_factory=dict)
 
     def data(self) -> DataSettings:
-        """The problem definition when the diagnosis prepares the tests itself (no fit's problem given)."""
+        """The problem definition when the diagnosis prepares the tests itself (no fit's problem given);
+        the parametrization is always 'improved' (the local solver needs monotone tables)."""
         return DataSettings(fit_rate_hz=self.fit_rate_hz, warmup_s=self.warmup_s, diff_band_hz=self.diff_band_hz,
                             damping_abscissae_m_s=self.damping_abscissae_m_s,
-                            elastic_abscissae_m=self.elastic_abscissae_m, force_limit_n=self.force_limit_n)
+                            elastic_abscissae_m=self.elastic_abscissae_m, force_limit_n=self.force_limit_n,
+                            spring_reference_n_per_m=self.spring_reference_n_per_m, parametrization="improved")
 
 
 def _stroke_noise_force(kind: str, params: dict, tests: list[RigTest], signals: list, settings) -> float:
@@ -190,8 +197,6 @@ def _stroke_noise_force(kind: str, params: dict, tests: list[RigTest], signals: 
     The velocity input is left as measured: the differentiator's band (20 Hz and up) keeps the
     stroke noise's share in it small, and the series stiffness acts on the stroke."""
     import dataclasses
-
-    from tuner.identification.fit import validation_run
 
     rng = np.random.default_rng(0)
     se = n = 0.0
@@ -205,8 +210,6 @@ def _stroke_noise_force(kind: str, params: dict, tests: list[RigTest], signals: 
 
 def _pooled_mse(kind: str, params: dict, signals: list, engine: str) -> float:
     """Validation MSE [N^2] pooled over the tests (``validation_run``, the Table 3 definition)."""
-    from tuner.identification.fit import validation_run
-
     return pooled_mse([validation_run(kind, params, s, engine)[1] for s in signals])
 
 
@@ -325,8 +328,6 @@ def effect_intervals(eid: Engine, ext: ExtendedParametrization, z: np.ndarray, s
     (``tuner.diagnosis.significance``: valid for correlated residuals). Base coordinates at a bound are held
     there. Returns {name: {value, std, low, high, excludes_zero}} plus '_blocks' and
     '_correlation_time_s' (the residual's, which sets the block length: 3 correlation times)."""
-    from tuner.diagnosis.significance import block_sandwich, correlation_time, interval
-
     z = np.clip(np.asarray(z, dtype=float), 0.0, 1.0)
     dim = ext.base.dimension
     free = [i for i in range(ext.dimension) if i >= dim or 1e-9 < z[i] < 1 - 1e-9]
@@ -476,8 +477,6 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     it is repeated on the other base forms that can plausibly win (bare held-out RMSE within
     ``RACE_RATIO`` x the first's; not at all when the first base's refit did not converge) and the
     final model with the lowest held-out MSE is kept; ``base_choice['not_repeated_on']`` says why not."""
-    from tuner.identification.fit import RACE_RATIO, FitSettings, identify
-
     settings = settings or DiagnosisSettings()
     if not identification or not validation:
         raise ValueError("the diagnosis needs identification AND validation tests (the decision is held-out gain)")
@@ -581,8 +580,6 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     result["base_choice"] = base_choice
     (out / "diagnosis.json").write_text(json.dumps(result, indent=2, default=_json_default))
     if run["causes"]:
-        from build_fmu import SLAVES, build
-
         path = build(kind, out / "fmu", start_values=run["after_params"],
                      filename=f"{SLAVES[kind]}_{'_'.join(run['causes'])}_tuned.fmu")
         log(f"extended model exported: {path}")
@@ -608,15 +605,11 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
     """The diagnosis on one base form (steps 2-5 of the module docstring; figures into ``out /
     figures_sub``): the result fields of ``diagnosis.json`` for it, plus ``after_params`` (the final
     model's values) and ``final_validation_mse`` [N^2] (pooled, Table 3 definition)."""
-    from tuner.identification.fit import initial_guess, validation_run
-
     identification, prep_id, prep_val = data.identification, data.prep_id, data.prep_val
     sig_id, sig_val, peak, stroke_range, noise = data.sig_id, data.sig_val, data.peak_n, data.stroke_range_m, data.noise_n
 
     engine_path = None
     if settings.engine == "fmu":
-        from build_fmu import ensure_fmu
-
         engine_path = ensure_fmu(kind)
     base = defaults(kind)
     base.update({k: v for k, v in base_params.items() if k in base})

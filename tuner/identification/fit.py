@@ -1,14 +1,13 @@
-"""Identification pipeline: prepare data, run the Firefly algorithm per model, validate, write results.
+"""Identification: the Firefly algorithm and the local refinement per model, then validation
+through the FMU the user gets. ``fit`` returns a ``FitResult``; ``FitResult.write`` stores it (SI units
+everywhere); ``tuner.job`` runs the whole job (FMUs, diagnosis, report):
 
-Output folder (SI units everywhere):
     parameters.json        identified values, units, bounds, parametrization per model
     metrics.json           settings/provenance, metrics per test and model, the paper's Table 3,
-                           quality gate, full-rate check (tuner.identification.full_rate)
+                           quality gate (the job adds the full-rate check, tuner.identification.full_rate)
     history_<model>.json   mean/best fitness per generation, initial and final populations
     simulations.npz        per test: time, stroke, measured force, simulated force per model
-    fmu/<Model>_tuned.fmu  FMUs with the identified values as start values
     checkpoints/<model>.json  Firefly state after every iteration (``--resume`` continues from it)
-    report.html, figures/  the report (tuner.results.report)
 
 Objective: G = N / SSE over the identification tests at the fit rate (paper eq. 5), skipping the
 first ``warmup_s`` of each test (the model starts force-free; the damper may not). Validation
@@ -24,27 +23,28 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from damper_fmu.parameters import EFFECT_MODELS, FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS, defaults
+from build_fmu import ensure_fmu
+from damper_fmu.parameters import EFFECT_MODELS, FK_REFERENCE_STIFFNESS, defaults
 
-from tuner.identification import firefly
-from tuner.data.reading import RigTest
 from tuner.data.preprocess import prepare
+from tuner.data.reading import RigTest
+from tuner.identification import firefly
 from tuner.identification.engine import IDENTIFICATION_STEP, Engine, Signals, simulate_signals
 from tuner.identification.full_rate import MIN_RATE_RATIO, comparison_rate, full_rate_check
-from tuner.metrics import error_metrics, noise_std
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.polish import polish
 from tuner.identification.problem import DataSettings, Problem, to_signals
+from tuner.metrics import error_metrics, noise_std
 from tuner.progress import advance, stage
-from tuner.results.report import make_report
 
-__all__ = ["FitSettings", "fit", "initial_guess", "validation_run", "identify", "quality_gate", "QUALITY_AME_PCT",
+__all__ = ["FitSettings", "FitResult", "fit", "initial_guess", "validation_run", "identify", "quality_gate", "QUALITY_AME_PCT",
            "RACE_RATIO", "RESTART_LADDER"]
 
 #: Log-scaled parameters whose decade decides the basin a local refinement ends in: the data-driven
@@ -172,8 +172,6 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         initial = np.array([guess, par.from_params(defaults(model))])
     engine_path = None
     if settings.engine == "fmu":
-        from build_fmu import ensure_fmu
-
         engine_path = ensure_fmu(model)
     t_start = time.perf_counter()
     evals_start = state.evaluations if state else 0
@@ -341,14 +339,47 @@ def quality_gate(tests: dict, models) -> dict:
     return out
 
 
-def fit(identification: list[RigTest], validation: list[RigTest], out: Path, settings: FitSettings,
-        *, provenance: dict | None = None, problem: Problem | None = None, log=print) -> dict:
-    """Identify every model in ``settings.models``, validate, write the output folder.
+@dataclass
+class FitResult:
+    """What :func:`fit` found, in memory (SI units). ``write(out)`` stores it as the output folder's
+    data files (module docstring); ``tuner.job`` adds the FMUs, the diagnosis and the report.
 
-    Returns the metrics dict (also written to metrics.json). ``out`` must exist (the CLI decides
-    about overwriting); checkpoints in ``out/checkpoints`` are resumed when present. ``problem``: the
-    tests already prepared (``Problem.build(identification, validation, settings.data())``), so that
-    a diagnosis after the fit works on the same problem; built here when not given.
+    params: {model: {"values", "units", "bounds", "parametrization"}}; histories: {model: Firefly and
+    refinement history}; metrics: {"settings", "tests": {name: {role, scenario, models: {model:
+    metrics}}}, "table3", "quality"} (``full_rate`` added by the job); simulations: name -> array of
+    simulations.npz (``<test>__time`` [s], ``__stroke`` [m], ``__force`` [N], ``__<model>`` [N]);
+    problem: the prepared tests it was fitted on."""
+
+    params: dict
+    histories: dict
+    metrics: dict
+    simulations: dict
+    problem: Problem
+
+    def identification_rmse_n(self, model: str) -> float:
+        """Identification RMSE [N] of ``model`` in the fit band."""
+        return self.histories[model]["identification_rmse_n"]
+
+    def write(self, out: Path) -> None:
+        """parameters.json, history_<model>.json, simulations.npz and metrics.json into ``out``."""
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        for model, hist in self.histories.items():
+            (out / f"history_{model}.json").write_text(json.dumps(hist, indent=1))
+        (out / "parameters.json").write_text(json.dumps(self.params, indent=2, sort_keys=True))
+        np.savez_compressed(out / "simulations.npz", **self.simulations)
+        (out / "metrics.json").write_text(json.dumps(self.metrics, indent=2, sort_keys=True, default=str))
+
+
+def fit(identification: list[RigTest], validation: list[RigTest], settings: FitSettings, *,
+        checkpoints: Path | None = None, provenance: dict | None = None, problem: Problem | None = None,
+        log=print) -> FitResult:
+    """Identify every model in ``settings.models`` and validate it through the FMU the user gets.
+
+    Returns a :class:`FitResult` and writes nothing but the Firefly checkpoints: into
+    ``checkpoints`` (a folder; resumed when they are there), none when it is None. ``problem``: the
+    tests already prepared (``Problem.build(identification, validation, settings.data())``), so
+    that a diagnosis after the fit works on the same problem; built here when not given.
     """
     if not identification:
         raise ValueError("no identification test given")
@@ -357,8 +388,12 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
     elif problem.settings != settings.data():
         raise ValueError(f"fit: the problem was built with {problem.settings}, the fit settings ask for "
                          f"{settings.data()}")
-    out = Path(out)
-    (out / "checkpoints").mkdir(parents=True, exist_ok=True)
+    scratch = None
+    if checkpoints is None:
+        scratch = tempfile.TemporaryDirectory(prefix="tuner-fit-")
+        checkpoints = Path(scratch.name)
+    checkpoints = Path(checkpoints)
+    checkpoints.mkdir(parents=True, exist_ok=True)
     digest, prep_id, signals, peak = problem.digest, problem.prep_id, problem.sig_id, problem.peak_n
     # measurement noise in the fit band [N]: what a fit of a model that can represent the data
     # reaches, reported beside the identification RMSE
@@ -369,24 +404,26 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
         f"{1e3 * axes['Fk_x10']:.4g} mm (identification data: peak stroke velocity "
         f"{1e3 * max(float(np.max(np.abs(s.stroke_velocity[s.mask]))) for s in signals):.4g} mm/s)")
     params, histories = {}, {}
-    for model in settings.models:
-        stage(log, f"fit {model}")
-        par = problem.parametrization(model)
-        fitted_bases = [(m, histories[m]["identification_rmse_n"]) for m in histories if m in EFFECT_MODELS]
-        best, hist = identify(model, signals, settings, par, out / "checkpoints" / f"{model}.json", digest, log,
-                              rival=min(fitted_bases, key=lambda r: r[1]) if model in EFFECT_MODELS and fitted_bases
-                              else None)
-        params[model] = {"values": best, "units": dict(par.units),
-                         "bounds": {n: list(par.bounds[n]) for n in par.names},
-                         "parametrization": settings.parametrization}
-        rmse_id = 1.0 / math.sqrt(hist["best_fitness_final"]) if hist["best_fitness_final"] > 0 else math.inf
-        hist["noise_floor_n"] = noise
-        hist["identification_rmse_n"] = rmse_id
-        log(f"[{model}] identification RMSE {rmse_id:.1f} N = {rmse_id / noise:.1f} x the measurement noise in the "
-            f"fit band ({noise:.1f} N); local refinement {'converged' if hist['converged'] else 'NOT converged'}")
-        histories[model] = hist
-        (out / f"history_{model}.json").write_text(json.dumps(hist, indent=1))
-    (out / "parameters.json").write_text(json.dumps(params, indent=2, sort_keys=True))
+    try:
+        for model in settings.models:
+            stage(log, f"fit {model}")
+            par = problem.parametrization(model)
+            fitted_bases = [(m, histories[m]["identification_rmse_n"]) for m in histories if m in EFFECT_MODELS]
+            best, hist = identify(model, signals, settings, par, checkpoints / f"{model}.json", digest, log,
+                                  rival=min(fitted_bases, key=lambda r: r[1])
+                                  if model in EFFECT_MODELS and fitted_bases else None)
+            params[model] = {"values": best, "units": dict(par.units),
+                             "bounds": {n: list(par.bounds[n]) for n in par.names},
+                             "parametrization": settings.parametrization}
+            rmse_id = 1.0 / math.sqrt(hist["best_fitness_final"]) if hist["best_fitness_final"] > 0 else math.inf
+            hist["noise_floor_n"] = noise
+            hist["identification_rmse_n"] = rmse_id
+            log(f"[{model}] identification RMSE {rmse_id:.1f} N = {rmse_id / noise:.1f} x the measurement noise in "
+                f"the fit band ({noise:.1f} N); local refinement {'converged' if hist['converged'] else 'NOT converged'}")
+            histories[model] = hist
+    finally:
+        if scratch is not None:
+            scratch.cleanup()
 
     # every result is checked through the FMU the user gets, whatever engine identified it
     stage(log, "validate and export")
@@ -400,7 +437,6 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
             arrays[f"{t.name}__{model}"], models_m[model] = validation_run(model, params[model]["values"], s)
         tests_out[t.name] = {"role": t.role, "scenario": t.scenario, "models": models_m,
                              "sample_rate_hz": p.sample_rate, "source_rate_hz": t.sample_rate}
-    np.savez_compressed(out / "simulations.npz", **arrays)
 
     table3 = {}
     if "lumped" in settings.models and "maxwell" in settings.models:
@@ -430,18 +466,4 @@ def fit(identification: list[RigTest], validation: list[RigTest], out: Path, set
         **(provenance or {}),
     })
     metrics = {"settings": settings_out, "tests": tests_out, "table3": table3, "quality": quality}
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, sort_keys=True, default=str))
-
-    log("exporting tuned FMUs ...")
-    from build_fmu import SLAVES, build
-
-    for model in settings.models:
-        build(model, out / "fmu", start_values={k: v for k, v in params[model]["values"].items()
-                                                 if k in {p.name for p in MODEL_PARAMETERS[model]}},
-              filename=f"{SLAVES[model]}_tuned.fmu")
-    # after the results are written: a failure here (an exception, never a number) loses nothing
-    metrics["full_rate"] = full_rate_checks([*identification, *validation], params, settings, log)
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, sort_keys=True, default=str))
-    stage(log, "report")
-    make_report(out)
-    return metrics
+    return FitResult(params=params, histories=histories, metrics=metrics, simulations=arrays, problem=problem)

@@ -35,9 +35,10 @@ from matplotlib.figure import Figure
 
 from damper_fmu.parameters import MODEL_KINDS, MODEL_PARAMETERS, defaults
 from damper_fmu.tables import PwlTable
+from tuner.formatting import effect_value, eng, fmt_quantity, unit_html
 from tuner.metrics import polyfit_odd_even
 
-__all__ = ["make_report", "eng", "bound_position"]
+__all__ = ["make_report", "make_diagnosis_report", "diagnosis_section_html", "bound_position"]
 
 MODEL_ORDER = MODEL_KINDS
 MODEL_LABEL = {"lumped": "lumped (proposed)", "maxwell": "Maxwell (linear)",
@@ -47,58 +48,6 @@ CONSTANTS = ("M_C", "M_O", "M_P", "k_B", "c_B")
 BOUND_FLAG_FRACTION = 0.01      # "at bound": within 1 % of the bound range
 ZOOM_WINDOW_S = 1.5             # zoom panel width [s]
 LOOP_DIFF_WINDOW_S = 0.02       # Savitzky-Golay window for the loop velocity [s]
-
-# --------------------------------------------------------------------------- formatting
-
-_PREFIX = {-15: "f", -12: "p", -9: "n", -6: "µ", -3: "m", 0: "", 3: "k", 6: "M", 9: "G", 12: "T"}
-_SUPER = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
-_NO_PREFIX_UNITS = {"kg", "%", "-", "", "N^2", "1/N^2", "degC", "K"}
-
-
-def unit_html(unit: str) -> str:
-    """Display form of a unit string: 'N.s/m' -> 'N·s/m', 'N^2' -> 'N²', '1/N^2' -> 'N⁻²'."""
-    u = {"1/N^2": "N⁻²", "-": ""}.get(unit, unit)
-    u = u.replace(".", "·")
-    return re.sub(r"\^(-?\d+)", lambda m: m.group(1).translate(_SUPER), u)
-
-
-def _sig(x: float, digits: int) -> str:
-    """x with ``digits`` significant figures, fixed-point (x already in [1, 1000))."""
-    mag = int(math.floor(math.log10(abs(x)))) if x != 0 else 0
-    return f"{x:.{max(digits - 1 - mag, 0)}f}"
-
-
-def eng(x, unit: str = "", digits: int = 3) -> str:
-    """Engineering format with SI prefix: eng(0.00125, 'm') = '1.25 mm', eng(18e3, 'N') = '18.0 kN'.
-
-    Units in _NO_PREFIX_UNITS (kg, squared units, '%', dimensionless) get a power-of-ten factor
-    with an exponent multiple of 3 instead of a prefix (5.88e6 N^2 -> '5.88×10⁶ N²'), except
-    '%' which is printed with one decimal and plain numbers between 1e-3 and 1e4 which are
-    printed as they are. Non-finite values: 'n/a', '∞', '-∞'.
-    """
-    if x is None:
-        return "n/a"
-    x = float(x)
-    u = unit_html(unit)
-    sep = " " if u else ""
-    if math.isnan(x):
-        return "n/a"
-    if math.isinf(x):
-        return ("∞" if x > 0 else "-∞") + sep + u
-    if unit == "%":
-        return f"{x:.1f} %"
-    if x == 0:
-        return "0" + sep + u
-    x = float(f"{x:.{digits - 1}e}")            # round first: 999.7 -> 1.00e3
-    exp3 = 3 * math.floor(math.log10(abs(x)) / 3)
-    plain = unit in _NO_PREFIX_UNITS
-    if plain and -3 <= math.log10(abs(x)) < 4:
-        return _sig(x, digits) + sep + u
-    if not plain and exp3 in _PREFIX:
-        return _sig(x / 10.0 ** exp3, digits) + " " + _PREFIX[exp3] + u
-    mant = _sig(x / 10.0 ** exp3, digits)
-    return f"{mant}×10{str(exp3).translate(_SUPER)}" + sep + u
-
 
 def _num(value, text: str) -> str:
     """HTML span showing ``text`` and carrying the exact value (machine-readable)."""
@@ -926,47 +875,6 @@ def make_diagnosis_report(out_dir) -> Path:
     return _write_page(out, title, [f"<h1>{title}</h1>", diagnosis_section_html(out)])
 
 
-def main(argv=None) -> int:
-    import argparse
-
-    ap = argparse.ArgumentParser(description="Write report.html and figures for a tuner fit output folder.")
-    ap.add_argument("out_dir", help="folder written by the tuner (parameters.json, metrics.json, ...)")
-    ap.add_argument("--dpi", type=int, default=110, help="figure resolution [dots/inch]")
-    a = ap.parse_args(argv)
-    print(make_report(a.out_dir, dpi=a.dpi))
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
-
-
-def fmt_quantity(v: float, unit: str) -> str:
-    """A value [SI] for people: lengths in mm, times in ms, 3 significant digits."""
-    if unit == "m":
-        return f"{v * 1e3:.3g} mm"
-    if unit == "s":
-        return f"{v * 1e3:.3g} ms"
-    return f"{v:.3g} {unit}"
-
-
-def effect_value(name: str, v: float, unit: str) -> str:
-    """A fitted effect magnitude; one below 1/1000 of the low end of its typical range prints as 0
-    (the refit switched the effect off; 5e-15 mm is not a measurement)."""
-    from damper_fmu.parameters import EFFECT_TYPICAL
-
-    if name in EFFECT_TYPICAL and abs(v) < 1e-3 * EFFECT_TYPICAL[name][0]:
-        return "0 (off)"
-    text = fmt_quantity(v, unit)
-    if name in EFFECT_TYPICAL:
-        lo, hi = EFFECT_TYPICAL[name]
-        if abs(v) > hi:
-            text += f" (above its typical {fmt_quantity(lo, unit)} - {fmt_quantity(hi, unit)})"
-        elif abs(v) < lo:
-            text += f" (below its typical {fmt_quantity(lo, unit)} - {fmt_quantity(hi, unit)})"
-    return text
-
-
 def diagnosis_section_html(out_dir) -> str:
     """HTML section of the report for ``out_dir/diagnosis.json`` ('' when there is none)."""
     import html
@@ -1065,3 +973,18 @@ def diagnosis_section_html(out_dir) -> str:
           f"<th>MSE after [N&sup2;]</th><th>change</th><th>AME before [N]</th><th>AME after [N]</th></tr>{val}</table>"
         + (f"<h3>Residual evidence (base model)</h3><ul>{ev_rows}</ul>" if ev_rows else "")
         + figs + "</section>")
+
+
+def main(argv=None) -> int:
+    import argparse
+
+    ap = argparse.ArgumentParser(description="Write report.html and figures for a tuner fit output folder.")
+    ap.add_argument("out_dir", help="folder written by the tuner (parameters.json, metrics.json, ...)")
+    ap.add_argument("--dpi", type=int, default=110, help="figure resolution [dots/inch]")
+    a = ap.parse_args(argv)
+    print(make_report(a.out_dir, dpi=a.dpi))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,76 @@
+"""The job (``tuner.job``): fit -> choose base -> diagnose -> export -> report, one problem, one
+settings walk from the command line to the diagnosis."""
+import dataclasses
+import json
+
+import pytest
+
+from campaign.synthetic import write_model_dataset
+from damper_fmu import defaults
+from tuner import job
+from tuner.__main__ import main as cli_main
+from tuner.data.reading import load_dataset
+from tuner.identification.engine import fastest_engine
+from tuner.identification.fit import FitSettings
+
+
+def test_the_diagnosis_gets_the_fits_problem_definition_field_by_field():
+    """Every field of the problem definition given to the fit reaches the diagnosis (its
+    parametrization excepted: the local solver needs monotone tables)."""
+    fs = FitSettings(fit_rate_hz=150.0, warmup_s=0.3, diff_band_hz=33.0, force_limit_n=12345.0,
+                     damping_abscissae_m_s=tuple(0.01 * (i + 1) for i in range(14)),
+                     elastic_abscissae_m=tuple(0.001 * (i + 1) for i in range(10)),
+                     spring_reference_n_per_m=2.0e7, parametrization="paper", engine="native", seed=7, workers=0)
+    ds = job.diagnosis_settings(fs)
+    a, b = dataclasses.asdict(fs.data()), dataclasses.asdict(ds.data())
+    assert a.pop("parametrization") == "paper" and b.pop("parametrization") == "improved"
+    assert a == b
+    assert (ds.engine, ds.seed, ds.workers) == ("native", 7, 0)
+
+
+def test_the_job_prepares_once_writes_each_stage_and_reports_last(tmp_path, monkeypatch):
+    """One run of the job: each test prepared once for fit and diagnosis, the diagnosis on the fit's
+    force limit, full-rate check in metrics.json, tuned FMUs, and a report holding the diagnosis."""
+    import tuner.identification.problem as problem_module
+
+    path = write_model_dataset(tmp_path / "d", "lumped", defaults("lumped"), seed=4, durations=(4.0, 3.0),
+                               roles=("identification", "validation"), noise_n=20.0)
+    tests = load_dataset(path)
+    ident = [t for t in tests if t.role == "identification"]
+    valid = [t for t in tests if t.role == "validation"]
+    calls = []
+    real_prepare = problem_module.prepare
+    monkeypatch.setattr(problem_module, "prepare", lambda t, *a, **k: calls.append(t.name) or real_prepare(t, *a, **k))
+    real_settings = job.diagnosis_settings  # the real mapping, with a small candidate set to keep this quick
+    monkeypatch.setattr(job, "diagnosis_settings", lambda s: dataclasses.replace(
+        real_settings(s), candidates=("friction",), polish_jacobians=1, final_jacobians=1))
+    settings = FitSettings(models=("lumped", "maxwell"), population=4, iterations=1, workers=0,
+                           engine=fastest_engine(), polish_jacobians=1, force_limit_n=31000.0)
+    out = tmp_path / "out"
+    out.mkdir()
+    res = job.run(ident, valid, out, settings, log=lambda m: None)
+    assert sorted(calls) == sorted(t.name for t in ident + valid)
+    metrics = json.loads((out / "metrics.json").read_text())
+    diagnosis = json.loads((out / "diagnosis.json").read_text())
+    assert set(metrics["full_rate"]) == {"lumped", "maxwell"}
+    assert metrics["settings"]["force_limit_n_used"] == diagnosis["settings"]["problem"]["force_limit_n_used"] == 31000.0
+    assert json.loads((out / "parameters.json").read_text()) == json.loads(json.dumps(res.fit.params))
+    assert {p.name for p in res.fmus} >= {"DamperLumped_tuned.fmu", "DamperMaxwell_tuned.fmu"}
+    assert res.diagnosis["verdict"] == diagnosis["verdict"]
+    assert "id='diagnosis'" in res.report.read_text(encoding="utf-8")
+    assert res.report.stat().st_mtime >= (out / "diagnosis.json").stat().st_mtime
+
+
+def test_a_force_limit_on_the_command_line_reaches_the_diagnosis(tmp_path):
+    """The command line's --force-limit walks through the job to the diagnosis (before, the
+    diagnosis ignored it)."""
+    path = write_model_dataset(tmp_path / "d", "lumped", defaults("lumped"), seed=4, durations=(3.0, 2.0),
+                               roles=("identification", "validation"), noise_n=20.0)
+    out = tmp_path / "o"
+    code = cli_main(["diagnose", "--dataset", str(path), "--out", str(out), "--force-limit", "29000",
+                     "--workers", "0", "--engine", fastest_engine(), "--quiet", "--seed", "1",
+                     "--fit-rate", "100"])
+    assert code == 0
+    d = json.loads((out / "diagnosis.json").read_text())
+    assert d["settings"]["problem"]["force_limit_n_used"] == pytest.approx(29000.0)
+    assert d["settings"]["problem"]["data_settings"]["fit_rate_hz"] == 100.0

@@ -1,0 +1,122 @@
+"""The tuner's job, in one place: prepare -> fit -> choose the base -> diagnose -> export -> report.
+
+``run`` is what ``python -m tuner fit`` and every row of ``python -m tuner batch`` do; ``run_diagnosis``
+what ``python -m tuner diagnose`` does. The stages hand their results on in memory (the prepared
+``Problem``, the ``FitResult``); each output file is written once:
+
+    parameters.json, metrics.json, history_<model>.json, simulations.npz   the fit (FitResult.write)
+    fmu/<Model>_tuned.fmu                                                   the tuned FMUs
+    diagnosis.json, figures/, fmu/<Model>_<causes>_tuned.fmu                the diagnosis
+    report.html, figures/                                                   the report (last)
+    checkpoints/                                                            what --resume continues from
+
+Settings: one ``FitSettings``; the diagnosis's are derived from it (``diagnosis_settings``), so a
+setting given on the command line reaches the fit and the diagnosis alike.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+from build_fmu import SLAVES, build
+from damper_fmu.parameters import EFFECT_MODELS, MODEL_PARAMETERS
+from tuner.data.reading import RigTest
+from tuner.diagnosis.diagnose import DiagnosisSettings, choose_base, diagnose
+from tuner.identification.fit import FitResult, FitSettings, fit, full_rate_checks
+from tuner.identification.problem import Problem
+from tuner.progress import stage
+from tuner.results.report import make_diagnosis_report, make_report
+
+__all__ = ["JobResult", "run", "run_diagnosis", "diagnosis_settings", "export_fmus", "wants_diagnosis"]
+
+
+@dataclass
+class JobResult:
+    """What ``run`` produced: the output folder, the fit, the diagnosis (None when not run), the
+    exported FMUs (the tuned models and the diagnosis's extended one) and the report's path."""
+
+    out: Path
+    fit: FitResult
+    diagnosis: dict | None
+    fmus: list
+    report: Path
+
+
+def diagnosis_settings(settings: FitSettings) -> DiagnosisSettings:
+    """The diagnosis's settings after a fit with ``settings``: the same problem definition (fit rate,
+    warm-up, differentiator band, abscissae, force limit, spring reference; the parametrization is
+    the diagnosis's own), engine, workers and seed."""
+    return DiagnosisSettings(fit_rate_hz=settings.fit_rate_hz, warmup_s=settings.warmup_s, workers=settings.workers,
+                             engine=settings.engine, seed=settings.seed, diff_band_hz=settings.diff_band_hz,
+                             damping_abscissae_m_s=settings.damping_abscissae_m_s,
+                             elastic_abscissae_m=settings.elastic_abscissae_m, force_limit_n=settings.force_limit_n,
+                             spring_reference_n_per_m=settings.spring_reference_n_per_m)
+
+
+def wants_diagnosis(settings: FitSettings, validation: list[RigTest]) -> bool:
+    """A diagnosis can follow the fit: validation tests (its decision is the held-out gain) and a
+    fitted base form (one of the models that carry the effect catalogue)."""
+    return bool(validation) and any(m in EFFECT_MODELS for m in settings.models)
+
+
+def export_fmus(result: FitResult, out: Path) -> list[Path]:
+    """``out/fmu/<Model>_tuned.fmu`` for every fitted model: the identified values as start values."""
+    paths = []
+    for model, p in result.params.items():
+        names = {q.name for q in MODEL_PARAMETERS[model]}
+        paths.append(build(model, Path(out) / "fmu", start_values={k: v for k, v in p["values"].items() if k in names},
+                           filename=f"{SLAVES[model]}_tuned.fmu"))
+    return paths
+
+
+def run(identification: list[RigTest], validation: list[RigTest], out: Path, settings: FitSettings, *,
+        diagnose_after: bool = True, provenance: dict | None = None, log=print) -> JobResult:
+    """The whole job into the existing folder ``out`` (checkpoints there are resumed).
+
+    diagnose_after: diagnose the best-validated base form after the fit (when ``wants_diagnosis``);
+    log: a callable taking one line (or a ``tuner.progress.JobProgress``, whose stages it advances)."""
+    out = Path(out)
+    problem = Problem.build(identification, validation, settings.data())  # prepared once, for every stage
+    result = fit(identification, validation, settings, checkpoints=out / "checkpoints", provenance=provenance,
+                 problem=problem, log=log)
+    result.write(out)
+    log("exporting tuned FMUs ...")
+    export_fmus(result, out)
+    # after the results are written: a failure here (an exception, never a number) loses nothing
+    result.metrics["full_rate"] = full_rate_checks([*identification, *validation], result.params, settings, log)
+    (out / "metrics.json").write_text(json.dumps(result.metrics, indent=2, sort_keys=True, default=str))
+    diagnosis = None
+    if diagnose_after and wants_diagnosis(settings, validation):
+        kind, values, choice, others = choose_base(result.params, result.metrics)
+        diagnosis = _diagnose(identification, validation, out, diagnosis_settings(settings), values, kind, choice,
+                              others, problem, log)
+    stage(log, "report")
+    report = make_report(out)
+    return JobResult(out=out, fit=result, diagnosis=diagnosis, fmus=sorted((out / "fmu").glob("*.fmu")),
+                     report=report)
+
+
+def run_diagnosis(identification: list[RigTest], validation: list[RigTest], out: Path,
+                  settings: DiagnosisSettings, *, base_params: dict | None = None, base_model: str | None = None,
+                  base_choice: dict | None = None, other_bases: dict | None = None, log=print) -> dict:
+    """A diagnosis on its own into ``out`` (the base from an earlier fit, or identified here), then
+    the report: the full one when ``out`` holds that fit's files, the diagnosis alone otherwise."""
+    out = Path(out)
+    result = _diagnose(identification, validation, out, settings, base_params, base_model, base_choice,
+                       other_bases, None, log)
+    stage(log, "report")
+    if (out / "parameters.json").exists():
+        make_report(out)
+    else:
+        make_diagnosis_report(out)
+    return result
+
+
+def _diagnose(identification, validation, out, settings, base_params, base_model, base_choice, other_bases,
+              problem, log) -> dict:
+    stage(log, "diagnosis")
+    log(f"\ndiagnosis: refitting the {base_model or 'base'} model extended by each candidate effect ...")
+    return diagnose(identification, validation, out, settings, base_params=base_params, base_model=base_model,
+                    base_choice=base_choice, other_bases=other_bases, problem=problem, log=log)
+
