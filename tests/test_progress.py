@@ -4,7 +4,7 @@ import re
 
 import pytest
 
-from tuner.progress import JobProgress, advance, stage
+from tuner.progress import JobProgress, SubStages, advance, stage
 
 
 class Clock:
@@ -59,3 +59,26 @@ def test_quiet_prints_nothing_and_plain_print_still_works_as_log():
     assert out.getvalue() == ""
     stage(print, "a")  # a log without hooks is left alone
     advance(print, 0.5)
+
+
+def test_sub_stages_advance_the_jobs_stage_without_adding_stages():
+    """A function's own stages inside one job stage (the vehicle scenarios): the job keeps its
+    planned stages and the stage's fraction goes 0 -> 1 over the sub-stages."""
+    clock, out = Clock(), io.StringIO()
+    p = JobProgress({"fit": 10.0, "vehicle": 10.0}, stream=out, tty=False, clock=clock)
+    stage(p, "fit")
+    stage(p, "vehicle")
+    sub = SubStages(p, 4)
+    seen = []
+    for k in range(4):
+        stage(sub, f"scenario {k}")
+        seen.append(p.fraction)
+        advance(sub, 0.5)
+        seen.append(p.fraction)
+    advance(sub, 1.0)
+    assert seen == pytest.approx([0.0, 0.125, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875])
+    assert p.fraction == pytest.approx(1.0)
+    assert set(p.weights) == {"fit", "vehicle"}
+    sub("a line")  # lines reach the job's log
+    p.finish()
+    assert "a line" in out.getvalue()

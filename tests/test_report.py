@@ -273,3 +273,35 @@ def test_loop_velocity_exact_for_cubic_stroke():
     assert np.max(np.abs(v[5:-5] - exact[5:-5])) < 1e-12
     quad = 1e-3 * (0.5 - 2.0 * t + 1.5 * t ** 2)
     assert np.max(np.abs(_velocity(t, quad) - 1e-3 * (-2.0 + 3.0 * t))) < 1e-12
+
+
+def _vehicle_entry(v_crit, eig=None):
+    cs = {"critical_speed_kmh": v_crit, "stable_up_to_max": False, "unstable_at_min": False,
+          "runs": [{"speed_kmh": 100.0, "growth_rate_per_s": -1.0, "completed": True},
+                   {"speed_kmh": 1000.0, "growth_rate_per_s": 2.0, "completed": True}], "kick_m": 3e-3}
+    if eig is not None:
+        cs["eigenvalue_critical_speed_kmh"] = eig
+    curve = {"peak_damper_force_n": 9500.0, "rms_damper_force_n": 2100.0, "peak_carbody_lateral_acceleration_ms2": 0.61,
+             "rms_carbody_lateral_acceleration_ms2": 0.12, "peak_bogie_yaw_rad": 2.5e-3}
+    return {"fmu": "x.fmu", "critical_speed": cs, "curve_entry": curve}
+
+
+def test_vehicle_section_shows_vehicle_json_side_by_side(tmp_path):
+    """The report's vehicle section (``python -m tuner --vehicle``) is vehicle.json side by side: every
+    tuned FMU, its critical speed (with the eigenvalue one for Maxwell) and the spread between models."""
+    out = tmp_path / "fit"
+    _write_folder(out, models=("lumped", "maxwell"), histories=False, npz=False)
+    assert "id='vehicle'" not in make_report(out, dpi=50).read_text(encoding="utf-8")  # no vehicle run: no section
+    (out / "vehicle").mkdir()
+    data = {"scenarios": {"critical_speed": "hunting", "curve_entry": "curve"}, "step_s": 1e-3, "seed": 0,
+            "results": {"DamperLumped_tuned": _vehicle_entry(804.1),
+                        "DamperMaxwell_tuned": _vehicle_entry(646.9, eig=646.95)}}
+    (out / "vehicle" / "vehicle.json").write_text(json.dumps(data))
+    text = make_report(out, dpi=50).read_text(encoding="utf-8")
+    section = text[text.index("id='vehicle'"):]
+    section = section[:section.index("</section>")]
+    for label in data["results"]:
+        assert label in section
+    assert "804.1" in section and "646.9 (eig 647.0)" in section
+    assert "from 647 km/h (DamperMaxwell_tuned) to 804 km/h (DamperLumped_tuned): 157 km/h" in section
+    assert "9.5 / 2.1" in section  # curve entry: peak / rms damper force [kN]

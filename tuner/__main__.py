@@ -1,7 +1,8 @@
 """Command line of the damper tuner.
 
     python -m tuner                      identify the lumped, Maxwell and two-chamber models on the
-                                         bundled dataset, validate, diagnose, report (results/default[-N])
+                                         bundled dataset, validate, diagnose, put the tuned FMUs in the
+                                         vehicle, report (results/default[-N])
     python -m tuner fit ...              the same on your own data (see --help)
     python -m tuner generate --out DIR   virtual test campaign -> a six-test dataset
     python -m tuner diagnose ...         what the fitted model gets wrong and why (see --help)
@@ -21,6 +22,7 @@ import time
 from pathlib import Path
 
 from tuner.cli.folders import free_folder
+from tuner.vehicle.compare import VEHICLE_FOLDER
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_DATASET = ROOT / "data" / "default"
@@ -58,6 +60,8 @@ def _end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
     verdict, causes, validation AME per test and model, quality gate, where the report and FMUs are."""
     metrics = json.loads((out / "metrics.json").read_text()) if (out / "metrics.json").exists() else {}
     diag = json.loads((out / "diagnosis.json").read_text()) if (out / "diagnosis.json").exists() else {}
+    vpath = out / VEHICLE_FOLDER / "vehicle.json"
+    vehicle = json.loads(vpath.read_text()) if vpath.exists() else {}
     ame = {}
     for name, t in (metrics.get("tests") or {}).items():
         if t.get("role") == "validation":
@@ -69,6 +73,8 @@ def _end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
         "quality": {m: {k: q[k] for k in ("describes_data", "worst_ame_pct_of_peak", "worst_test", "gate_pct")}
                     for m, q in (metrics.get("quality") or {}).items()},
         "validation_ame": ame,
+        "critical_speed_kmh": {k: (r.get("critical_speed") or {}).get("critical_speed_kmh")
+                               for k, r in vehicle.get("results", {}).items()},
         "report": str(out / "report.html") if (out / "report.html").exists() else None,
         "fmus": sorted(str(f) for f in out.rglob("*.fmu")),
         "total_time_s": seconds, "output_folder": str(out),
@@ -86,6 +92,9 @@ def _end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
             f"{n}: " + ", ".join(f"{m} {r[m]['ame_pct_of_peak']:.3g}" for m in models if m in r) for n, r in ame.items()))
     if summary["verdict"]:
         lines.append(f"  diagnosis: {summary['verdict']}")
+    if summary["critical_speed_kmh"]:
+        lines.append("  vehicle, hunting critical speed [km/h]: " + ", ".join(
+            f"{k} {'-' if v is None else format(v, '.0f')}" for k, v in summary["critical_speed_kmh"].items()))
     if summary["report"]:
         lines.append(f"  report: {summary['report']}")
     for f in summary["fmus"]:
@@ -224,6 +233,10 @@ def _add_fit_options(ap: argparse.ArgumentParser) -> None:
     g.add_argument("--no-stop", action="store_true", help="disable the paper's stagnation stopping rule")
     g.add_argument("--no-diagnose", action="store_true",
                    help="skip the diagnosis that follows the fit (it needs validation tests)")
+    g.add_argument("--vehicle", action="store_true",
+                   help="yaw dampers: run the tuned FMUs as the yaw dampers of the campaign's vehicle (critical "
+                        "speed, curve entry, straight track; about 25 s) and add the section to the report "
+                        "(on in the default run)")
     g.add_argument("--polish", type=int, default=d.polish_jacobians, metavar="N",
                    help="local least-squares refinement after Firefly until converged, at most N Jacobians "
                         "(default %(default)s, a safety cap; 0 = the paper's Firefly result as is)")
@@ -328,6 +341,8 @@ def cmd_fit(args) -> int:
     weights = {f"fit {m}": {"lumped": 60.0, "maxwell": 8.0, "maxwell_table": 30.0, "twochamber": 60.0}[m] * budget
                for m in models}
     weights.update({"validate and export": 12.0, "report": 8.0})
+    if getattr(args, "vehicle", False):
+        weights["vehicle"] = 8.0 * len(models)
     if not args.no_diagnose and any(m in EFFECT_MODELS for m in models):
         weights["diagnosis"] = 70.0
     _start_job(args, weights)
@@ -371,8 +386,8 @@ def _fit_job(args, models) -> Path:
     diagnosis = not args.no_diagnose and job.wants_diagnosis(settings, valid)
     if not diagnosis and _OUT is not None:
         _OUT.weights.pop("diagnosis", None)
-    result = job.run(ident, valid, out, settings, diagnose_after=diagnosis, provenance=provenance,
-                     log=_OUT or _log)  # the progress display when a job runs
+    result = job.run(ident, valid, out, settings, diagnose_after=diagnosis, vehicle=args.vehicle,
+                     provenance=provenance, log=_OUT or _log)  # the progress display when a job runs
     _print_summary(result.fit.metrics)
     return out
 
@@ -510,7 +525,7 @@ def main(argv=None) -> int:
 
     add_vehicle_parser(sub)
     if not argv:
-        argv = ["fit", "--dataset", str(DEFAULT_DATASET)]
+        argv = ["fit", "--dataset", str(DEFAULT_DATASET), "--vehicle"]
     args = ap.parse_args(argv)
     if args.command is None:
         ap.print_help()

@@ -25,10 +25,12 @@ from tuner.data.reading import RigTest
 from tuner.diagnosis.diagnose import DiagnosisSettings, choose_base, diagnose
 from tuner.identification.fit import FitResult, FitSettings, fit, full_rate_checks
 from tuner.identification.problem import Problem
-from tuner.progress import stage
+from tuner.progress import SubStages, stage
 from tuner.results.report import make_diagnosis_report, make_report
+from tuner.vehicle.compare import SCENARIO_NAMES, VEHICLE_FOLDER, compare_fmus
 
-__all__ = ["JobResult", "run", "run_diagnosis", "diagnosis_settings", "export_fmus", "wants_diagnosis"]
+__all__ = ["JobResult", "run", "run_diagnosis", "diagnosis_settings", "export_fmus", "wants_diagnosis",
+           "vehicle_consequences"]
 
 
 @dataclass
@@ -71,10 +73,11 @@ def export_fmus(result: FitResult, out: Path) -> list[Path]:
 
 
 def run(identification: list[RigTest], validation: list[RigTest], out: Path, settings: FitSettings, *,
-        diagnose_after: bool = True, provenance: dict | None = None, log=print) -> JobResult:
+        diagnose_after: bool = True, vehicle: bool = False, provenance: dict | None = None, log=print) -> JobResult:
     """The whole job into the existing folder ``out`` (checkpoints there are resumed).
 
     diagnose_after: diagnose the best-validated base form after the fit (when ``wants_diagnosis``);
+    vehicle: the tuned FMUs as the yaw dampers of the campaign's vehicle (``vehicle_consequences``);
     log: a callable taking one line (or a ``tuner.progress.JobProgress``, whose stages it advances)."""
     out = Path(out)
     problem = Problem.build(identification, validation, settings.data())  # prepared once, for every stage
@@ -91,6 +94,8 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
         kind, values, choice, others = choose_base(result.params, result.metrics)
         diagnosis = _diagnose(identification, validation, out, diagnosis_settings(settings), values, kind, choice,
                               others, problem, log)
+    if vehicle:
+        vehicle_consequences(sorted((out / "fmu").glob("*_tuned.fmu")), out, settings.seed, log)
     stage(log, "report")
     report = make_report(out)
     return JobResult(out=out, fit=result, diagnosis=diagnosis, fmus=sorted((out / "fmu").glob("*.fmu")),
@@ -120,3 +125,13 @@ def _diagnose(identification, validation, out, settings, base_params, base_model
     return diagnose(identification, validation, out, settings, base_params=base_params, base_model=base_model,
                     base_choice=base_choice, other_bases=other_bases, problem=problem, log=log)
 
+
+
+def vehicle_consequences(fmus: list[Path], out: Path, seed: int = 0, log=print) -> dict:
+    """What the damper model changes at vehicle level: each FMU of ``fmus`` as the four yaw dampers of the
+    campaign's vehicle in every scenario of ``tuner.vehicle.compare`` (hunting critical speed, curve
+    entry, straight track with irregularities), into ``out / VEHICLE_FOLDER`` (the report's vehicle
+    section). ``seed``: the irregularities' master seed."""
+    stage(log, "vehicle")
+    log(f"vehicle: {len(fmus)} tuned FMUs as the yaw dampers, scenarios {', '.join(SCENARIO_NAMES)} ...")
+    return compare_fmus(fmus, Path(out) / VEHICLE_FOLDER, seed=seed, log=SubStages(log, len(fmus) * len(SCENARIO_NAMES)))

@@ -19,7 +19,7 @@ from __future__ import annotations
 import sys
 import time
 
-__all__ = ["JobProgress", "stage", "advance"]
+__all__ = ["JobProgress", "SubStages", "stage", "advance"]
 
 
 def stage(log, name: str) -> None:
@@ -34,6 +34,24 @@ def advance(log, fraction: float) -> None:
     hook = getattr(log, "advance", None)
     if hook is not None:
         hook(fraction)
+
+
+class SubStages:
+    """A ``log`` for a function that reports stages of its own (``n`` of them) inside one stage of a
+    job: their starts and progress advance the job's current stage; lines go to the job's log."""
+
+    def __init__(self, log, n: int):
+        self.log, self.n, self.k = log, max(int(n), 1), 0
+
+    def __call__(self, msg: str) -> None:
+        self.log(msg)
+
+    def stage(self, name: str) -> None:
+        self.k = min(self.k + 1, self.n)
+        advance(self.log, (self.k - 1) / self.n)
+
+    def advance(self, fraction: float) -> None:
+        advance(self.log, (max(self.k, 1) - 1 + min(max(float(fraction), 0.0), 1.0)) / self.n)
 
 
 class JobProgress:

@@ -37,8 +37,10 @@ from damper_fmu.parameters import MODEL_KINDS, MODEL_PARAMETERS, defaults
 from damper_fmu.tables import PwlTable
 from tuner.formatting import effect_value, eng, fmt_quantity, unit_html
 from tuner.metrics import polyfit_odd_even
+from tuner.vehicle.compare import VEHICLE_FOLDER, summary_rows
 
-__all__ = ["make_report", "make_diagnosis_report", "diagnosis_section_html", "bound_position"]
+__all__ = ["make_report", "make_diagnosis_report", "diagnosis_section_html", "vehicle_section_html",
+           "bound_position"]
 
 MODEL_ORDER = MODEL_KINDS
 MODEL_LABEL = {"lumped": "lumped (proposed)", "maxwell": "Maxwell (linear)",
@@ -833,7 +835,7 @@ def make_report(out_dir, *, dpi: int = 110) -> Path:
     title = "Damper model identification report"
     ds = run.settings.get("dataset")
     toc = "".join(f"<li><a href='#{a}'>{t}</a></li>" for a, t in (
-        ("summary", "Summary"), ("diagnosis", "Diagnosis"), ("metrics", "Accuracy tables"), ("time", "Force time histories and loops"),
+        ("summary", "Summary"), ("diagnosis", "Diagnosis"), ("vehicle", "In the vehicle"), ("metrics", "Accuracy tables"), ("time", "Force time histories and loops"),
         ("fitness", "Fitness evolution"), ("constants", "Constant parameters"), ("tables", "Oil characteristics"),
         ("poly", "Polynomial fits"), ("params", "Identified parameters"), ("provenance", "Provenance")))
     intro = (f"<p>Identification of a hydraulic damper model (lumped nonlinear model of Isacchi, Ripamonti "
@@ -844,7 +846,7 @@ def make_report(out_dir, *, dpi: int = 110) -> Path:
              "force positive in tension. SI units with engineering prefixes.</p>")
 
     body = [f"<h1>{title}</h1>", intro, f"<ol class='toc'>{toc}</ol>", _summary(run),
-            diagnosis_section_html(out), _metrics_section(run),
+            diagnosis_section_html(out), vehicle_section_html(out), _metrics_section(run),
             _timeseries_section(run, fdir, dpi), _fitness_section(run, fdir, dpi),
             _population_sections(run, fdir, dpi), _poly_section(run, fdir, dpi), _params_section(run),
             _provenance_section(run)]
@@ -973,6 +975,36 @@ def diagnosis_section_html(out_dir) -> str:
           f"<th>MSE after [N&sup2;]</th><th>change</th><th>AME before [N]</th><th>AME after [N]</th></tr>{val}</table>"
         + (f"<h3>Residual evidence (base model)</h3><ul>{ev_rows}</ul>" if ev_rows else "")
         + figs + "</section>")
+
+
+
+def vehicle_section_html(out_dir) -> str:
+    """HTML section for ``out_dir/vehicle/vehicle.json`` (``tuner.job.vehicle_consequences``): the tuned
+    FMUs as the vehicle's yaw dampers, side by side ('' when there is none)."""
+    folder = Path(out_dir) / VEHICLE_FOLDER
+    path = folder / "vehicle.json"
+    if not path.exists():
+        return ""
+    data = json.loads(path.read_text())
+    labels, rows = summary_rows(data)
+    speeds = {lab: (r.get("critical_speed") or {}).get("critical_speed_kmh") for lab, r in data["results"].items()}
+    speeds = {lab: v for lab, v in speeds.items() if v is not None}
+    spread = ""
+    if len(speeds) > 1:
+        lo, hi = min(speeds, key=speeds.get), max(speeds, key=speeds.get)
+        spread = (f"<p>The hunting critical speed ranges from {speeds[lo]:.0f} km/h ({_e(lo)}) to {speeds[hi]:.0f} "
+                  f"km/h ({_e(hi)}): {speeds[hi] - speeds[lo]:.0f} km/h decided by the damper model alone, "
+                  "each fitted to the same rig data.</p>")
+    figs = "".join(_fig_html(f"{VEHICLE_FOLDER}/{name}.png", _e(desc), "")
+                   for name, desc in data["scenarios"].items() if (folder / f"{name}.png").exists())
+    return ("<section id='vehicle'><h2>In the vehicle: what the damper model changes</h2>"
+            "<p>Each tuned FMU as the four yaw dampers of the campaign's 14-degree-of-freedom vehicle (two "
+            f"bogies, four wheelsets, linear creep), stepped at {1e3 * data['step_s']:g} ms by the vehicle as "
+            "master (<code>python -m tuner vehicle</code>). Critical speed: kick runs and bisection on the growth "
+            "rate of the least damped mode; for the linear Maxwell FMU also the eigenvalues of the linear vehicle "
+            "(eig). Damper force: the largest of the four dampers; bogie yaw relative to the track.</p>"
+            + spread + _table(["quantity", *labels], [[_e(q), *(_e(c) for c in cells)] for q, cells in rows])
+            + figs + "</section>")
 
 
 def main(argv=None) -> int:

@@ -20,14 +20,21 @@ import time
 from pathlib import Path
 
 import numpy as np
+from fmpy import read_model_description
 
 from campaign.irregularity import A_LATERAL, synthesize
 from campaign.scenarios import SCENARIOS, START_OFFSET, Scenario
 from campaign.track import straight
+from tuner.progress import advance, stage
+from tuner.vehicle.cosim import VehicleCosim, check_damper_fmu
+from tuner.vehicle.hunting import critical_speed_time_domain, eigen_critical_speed
 
-__all__ = ["SCENARIO_NAMES", "compare_fmus", "scenario_runs", "run_figures", "format_table"]
+__all__ = ["SCENARIO_NAMES", "compare_fmus", "scenario_runs", "run_figures", "summary_rows", "format_table",
+           "VEHICLE_FOLDER"]
 
 SCENARIO_NAMES = ("critical_speed", "curve_entry", "straight_irregular")
+#: sub-folder of a tuner output folder for the vehicle consequences (``tuner.job``, the report)
+VEHICLE_FOLDER = "vehicle"
 _STRAIGHT_KMH = 300.0
 _STRAIGHT_S = 10.0
 
@@ -65,8 +72,6 @@ def run_figures(run) -> dict[str, float]:
 
 def _maxwell_values(path: Path) -> dict | None:
     """``k_s`` [N/m] and ``c`` [N s/m] start values of a linear Maxwell FMU, else None."""
-    from fmpy import read_model_description
-
     md = read_model_description(str(path))
     names = {v.name: v for v in md.modelVariables}
     if md.coSimulation.modelIdentifier != "DamperMaxwell" or not {"k_s", "c"} <= set(names):
@@ -94,10 +99,6 @@ def compare_fmus(fmus, out: Path, *, scenarios=SCENARIO_NAMES, step: float = 1e-
     scenario (``<scenario>.png``) into ``out``; return the JSON content. Speeds in m/s, ``kick`` in m,
     ``step`` in s; ``seed``: master seed of the irregularity realisations. ``log``: progress lines (a
     :class:`tuner.progress.JobProgress` also gets the stages)."""
-    from tuner.progress import advance, stage
-    from tuner.vehicle.cosim import VehicleCosim, check_damper_fmu
-    from tuner.vehicle.hunting import critical_speed_time_domain, eigen_critical_speed
-
     paths = [Path(f) for f in fmus]
     if not paths:
         raise ValueError("give at least one damper FMU")
@@ -187,8 +188,9 @@ def _figures(histories: dict, out: Path) -> None:
         plt.close(fig)
 
 
-def format_table(data: dict) -> str:
-    """The side-by-side table of ``compare_fmus``'s result (kN, m/s^2, mrad, km/h)."""
+def summary_rows(data: dict) -> tuple[list[str], list[tuple[str, list[str]]]]:
+    """(FMU labels, [(quantity, cell text per label)]) of ``compare_fmus``'s result, in kN, m/s^2,
+    mrad, km/h: the one layout of the side-by-side table (text and report)."""
     labels = list(data["results"])
     rows = []
 
@@ -216,9 +218,15 @@ def format_table(data: dict) -> str:
                 rows.append((lab, f"{name}: peak bogie yaw [mrad]", fmt(f["peak_bogie_yaw_rad"], 1e3)))
     quantities = list(dict.fromkeys(q for _, q, _ in rows))
     cell = {(lab, q): v for lab, q, v in rows}
-    w0 = max(len(q) for q in quantities)
-    ws = [max(len(lab), *(len(cell.get((lab, q), "-")) for q in quantities)) for lab in labels]
+    return labels, [(q, [cell.get((lab, q), "-") for lab in labels]) for q in quantities]
+
+
+def format_table(data: dict) -> str:
+    """The side-by-side table of ``compare_fmus``'s result as text (``summary_rows``)."""
+    labels, rows = summary_rows(data)
+    w0 = max(len(q) for q, _ in rows)
+    ws = [max(len(lab), *(len(cells[i]) for _, cells in rows)) for i, lab in enumerate(labels)]
     lines = ["  ".join([" " * w0, *(lab.rjust(w) for lab, w in zip(labels, ws))])]
-    for q in quantities:
-        lines.append("  ".join([q.ljust(w0), *(cell.get((lab, q), "-").rjust(w) for lab, w in zip(labels, ws))]))
+    for q, cells in rows:
+        lines.append("  ".join([q.ljust(w0), *(c.rjust(w) for c, w in zip(cells, ws))]))
     return "\n".join(lines)
