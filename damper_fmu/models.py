@@ -38,7 +38,7 @@ entrained air compressed isentropically, exponent 1 + 1/1.4, with the pressure r
 1 + f / (A p_res) floored smoothly at 0.05, so that a chamber sucked towards cavitation by a
 very fast stroke stays soft but finite and Newton's method sees a smooth stiffness). After every reversal
 both chambers are sealed (stiffness ~ kR + a^2 kC) until a check valve opens: the behaviour the
-lumped model's single series spring cannot produce (research/README.md). At constant velocity v the
+lumped model's single series spring cannot produce (docs/twin-tube-form-study.md). At constant velocity v the
 force is Fc,O(v) + check_damping (1 - a)^2 v in rebound, Fc,O(v) + check_damping v in compression.
 
 Each model exposes ``stage(yb, g, x1, v1)``: the solution y of the implicit stage equation

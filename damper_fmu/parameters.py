@@ -19,7 +19,7 @@ Two-chamber model (``models.TwoChamberModel``, a twin-tube form): 38 tunable par
     with the midpoints added: the valves' knees need the finer layout),
 the fixed check-valve slope check_damping [N s/m] and the effect elements (seal friction inside the
 mounts, at the piston velocity). Its preset is a fit to the virtual rig's
-twin-tube damper (research/results), a plausible railway yaw damper, not a paper value.
+twin-tube damper (docs/twin-tube-form-study.md), a plausible railway yaw damper, not a paper value.
 """
 from __future__ import annotations
 
@@ -223,7 +223,7 @@ def densify_abscissae(abscissae) -> tuple[float, ...]:
 
 #: Damping-table abscissae of the two-chamber model [m/s]: Table 2's with the midpoints added.
 TWOCHAMBER_FC_ABSCISSAE = densify_abscissae(FC_ABSCISSAE)
-# Preset ordinates [kN]: the fit of research/results/tc_results_s1.json (tc_pos_air_gas_x2), rounded.
+# Preset ordinates [kN]: the fit tc_pos_air_gas_x2 of seed 1 (docs/twin-tube-form-study-results.txt), rounded.
 _FC_TC_KN = (-25.19, -22.37, -19.08, -18.29, -17.33, -16.46, -12.44, -10.45, -8.54, -6.81, -5.22, -3.72, -2.39,
              -1.12, 1.12, 2.37, 3.72, 5.22, 6.82, 8.55, 10.39, 12.38, 16.44, 17.31, 18.27, 19.08, 22.37, 25.29)
 _FC_TC = _table_parameters("Fc", TWOCHAMBER_FC_ABSCISSAE, _FC_TC_KN,
@@ -257,8 +257,8 @@ TWOCHAMBER_PARAMETERS: tuple[Parameter, ...] = (
 
 #: Models that carry the effect elements (damper_fmu.effects), and where friction and free play act:
 #: the lumped model adds them at the actuator; the two-chamber model has a piston and a mount, and
-#: seal friction acts between rod and cylinder, inside the mounts (research: outside, a 150 N friction
-#: was fitted as 26 N), the free play in the mount (outside, the chambers stayed loaded across the gap:
+#: seal friction acts between rod and cylinder, inside the mounts (docs/twin-tube-form-study.md:
+#: outside, a 150 N friction was fitted as 26 N), the free play in the mount (outside, the chambers stayed loaded across the gap:
 #: a twin-tube damper's 0.3 mm play fitted as 0).
 EFFECT_MODELS = ("lumped", "twochamber")
 EFFECTS_INSIDE = ("twochamber",)

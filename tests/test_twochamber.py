@@ -34,21 +34,21 @@ def test_steady_force_is_the_damping_table_plus_the_check_valve_and_gas_spring(b
     assert abs(f[-1] - expected) <= 1e-6 * abs(expected)
 
 
-def _research_reference(t_fine, x_fine, p):
-    """Force of research/c/twochamber.c (implicit Euler, stiffness frozen over a step, the mount
+def _euler_reference(t_fine, x_fine, p):
+    """Force of tests/reference/twochamber_euler.c (implicit Euler, stiffness frozen over a step, the mount
     rate from differences: written separately from damper_fmu) on a finely sampled stroke."""
     from damper_fmu.native import compile_library
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    lib = ctypes.CDLL(str(compile_library(root / "research" / "c" / "twochamber.c", "research_twochamber")))
+    lib = ctypes.CDLL(str(compile_library(root / "tests" / "reference" / "twochamber_euler.c", "reference_twochamber")))
     d = ctypes.POINTER(ctypes.c_double)
     lib.simulate_tc.argtypes = [ctypes.c_int, d, ctypes.c_double, ctypes.c_int, ctypes.c_int, d, d, ctypes.c_int, d, d,
                                 *[ctypes.c_double] * 11, d, ctypes.POINTER(ctypes.c_int)]
     xs = np.array([p[f"Fc_v{i:02d}"] for i in range(1, 29)])
     fs = np.array([p[f"Fc_{i:02d}"] for i in range(1, 29)])
     a, chk = p["area_ratio"], p["check_damping"]
-    # the valve tables as research/twochamber.valve_tables builds them
+    # the valve tables as the prototype (docs/twin-tube-form-study.md) built them
     fpx = np.ascontiguousarray(np.concatenate([[-1.0, 0.0], xs[xs > 0]]))
     fpf = np.ascontiguousarray(np.concatenate([[-chk, 0.0], fs[xs > 0]]))
     ffx = np.ascontiguousarray(np.concatenate([[-1.0, 0.0], (-(1 - a) * xs[xs < 0])[::-1]]))
@@ -66,7 +66,7 @@ def _research_reference(t_fine, x_fine, p):
 
 @needs_c
 def test_an_independent_first_order_implementation_converges_to_it():
-    """research/c/twochamber.c (implicit Euler) approaches the SDIRK2 result at first order as its
+    """tests/reference/twochamber_euler.c (implicit Euler) approaches the SDIRK2 result at first order as its
     step shrinks; at 25 us it is within 0.15 % of the peak force."""
     p = defaults("twochamber")
     t = np.arange(0.0, 3.0, 1e-3)
@@ -75,7 +75,7 @@ def test_an_independent_first_order_implementation_converges_to_it():
     errors = []
     for k in (10, 40):
         tf = np.arange((t.size - 1) * k + 1) * (1e-3 / k)
-        errors.append(np.abs(_research_reference(tf, multisine(tf)[0], p)[::k] - ref).max())
+        errors.append(np.abs(_euler_reference(tf, multisine(tf)[0], p)[::k] - ref).max())
     assert errors[1] < errors[0] / 3.0, errors
     assert errors[1] < 1.5e-3 * np.abs(ref).max(), errors
 
