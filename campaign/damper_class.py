@@ -190,7 +190,7 @@ def _capped(x, v, vmax: float):
 
 def class_tests(model: str, seed: int, *, durations=None, noise_n: float | None = None,
                 kinds=None, sample_rate: float = SAMPLE_RATE_HZ, sensors: dict | None = None) -> tuple[list[dict], dict]:
-    """(tests for ``campaign.dataset.write_dataset``, truth) of a random damper of ``model``'s class.
+    """(tests for ``damper_dataset.writer.write_dataset``, truth) of a random damper of ``model``'s class.
 
     Six tests (four identification, two validation) of 12-16 s unless ``durations`` gives them
     (the first two-thirds identification); strokes of random ``kinds`` (default: drawn from
@@ -239,7 +239,7 @@ def class_tests(model: str, seed: int, *, durations=None, noise_n: float | None 
 
 def write_class_dataset(out_dir, model: str, seed: int, **kwargs):
     """Write :func:`class_tests` as a dataset folder (the truth in the manifest's generator); return its Path."""
-    from .dataset import write_dataset
+    from damper_dataset.writer import write_dataset
 
     tests, truth = class_tests(model, seed, **kwargs)
     return write_dataset(out_dir, tests, description=f"a random {model} damper of the model's class (seed {seed})",

@@ -7,7 +7,7 @@ noise and resolution with any other versions the project allows (ODE solvers, FF
 round differently; the ADC then flips a few samples by one or two steps). Each of the six scenarios of the paper's Table 1 is run on the
 vehicle model (front-right yaw damper stroke at ``STROKE_RATE_HZ``), replayed on the virtual rig
 (physical twin-tube damper, hidden effects, sensor chain at ``sample_rate``) and written as one
-CSV file with a manifest (``campaign.dataset``). Seeds: the vehicle's track irregularity and the
+CSV file with a manifest (``damper_dataset.writer``). Seeds: the vehicle's track irregularity and the
 rig's sensor noise derive from ``seed`` (irregularity: identification and validation
 realisations are different streams of the same master seed).
 """
@@ -16,7 +16,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from .dataset import write_dataset
+from damper_dataset.writer import write_dataset
 
 __all__ = ["generate_dataset", "library_versions", "STROKE_RATE_HZ", "DEFAULT_SEED", "CHAMBER_TEMPERATURES_C",
            "GENERATING_LIBRARIES"]

@@ -3,31 +3,40 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
+import pandas as pd
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from scipy.signal import savgol_filter
+
+from damper_dataset.format import read_manifest
 
 __all__ = ["plot_dataset"]
 
+#: window of the Savitzky-Golay differentiator of the stroke velocity in the force-velocity panel [s]
+VELOCITY_WINDOW_S = 0.02
+
 
 def plot_dataset(folder, filename: str = "overview.png") -> Path:
-    """Write ``folder/filename``: one row per test (stroke [mm], force [kN], force vs velocity)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    from tuner.data.reading import load_dataset
-    from tuner.data.preprocess import prepare
-
-    tests = load_dataset(folder)
+    """Write ``folder/filename``: one row per test (stroke [mm], force [kN], force vs velocity), read as
+    ``damper_dataset.writer`` wrote it (SI units, manifest order)."""
+    folder = Path(folder)
+    manifest = read_manifest(folder)
+    tests = manifest["tests"]
     fig = Figure(figsize=(13, 2.3 * len(tests) + 0.6))
     FigureCanvasAgg(fig)
     axes = fig.subplots(len(tests), 3, squeeze=False, gridspec_kw={"width_ratios": [2.2, 2.2, 1.2]})
     for row, t in zip(axes, tests):
-        p = prepare(t, t.sample_rate)
-        row[0].plot(t.time, 1e3 * t.stroke, lw=0.8, color="tab:blue")
+        d = pd.read_csv(folder / t["file"], comment="#")
+        time, stroke, force = (d[c].to_numpy(float) for c in ("time", "stroke", "force"))
+        rate = float(t["sample_rate_hz"])
+        window = max(5, int(VELOCITY_WINDOW_S * rate) | 1)
+        velocity = savgol_filter(stroke, window, 2, deriv=1, delta=1.0 / rate)
+        row[0].plot(time, 1e3 * stroke, lw=0.8, color="tab:blue")
         row[0].set_ylabel("stroke [mm]")
-        row[0].set_title(f"{t.name} ({t.role}): {t.scenario}", fontsize=8, loc="left")
-        row[1].plot(t.time, 1e-3 * t.force, lw=0.6, color="tab:red")
+        row[0].set_title(f"{t['name']} ({t['role']}): {t['scenario']}", fontsize=8, loc="left")
+        row[1].plot(time, 1e-3 * force, lw=0.6, color="tab:red")
         row[1].set_ylabel("force [kN]")
-        row[2].plot(1e3 * p.stroke_velocity, 1e-3 * p.force, ".", ms=0.8, color="tab:purple", alpha=0.5)
+        row[2].plot(1e3 * velocity, 1e-3 * force, ".", ms=0.8, color="tab:purple", alpha=0.5)
         row[2].set_ylabel("force [kN]")
         for ax in row:
             ax.grid(alpha=0.3)
@@ -35,11 +44,9 @@ def plot_dataset(folder, filename: str = "overview.png") -> Path:
     axes[-1][0].set_xlabel("time [s]")
     axes[-1][1].set_xlabel("time [s]")
     axes[-1][2].set_xlabel("stroke velocity [mm/s]")
-    from tuner.data.reading import read_manifest
-
-    title = read_manifest(folder).get("description", "dataset")
+    title = manifest.get("description", "dataset")
     fig.suptitle(f"{title}\nstrokes (extension +) and forces (tension +)", fontsize=9)
     fig.tight_layout()
-    out = Path(folder) / filename
+    out = folder / filename
     fig.savefig(out, dpi=90, metadata={"Software": None})
     return out

@@ -41,7 +41,7 @@ def random_stroke(seed: int, duration: float, fs: float = 1000.0, *, slow_amp: f
 def model_tests(model: str, params: dict, *, seed: int = 0, durations=(20.0, 20.0, 20.0, 20.0),
                 roles=("identification", "identification", "validation", "validation"),
                 noise_n: float = 20.0, fs: float = 1000.0) -> list[dict]:
-    """Tests for ``campaign.dataset.write_dataset``: the model's force (+ noise_n rms [N])."""
+    """Tests for ``damper_dataset.writer.write_dataset``: the model's force (+ noise_n rms [N])."""
     rng = np.random.default_rng(seed + 10_000)
     tests = []
     for i, (dur, role) in enumerate(zip(durations, roles)):
@@ -55,7 +55,7 @@ def model_tests(model: str, params: dict, *, seed: int = 0, durations=(20.0, 20.
 
 def write_model_dataset(out_dir, model: str, params: dict, **kwargs):
     """Write a synthetic dataset folder (see ``model_tests``) and return its path."""
-    from .dataset import write_dataset
+    from damper_dataset.writer import write_dataset
 
     return write_dataset(out_dir, model_tests(model, params, **kwargs),
                          description=f"synthetic data from the {model} model with known parameters",

@@ -82,3 +82,32 @@ def test_generator_refuses_to_overwrite_and_rejects_bad_effects(tmp_path):
         generate_dataset(tmp_path / "n", effects={"gremlins": 1.0}, t_end=2.0, log=lambda m: None)
     with pytest.raises(ValueError, match="unknown scenario"):
         generate_dataset(tmp_path / "n", scenarios=["moon_landing"], log=lambda m: None)
+
+
+def test_campaign_command_generates_and_refuses_to_overwrite(tmp_path):
+    """``python -m campaign generate`` owns generation (the tuner's ``generate`` is the same command)."""
+    import subprocess
+    import sys
+
+    cmd = [sys.executable, "-m", "campaign", "generate", "--out", str(tmp_path / "d"), "--t-end", "2"]
+    assert subprocess.run(cmd, capture_output=True, text=True, cwd=tmp_path).returncode == 0
+    assert len(load_dataset(tmp_path / "d")) == 6
+    again = subprocess.run(cmd, capture_output=True, text=True, cwd=tmp_path)
+    assert again.returncode == 2 and "--overwrite" in again.stderr
+
+
+def test_the_campaign_and_the_dataset_format_do_not_import_the_tuner():
+    """Layers: the dataset format imports neither package; the campaign writes through it and never
+    imports the tuner (the tuner may use the campaign's vehicle)."""
+    import ast
+
+    def imports(folder):
+        for path in (ROOT / folder).glob("*.py"):
+            for node in ast.walk(ast.parse(path.read_text())):
+                if isinstance(node, ast.Import):
+                    yield from ((path.name, a.name) for a in node.names)
+                elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                    yield path.name, node.module
+
+    assert not [(f, m) for f, m in imports("campaign") if m.split(".")[0] == "tuner"]
+    assert not [(f, m) for f, m in imports("damper_dataset") if m.split(".")[0] in ("tuner", "campaign")]

@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from campaign.dataset import write_dataset
+from damper_dataset.writer import write_dataset
 from tuner.data.reading import DataError, RigTest, load_dataset, load_files, load_test
 from tuner.data.preprocess import Resampler, prepare
 from tuner.data.differentiator import Differentiator

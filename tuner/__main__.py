@@ -21,6 +21,7 @@ import sys
 import time
 from pathlib import Path
 
+from campaign.cli import add_generate_arguments, cmd_generate as generate_command
 from tuner.cli.folders import free_folder
 from tuner.vehicle.compare import VEHICLE_FOLDER
 
@@ -464,19 +465,8 @@ def _float_list(text: str) -> list[float]:
 
 
 def cmd_generate(args) -> int:
-    from campaign.generate import generate_dataset
-
-    effects = {}
-    for spec in args.effect or []:
-        from campaign.effects import parse_effect
-
-        name, value = parse_effect(spec)
-        effects[name] = value
-    out = generate_dataset(args.out, seed=args.seed, effects=effects, sample_rate=args.sample_rate,
-                           overwrite=args.overwrite, damper=args.damper, t_end=args.t_end,
-                           oil_temperatures=args.oil_temperatures, log=_log)
-    _log(f"dataset written to {out}")
-    return 0
+    """The campaign's own command (``python -m campaign generate``), with the tuner's log."""
+    return generate_command(args, log=_log)
 
 
 def cmd_report(args) -> int:
@@ -492,20 +482,8 @@ def main(argv=None) -> int:
     sub = ap.add_subparsers(dest="command")
     p_fit = sub.add_parser("fit", help="identify, validate and report on your data")
     _add_fit_options(p_fit)
-    p_gen = sub.add_parser("generate", help="virtual test campaign -> dataset folder")
-    p_gen.add_argument("--out", type=Path, required=True)
-    p_gen.add_argument("--effect", action="append", metavar="NAME[=VALUE]",
-                       help="switch on a hidden effect (repeatable), e.g. friction=150")
-    p_gen.add_argument("--seed", type=int, default=2023)
-    p_gen.add_argument("--sample-rate", type=float, default=1000.0, help="rig sample rate [Hz]")
-    p_gen.add_argument("--damper", choices=("twin-tube", "lumped"), default="twin-tube",
-                       help="damper on the rig: the physical twin-tube (default) or one whose hydraulics are "
-                            "the lumped model with the paper's Table 2 (no model-form error)")
-    p_gen.add_argument("--t-end", type=float, default=None, help="shorter manoeuvres: duration [s] of each")
-    p_gen.add_argument("--oil-temperatures", type=_float_list, default=None, metavar="T1,T2,...",
-                       help="oil temperature [degC] the damper is conditioned to before each test, one per "
-                            "scenario in order (default 20 degC for all)")
-    p_gen.add_argument("--overwrite", action="store_true", help="replace an existing dataset folder")
+    p_gen = sub.add_parser("generate", help="virtual test campaign -> dataset folder (python -m campaign generate)")
+    add_generate_arguments(p_gen)
     p_diag = sub.add_parser("diagnose", help="what the fitted model gets wrong, the cause, the gain")
     _add_fit_options(p_diag)
     p_diag.add_argument("--from", dest="from_fit", type=Path, help="output folder of an earlier fit (its "

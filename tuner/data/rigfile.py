@@ -27,6 +27,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from damper_dataset.format import DataError
+
 __all__ = ["DataError", "RawTable", "read_raw", "normalise_unit", "split_unit", "TEXT_SUFFIXES"]
 
 TEXT_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
@@ -38,10 +40,6 @@ _UNIT_ALIASES = {
     "m/s": "m/s", "mm/s": "mm/s", "cm/s": "cm/s", "ms-1": "m/s", "mms-1": "mm/s",
     "degc": "degC", "°c": "degC", "c": "degC", "deg c": "degC", "celsius": "degC", "k": "K",
 }
-
-
-class DataError(ValueError):
-    """Measured data that cannot be used; the message names the file and the problem."""
 
 
 def normalise_unit(text: str) -> str:

@@ -1,4 +1,4 @@
-"""Write a rig dataset in the ``damper-rig-dataset/1`` format (see ``tuner.data.reading``).
+"""Write a rig dataset in the ``damper-rig-dataset/1`` format (``damper_dataset.format``).
 
 Files are CSV with fixed number formatting, so that the same input always gives
 the same bytes and files stay small: time with 3 more decimals than the sample
@@ -23,13 +23,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from tuner.data.reading import (FORMAT_ID, MANIFEST_NAME, MANIFEST_TEST_KEYS, REQUIRED_COLUMNS, ROLES, check_signals)
+from damper_dataset.format import (FORMAT_ID, MANIFEST_NAME, MANIFEST_TEST_KEYS, REQUIRED_COLUMNS, ROLES,
+                                   check_signals)
 
 UNITS = {"time": "s", "stroke": "m", "force": "N"}
 KNOWN_CHANNEL_UNITS = {"temperature": "degC"}
 _DECIMALS = {"stroke": 9, "force": 1, "temperature": 2}
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
-CREATED_BY = "campaign.dataset.write_dataset (damper-rig-dataset/1 writer)"
+CREATED_BY = "damper_dataset.writer.write_dataset (damper-rig-dataset/1 writer)"
 
 
 def _fmt_fixed(x: np.ndarray, decimals: int) -> list[str]:
