@@ -403,3 +403,23 @@ def test_fmi2_and_fmi3_binaries_of_one_model_share_a_process(fmu_paths, fmu3_pat
     ref = stroke_run(fmu_paths["lumped"], exact)
     np.testing.assert_array_equal(f2, ref)
     np.testing.assert_array_equal(f3, ref)
+
+
+def test_tuned_fmi3_fmu_equals_the_tuned_fmi2_fmu(tmp_path):
+    """build(..., start_values=identified, fmi_version=3), as the tuner exports a tuned FMU: its
+    start values are the identified ones and its forces equal the tuned FMI 2.0 FMU's."""
+    from build_fmu import build
+    from damper_fmu.parameters import MODEL_PARAMETERS
+
+    preset = {p.name: p.default for p in MODEL_PARAMETERS["lumped"]}
+    values = {"k_B": 0.5 * preset["k_B"], "c_B": 1.5 * preset["c_B"], "Fc_14": 1.2 * preset["Fc_14"],
+              "friction_force": 150.0}
+    paths = [build("lumped", tmp_path, start_values=values, filename=f"tuned{v}.fmu", fmi_version=v) for v in (2, 3)]
+    for p in paths:
+        start = {v.name: v.start for v in read_model_description(str(p)).modelVariables}
+        assert all(float(start[k]) == v for k, v in values.items())
+    exact, _ = exact_and_jittered(3000)
+    ref = stroke_run(paths[0], exact)
+    np.testing.assert_array_equal(stroke_run3(paths[1], exact), ref)
+    with pytest.raises(ValueError, match="native only"):
+        build("lumped", tmp_path, flavour="python", fmi_version=3)
