@@ -1,6 +1,6 @@
-"""Build the damper FMUs (FMI 2.0 co-simulation) and validate them with fmpy.
+"""Build the damper FMUs (FMI 2.0 co-simulation, FMI 3.0 on request) and validate them with fmpy.
 
-Usage:  python build_fmu.py [--out DIR] [--force] [--python] [lumped maxwell maxwell_table empty]
+Usage:  python build_fmu.py [--out DIR] [--force] [--python] [--fmi-version 2|3 ...] [lumped maxwell ...]
 
 Two flavours of every damper model, equal to 1e-9 (tests/test_native.py, tests/test_fmu.py):
 
@@ -9,6 +9,10 @@ Two flavours of every damper model, equal to 1e-9 (tests/test_native.py, tests/t
   with the system C compiler; the C sources are inside the FMU (``sources/``, listed in the model
   description's ``SourceFiles`` and in ``sources/buildDescription.xml``) so an importer on another
   platform can compile it. Needs no Python on the importing machine.
+* **native FMI 3.0** (``--fmi-version 3``; ``DamperLumped3.fmu`` ...): the same kernel and
+  variables behind the FMI 3.0 co-simulation interface (``damper_fmu/c/fmi3_damper.c``), forces
+  equal to the FMI 2.0 FMU's bit for bit (tests/test_fmi3.py). A separate archive per FMI version:
+  an FMU holds one modelDescription.xml, of one version.
 * **python** (``DamperLumpedPy.fmu`` ...; pythonfmu, as the design card asks): the importing tool
   needs a Python 3 interpreter with numpy (``needsExecutionTool="true"``).
 
@@ -55,6 +59,9 @@ PY_SLAVES = {
     "empty": "EmptyDamper",
 }
 BUILD_OPTIONS = {"canGetAndSetFMUstate": True, "canSerializeFMUstate": True}
+#: file name of a native FMU of an FMI version: model identifier + this + '.fmu' (the model identifier,
+#: binary name and function prefix stay the same across versions, as in the Modelica Reference-FMUs)
+FMI_SUFFIX = {2: "", 3: "3"}
 #: start values of the native FMUs' settings: name -> (value, unit, description)
 NATIVE_SETTINGS = {
     "max_internal_step": (DEFAULT_MAX_STEP, "s", "Largest internal integration step"),
@@ -80,7 +87,7 @@ def _source_hash(flavour: str) -> str:
         h.update(pythonfmu.__version__.encode())
         files = [*PACKAGE.glob("*.py"), *SRC.glob("*.py")]
     else:
-        files = [*C_DIR.glob("*.[ch]"), *FMI2_HEADERS.glob("*.h"), PACKAGE / "parameters.py", PACKAGE / "models.py",
+        files = [*C_DIR.glob("*.[ch]"), *FMI2_HEADERS.glob("*.h"), *FMI3_HEADERS.glob("*.h"), PACKAGE / "parameters.py", PACKAGE / "models.py",
                  PACKAGE / "integrator.py", Path(__file__)]
     for f in sorted(files):
         h.update(f.name.encode())
@@ -102,10 +109,20 @@ def fast_path_note() -> str:
             f"several times slower" if why else "")
 
 
+def _check_fmi_version(fmi_version: int, flavour: str) -> None:
+    if fmi_version not in FMI_SUFFIX:
+        raise ValueError(f"unknown FMI version {fmi_version!r}, expected 2 or 3")
+    if fmi_version == 3 and flavour != "native":
+        raise ValueError("FMI 3.0 FMUs are native only (pythonfmu builds FMI 2.0); "
+                         + (native_reason() or "use flavour='native'"))
+
+
 def build(kind: str, out: str | Path | None = None, *, start_values: dict | None = None,
-          settings: dict | None = None, filename: str | None = None, flavour: str = "auto") -> Path:
+          settings: dict | None = None, filename: str | None = None, flavour: str = "auto",
+          fmi_version: int = 2) -> Path:
     """Build the FMU of ``kind`` in ``flavour`` ('native', 'python', or 'auto': native where a C
-    compiler is found) and return its path.
+    compiler is found) and return its path. ``fmi_version``: 2 (default) or 3 (native only; file
+    ``<model identifier>3.fmu``).
 
     ``start_values``: parameter name -> SI value used as start values (e.g. identified
     parameters); ``settings``: optional ``max_internal_step`` [s], ``internal_tolerance`` [-] and
@@ -115,6 +132,7 @@ def build(kind: str, out: str | Path | None = None, *, start_values: dict | None
         flavour = "native" if kind in SLAVES and not native_reason() else "python"
     if flavour not in ("native", "python"):
         raise ValueError(f"unknown FMU flavour '{flavour}', expected 'native', 'python' or 'auto'")
+    _check_fmi_version(fmi_version, flavour)
     names = SLAVES if flavour == "native" else PY_SLAVES
     if kind not in names:
         raise ValueError(f"unknown {flavour} FMU kind '{kind}', expected one of {sorted(names)}")
@@ -124,9 +142,9 @@ def build(kind: str, out: str | Path | None = None, *, start_values: dict | None
         check_values(kind, start_values)
     out = Path(out) if out is not None else default_dir()
     out.mkdir(parents=True, exist_ok=True)
-    target = out / (filename or f"{names[kind]}.fmu")
+    target = out / (filename or f"{names[kind]}{FMI_SUFFIX[fmi_version]}.fmu")
     if flavour == "native":
-        _build_native(kind, target, start_values or {}, settings or {})
+        _build_native(kind, target, start_values or {}, settings or {}, fmi_version)
         return target
     # pythonfmu imports the slave script, which must not meet a slave module an FMU already
     # loaded in the caller: build in a fresh Python process
@@ -163,6 +181,17 @@ def _build_here(kind: str, target: Path, start_values: dict, settings: dict) -> 
 
 # -- native FMU ---------------------------------------------------------------------------------
 
+def _platform_tuple() -> str:
+    """FMI 3.0 binaries folder: <architecture>-<system> (e.g. x86_64-linux)."""
+    machine = platform.machine().lower()
+    arch = ("aarch64" if machine in ("aarch64", "arm64") else
+            ("x86_64" if sys.maxsize > 2 ** 32 else "x86") if machine in ("amd64", "x86_64", "i386", "i686", "x86")
+            else machine)
+    system = {"Linux": "linux", "Darwin": "darwin", "Windows": "windows"}.get(platform.system(),
+                                                                             platform.system().lower())
+    return f"{arch}-{system}"
+
+
 def _platform_folder() -> str:
     bits = "64" if sys.maxsize > 2 ** 32 else "32"
     system = {"Linux": "linux", "Darwin": "darwin", "Windows": "win"}.get(platform.system(), platform.system().lower())
@@ -173,22 +202,86 @@ def _platform_folder() -> str:
 #: them; see damper_fmu/c/fmi2/ORIGIN). fmpy's copies are altered to ignore FMI2_FUNCTION_PREFIX, which
 #: source-code import of several FMUs into one program needs.
 FMI2_HEADERS = C_DIR / "fmi2"
+#: the standard FMI 3.0 headers, unmodified (damper_fmu/c/fmi3/ORIGIN)
+FMI3_HEADERS = C_DIR / "fmi3"
 
 
-def _fmi_headers() -> list[Path]:
+def _fmi_headers(fmi_version: int = 2) -> list[Path]:
+    if fmi_version == 3:
+        return [FMI3_HEADERS / n for n in ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")]
     return [FMI2_HEADERS / n for n in ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")]
 
 
-def _model_description(kind: str, identifier: str, guid: str, start_values: dict, settings: dict) -> bytes:
-    """modelDescription.xml of the native FMU of ``kind`` (value references: fmi2_damper.c)."""
-    from damper_fmu.models import DIAGNOSTICS
-    from damper_fmu.parameters import EFFECT_MODELS, MODEL_PARAMETERS, UNIT_DEFINITIONS
+#: FMI 3.0 value references where FMI 2.0's cannot be kept: FMI 3.0 has one value-reference space for
+#: all types, so the Integer settings (FMI 2.0 Integer 0 and 1, which Real 0 and 1 also use) move,
+#: and the independent variable 'time' (none in FMI 2.0) gets one. Every Real keeps its FMI 2.0 value
+#: reference. fmi3_damper.c uses the same numbers.
+FMI3_VR = {"time": 4, "input_interpolation": 60, "thermal_source": 61}
 
-    params = MODEL_PARAMETERS[kind]
+
+def _variables(kind: str, start_values: dict, settings: dict) -> list[dict]:
+    """The native FMU's variables, the one list both model descriptions (FMI 2.0, 3.0) are written
+    from, in FMI 2.0 order: name, vr (FMI 2.0), vr3 (FMI 3.0), type ('Real' or 'Integer'),
+    causality, variability, initial, unit, start, description, and 'known': True for the inputs
+    and model parameters the initial outputs depend on (value references: fmi2_damper.c)."""
+    from damper_fmu.models import DIAGNOSTICS
+    from damper_fmu.parameters import EFFECT_MODELS, MODEL_PARAMETERS
+
+    out = []
+
+    def var(name, vr, causality, variability, unit, description, start=None, initial=None, kind_="Real",
+            known=False):
+        out.append({"name": name, "vr": vr, "vr3": FMI3_VR.get(name, vr), "type": kind_, "causality": causality,
+                    "variability": variability, "initial": initial, "unit": unit or None, "start": start,
+                    "description": description, "known": known})
+
+    var("stroke", 0, "input", "continuous", "m", "Damper stroke, positive in extension", 0.0, known=True)
+    var("stroke_velocity", 1, "input", "continuous", "m/s", "Damper stroke velocity, positive in extension", 0.0,
+        known=True)
+    if kind in EFFECT_MODELS:
+        var("oil_temperature", 3, "input", "continuous", "degC",
+            "Measured oil temperature; used by the thermal drift element when thermal_source = 1", 20.0)
+    var("force", 2, "output", "continuous", "N", "Damper force, positive in tension", initial="calculated")
+    for i, (name, (unit, text)) in enumerate(DIAGNOSTICS[kind].items()):
+        var(name, 10 + i, "output", "continuous", unit, text, initial="calculated")
+    for i, p in enumerate(MODEL_PARAMETERS[kind]):
+        tunable = p.tunable or p.effect
+        text = (f"{p.description} [{p.unit}]; identification bounds [{p.low:g}, {p.high:g}]" if p.tunable else
+                f"Effect '{p.effect}' (off at 0): {p.description} [{p.unit}], range [{p.low:g}, {p.high:g}]"
+                if p.effect else f"{p.description} [{p.unit}]")
+        var(p.name, 100 + i, "parameter", "tunable" if tunable else "fixed", p.unit, text,
+            start_values.get(p.name, p.default), initial="exact", known=True)
+    for name, (value, unit, text) in NATIVE_SETTINGS.items():
+        var(name, _SETTING_VR[name], "parameter", "fixed", unit, text, settings.get(name, value), initial="exact")
+    var("input_interpolation", 0, "parameter", "fixed", None, INPUT_INTERPOLATION_DESCRIPTION,
+        settings.get("input_interpolation", 0), initial="exact", kind_="Integer")
+    if kind in EFFECT_MODELS:
+        var("thermal_source", 1, "parameter", "fixed", None,
+            "Oil temperature of the thermal drift element: 0 internal thermal balance, 1 the oil_temperature input",
+            0, initial="exact", kind_="Integer")
+    return out
+
+
+def _units(kind: str, variables: list[dict]) -> list[tuple[str, dict]]:
+    """UnitDefinitions: (name, SI base-unit exponents) of the units the description uses."""
+    from damper_fmu.models import DIAGNOSTICS
+    from damper_fmu.parameters import MODEL_PARAMETERS, UNIT_DEFINITIONS
+
+    used = sorted({p.unit for p in MODEL_PARAMETERS[kind]} | {"m", "m/s", "N", "s", "degC"} |
+                  {u for u, _ in DIAGNOSTICS[kind].values()})
+    return [(name, {k: str(e) for k, e in UNIT_DEFINITIONS[name].items()}) for name in used]
+
+
+_DESCRIPTION = ("Railway hydraulic damper, {kind} model (native C; SI units, stroke positive in extension, force "
+                "positive in tension)")
+
+
+def _model_description(kind: str, identifier: str, guid: str, start_values: dict, settings: dict) -> bytes:
+    """modelDescription.xml of the native FMI 2.0 FMU of ``kind`` (value references: fmi2_damper.c)."""
+    variables = _variables(kind, start_values, settings)
     root = Element("fmiModelDescription", {
         "fmiVersion": "2.0", "modelName": identifier, "guid": guid,
-        "description": f"Railway hydraulic damper, {kind} model (native C; SI units, stroke positive in "
-                       f"extension, force positive in tension)",
+        "description": _DESCRIPTION.format(kind=kind),
         "author": "yaw-damper-toolchain", "license": "MIT", "generationTool": "yaw-damper-toolchain build_fmu.py",
         "variableNamingConvention": "flat", "numberOfEventIndicators": "0"})
     cs = SubElement(root, "CoSimulation", {
@@ -201,58 +294,29 @@ def _model_description(kind: str, identifier: str, guid: str, start_values: dict
     # external linkage
     SubElement(files, "File", {"name": "fmi2_damper.c"})
     units = SubElement(root, "UnitDefinitions")
-    used = sorted({p.unit for p in params} | {"m", "m/s", "N", "s", "degC"} |
-                  {u for u, _ in DIAGNOSTICS[kind].values()})
-    for name in used:
-        SubElement(SubElement(units, "Unit", {"name": name}), "BaseUnit",
-                   {k: str(e) for k, e in UNIT_DEFINITIONS[name].items()})
+    for name, exponents in _units(kind, variables):
+        SubElement(SubElement(units, "Unit", {"name": name}), "BaseUnit", exponents)
     cats = SubElement(root, "LogCategories")
     SubElement(cats, "Category", {"name": "logStatusError", "description": "Errors with their reason"})
     SubElement(root, "DefaultExperiment", {"startTime": "0", "stopTime": "10", "stepSize": "0.001"})
     mv = SubElement(root, "ModelVariables")
-    outputs = []
-
-    def var(name, vr, causality, variability, unit, description, start=None, initial=None, kind_="Real"):
-        attrs = {"name": name, "valueReference": str(vr), "description": description, "causality": causality,
-                 "variability": variability}
-        if initial:
-            attrs["initial"] = initial
+    outputs, knowns = [], []
+    for v in variables:
+        attrs = {"name": v["name"], "valueReference": str(v["vr"]), "description": v["description"],
+                 "causality": v["causality"], "variability": v["variability"]}
+        if v["initial"]:
+            attrs["initial"] = v["initial"]
         sv = SubElement(mv, "ScalarVariable", attrs)
         t = {}
-        if unit:
-            t["unit"] = unit
-        if start is not None:
-            t["start"] = repr(float(start)) if kind_ == "Real" else str(int(start))
-        SubElement(sv, kind_, t)
-        return len(mv)
-
-    inputs = [var("stroke", 0, "input", "continuous", "m", "Damper stroke, positive in extension", 0.0),
-              var("stroke_velocity", 1, "input", "continuous", "m/s", "Damper stroke velocity, positive in extension",
-                  0.0)]
-    model_params = []
-    if kind in EFFECT_MODELS:
-        var("oil_temperature", 3, "input", "continuous", "degC",
-            "Measured oil temperature; used by the thermal drift element when thermal_source = 1", 20.0)
-    outputs.append(var("force", 2, "output", "continuous", "N", "Damper force, positive in tension",
-                       initial="calculated"))
-    for i, (name, (unit, text)) in enumerate(DIAGNOSTICS[kind].items()):
-        outputs.append(var(name, 10 + i, "output", "continuous", unit, text, initial="calculated"))
-    for i, p in enumerate(params):
-        tunable = p.tunable or p.effect
-        text = (f"{p.description} [{p.unit}]; identification bounds [{p.low:g}, {p.high:g}]" if p.tunable else
-                f"Effect '{p.effect}' (off at 0): {p.description} [{p.unit}], range [{p.low:g}, {p.high:g}]"
-                if p.effect else f"{p.description} [{p.unit}]")
-        model_params.append(var(p.name, 100 + i, "parameter", "tunable" if tunable else "fixed", p.unit, text,
-                                start_values.get(p.name, p.default), initial="exact"))
-    for name, (value, unit, text) in NATIVE_SETTINGS.items():
-        var(name, _SETTING_VR[name], "parameter", "fixed", unit or None, text, settings.get(name, value),
-            initial="exact")
-    var("input_interpolation", 0, "parameter", "fixed", None, INPUT_INTERPOLATION_DESCRIPTION,
-        settings.get("input_interpolation", 0), initial="exact", kind_="Integer")
-    if kind in EFFECT_MODELS:
-        var("thermal_source", 1, "parameter", "fixed", None,
-            "Oil temperature of the thermal drift element: 0 internal thermal balance, 1 the oil_temperature input",
-            0, initial="exact", kind_="Integer")
+        if v["unit"]:
+            t["unit"] = v["unit"]
+        if v["start"] is not None:
+            t["start"] = repr(float(v["start"])) if v["type"] == "Real" else str(int(v["start"]))
+        SubElement(sv, v["type"], t)
+        if v["causality"] == "output":
+            outputs.append(len(mv))
+        if v["known"]:
+            knowns.append(len(mv))
     # Dependencies (fmi2_damper.c): after initialization the outputs are those of the last doStep, and
     # fmi2SetReal of an input changes none of them before the next doStep: no direct feedthrough, so
     # no input dependencies (an importer assuming feedthrough reports algebraic loops that do not
@@ -263,13 +327,60 @@ def _model_description(kind: str, identifier: str, guid: str, start_values: dict
     for i in outputs:
         SubElement(outs, "Unknown", {"index": str(i), "dependencies": ""})
     init = SubElement(ms, "InitialUnknowns")
-    initial_knowns = " ".join(str(k) for k in sorted(inputs + model_params))
+    initial_knowns = " ".join(str(k) for k in sorted(knowns))
     for i in outputs:
         SubElement(init, "Unknown", {"index": str(i), "dependencies": initial_knowns})
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + tostring(root, encoding="utf-8")
 
 
-def _build_native(kind: str, target: Path, start_values: dict, settings: dict) -> None:
+def _model_description3(kind: str, identifier: str, token: str, start_values: dict, settings: dict) -> bytes:
+    """modelDescription.xml of the native FMI 3.0 FMU of ``kind``: the variables of the FMI 2.0 one
+    (``_variables``; Real as Float64, Integer as Int32, value references FMI3_VR where FMI 2.0's
+    cannot be kept) plus the independent variable 'time' (value references: fmi3_damper.c)."""
+    variables = _variables(kind, start_values, settings)
+    root = Element("fmiModelDescription", {
+        "fmiVersion": "3.0", "modelName": identifier, "instantiationToken": token,
+        "description": _DESCRIPTION.format(kind=kind),
+        "author": "yaw-damper-toolchain", "license": "MIT", "generationTool": "yaw-damper-toolchain build_fmu.py",
+        "variableNamingConvention": "flat"})
+    SubElement(root, "CoSimulation", {
+        "modelIdentifier": identifier, "canHandleVariableCommunicationStepSize": "true",
+        "maxOutputDerivativeOrder": "0", "canGetAndSetFMUState": "true", "canSerializeFMUState": "true",
+        "providesDirectionalDerivatives": "false", "providesAdjointDerivatives": "false",
+        "canBeInstantiatedOnlyOncePerProcess": "false", "hasEventMode": "false",
+        "mightReturnEarlyFromDoStep": "false", "providesIntermediateUpdate": "false"})
+    units = SubElement(root, "UnitDefinitions")
+    for name, exponents in _units(kind, variables):
+        SubElement(SubElement(units, "Unit", {"name": name}), "BaseUnit", exponents)
+    cats = SubElement(root, "LogCategories")
+    SubElement(cats, "Category", {"name": "logStatusError", "description": "Errors with their reason"})
+    SubElement(root, "DefaultExperiment", {"startTime": "0", "stopTime": "10", "stepSize": "0.001"})
+    mv = SubElement(root, "ModelVariables")
+    SubElement(mv, "Float64", {"name": "time", "valueReference": str(FMI3_VR["time"]),
+                               "description": "Simulation time", "causality": "independent",
+                               "variability": "continuous", "unit": "s"})
+    for v in variables:
+        attrs = {"name": v["name"], "valueReference": str(v["vr3"]), "description": v["description"],
+                 "causality": v["causality"], "variability": v["variability"]}
+        if v["initial"]:
+            attrs["initial"] = v["initial"]
+        if v["unit"]:
+            attrs["unit"] = v["unit"]
+        if v["start"] is not None:
+            attrs["start"] = repr(float(v["start"])) if v["type"] == "Real" else str(int(v["start"]))
+        SubElement(mv, {"Real": "Float64", "Integer": "Int32"}[v["type"]], attrs)
+    # dependencies as in the FMI 2.0 description (see there), by value reference
+    ms = SubElement(root, "ModelStructure")
+    outputs = [v["vr3"] for v in variables if v["causality"] == "output"]
+    knowns = " ".join(str(k) for k in sorted(v["vr3"] for v in variables if v["known"]))
+    for vr in outputs:
+        SubElement(ms, "Output", {"valueReference": str(vr), "dependencies": ""})
+    for vr in outputs:
+        SubElement(ms, "InitialUnknown", {"valueReference": str(vr), "dependencies": knowns})
+    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + tostring(root, encoding="utf-8")
+
+
+def _build_native(kind: str, target: Path, start_values: dict, settings: dict, fmi_version: int = 2) -> None:
     from damper_fmu import native
 
     cc = native.compiler()
@@ -278,7 +389,7 @@ def _build_native(kind: str, target: Path, start_values: dict, settings: dict) -
                            f"use flavour='python' (pythonfmu) instead")
     identifier = SLAVES[kind]
     payload = json.dumps([kind, sorted(start_values.items()), sorted(settings.items()),
-                          _source_hash("native")]).encode()
+                          _source_hash("native")] + ([3] if fmi_version == 3 else [])).encode()
     guid = "{" + str(uuid.UUID(hashlib.md5(payload).hexdigest())) + "}"
     header = native.parameter_header({kind: start_values})
     config = "\n".join([
@@ -295,7 +406,8 @@ def _build_native(kind: str, target: Path, start_values: dict, settings: dict) -
         tmp = Path(tmp)
         src = tmp / "sources"
         src.mkdir()
-        for f in (C_DIR / "fmi2_damper.c", C_DIR / "damper_kernel.c", C_DIR / "damper_kernel.h", *_fmi_headers()):
+        wrapper = f"fmi{fmi_version}_damper.c"
+        for f in (C_DIR / wrapper, C_DIR / "damper_kernel.c", C_DIR / "damper_kernel.h", *_fmi_headers(fmi_version)):
             shutil.copyfile(f, src / f.name)
         (src / "damper_params.h").write_text(header)
         (src / "damper_fmu_config.h").write_text(config)
@@ -303,27 +415,28 @@ def _build_native(kind: str, target: Path, start_values: dict, settings: dict) -
         # drops <Library> elements whatever the version: an importer must link the C math library
         # itself, e.g. fmpy's build_platform_binary(..., cmake_options={"CMAKE_C_STANDARD_LIBRARIES":
         # "-lm"})). This file gives the same in the FMI 3.0 build-description layout, for tools that
-        # read it, with this FMU's FMI version.
+        # read it, with this FMU's FMI version (for FMI 3.0 it is where the source files are declared).
         (src / "buildDescription.xml").write_text(
             '<?xml version="1.0" encoding="UTF-8"?>\n'
-            '<fmiBuildDescription fmiVersion="2.0">\n'
+            f'<fmiBuildDescription fmiVersion="{fmi_version}.0">\n'
             f'  <BuildConfiguration modelIdentifier="{identifier}">\n'
             '    <SourceFileSet language="C99">\n'
-            '      <SourceFile name="fmi2_damper.c"/>\n'
+            f'      <SourceFile name="{wrapper}"/>\n'
             '    </SourceFileSet>\n    <Library name="m"/>\n  </BuildConfiguration>\n</fmiBuildDescription>\n')
         suffix = {"win": ".dll", "darwin": ".dylib"}.get(_platform_folder()[:-2], ".so")
-        binary = tmp / "binaries" / _platform_folder() / f"{identifier}{suffix}"
+        folder = _platform_tuple() if fmi_version == 3 else _platform_folder()
+        binary = tmp / "binaries" / folder / f"{identifier}{suffix}"
         binary.parent.mkdir(parents=True)
-        cmd = [cc, *native.CFLAGS, "-shared", "-I", str(src), str(src / "fmi2_damper.c"), "-o", str(binary), "-lm"]
+        cmd = [cc, *native.CFLAGS, "-shared", "-I", str(src), str(src / wrapper), "-o", str(binary), "-lm"]
         proc = subprocess.run(cmd, capture_output=True, text=True)
         if proc.returncode != 0:
             raise RuntimeError(f"compiling {identifier} failed ({' '.join(cmd)}):\n{proc.stderr.strip()}")
-        (tmp / "modelDescription.xml").write_bytes(
-            _model_description(kind, identifier, guid, start_values, settings))
+        write = _model_description3 if fmi_version == 3 else _model_description
+        (tmp / "modelDescription.xml").write_bytes(write(kind, identifier, guid, start_values, settings))
         docs = tmp / "documentation"
         docs.mkdir()
         (docs / "index.html").write_text(
-            f"<html><body><h1>{identifier}</h1><p>Railway hydraulic damper ({kind} model), FMI 2.0 "
+            f"<html><body><h1>{identifier}</h1><p>Railway hydraulic damper ({kind} model), FMI {fmi_version}.0 "
             f"co-simulation. Inputs stroke [m] (extension +) and stroke_velocity [m/s]; output force [N] "
             f"(tension +). See the project README, section 'The FMUs', for safe communication step "
             f"sizes.</p></body></html>\n")
@@ -335,22 +448,24 @@ def _build_native(kind: str, target: Path, start_values: dict, settings: dict) -
         os.replace(part, target)
 
 
-def ensure_fmu(kind: str, out: str | Path | None = None, flavour: str = "auto") -> Path:
+def ensure_fmu(kind: str, out: str | Path | None = None, flavour: str = "auto", fmi_version: int = 2) -> Path:
     """Path of the default FMU of ``kind``, (re)building it if missing or its sources changed.
 
     flavour: 'native', 'python' or 'auto' (native where a C compiler is found; 'empty' is python).
+    fmi_version: 2, or 3 (native only).
     """
     if flavour == "auto":
         flavour = "native" if kind in SLAVES and not native_reason() else "python"
+    _check_fmi_version(fmi_version, flavour)
     names = SLAVES if flavour == "native" else PY_SLAVES
     out = Path(out) if out is not None else default_dir()
-    path = out / f"{names[kind]}.fmu"
+    path = out / f"{names[kind]}{FMI_SUFFIX[fmi_version]}.fmu"
 
     stamp = path.with_suffix(".sha256")
     digest = _source_hash(flavour)
     if path.exists() and stamp.exists() and stamp.read_text().strip() == digest:
         return path
-    build(kind, out, flavour=flavour)
+    build(kind, out, flavour=flavour, fmi_version=fmi_version)
     stamp.write_text(digest + "\n")
     return path
 
@@ -374,6 +489,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="output folder (default build/fmu)")
     ap.add_argument("--force", action="store_true", help="rebuild even if up to date")
     ap.add_argument("--python", action="store_true", help="also build the pythonfmu FMUs (*Py.fmu)")
+    ap.add_argument("--fmi-version", type=int, choices=sorted(FMI_SUFFIX), action="append", dest="fmi_versions",
+                    help="FMI version of the native FMUs: 2 (default) or 3 (<name>3.fmu); repeat for both")
     args = ap.parse_args(argv)
     bad = [k for k in args.kinds if k not in PY_SLAVES]
     if bad:
@@ -381,16 +498,22 @@ def main(argv=None) -> int:
     note = fast_path_note()
     if note:
         print(note)
+    versions = args.fmi_versions or [2]
+    if 3 in versions and note:
+        ap.error(f"FMI 3.0 FMUs are native only: {native_reason()}")
     status = 0
     for kind in args.kinds:
-        flavours = ["auto"] + (["python"] if args.python and kind in SLAVES and not note else [])
-        for flavour in flavours:
+        if 3 in versions and kind not in SLAVES:
+            ap.error(f"no FMI 3.0 FMU of '{kind}' (native models only: {sorted(SLAVES)})")
+        jobs = ([("auto", 2)] if 2 in versions else []) + ([("native", 3)] if 3 in versions else [])
+        jobs += [("python", 2)] if args.python and kind in SLAVES and not note else []
+        for flavour, version in jobs:
             if args.force:
                 fl = flavour if flavour != "auto" else ("native" if kind in SLAVES and not note else "python")
-                path = build(kind, args.out, flavour=fl)
+                path = build(kind, args.out, flavour=fl, fmi_version=version)
                 path.with_suffix(".sha256").write_text(_source_hash(fl) + "\n")
             else:
-                path = ensure_fmu(kind, args.out, flavour)
+                path = ensure_fmu(kind, args.out, flavour, fmi_version=version)
             problems = validate(path)
             print(f"{path}: {'valid' if not problems else 'INVALID'}")
             for p in problems:
