@@ -517,11 +517,4 @@ def main(argv=None) -> int:
     return run_handler(handler, args, hint)
 
 if __name__ == "__main__":
-    code = main()
-    # leave without interpreter teardown: every FMU has been freed explicitly, and native FMU
-    # libraries have been seen to corrupt the heap when collected during finalisation
-    sys.stdout.flush()
-    sys.stderr.flush()
-    import os
-
-    os._exit(code)
+    sys.exit(main())

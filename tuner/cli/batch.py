@@ -512,24 +512,9 @@ def _worker_environment():
                 os.environ[k] = v
 
 
-_GUARD = {"installed": False}
-
-
-def _leave_without_teardown() -> None:
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(0)
-
-
 def _in_worker(fn, arg):
-    """Run fn(arg) in a worker process of this module's executors. The first call registers an
-    exit that skips interpreter teardown: native FMU libraries have been seen to corrupt the heap
-    when collected during finalisation (see tuner/__main__.py); every FMU is freed explicitly."""
-    if not _GUARD["installed"]:
-        import atexit
-
-        atexit.register(_leave_without_teardown)
-        _GUARD["installed"] = True
+    """Run fn(arg) in a worker process of this module's executors (every FMU a row opens is freed by
+    the row, or at the worker's exit by ``tuner.identification.runner``)."""
     return fn(arg)
 
 

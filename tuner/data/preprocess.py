@@ -46,7 +46,8 @@ from scipy import signal
 from scipy.interpolate import CubicSpline
 
 from tuner.data.differentiator import Differentiator
-from tuner.data.reading import MIN_SAMPLES, DataError, RigTest
+from damper_dataset.format import MIN_SAMPLES, DataError
+from tuner.data.reading import RigTest
 
 # --------------------------------------------------------------------------- resampling
 

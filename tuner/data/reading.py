@@ -18,9 +18,8 @@ import numpy as np
 import pandas as pd
 
 from tuner.data.differentiator import Differentiator
-from damper_dataset.format import (FORCE_UNITS, FORMAT_ID, MANIFEST_NAME, MANIFEST_TEST_KEYS, MIN_SAMPLE_RATE_HZ,
-                                   MIN_SAMPLES, REQUIRED_COLUMNS, ROLES, STROKE_UNITS, TEMPERATURE_UNITS, TIME_UNITS,
-                                   VELOCITY_UNITS, DataError, check_finite, check_signals, read_manifest,
+from damper_dataset.format import (FORCE_UNITS, MANIFEST_TEST_KEYS, ROLES, STROKE_UNITS, TEMPERATURE_UNITS,
+                                   TIME_UNITS, VELOCITY_UNITS, DataError, check_finite, check_signals, read_manifest,
                                    suggest_unit)
 from tuner.data.rigfile import RawTable, read_raw
 

@@ -196,18 +196,9 @@ def _exit_with_parent(parent: int) -> None:
     os._exit(0)
 
 
-def _close_and_exit() -> None:
-    """Worker exit: free the FMU, then skip interpreter teardown (native FMU libraries have been
-    seen to corrupt the heap when their objects are collected during finalisation)."""
-    import os
-    import sys
-
-    try:
-        _WORKER["sim"].close()
-    finally:
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(0)
+def _close_worker() -> None:
+    """Worker exit: free the worker's FMU while the interpreter is intact."""
+    _WORKER["sim"].close()
 
 
 def _init_worker(model, engine, fmu_path, max_internal_step, tolerance, tests):
@@ -218,7 +209,7 @@ def _init_worker(model, engine, fmu_path, max_internal_step, tolerance, tests):
     threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
     _WORKER["sim"] = _Simulator(model, engine, fmu_path, max_internal_step, tolerance)
     _WORKER["tests"] = tests
-    atexit.register(_close_and_exit)
+    atexit.register(_close_worker)
 
 
 def _worker_sse(params):

@@ -13,9 +13,11 @@ The returned force at sample 0 is the FMU's initial output.
 """
 from __future__ import annotations
 
+import atexit
 import ctypes
 import shutil
 import tempfile
+import weakref
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +26,16 @@ __all__ = ["FmuRunner", "SimulationError", "as_stroke_arrays", "stepper"]
 
 _REPLAY = 1
 _STEPPER: dict = {}
+#: the runners whose FMU instance is alive: freed at interpreter exit, before finalisation collects the
+#: objects in arbitrary order (a native FMU freed then - its logger callback or library already torn
+#: down - corrupted the heap; the processes used to skip their teardown with os._exit instead)
+_LIVE: "weakref.WeakSet[FmuRunner]" = weakref.WeakSet()
+
+
+@atexit.register
+def _close_live_runners() -> None:
+    for runner in list(_LIVE):
+        runner.close()
 
 
 def stepper():
@@ -109,6 +121,7 @@ class FmuRunner:
                              modelIdentifier=self.md.coSimulation.modelIdentifier,
                              instanceName=instance_name)
         self.fmu.instantiate(callbacks=self._callbacks, loggingOn=True)
+        _LIVE.add(self)
         self._fresh = True
         dll = self.fmu.dll
         self._set_real, self._do_step, self._get_real = dll.fmi2SetReal, dll.fmi2DoStep, dll.fmi2GetReal
@@ -269,6 +282,7 @@ class FmuRunner:
                 pass
             self.fmu.freeInstance()
             self.fmu = None
+        _LIVE.discard(self)
         shutil.rmtree(getattr(self, "_unzip", ""), ignore_errors=True)
 
     def __enter__(self):
