@@ -4,7 +4,7 @@
                                      [--polish 10] [--executor pool|local] [--keep DIR]
 
 Generates ``--rows`` small virtual-rig datasets (lumped-model damper, ``--t-end`` s manoeuvres,
-one dataset seed per row), writes a fleet manifest and runs ``tuner.cli.batch.run_batch`` on it twice
+one dataset seed per row), writes a fleet manifest and runs ``tuner.fleet.batch.run_batch`` on it twice
 into fresh folders: with 1 worker, then with 2 (``--executor pool``: the local process pool,
 default; ``local``: a Dask LocalCluster). Prints both wall times, the speed-up (target >= 1.7 on a
 2-core machine), the load average around each run (the machine may be shared) and whether both
@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from campaign.generate import generate_dataset  # noqa: E402
-from tuner.cli.batch import run_batch  # noqa: E402
+from tuner.fleet.batch import run_batch  # noqa: E402
 
 ID_FILES = ("id1_straight_250", "id2_curve_R400_72", "id3_switch_R190_43")
 VAL_FILES = ("val1_straight_250", "val2_curve_R6000_306")

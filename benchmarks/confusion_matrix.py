@@ -17,7 +17,7 @@ validation tests, printed beside the measured noise. The decision is the held-ou
 whose effect moves the validation force by less than the noise cannot be named; the detection
 rate is also given without those runs.
 
-The runs are independent and go to the fleet executor of ``tuner.cli.batch`` (one run = one task):
+The runs are independent and go to the fleet executor of ``tuner.fleet.executors`` (one run = one task):
 by default a local process pool of ``os.cpu_count()`` processes, ``--scheduler local:N`` a Dask
 LocalCluster, ``--scheduler tcp://HOST:PORT`` a running Dask cluster (so a cluster can run the
 large matrix). Each run evaluates in its own process (``--workers 0``). The dataset seed and the
@@ -48,7 +48,7 @@ from campaign.effects import EFFECTS  # noqa: E402
 from campaign.generate import CHAMBER_TEMPERATURES_C, generate_dataset  # noqa: E402
 from tuner.data.reading import load_dataset  # noqa: E402
 from tuner.identification.engine import fastest_engine  # noqa: E402
-from tuner.cli.batch import FleetExecutor  # noqa: E402
+from tuner.fleet.executors import FleetExecutor  # noqa: E402
 from tuner.results.fleet_summary import write_atomic  # noqa: E402
 from tuner.diagnosis.diagnose import CANDIDATES, DiagnosisSettings, diagnose  # noqa: E402
 

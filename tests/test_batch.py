@@ -1,4 +1,4 @@
-"""Fleet batch identification (tuner.cli.batch): manifest checks, local pool vs Dask LocalCluster,
+"""Fleet batch identification (tuner.fleet, command line tuner.cli.batch): manifest checks, local pool vs Dask LocalCluster,
 outlier flag, failed row, kill and restart."""
 from __future__ import annotations
 
@@ -15,7 +15,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
-from tuner.cli.batch import ManifestError, add_parser, cmd_batch, main, read_fleet_manifest, run_batch  # noqa: E402
+from tuner.cli.batch import add_parser, cmd_batch, main  # noqa: E402
+from tuner.fleet.batch import run_batch  # noqa: E402
+from tuner.fleet.manifest import ManifestError, read_fleet_manifest  # noqa: E402
 from tuner.results.fleet_summary import find_outliers  # noqa: E402
 
 #: small Firefly budget: the batch machinery is tested here, not the identification

@@ -1,6 +1,6 @@
-"""Fleet summary of a batch identification (``tuner.cli.batch``): table, outliers, characteristic plots.
+"""Fleet summary of a batch identification (``tuner.fleet``): table, outliers, characteristic plots.
 
-Input: one record per manifest row (``tuner.cli.batch`` writes them as ``<out>/<id>/done.json``), with the
+Input: one record per manifest row (``tuner.fleet.batch`` writes them as ``<out>/<id>/done.json``), with the
 identified parameters, the validation metrics and the diagnosis verdict of every finished row.
 
 Output (every file written to a temporary name first, then moved into place with ``os.replace``):
