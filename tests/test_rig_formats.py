@@ -11,7 +11,7 @@ import pytest
 
 from tuner.data.reading import DataError, load_dataset, load_test, load_tests
 from tuner.data.preprocess import prepare
-from tuner.__main__ import DEFAULT_DATASET
+from tuner.cli.folders import DEFAULT_DATASET
 
 N = 4000  # 4 s at 1 kHz
 

@@ -1,3 +1,5 @@
-"""Command-line plumbing: exit handling shared by the commands (``run``) and fleets (``batch``);
-the commands themselves are in ``tuner.__main__``.
+"""The command line, one module per sub-command over the library (``tuner.job`` and the stages):
+``fit`` (fit and diagnose), ``inspect``, ``batch``, ``vehicle``; shared: the options and their mapping
+to settings (``options``), the log and progress display (``log``), folders (``folders``), the end
+summary (``summary``), exit handling (``run``). ``tuner.__main__`` assembles the parser.
 """

@@ -10,6 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from tuner.cli.folders import DEFAULT_RESULTS
 from tuner.cli.run import run_handler
 from tuner.fleet.batch import run_batch
 from tuner.fleet.manifest import convert_cell
@@ -70,7 +71,7 @@ def cmd_batch(args) -> int:
         if v is not None:
             settings[name] = v
     manifest = Path(args.manifest)
-    out = args.out or Path(__file__).resolve().parents[2] / "results" / manifest.stem
+    out = args.out or DEFAULT_RESULTS / manifest.stem
     if args.outlier_k <= 0 or args.outlier_tolerance < 0:
         raise ValueError("--outlier-k must be > 0 and --outlier-tolerance >= 0")
     res = run_batch(manifest, out, scheduler=args.scheduler, settings=settings, diagnose=args.diagnose,

@@ -1,0 +1,135 @@
+"""``python -m tuner fit`` (the main job: ``tuner.job.run``) and ``python -m tuner diagnose``."""
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+from build_fmu import fast_path_note, native_reason
+from damper_fmu.parameters import EFFECT_MODELS, MODEL_KINDS
+from tuner import job
+from tuner.cli.folders import DEFAULT_DATASET, DEFAULT_RESULTS, free_folder, prepare_out, tidy_checkpoints
+from tuner.cli.log import end_job, job_log, log, progress, start_job
+from tuner.cli.options import add_fit_options, fit_settings, load_tests
+from tuner.cli.summary import end_summary, print_table3
+from tuner.diagnosis.diagnose import choose_base
+
+__all__ = ["add_parsers", "cmd_fit", "cmd_diagnose", "check_engine"]
+
+
+def add_parsers(sub) -> None:
+    """Register ``fit`` and ``diagnose`` on an argparse subparsers object."""
+    p_fit = sub.add_parser("fit", help="identify, validate and report on your data")
+    add_fit_options(p_fit)
+    p_fit.set_defaults(func=cmd_fit)
+    p_diag = sub.add_parser("diagnose", help="what the fitted model gets wrong, the cause, the gain")
+    add_fit_options(p_diag)
+    p_diag.add_argument("--from", dest="from_fit", type=Path, help="output folder of an earlier fit (its "
+                        "best-validated lumped or two-chamber model is the base; otherwise both are identified "
+                        "here and the better one on held-out data is kept)")
+    p_diag.set_defaults(func=cmd_diagnose)
+
+
+def check_engine(args) -> None:
+    """Say once when the fast (native) path is off, and refuse ``--engine native`` without it."""
+    if args.engine == "native" and native_reason():
+        raise ValueError(f"--engine native needs the C kernel: {native_reason()}; use --engine fmu or inprocess")
+    note = fast_path_note()
+    if note:
+        log(note)
+
+
+def cmd_fit(args) -> int:
+    check_engine(args)
+
+    models = tuple(m.strip() for m in args.models.split(",") if m.strip())
+    bad = [m for m in models if m not in MODEL_KINDS]
+    if bad or not models:
+        raise ValueError(f"unknown model(s) {bad}; choose from {', '.join(MODEL_KINDS)}")
+    for opt in ("population", "iterations"):
+        if getattr(args, opt) < 1:
+            raise ValueError(f"--{opt} must be >= 1")
+    if args.population < 2:
+        raise ValueError("--population must be >= 2")
+    t0 = time.perf_counter()
+    budget = args.population * args.iterations / (20 * 150)  # relative to the default run's
+    weights = {f"fit {m}": {"lumped": 60.0, "maxwell": 8.0, "maxwell_table": 30.0, "twochamber": 60.0}[m] * budget
+               for m in models}
+    weights.update({"validate and export": 12.0, "report": 8.0})
+    if getattr(args, "vehicle", False):
+        weights["vehicle"] = 8.0 * len(models)
+    if not args.no_diagnose and any(m in EFFECT_MODELS for m in models):
+        weights["diagnosis"] = 70.0
+    start_job(args, weights)
+    try:
+        out = _fit_job(args, models)
+    finally:
+        end_job()
+    tidy_checkpoints(out, args.keep_checkpoints)
+    end_summary(out, time.perf_counter() - t0)
+    return 0
+
+
+def _fit_job(args, models) -> Path:
+    ident, valid, name = load_tests(args)
+    out = args.out or free_folder(DEFAULT_RESULTS / name)
+    out = prepare_out(out, args.resume, args.force)
+    settings = fit_settings(args, models)
+    provenance = {"dataset": str(args.dataset) if args.dataset else None,
+                  "files": {t.name: str(t.source) for t in ident + valid},
+                  "command": " ".join(sys.argv)}
+    log(f"output folder: {out}")
+    diagnosis = not args.no_diagnose and job.wants_diagnosis(settings, valid)
+    if not diagnosis and progress() is not None:
+        progress().weights.pop("diagnosis", None)
+    result = job.run(ident, valid, out, settings, diagnose_after=diagnosis, vehicle=args.vehicle,
+                     provenance=provenance, log=job_log())  # the progress display when a job runs
+    print_table3(result.fit.metrics)
+    return out
+
+
+def _fitted_base(folder: Path) -> tuple:
+    """(base parameters, kind, how it was chosen, the other fitted bases) for a diagnosis after the fit
+    in ``folder``."""
+    kind, values, choice, others = choose_base(json.loads((folder / "parameters.json").read_text()),
+                                               json.loads((folder / "metrics.json").read_text()))
+    return values, kind, choice, others
+
+
+def cmd_diagnose(args) -> int:
+    check_engine(args)
+    if not args.dataset and not args.identification:
+        args.dataset = DEFAULT_DATASET  # by default the bundled dataset
+    ident, valid, name = load_tests(args)
+    if not valid:
+        raise ValueError("the diagnosis needs validation tests: its decision is the held-out gain")
+    base, base_kind, base_choice, others = None, None, None, None
+    if args.from_fit:
+        pj = args.from_fit / "parameters.json"
+        if not pj.exists() or not (args.from_fit / "metrics.json").exists():
+            raise ValueError(f"--from {args.from_fit}: no parameters.json and metrics.json (not a fit output folder)")
+        try:
+            base, base_kind, base_choice, others = _fitted_base(args.from_fit)
+        except ValueError as err:
+            raise ValueError(f"--from {args.from_fit}: {err}") from None
+    out = args.out or free_folder(DEFAULT_RESULTS / f"{name}-diagnosis")
+    if out.exists() and any(out.iterdir()):
+        raise FileExistsError(f"output folder {out} exists and is not empty: choose another --out")
+    out.mkdir(parents=True, exist_ok=True)
+    if base is not None and args.from_fit.resolve() != out.resolve():
+        for f in ("parameters.json", "metrics.json", "simulations.npz",
+                  *[f"history_{m}.json" for m in MODEL_KINDS]):
+            if (args.from_fit / f).exists():
+                (out / f).write_bytes((args.from_fit / f).read_bytes())
+    log(f"output folder: {out}")
+    t0 = time.perf_counter()
+    start_job(args, {"diagnosis": 70.0 if base is not None else 130.0, "report": 5.0})
+    try:  # the diagnosis states the verdict once
+        job.run_diagnosis(ident, valid, out, job.diagnosis_settings(fit_settings(args)), base_params=base,
+                          base_model=base_kind, base_choice=base_choice, other_bases=others, log=job_log())
+    finally:
+        end_job()
+    tidy_checkpoints(out, args.keep_checkpoints)
+    end_summary(out, time.perf_counter() - t0)
+    return 0

@@ -1,0 +1,191 @@
+"""The command line's data and fit options, and the one mapping of them to settings (``fit_settings``)
+and to tests read (``load_tests``)."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from tuner.cli.log import log
+from tuner.data.reading import DEFAULT_DAMPER_CLASS, load_dataset, load_files, read_column_mapping
+from tuner.data.summary import format_summary
+from tuner.identification.fit import FitSettings
+
+__all__ = ["add_data_options", "add_fit_options", "column_options", "fit_settings", "load_tests", "fit_rate_and_band",
+           "float_list", "DATA_OPTIONS"]
+
+
+def add_data_options(g) -> None:
+    """Options saying how to read rig files (all default to None: the file's own declaration, else SI)."""
+    g.add_argument("--time-col", default=None, metavar="COL",
+                   help="time column: header, header without its unit, or 1-based position (default 'time'); "
+                        "'none' with --rate when the file has no time column. Seconds, milliseconds "
+                        "(--time-unit ms) or date/ISO timestamps")
+    g.add_argument("--stroke-col", default=None, metavar="COL", help="stroke column (default 'stroke')")
+    g.add_argument("--force-col", default=None, metavar="COL", help="force column (default 'force')")
+    g.add_argument("--velocity-col", default=None, metavar="COL",
+                   help="the rig's measured stroke velocity, used instead of differentiating the stroke")
+    g.add_argument("--temperature-col", default=None, metavar="COL",
+                   help="column holding the oil temperature (default: a column named 'temperature', if any)")
+    g.add_argument("--test-col", default=None, metavar="COL",
+                   help="test-id column: a file holding several tests is split by its values")
+    g.add_argument("--time-unit", default=None, choices=["s", "ms"])
+    g.add_argument("--stroke-unit", default=None, choices=["m", "cm", "mm", "um"],
+                   help="unit of the stroke (default: as the header or units row declares, else m)")
+    g.add_argument("--force-unit", default=None, choices=["N", "daN", "kN"],
+                   help="unit of the force (default: as the header or units row declares, else N)")
+    g.add_argument("--velocity-unit", default=None, choices=["m/s", "cm/s", "mm/s", "um/s"])
+    g.add_argument("--temperature-unit", default=None, choices=["degC", "K"])
+    g.add_argument("--stroke-sign", type=int, default=None, choices=[1, -1],
+                   help="-1 if the rig writes compression as positive stroke (ours: extension positive)")
+    g.add_argument("--force-sign", type=int, default=None, choices=[1, -1],
+                   help="-1 if the rig writes compression as positive force (ours: tension positive)")
+    g.add_argument("--rate", type=float, default=None, metavar="HZ", help="sample rate of files without time")
+    g.add_argument("--t-start", type=float, default=None, metavar="S",
+                   help="use the test from this time [s from its first sample]")
+    g.add_argument("--t-end", type=float, default=None, metavar="S", help="... up to this time [s]")
+    g.add_argument("--columns", type=Path, default=None, metavar="FILE",
+                   help="column mapping file (TOML or JSON) for campaigns with many files: the options above "
+                        "as keys (time_col, stroke_unit, force_sign ...), for every file and per file name")
+    g.add_argument("--accept-implausible", action="store_true",
+                   help="read data that fails the physical plausibility checks (units) as declared")
+    g.add_argument("--damper-class", default=None, choices=["yaw", "primary", "secondary", "any"],
+                   help="the kind of railway damper tested (default yaw): a test whose apparent damping is "
+                        "outside that class's range is read with a warning (a force in kN read as N)")
+
+
+DATA_OPTIONS = ("time_col", "stroke_col", "force_col", "velocity_col", "temperature_col", "test_col", "time_unit",
+                 "stroke_unit", "force_unit", "velocity_unit", "temperature_unit", "stroke_sign", "force_sign",
+                 "t_start", "t_end", "damper_class")
+
+
+def column_options(args) -> tuple[dict, dict]:
+    """(options for every file, file name -> its own options) from the mapping file and the command line;
+    the command line wins."""
+    common, per_file = read_column_mapping(args.columns) if args.columns else ({}, {})
+    given = {k: getattr(args, k) for k in DATA_OPTIONS if getattr(args, k) is not None}
+    if given.get("time_col", "").lower() == "none":
+        given["time_col"] = None
+    if args.rate is not None:
+        given["rate_hz"] = args.rate
+    if args.accept_implausible:
+        given["check_plausible"] = False
+    return {**common, **given}, {name: {**opts, **given} for name, opts in per_file.items()}
+
+
+def add_fit_options(ap: argparse.ArgumentParser) -> None:
+    d = FitSettings()
+    g = ap.add_argument_group("data")
+    g.add_argument("--dataset", type=Path, help="dataset folder with manifest.json (roles from the manifest)")
+    g.add_argument("--identification", nargs="+", type=Path, default=[], metavar="FILE",
+                   help="identification test files (CSV/Parquet)")
+    g.add_argument("--validation", nargs="+", type=Path, default=[], metavar="FILE",
+                   help="validation test files (held out)")
+    add_data_options(g)
+    g = ap.add_argument_group("identification")
+    g.add_argument("--models", default=",".join(d.models),
+                   help="comma-separated from lumped, maxwell, maxwell_table, twochamber (the twin-tube form; "
+                        "default: %(default)s)")
+    g.add_argument("--population", type=int, default=d.population, help="fireflies (default %(default)s)")
+    g.add_argument("--iterations", type=int, default=d.iterations, help="max iterations (default %(default)s)")
+    g.add_argument("--workers", type=int, default=d.workers, help="worker processes (default %(default)s)")
+    g.add_argument("--seed", type=int, default=d.seed)
+    g.add_argument("--engine", default=d.engine, choices=["fmu", "native", "inprocess"],
+                   help="fmu: the built FMU through fmpy (default; the native FMU where a C compiler is "
+                        "found); native: the same C kernel called once per test, without FMI (faster, "
+                        "equal results); inprocess: the Python reference (slow)")
+    g.add_argument("--parametrization", default=d.parametrization, choices=["improved", "paper"])
+    g.add_argument("--init", default=d.init, choices=["seeded", "random"],
+                   help="seeded: data-driven guess and preset in the first population (default)")
+    g.add_argument("--fit-rate", type=float, default=d.fit_rate_hz, help="resample to this rate [Hz]")
+    g.add_argument("--warmup", type=float, default=d.warmup_s, help="seconds skipped at each test start")
+    g.add_argument("--diff-band", type=float, default=d.diff_band_hz, metavar="HZ",
+                   help="band up to which the stroke differentiator is accurate to 0.5 %% (default: per test, where "
+                        "99 %% of the stroke velocity's power lies, 20 Hz at least; ignored with --velocity-col)")
+    g.add_argument("--force-limit", type=float, default=None,
+                   help="Fc,O ordinate limit [N] (default: 1.5 x peak measured force)")
+    g.add_argument("--damping-abscissae", type=float_list, default=None, metavar="V1,...,V14",
+                   help="the 14 rates [mm/s] of the Fc,O table, increasing (default: Table 2's, stretched to the "
+                        "data's peak velocity when it exceeds 150 mm/s)")
+    g.add_argument("--elastic-abscissae", type=float_list, default=None, metavar="X1,...,X10",
+                   help="the 10 elongations [mm] of the Fk,O table, increasing (default: Table 2's, stretched when "
+                        "the peak force would elongate the reference spring beyond 3 mm)")
+    g.add_argument("--no-stop", action="store_true", help="disable the paper's stagnation stopping rule")
+    g.add_argument("--no-diagnose", action="store_true",
+                   help="skip the diagnosis that follows the fit (it needs validation tests)")
+    g.add_argument("--vehicle", action="store_true",
+                   help="yaw dampers: run the tuned FMUs as the yaw dampers of the campaign's vehicle (critical "
+                        "speed, curve entry, straight track; about 25 s) and add the section to the report "
+                        "(on in the default run)")
+    g.add_argument("--polish", type=int, default=d.polish_jacobians, metavar="N",
+                   help="local least-squares refinement after Firefly until converged, at most N Jacobians "
+                        "(default %(default)s, a safety cap; 0 = the paper's Firefly result as is)")
+    g = ap.add_argument_group("output")
+    g.add_argument("--out", type=Path, help="output folder (default results/<dataset name>[-N])")
+    g.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
+    g.add_argument("--force", action="store_true", help="move an existing --out aside (never deleted)")
+    g.add_argument("--keep-checkpoints", action="store_true",
+                   help="keep out/checkpoints after a successful run (by default they are removed: they only "
+                        "serve --resume after an interruption)")
+    g.add_argument("--quiet", action="store_true", help="no progress and no log lines; only the final summary")
+
+
+def fit_settings(args, models: tuple | None = None) -> "object":
+    """The one mapping of the command line's options to ``FitSettings`` (SI units: the abscissae are
+    given in mm and mm/s); ``models``: the checked --models (default the settings' own)."""
+    return FitSettings(models=models or FitSettings().models, fit_rate_hz=args.fit_rate, warmup_s=args.warmup,
+                       population=args.population, iterations=args.iterations, workers=args.workers,
+                       seed=args.seed, engine=args.engine, parametrization=args.parametrization,
+                       init=args.init, force_limit_n=args.force_limit,
+                       stop_tol=None if args.no_stop else 1e-3, polish_jacobians=args.polish,
+                       diff_band_hz=args.diff_band,
+                       damping_abscissae_m_s=None if args.damping_abscissae is None else
+                       tuple(1e-3 * v for v in args.damping_abscissae),
+                       elastic_abscissae_m=None if args.elastic_abscissae is None else
+                       tuple(1e-3 * x for x in args.elastic_abscissae))
+
+
+def load_tests(args, file_role: str | None = "identification"):
+    """(identification tests, validation tests, name) from --dataset or the files; ``file_role``: the
+    role of --identification files (None for ``inspect``, which only reads them)."""
+    common, per_file = column_options(args)
+
+    def read(paths, role):
+        return [t for p in paths for t in load_files([p], role, **{**common, **per_file.get(Path(p).name, {})})]
+
+    if args.dataset and (args.identification or args.validation):
+        raise ValueError("give either --dataset or --identification/--validation files, not both")
+    if args.dataset:
+        tests = load_dataset(args.dataset, check_plausible=not args.accept_implausible,
+                             damper_class=args.damper_class or DEFAULT_DAMPER_CLASS)
+        ident = [t for t in tests if t.role == "identification"]
+        valid = [t for t in tests if t.role == "validation"]
+        name = args.dataset.resolve().name
+    else:
+        if not args.identification:
+            raise ValueError("no data: give --dataset DIR or --identification FILE ...")
+        ident = read(args.identification, file_role)
+        valid = read(args.validation, "validation")
+        name = "fit"
+    if not ident:
+        raise ValueError("the data holds no identification test")
+    rate, band = fit_rate_and_band(args)
+    if not getattr(args, "json", False):  # inspect --json: the JSON alone on stdout
+        log("data as read:")
+        for t in ident + valid:
+            log(format_summary(t, rate, band))
+    names = [t.name for t in ident + valid]
+    if len(set(names)) != len(names):
+        raise ValueError(f"test names must be unique, got {names}")
+    return ident, valid, name
+
+
+def fit_rate_and_band(args) -> tuple[float, float | None]:
+    """Fit rate [Hz] and differentiator band [Hz] (None: from the data) the command will use."""
+    return getattr(args, "fit_rate", None) or FitSettings().fit_rate_hz, getattr(args, "diff_band", None)
+
+
+def float_list(text: str) -> list[float]:
+    try:
+        return [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
