@@ -63,6 +63,7 @@ from damper_fmu.parameters import (EFFECT_IDENTIFIED, EFFECT_MODELS, EFFECT_PARA
                                    FK_REFERENCE_STIFFNESS, defaults)
 
 from tuner.data.reading import RigTest
+from tuner.diagnosis.detection import detection_limits
 from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidence, residual_figures
 from tuner.diagnosis.significance import block_sandwich, correlation_time, interval
 from tuner.formatting import fmt_quantity
@@ -824,6 +825,20 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
                                      mse_none)
                 _rescore(ranking, mse_none)
                 ranking[next(i for i, r in enumerate(ranking) if r["effect"] == "none")] = none_row
+        # what these tests could not have told apart from the base: the smallest magnitude of each
+        # candidate that would have been named (``tuner.diagnosis.detection``), and the test showing it
+        limits = detection_limits(
+            eid, ev, par, z_none, {e: EFFECT_IDENTIFIED[e][0] for e in settings.candidates if e not in causes},
+            {EFFECT_IDENTIFIED[e][0]: EFFECT_TYPICAL[EFFECT_IDENTIFIED[e][0]][0] for e in settings.candidates},
+            {EFFECT_IDENTIFIED[e][0]: search_bounds(EFFECT_IDENTIFIED[e][0], peak, stroke_range)
+             for e in settings.candidates},
+            {n: MEANINGFUL_FRACTION * PLAUSIBLE[n][0] for e in settings.candidates for n in EFFECT_IDENTIFIED[e]}, mse_none, noise, ACCEPT_SCORE, PENALTY_PER_PARAMETER, lengths,
+            [s.name for s in sig_val])
+        for r in limits.values():
+            r["unit"] = UNITS[r["parameter"]]
+        if limits:
+            log("diagnosis: detection limits on these tests (the smallest magnitude that would have been named): "
+                + ", ".join(f"{e} {_limit_text(r)}" for e, r in limits.items()))
 
     # what the final model leaves: at the noise, or structured beyond what the catalogue explains
     final_rmse = best["identification_rmse_n"] if causes else none_row["identification_rmse_n"]
@@ -864,8 +879,9 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
             effect_parameters[n] = {"value": v, "unit": UNITS[n], "interval_95": best["interval"][n],
                                     "plausible_range": [lo, hi], "plausible": bool(lo <= abs(v) <= hi)}
 
-    verdict = _verdict(causes, best, none_row, unresolved, unexplained, noise)
+    verdict = _verdict(causes, best, none_row, unresolved, unexplained, noise, limits)
     return {"cause": cause, "causes": causes, "verdict": verdict, "selection": selection,
+            "detection_limits": limits,
             "unexplained": unexplained, "ranking": ranking, "effect_parameters": effect_parameters,
             "validation": validation, "evidence": evidence, "figures": figures,
             "note": " ".join(NOTES[c] for c in causes if c in NOTES), "noise_std_n": noise,
@@ -880,10 +896,17 @@ def _interval_text(row: dict) -> str:
                      f" .. {fmt_quantity(row['interval'][n][1], UNITS[n])})" for n, v in row["parameters"].items())
 
 
+def _limit_text(row: dict) -> str:
+    """'above 400 N (val2_curve)' of a detection limit, or 'not detectable within the search range'."""
+    if not row["reachable"]:
+        return "not detectable within its search range"
+    return f"above {fmt_quantity(row['limit'], UNITS[row['parameter']])} ({row['best_test']})"
+
+
 def _verdict(causes: list[str], best: dict, none_row: dict, rejected: list[dict], unexplained: dict | None,
-             noise: float) -> str:
+             noise: float, limits: dict | None = None) -> str:
     """One-paragraph verdict: the causes with magnitudes and intervals and their held-out gain, or
-    none, and what stays unexplained."""
+    none with what these tests could have detected (``limits``), and what stays unexplained."""
     if causes:
         change = 100 * (best["validation_mse"] / none_row["validation_mse"] - 1)
         text = (f"cause{'s' if len(causes) > 1 else ''}: {' + '.join(causes)} ({_interval_text(best)}); "
@@ -892,6 +915,8 @@ def _verdict(causes: list[str], best: dict, none_row: dict, rejected: list[dict]
         text = ("cause: none (no extension earns its parameters on held-out data"
                 + ("; " + ", ".join(f"{r['effect']} scored {r['score']:+.3f} but " + _why_not(r, noise)
                                     for r in rejected) if rejected else "") + ")")
+        if limits:
+            text += ("; these tests would have named: " + ", ".join(f"{e} {_limit_text(r)}" for e, r in limits.items()))
     if unexplained:
         where = (f"; most of it in the {unexplained['dominant_band']} band" if unexplained["dominant_band"] else "")
         sig = (f"; the closest catalogue signature ({unexplained['best_signature']}) explains "

@@ -877,6 +877,21 @@ def make_diagnosis_report(out_dir) -> Path:
     return _write_page(out, title, [f"<h1>{title}</h1>", diagnosis_section_html(out)])
 
 
+def _detection_html(limits: dict) -> str:
+    """The detection limits of a diagnosis (``tuner.diagnosis.detection``) as a table ('' without any)."""
+    if not limits:
+        return ""
+    rows = [[_e(effect), _e(fmt_quantity(r["limit"], r["unit"]) if r["reachable"] else "not within its search range"),
+             _e(r["best_test"] or "-"),
+             {"score": "held-out score", "noise": "force above the noise", "range": "physical range"}[r["limited_by"]]]
+            for effect, r in limits.items()]
+    return ("<h3>What these tests could have detected</h3><p>The smallest magnitude of each effect that the "
+            "diagnosis would have named on these tests (linearised at the base refit: the part of the effect's "
+            "force the base refit cannot absorb, against the acceptance score and the noise), and the held-out "
+            "test that shows it best. A verdict 'none' means nothing above these sizes.</p>"
+            + _table(["effect", "detectable from", "best test", "limited by"], rows))
+
+
 def diagnosis_section_html(out_dir) -> str:
     """HTML section of the report for ``out_dir/diagnosis.json`` ('' when there is none)."""
     import html
@@ -974,6 +989,7 @@ def diagnosis_section_html(out_dir) -> str:
         + "<h3>Validation before and after</h3><table><tr><th>test</th><th>MSE before [N&sup2;]</th>"
           f"<th>MSE after [N&sup2;]</th><th>change</th><th>AME before [N]</th><th>AME after [N]</th></tr>{val}</table>"
         + (f"<h3>Residual evidence (base model)</h3><ul>{ev_rows}</ul>" if ev_rows else "")
+        + _detection_html(d.get("detection_limits") or {})
         + figs + "</section>")
 
 
