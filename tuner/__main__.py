@@ -17,12 +17,26 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import shutil
 import sys
 import time
 from pathlib import Path
 
 from campaign.cli import add_generate_arguments, cmd_generate as generate_command
+from damper_fmu.fmu import fast_path_note, native_reason
+from damper_fmu.parameters import EFFECT_MODELS, MODEL_KINDS
+from tuner import job
+from tuner.cli.batch import CONTINUE_HINT, add_parser as add_batch_parser
 from tuner.cli.folders import free_folder
+from tuner.cli.run import run_handler
+from tuner.cli.vehicle import add_parser as add_vehicle_parser
+from tuner.data.reading import DEFAULT_DAMPER_CLASS, load_dataset, load_files, read_column_mapping
+from tuner.data.summary import format_summary, summarize
+from tuner.diagnosis.diagnose import choose_base
+from tuner.identification.fit import FitSettings
+from tuner.progress import JobProgress
+from tuner.results.report import make_report
 from tuner.vehicle.compare import VEHICLE_FOLDER
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -43,8 +57,6 @@ def _log(msg: str) -> None:
 def _start_job(args, weights: dict) -> "object":
     """Progress display over the job's stages (``weights``: expected seconds); it is the log."""
     global _OUT
-    from tuner.progress import JobProgress
-
     _OUT = JobProgress(weights, quiet=getattr(args, "quiet", False))
     return _OUT
 
@@ -107,8 +119,6 @@ def _end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
 
 def _tidy_checkpoints(out: Path, keep: bool) -> None:
     """After a successful run the checkpoints (what --resume continues from) are removed unless kept."""
-    import shutil
-
     ck = out / "checkpoints"
     if ck.is_dir() and not keep:
         shutil.rmtree(ck)
@@ -179,8 +189,6 @@ _DATA_OPTIONS = ("time_col", "stroke_col", "force_col", "velocity_col", "tempera
 def _column_options(args) -> tuple[dict, dict]:
     """(options for every file, file name -> its own options) from the mapping file and the command line;
     the command line wins."""
-    from tuner.data.reading import read_column_mapping
-
     common, per_file = read_column_mapping(args.columns) if args.columns else ({}, {})
     given = {k: getattr(args, k) for k in _DATA_OPTIONS if getattr(args, k) is not None}
     if given.get("time_col", "").lower() == "none":
@@ -193,8 +201,6 @@ def _column_options(args) -> tuple[dict, dict]:
 
 
 def _add_fit_options(ap: argparse.ArgumentParser) -> None:
-    from tuner.identification.fit import FitSettings
-
     d = FitSettings()
     g = ap.add_argument_group("data")
     g.add_argument("--dataset", type=Path, help="dataset folder with manifest.json (roles from the manifest)")
@@ -254,8 +260,6 @@ def _add_fit_options(ap: argparse.ArgumentParser) -> None:
 def _load(args, file_role: str | None = "identification"):
     """(identification tests, validation tests, name) from --dataset or the files; ``file_role``: the
     role of --identification files (None for ``inspect``, which only reads them)."""
-    from tuner.data.reading import DEFAULT_DAMPER_CLASS, load_dataset, load_files
-
     common, per_file = _column_options(args)
 
     def read(paths, role):
@@ -277,8 +281,6 @@ def _load(args, file_role: str | None = "identification"):
         name = "fit"
     if not ident:
         raise ValueError("the data holds no identification test")
-    from tuner.data.summary import format_summary
-
     rate, band = _fit_rate_and_band(args)
     if not getattr(args, "json", False):  # inspect --json: the JSON alone on stdout
         _log("data as read:")
@@ -292,14 +294,10 @@ def _load(args, file_role: str | None = "identification"):
 
 def _fit_rate_and_band(args) -> tuple[float, float | None]:
     """Fit rate [Hz] and differentiator band [Hz] (None: from the data) the command will use."""
-    from tuner.identification.fit import FitSettings
-
     return getattr(args, "fit_rate", None) or FitSettings().fit_rate_hz, getattr(args, "diff_band", None)
 
 
 def cmd_inspect(args) -> int:
-    from tuner.data.summary import summarize
-
     if args.files and args.dataset:
         raise ValueError("give either --dataset or FILES, not both")
     if not args.files and not args.dataset:
@@ -314,8 +312,6 @@ def cmd_inspect(args) -> int:
 
 def _check_engine(args) -> None:
     """Say once when the fast (native) path is off, and refuse ``--engine native`` without it."""
-    from build_fmu import fast_path_note, native_reason
-
     if args.engine == "native" and native_reason():
         raise ValueError(f"--engine native needs the C kernel: {native_reason()}; use --engine fmu or inprocess")
     note = fast_path_note()
@@ -324,8 +320,6 @@ def _check_engine(args) -> None:
 
 
 def cmd_fit(args) -> int:
-    from damper_fmu.parameters import EFFECT_MODELS, MODEL_KINDS
-
     _check_engine(args)
 
     models = tuple(m.strip() for m in args.models.split(",") if m.strip())
@@ -359,8 +353,6 @@ def cmd_fit(args) -> int:
 def fit_settings(args, models: tuple | None = None) -> "object":
     """The one mapping of the command line's options to ``FitSettings`` (SI units: the abscissae are
     given in mm and mm/s); ``models``: the checked --models (default the settings' own)."""
-    from tuner.identification.fit import FitSettings
-
     return FitSettings(models=models or FitSettings().models, fit_rate_hz=args.fit_rate, warmup_s=args.warmup,
                        population=args.population, iterations=args.iterations, workers=args.workers,
                        seed=args.seed, engine=args.engine, parametrization=args.parametrization,
@@ -374,8 +366,6 @@ def fit_settings(args, models: tuple | None = None) -> "object":
 
 
 def _fit_job(args, models) -> Path:
-    from tuner import job
-
     ident, valid, name = _load(args)
     out = args.out or free_folder(DEFAULT_RESULTS / name)
     out = _prepare_out(out, args.resume, args.force)
@@ -396,16 +386,12 @@ def _fit_job(args, models) -> Path:
 def _fitted_base(folder: Path) -> tuple:
     """(base parameters, kind, how it was chosen, the other fitted bases) for a diagnosis after the fit
     in ``folder``."""
-    from tuner.diagnosis.diagnose import choose_base
-
     kind, values, choice, others = choose_base(json.loads((folder / "parameters.json").read_text()),
                                                json.loads((folder / "metrics.json").read_text()))
     return values, kind, choice, others
 
 
 def cmd_diagnose(args) -> int:
-    from damper_fmu.parameters import MODEL_KINDS
-
     _check_engine(args)
     if not args.dataset and not args.identification:
         args.dataset = DEFAULT_DATASET  # by default the bundled dataset
@@ -434,8 +420,6 @@ def cmd_diagnose(args) -> int:
     t0 = time.perf_counter()
     _start_job(args, {"diagnosis": 70.0 if base is not None else 130.0, "report": 5.0})
     try:
-        from tuner import job
-
         # it states the verdict once
         job.run_diagnosis(ident, valid, out, job.diagnosis_settings(fit_settings(args)), base_params=base,
                           base_model=base_kind, base_choice=base_choice, other_bases=others, log=_OUT or _log)
@@ -470,8 +454,6 @@ def cmd_generate(args) -> int:
 
 
 def cmd_report(args) -> int:
-    from tuner.results.report import make_report
-
     _log(f"report: {make_report(args.folder)}")
     return 0
 
@@ -496,11 +478,7 @@ def main(argv=None) -> int:
     _add_data_options(p_ins.add_argument_group("data"))
     p_rep = sub.add_parser("report", help="rebuild the report of a fit output folder")
     p_rep.add_argument("folder", type=Path)
-    from tuner.cli.batch import add_parser as add_batch_parser
-
     add_batch_parser(sub)
-    from tuner.cli.vehicle import add_parser as add_vehicle_parser
-
     add_vehicle_parser(sub)
     if not argv:
         argv = ["fit", "--dataset", str(DEFAULT_DATASET), "--vehicle"]
@@ -510,9 +488,6 @@ def main(argv=None) -> int:
         return 2
     handler = {"fit": cmd_fit, "generate": cmd_generate, "report": cmd_report, "diagnose": cmd_diagnose,
                "inspect": cmd_inspect}.get(args.command) or args.func
-    from tuner.cli.batch import CONTINUE_HINT
-    from tuner.cli.run import run_handler
-
     hint = CONTINUE_HINT if args.command == "batch" else "run again with --resume and the same --out to continue"
     return run_handler(handler, args, hint)
 
@@ -522,6 +497,4 @@ if __name__ == "__main__":
     # libraries have been seen to corrupt the heap when collected during finalisation
     sys.stdout.flush()
     sys.stderr.flush()
-    import os
-
     os._exit(code)

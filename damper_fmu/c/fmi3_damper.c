@@ -11,7 +11,7 @@
  *   references (0 stroke, 1 stroke_velocity, 2 force, 3 oil_temperature, 10.. internal element
  *   outputs, 50..53 settings, 100 + i the i-th model parameter); the Int32 settings move from FMI
  *   2.0 Integer 0 and 1 to 60 input_interpolation and 61 thermal_source; 4 is the independent
- *   variable time (build_fmu.FMI3_VR);
+ *   variable time (damper_fmu/model_description.py: FMI3_VR);
  * - no input derivatives (FMI 3.0 has no fmi3SetRealInputDerivatives): the acceleration of the
  *   stroke within a step is always estimated from the last velocity samples, as in the FMI 2.0 FMU
  *   when the master sets no derivatives (fmpy's simulate_fmu, most masters);

@@ -92,7 +92,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from build_fmu import ensure_fmu
+from damper_fmu.fmu import ensure_fmu
 from damper_fmu.parameters import EFFECT_MODELS, MODEL_KINDS
 from tuner import job
 from tuner.cli.run import run_handler

@@ -12,6 +12,8 @@ import argparse
 from pathlib import Path
 
 from tuner.cli.folders import free_folder
+from tuner.progress import JobProgress
+from tuner.vehicle.compare import SCENARIO_NAMES, compare_fmus, format_table
 
 __all__ = ["add_parser", "cmd_vehicle"]
 
@@ -20,8 +22,6 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Register the ``vehicle`` sub-command on an argparse subparsers object (func=cmd_vehicle)."""
-    from tuner.vehicle.compare import SCENARIO_NAMES
-
     p = subparsers.add_parser("vehicle", help="the damper FMUs in a vehicle: critical speed, curve, ride",
                               description=__doc__.split("\n\n")[0])
     p.add_argument("--fmus", nargs="+", type=Path, required=True, metavar="PATH",
@@ -41,9 +41,6 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def cmd_vehicle(args) -> int:
-    from tuner.progress import JobProgress
-    from tuner.vehicle.compare import compare_fmus, format_table
-
     if not (0 < args.v_min < args.v_max) or not args.tol > 0 or not args.kick > 0 or not 0 < args.step <= 0.01:
         raise ValueError("need 0 < --v-min < --v-max, --tol > 0, --kick > 0 and 0 < --step <= 0.01")
     for f in args.fmus:
