@@ -247,7 +247,8 @@ def _build_native(kind: str, target: Path, start_values: dict, settings: dict, f
         src = tmp / "sources"
         src.mkdir()
         wrapper = f"fmi{fmi_version}_damper.c"
-        for f in (C_DIR / wrapper, C_DIR / "damper_kernel.c", C_DIR / "damper_kernel.h", *_fmi_headers(fmi_version)):
+        for f in (C_DIR / wrapper, C_DIR / "damper_kernel.c", C_DIR / "damper_kernel.h", C_DIR / "damper_index.h",
+                  *_fmi_headers(fmi_version)):
             shutil.copyfile(f, src / f.name)
         (src / "damper_params.h").write_text(header)
         (src / "damper_fmu_config.h").write_text(config)

@@ -3,6 +3,13 @@
 #include "damper_kernel.h"
 #include "damper_params.h"
 
+/* the parameter specs (damper_params.h, generated per build) and the committed index names
+   (damper_index.h) come from the same damper_fmu/parameters.py: refuse a stale header */
+#if DK_PARAMS_LUMPED_N != DK_LUMPED_N || DK_PARAMS_MAXWELL_N != DK_MAXWELL_N || \
+    DK_PARAMS_MAXWELL_TABLE_N != DK_MAXWELL_TABLE_N || DK_PARAMS_TWOCHAMBER_N != DK_TWOCHAMBER_N
+#error "damper_index.h is out of date with damper_fmu/parameters.py: python -m damper_fmu.c_header"
+#endif
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -141,11 +148,13 @@ static double table_primitive(const DkTable *t, double x) {
 
 /* ---- parameters and models ------------------------------------------------------------------- */
 
-/* effect parameters e[0..10] in the order of parameters.EFFECT_PARAMETERS */
+/* the effect parameters: the block e of parameters.EFFECT_PARAMETERS */
 static void effects_init(DkModel *m, const double *e) {
-    m->ff = e[0]; m->v_eps = e[1]; m->f0 = e[2]; m->gap = e[3]; m->beta = e[4];
-    m->heat_c = e[5]; m->heat_g = e[6]; m->t_ref = e[7]; m->tau = e[8]; m->delay = e[9];
-    m->m_eq = e[10];
+    m->ff = e[DK_EFFECT_FRICTION_FORCE]; m->v_eps = e[DK_EFFECT_FRICTION_VELOCITY];
+    m->f0 = e[DK_EFFECT_PRELOAD_FORCE]; m->gap = e[DK_EFFECT_FREE_PLAY]; m->beta = e[DK_EFFECT_THERMAL_BETA];
+    m->heat_c = e[DK_EFFECT_THERMAL_CAPACITY]; m->heat_g = e[DK_EFFECT_THERMAL_CONDUCTANCE];
+    m->t_ref = e[DK_EFFECT_THERMAL_REFERENCE]; m->tau = e[DK_EFFECT_VALVE_TAU]; m->delay = e[DK_EFFECT_TIME_DELAY];
+    m->m_eq = e[DK_EFFECT_INERTIA_MASS];
     m->effects_active = m->ff != 0.0 || m->f0 != 0.0 || m->gap != 0.0 || m->beta != 0.0 ||
                         m->tau != 0.0 || m->delay != 0.0 || m->m_eq != 0.0;
 }
@@ -176,20 +185,24 @@ DK_API int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg
     m->kind = kind;
     m->damping_scale = 1.0;
     if (kind == DK_LUMPED) {
-        m->mC = p[0]; m->mO = p[1]; m->mP = p[2]; m->kB = p[3]; m->cB = p[4];
-        if (table_init(&m->fk, p + 5 + DK_NFK + DK_NFC,
-                       p + 5, DK_NFK, "Fk", msg, msglen)) return DK_ERROR;
-        if (table_init(&m->fc, p + 5 + 2 * DK_NFK + DK_NFC, p + 5 + DK_NFK, DK_NFC, "Fc", msg, msglen))
+        m->mC = p[DK_LUMPED_M_C]; m->mO = p[DK_LUMPED_M_O]; m->mP = p[DK_LUMPED_M_P];
+        m->kB = p[DK_LUMPED_K_B]; m->cB = p[DK_LUMPED_C_B];
+        if (table_init(&m->fk, p + DK_LUMPED_FK_X01, p + DK_LUMPED_FK_01, DK_LUMPED_FK_COUNT, "Fk", msg, msglen))
             return DK_ERROR;
-        effects_init(m, p + 5 + 2 * DK_NFK + 2 * DK_NFC);
+        if (table_init(&m->fc, p + DK_LUMPED_FC_V01, p + DK_LUMPED_FC_01, DK_LUMPED_FC_COUNT, "Fc", msg, msglen))
+            return DK_ERROR;
+        effects_init(m, p + DK_LUMPED_EFFECTS);
     } else if (kind == DK_MAXWELL) {
-        m->ks = p[0]; m->c = p[1];
+        m->ks = p[DK_MAXWELL_K_S]; m->c = p[DK_MAXWELL_C];
     } else if (kind == DK_TWOCHAMBER) {
-        double xs[DK_NFC_TC + 1], fs[DK_NFC_TC + 1], cchk = p[DK_NTC + DK_NFC_TC], r;
+        double xs[DK_TWOCHAMBER_FC_COUNT + 1], fs[DK_TWOCHAMBER_FC_COUNT + 1], cchk = p[DK_TWOCHAMBER_CHECK_DAMPING], r;
         int k, np_ = 0;
-        m->kM = p[0]; m->cM = p[1]; m->kR0 = p[2]; m->kC0 = p[3]; m->ar = p[4];
-        m->LR = p[5]; m->LC = p[6]; m->air = p[7]; m->fres = p[8]; m->kgas = p[9];
-        if (table_init(&m->fc, p + DK_NTC + 1 + DK_NFC_TC, p + DK_NTC, DK_NFC_TC, "Fc", msg, msglen))
+        m->kM = p[DK_TWOCHAMBER_K_M]; m->cM = p[DK_TWOCHAMBER_C_M]; m->kR0 = p[DK_TWOCHAMBER_K_R];
+        m->kC0 = p[DK_TWOCHAMBER_K_C]; m->ar = p[DK_TWOCHAMBER_AREA_RATIO]; m->LR = p[DK_TWOCHAMBER_L_R];
+        m->LC = p[DK_TWOCHAMBER_L_C]; m->air = p[DK_TWOCHAMBER_AIR]; m->fres = p[DK_TWOCHAMBER_F_RES];
+        m->kgas = p[DK_TWOCHAMBER_K_GAS];
+        if (table_init(&m->fc, p + DK_TWOCHAMBER_FC_V01, p + DK_TWOCHAMBER_FC_01, DK_TWOCHAMBER_FC_COUNT, "Fc", msg,
+                       msglen))
             return DK_ERROR;
         r = 1.0 - m->ar;
         /* piston valve: the check (slope cchk) below zero, the table's rebound half above */
@@ -202,15 +215,17 @@ DK_API int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg
         for (k = m->fc.n - 1; k >= 0; k--)
             if (m->fc.xs[k] < 0.0) { xs[np_] = -r * m->fc.xs[k]; fs[np_] = -m->fc.fs[k] / r; np_++; }
         if (table_init(&m->vf, xs, fs, np_, "foot valve", msg, msglen)) return DK_ERROR;
-        effects_init(m, p + DK_NTC + 1 + 2 * DK_NFC_TC);
+        effects_init(m, p + DK_TWOCHAMBER_EFFECTS);
         m->inside = 1;
         m->tc_gap = m->gap;  /* the free play is the mount's dead band (models.py: TwoChamberModel.mount) */
         m->gap = 0.0;
         m->effects_active = m->ff != 0.0 || m->f0 != 0.0 || m->beta != 0.0 || m->tau != 0.0 || m->delay != 0.0 ||
                             m->m_eq != 0.0;
     } else {
-        m->ks = p[0];
-        if (table_init(&m->fc, p + 1 + DK_NFC, p + 1, DK_NFC, "Fc", msg, msglen)) return DK_ERROR;
+        m->ks = p[DK_MAXWELL_TABLE_K_S];
+        if (table_init(&m->fc, p + DK_MAXWELL_TABLE_FC_V01, p + DK_MAXWELL_TABLE_FC_01, DK_MAXWELL_TABLE_FC_COUNT, "Fc",
+                       msg, msglen))
+            return DK_ERROR;
     }
     return DK_OK;
 }

@@ -42,21 +42,21 @@
 #include "damper_fmu_config.h"
 
 #if DK_MODEL_KIND == DK_LUMPED
-#define NPAR DK_PARAMS_LUMPED_N
+#define NPAR DK_LUMPED_N
 #define SPECS DK_PARAMS_LUMPED
-#define NDIAG 8
+#define NDIAG DK_LUMPED_NDIAG
 #elif DK_MODEL_KIND == DK_MAXWELL
-#define NPAR DK_PARAMS_MAXWELL_N
+#define NPAR DK_MAXWELL_N
 #define SPECS DK_PARAMS_MAXWELL
-#define NDIAG 1
+#define NDIAG DK_MAXWELL_NDIAG
 #elif DK_MODEL_KIND == DK_TWOCHAMBER
-#define NPAR DK_PARAMS_TWOCHAMBER_N
+#define NPAR DK_TWOCHAMBER_N
 #define SPECS DK_PARAMS_TWOCHAMBER
-#define NDIAG 5
+#define NDIAG DK_TWOCHAMBER_NDIAG
 #else
-#define NPAR DK_PARAMS_MAXWELL_TABLE_N
+#define NPAR DK_MAXWELL_TABLE_N
 #define SPECS DK_PARAMS_MAXWELL_TABLE
-#define NDIAG 1
+#define NDIAG DK_MAXWELL_TABLE_NDIAG
 #endif
 
 #define HAS_EFFECTS (DK_MODEL_KIND == DK_LUMPED || DK_MODEL_KIND == DK_TWOCHAMBER)
@@ -359,7 +359,7 @@ fmi3Status fmi3GetFloat64(fmi3Instance comp, const fmi3ValueReference vr[], size
                           size_t nValues) {
     Instance *c = (Instance *)comp;
     size_t i;
-    double diag[8], force0 = 0.0;
+    double diag[DK_NDIAG_MAX], force0 = 0.0;
     int have_diag = 0;
     if (!c) return fmi3Error;
     if (!count_ok(c, "fmi3GetFloat64", n, nValues)) return fmi3Error;
