@@ -247,8 +247,9 @@ def _build_native(kind: str, target: Path, start_values: dict, settings: dict, f
         src = tmp / "sources"
         src.mkdir()
         wrapper = f"fmi{fmi_version}_damper.c"
-        for f in (C_DIR / wrapper, C_DIR / "damper_kernel.c", C_DIR / "damper_kernel.h", C_DIR / "damper_index.h",
-                  *_fmi_headers(fmi_version)):
+        # the wrapper includes the rest: the FMI-independent part, the kernel, their headers
+        for f in (C_DIR / wrapper, C_DIR / "fmu_common.c", C_DIR / "damper_kernel.c", C_DIR / "damper_kernel.h",
+                  C_DIR / "damper_index.h", *_fmi_headers(fmi_version)):
             shutil.copyfile(f, src / f.name)
         (src / "damper_params.h").write_text(header)
         (src / "damper_fmu_config.h").write_text(config)
