@@ -533,41 +533,60 @@ static double tc_residual(const DkModel *m, const double *q, const double *yb, d
     return fabs(r[0]) + fabs(r[1]) + fabs(r[2]) + fabs(r[3]) + fabs(r[4]);
 }
 
-/* the chamber and valve equations (residuals 0-3) solved for p4 = (up, uf, fR, gC) at the piston
-   velocity w; *dfw = d(fR - gC)/dw; returns the sum of |r0..r3| (models.py: _valves_given_w) */
-static double tc_valves_given_w(DkModel *m, double w, double *p4, const double *yb, double g, double x1,
-                                double v1, double *dfw) {
-    double q[5], r[5], J[5][5], A[5][5], d[5], qt[5], rt[5], rhs[5], rn, rnt = 0.0;
-    int it, i, j, h;
-    q[0] = w;
-    for (i = 0; i < 4; i++) q[i + 1] = p4[i];
+static double abs_sum(const double *r, int n) {
+    double s = fabs(r[0]);
+    int i;
+    for (i = 1; i < n; i++) s += fabs(r[i]);
+    return s;
+}
+
+/* Newton's method on the stage residuals for the unknowns q[held..4] (q[0..held-1] stay as given),
+   on as many residuals as unknowns: full steps first, then a backtracking line search on the sum of
+   those |residuals| (models.py: TwoChamberModel._newton). On return r, J are at q and *rn is the
+   residual sum; DK_ERROR when a Jacobian could not be solved. */
+static int tc_newton(DkModel *m, double *q, int held, const double *yb, double g, double x1, double v1,
+                     double *r, double J[5][5], double *rn) {
+    double A[5][5], d[5], qt[5], rt[5], rnt = 0.0;
+    int n = 5 - held, it, i, j, h;
     tc_residual(m, q, yb, g, x1, v1, r, J);
-    rn = fabs(r[0]) + fabs(r[1]) + fabs(r[2]) + fabs(r[3]);
+    *rn = abs_sum(r, n);
     for (it = 0; it < TC_MAX_NEWTON; it++) {
         int accepted = 0;
         double lam = 1.0;
-        if (rn <= m->tc_tol) break;
-        for (i = 0; i < 4; i++) for (j = 0; j < 4; j++) A[i][j] = J[i][j + 1];
-        if (solve_n(A, r, d, 4)) break;
+        if (*rn <= m->tc_tol) break;
+        for (i = 0; i < n; i++) for (j = 0; j < n; j++) A[i][j] = J[i][j + held];
+        if (solve_n(A, r, d, n)) return DK_ERROR;
         if (it < TC_PLAIN) {
-            for (i = 0; i < 4; i++) q[i + 1] = q[i + 1] - d[i];
+            for (i = 0; i < n; i++) q[i + held] = q[i + held] - d[i];
             tc_residual(m, q, yb, g, x1, v1, r, J);
-            rn = fabs(r[0]) + fabs(r[1]) + fabs(r[2]) + fabs(r[3]);
+            *rn = abs_sum(r, n);
             continue;
         }
         for (h = 0; h < TC_MAX_HALVINGS; h++) {
-            qt[0] = w;
-            for (i = 0; i < 4; i++) qt[i + 1] = q[i + 1] - lam * d[i];
+            for (i = 0; i < held; i++) qt[i] = q[i];
+            for (i = 0; i < n; i++) qt[i + held] = q[i + held] - lam * d[i];
             tc_residual(m, qt, yb, g, x1, v1, rt, NULL);
-            rnt = fabs(rt[0]) + fabs(rt[1]) + fabs(rt[2]) + fabs(rt[3]);
-            if (rnt < rn) { accepted = 1; break; }
+            rnt = abs_sum(rt, n);
+            if (rnt < *rn) { accepted = 1; break; }
             lam *= 0.5;
         }
         if (!accepted) break;
         for (i = 0; i < 5; i++) q[i] = qt[i];
-        rn = rnt;
+        *rn = rnt;
         tc_residual(m, q, yb, g, x1, v1, r, J);
     }
+    return DK_OK;
+}
+
+/* the chamber and valve equations (residuals 0-3) solved for p4 = (up, uf, fR, gC) at the piston
+   velocity w; *dfw = d(fR - gC)/dw; returns the sum of |r0..r3| (models.py: _valves_given_w) */
+static double tc_valves_given_w(DkModel *m, double w, double *p4, const double *yb, double g, double x1,
+                                double v1, double *dfw) {
+    double q[5], r[5], J[5][5], A[5][5], d[5], rhs[5], rn;
+    int i, j;
+    q[0] = w;
+    for (i = 0; i < 4; i++) q[i + 1] = p4[i];
+    tc_newton(m, q, 1, yb, g, x1, v1, r, J, &rn); /* a singular Jacobian ends the iteration: rn says how far */
     for (i = 0; i < 4; i++) {
         for (j = 0; j < 4; j++) A[i][j] = J[i][j + 1];
         rhs[i] = -J[i][0];
@@ -621,35 +640,14 @@ static int tc_stage_nested(DkModel *m, const double *yb, double g, double x1, do
 
 static int tc_stage(DkModel *m, const double *yb, double g, double x1, double v1, double *out, char *msg,
                     size_t msglen) {
-    double fb = yb[1] - yb[2] + (m->ff != 0.0 ? m->ff * tanh(yb[6] / m->v_eps) : 0.0), q[5], w0, r[5], J[5][5], d[5], qt[5], rt[5], rn, rnt = 0.0;
-    int it, i, h;
+    double fb = yb[1] - yb[2] + (m->ff != 0.0 ? m->ff * tanh(yb[6] / m->v_eps) : 0.0), q[5], w0, r[5], J[5][5], rn;
     if (m->tc_tol == 0.0) m->tc_tol = TC_TOL * force_scale(m);
     q[0] = (m->cM * v1 - fb + m->kM * (x1 - yb[0])) / (m->cM + m->kM * g);
     q[1] = yb[4]; q[2] = yb[5]; q[3] = yb[1]; q[4] = yb[2];
     w0 = q[0];
-    rn = tc_residual(m, q, yb, g, x1, v1, r, J);
-    for (it = 0; it < TC_MAX_NEWTON; it++) {
-        int accepted = 0;
-        double lam = 1.0;
-        if (rn <= m->tc_tol) break;
-        if (solve_n(J, r, d, 5)) {
-            snprintf(msg, msglen, "two-chamber stage: singular Jacobian");
-            return DK_ERROR;
-        }
-        if (it < TC_PLAIN) {
-            for (i = 0; i < 5; i++) q[i] = q[i] - d[i];
-            rn = tc_residual(m, q, yb, g, x1, v1, r, J);
-            continue;
-        }
-        for (h = 0; h < TC_MAX_HALVINGS; h++) {
-            for (i = 0; i < 5; i++) qt[i] = q[i] - lam * d[i];
-            rnt = tc_residual(m, qt, yb, g, x1, v1, rt, NULL);
-            if (rnt < rn) { accepted = 1; break; }
-            lam *= 0.5;
-        }
-        if (!accepted) break;
-        for (i = 0; i < 5; i++) q[i] = qt[i];
-        rn = tc_residual(m, q, yb, g, x1, v1, r, J);
+    if (tc_newton(m, q, 0, yb, g, x1, v1, r, J, &rn)) {
+        snprintf(msg, msglen, "two-chamber stage: singular Jacobian");
+        return DK_ERROR;
     }
     if (!(rn <= m->tc_tol) && tc_stage_nested(m, yb, g, x1, v1, w0, rn, q, msg, msglen)) return DK_ERROR;
     out[0] = yb[0] + g * q[0]; out[1] = q[3]; out[2] = q[4]; out[3] = yb[3]; out[4] = q[1]; out[5] = q[2];
