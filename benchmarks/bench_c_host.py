@@ -24,7 +24,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from build_fmu import SLAVES, ensure_fmu, native_reason  # noqa: E402
+from damper_fmu.fmu import SLAVES, ensure_fmu, native_reason  # noqa: E402
 
 HOST = r"""
 #define _POSIX_C_SOURCE 199309L

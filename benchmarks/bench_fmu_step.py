@@ -24,7 +24,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from build_fmu import ensure_fmu  # noqa: E402
+from damper_fmu.fmu import ensure_fmu  # noqa: E402
 from damper_fmu import simulate  # noqa: E402
 from tuner.identification.runner import FmuRunner  # noqa: E402
 

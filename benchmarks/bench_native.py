@@ -33,7 +33,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from build_fmu import ensure_fmu  # noqa: E402
+from damper_fmu.fmu import ensure_fmu  # noqa: E402
 from tuner.data.preprocess import prepare  # noqa: E402
 from tuner.data.reading import load_dataset  # noqa: E402
 from tuner.identification.engine import Engine  # noqa: E402

@@ -32,7 +32,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from bench_fmu_step import SimulateFmuWay  # noqa: E402
-from build_fmu import ensure_fmu  # noqa: E402
+from damper_fmu.fmu import ensure_fmu  # noqa: E402
 from damper_fmu import simulate  # noqa: E402
 from damper_fmu.parameters import defaults  # noqa: E402
 from tuner.identification import firefly  # noqa: E402

@@ -19,6 +19,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from campaign.vehicle import VehicleParams  # noqa: E402
+from damper_fmu.fmu import ensure_fmu  # noqa: E402
+from tuner.vehicle.compare import _irregularity, scenario_runs  # noqa: E402
+from tuner.vehicle.cosim import VehicleCosim, master_loop, reference_run  # noqa: E402
+from tuner.vehicle.hunting import critical_speed_time_domain  # noqa: E402
+
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -26,12 +32,6 @@ def main() -> int:
     ap.add_argument("--t-end", type=float, default=20.0)
     ap.add_argument("--no-search", action="store_true", help="skip the critical speed searches")
     args = ap.parse_args()
-
-    from build_fmu import ensure_fmu
-    from campaign.vehicle import VehicleParams
-    from tuner.vehicle.compare import _irregularity, scenario_runs
-    from tuner.vehicle.cosim import VehicleCosim, master_loop, reference_run
-    from tuner.vehicle.hunting import critical_speed_time_domain
 
     fmus = args.fmus or [ensure_fmu(k) for k in ("maxwell", "lumped", "twochamber")]
     sc = scenario_runs()["straight_irregular"]

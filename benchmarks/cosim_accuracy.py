@@ -19,7 +19,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from build_fmu import ensure_fmu  # noqa: E402
+from damper_fmu.fmu import ensure_fmu  # noqa: E402
 from damper_fmu import EXTRAPOLATE, defaults  # noqa: E402
 from tuner.identification.reference import lumped_reference  # noqa: E402
 from tuner.identification.runner import FmuRunner  # noqa: E402

@@ -1,12 +1,16 @@
-"""Railway hydraulic damper models as plain Python (no FMI here).
+"""Railway hydraulic damper models: the Python reference, the C kernel and the FMUs built from them.
 
 SI units throughout. Sign convention: stroke x1 [m] positive in extension, stroke
 velocity v1 [m/s] its time derivative, force [N] positive in tension.
 
 - ``parameters``: parameter names, units, reference presets (paper Table 2) and bounds;
 - ``tables``: piecewise-linear characteristics through the origin;
-- ``models``: the model equations (lumped, Maxwell, table Maxwell), single source for all engines;
-- ``integrator``: L-stable SDIRK2 stepping with sub-steps, and the in-process ``simulate``.
+- ``models``: the model equations (lumped, Maxwell, table Maxwell, two-chamber), single source for all engines;
+- ``effects``: the optional effect elements;
+- ``integrator``: L-stable SDIRK2 stepping with sub-steps, and the in-process ``simulate``;
+- ``native``: the same in C (``c/damper_kernel.c``), compiled on first use, through ctypes;
+- ``model_description`` and ``fmu``: the FMUs (FMI 2.0, 3.0; native and pythonfmu), built and
+  validated (``python build_fmu.py`` is their command line).
 """
 from .integrator import EXTRAPOLATE, REPLAY, Simulator, simulate
 from .models import ConvergenceError, make_model

@@ -39,6 +39,7 @@ import math
 
 import numpy as np
 
+from . import native
 from .effects import Effects
 from .models import ConvergenceError, make_model
 from .parameters import EFFECT_MODELS, EFFECTS_INSIDE
@@ -347,8 +348,6 @@ def simulate(model, time, stroke, stroke_velocity, *, params=None, max_step=DEFA
     if backend not in ("auto", "python", "native"):
         raise ValueError(f"backend must be 'auto', 'python' or 'native', got {backend!r}")
     if backend != "python":
-        from . import native
-
         if native.available() or backend == "native":
             return native.simulate(model.kind, model.params, t, x, v, max_step=max_step,
                                    input_mode=input_mode, temperature=temp, tolerance=tolerance)

@@ -389,6 +389,15 @@ def _sigmoid(z: float) -> float:
     return ez / (1.0 + ez)
 
 
+def _abs_sum(r: list[float], n: int) -> float:
+    """|r[0]| + ... + |r[n-1]|, added left to right as the C kernel does (not sum(): Python 3.12's
+    compensated float sum would differ from C in the last bits)."""
+    s = abs(r[0])
+    for i in range(1, n):
+        s += abs(r[i])
+    return s
+
+
 def _solve(a: list[list[float]], b: list[float]) -> list[float] | None:
     """Solve the n x n system a x = b (n <= 5) by Gaussian elimination with partial pivoting (a, b
     copied); None when singular. Written as the C kernel's ``solve_n``, operation for operation."""
@@ -546,34 +555,31 @@ class TwoChamberModel:
                [dr4, 0.0, 0.0, 1.0, -1.0]]
         return r, jac
 
-    def stage(self, yb, g: float, x1: float, v1: float) -> list[float]:
-        """Solve y = yb + g f(y) for the two-chamber model (x1 [m], v1 [m/s] at the stage time).
-
-        Unknowns: piston velocity w, valve rates up, uf and the chamber forces. Newton's method,
-        started from the valve rates of the base point and the piston velocity at frozen chamber
-        forces: full steps first (exact within the valves' linear pieces), then, if the pieces
-        keep changing, a backtracking line search on the sum of |residuals| [N]."""
-        fb = yb[1] - yb[2] + (self.ffr * math.tanh(yb[6] / self.v_eps) if self.ffr else 0.0)
-        w0 = (self.cM * v1 - fb + self.kM * (x1 - yb[0])) / (self.cM + self.kM * g)
-        q = [w0, yb[4], yb[5], yb[1], yb[2]]
+    def _newton(self, q: list[float], held: int, yb, g: float, x1: float, v1: float):
+        """Newton's method on the stage residuals for the unknowns q[held:] (the first ``held`` stay
+        as given), on as many residuals as unknowns: full steps first (exact within the valves'
+        linear pieces, usually done in 2-4), then, if the pieces keep changing, a backtracking line
+        search on the sum of those |residuals| [N]. Returns (q, Jacobian at q, residual sum,
+        singular: True when a Jacobian could not be solved)."""
+        n = 5 - held
         r, jac = self._residual(q, yb, g, x1, v1, True)
-        rn = abs(r[0]) + abs(r[1]) + abs(r[2]) + abs(r[3]) + abs(r[4])
+        rn = _abs_sum(r, n)
         for it in range(_TC_MAX_NEWTON):
             if rn <= self._tol:
                 break
-            d = _solve(jac, r)
+            d = _solve([row[held:] for row in jac[:n]], r[:n])
             if d is None:
-                raise ConvergenceError("two-chamber stage: singular Jacobian")
-            if it < _TC_PLAIN:  # plain Newton: exact within the valves' pieces, usually done in 2-4
-                q = [qi - di for qi, di in zip(q, d)]
+                return q, jac, rn, True
+            if it < _TC_PLAIN:  # plain Newton
+                q = q[:held] + [qi - di for qi, di in zip(q[held:], d)]
                 r, jac = self._residual(q, yb, g, x1, v1, True)
-                rn = abs(r[0]) + abs(r[1]) + abs(r[2]) + abs(r[3]) + abs(r[4])
+                rn = _abs_sum(r, n)
                 continue
             lam, accepted = 1.0, False  # then damped: backtracking on the sum of |residuals|
             for _ in range(_TC_MAX_HALVINGS):
-                qt = [qi - lam * di for qi, di in zip(q, d)]
+                qt = q[:held] + [qi - lam * di for qi, di in zip(q[held:], d)]
                 rt, _ = self._residual(qt, yb, g, x1, v1, False)
-                rnt = abs(rt[0]) + abs(rt[1]) + abs(rt[2]) + abs(rt[3]) + abs(rt[4])
+                rnt = _abs_sum(rt, n)
                 if rnt < rn:
                     accepted = True
                     break
@@ -582,6 +588,19 @@ class TwoChamberModel:
                 break
             q, rn = qt, rnt
             r, jac = self._residual(q, yb, g, x1, v1, True)
+        return q, jac, rn, False
+
+    def stage(self, yb, g: float, x1: float, v1: float) -> list[float]:
+        """Solve y = yb + g f(y) for the two-chamber model (x1 [m], v1 [m/s] at the stage time).
+
+        Unknowns: piston velocity w, valve rates up, uf and the chamber forces. Newton's method
+        (``_newton``), started from the valve rates of the base point and the piston velocity at
+        frozen chamber forces."""
+        fb = yb[1] - yb[2] + (self.ffr * math.tanh(yb[6] / self.v_eps) if self.ffr else 0.0)
+        w0 = (self.cM * v1 - fb + self.kM * (x1 - yb[0])) / (self.cM + self.kM * g)
+        q, _, rn, singular = self._newton([w0, yb[4], yb[5], yb[1], yb[2]], 0, yb, g, x1, v1)
+        if singular:
+            raise ConvergenceError("two-chamber stage: singular Jacobian")
         if not rn <= self._tol:  # e.g. a steep seal friction at a reversal: the nested solve
             q = self._stage_nested(yb, g, x1, v1, w0, rn)
         w, up, uf, fR, gC = q
@@ -590,34 +609,8 @@ class TwoChamberModel:
     def _valves_given_w(self, w: float, p4: list[float], yb, g: float, x1: float, v1: float):
         """The chamber and valve equations (residuals 0-3) solved for (up, uf, fR, gC) at the piston
         velocity w [m/s], from p4; returns (p4, d(fR - gC)/dw [N s/m], |r0..r3| sum) -- the same
-        Newton iteration as ``stage`` on four unknowns; the derivative by implicit differentiation."""
-        q = [w, *p4]
-        r, jac = self._residual(q, yb, g, x1, v1, True)
-        rn = abs(r[0]) + abs(r[1]) + abs(r[2]) + abs(r[3])
-        for it in range(_TC_MAX_NEWTON):
-            if rn <= self._tol:
-                break
-            d = _solve([row[1:] for row in jac[:4]], r[:4])
-            if d is None:
-                break
-            if it < _TC_PLAIN:
-                q = [w] + [qi - di for qi, di in zip(q[1:], d)]
-                r, jac = self._residual(q, yb, g, x1, v1, True)
-                rn = abs(r[0]) + abs(r[1]) + abs(r[2]) + abs(r[3])
-                continue
-            lam, accepted = 1.0, False
-            for _ in range(_TC_MAX_HALVINGS):
-                qt = [w] + [qi - lam * di for qi, di in zip(q[1:], d)]
-                rt, _ = self._residual(qt, yb, g, x1, v1, False)
-                rnt = abs(rt[0]) + abs(rt[1]) + abs(rt[2]) + abs(rt[3])
-                if rnt < rn:
-                    accepted = True
-                    break
-                lam *= 0.5
-            if not accepted:
-                break
-            q, rn = qt, rnt
-            r, jac = self._residual(q, yb, g, x1, v1, True)
+        Newton iteration as ``stage`` with w held; the derivative by implicit differentiation."""
+        q, jac, rn, _ = self._newton([w, *p4], 1, yb, g, x1, v1)
         dq = _solve([row[1:] for row in jac[:4]], [-row[0] for row in jac[:4]])
         dfw = 0.0 if dq is None else dq[2] - dq[3]
         return q[1:], dfw, rn

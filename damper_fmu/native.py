@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .models import ConvergenceError
 from .parameters import MODEL_PARAMETERS, check_rule
 
 __all__ = ["available", "reason", "library", "simulate", "parameter_header", "KINDS", "CFLAGS", "compiler",
@@ -162,8 +163,6 @@ def simulate(kind: str, params: dict, t, x, v, *, max_step: float, input_mode: i
              temperature=None) -> np.ndarray:
     """Force [N] at every sample of a stroke (time [s], stroke [m], velocity [m/s]; temperature
     [degC] or None), as ``damper_fmu.simulate``; raises ValueError with the kernel's message."""
-    from .models import ConvergenceError
-
     lib = library()
     p = _values(kind, params)
     t, x, v = (np.ascontiguousarray(a, dtype=float) for a in (t, x, v))

@@ -9,11 +9,11 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from damper_fmu.fmu import ensure_fmu  # noqa: E402  (this checkout's package, by the path above)
+
 
 @pytest.fixture(scope="session")
 def fmu_paths():
-    from build_fmu import ensure_fmu
-
     kinds = ("lumped", "maxwell", "maxwell_table", "twochamber")
     paths = {kind: ensure_fmu(kind) for kind in (*kinds, "empty")}
     paths.update({f"{kind}_py": ensure_fmu(kind, flavour="python") for kind in kinds})

@@ -12,7 +12,8 @@ from fmpy import extract, platform_tuple, read_model_description, sharedLibraryE
 from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
-from build_fmu import FMI3_VR, ensure_fmu, native_reason
+from damper_fmu.fmu import build, ensure_fmu, native_reason
+from damper_fmu.model_description import FMI3_VR
 
 from test_fmi_conformance import H, Slave, exact_and_jittered, sine, stroke_run
 
@@ -408,7 +409,6 @@ def test_fmi2_and_fmi3_binaries_of_one_model_share_a_process(fmu_paths, fmu3_pat
 def test_tuned_fmi3_fmu_equals_the_tuned_fmi2_fmu(tmp_path):
     """build(..., start_values=identified, fmi_version=3), as the tuner exports a tuned FMU: its
     start values are the identified ones and its forces equal the tuned FMI 2.0 FMU's."""
-    from build_fmu import build
     from damper_fmu.parameters import MODEL_PARAMETERS
 
     preset = {p.name: p.default for p in MODEL_PARAMETERS["lumped"]}

@@ -4,6 +4,7 @@ import pytest
 from fmpy import read_model_description
 
 from damper_fmu import EXTRAPOLATE, MODEL_PARAMETERS, REPLAY, defaults, simulate
+from damper_fmu.fmu import build, validate
 from tuner.cosim import mass_spring_cosimulation
 from tuner.identification.runner import FmuRunner, SimulationError
 
@@ -28,8 +29,6 @@ def runners(fmu_paths):
 
 @pytest.mark.parametrize("kind", KINDS + [f"{k}_py" for k in KINDS] + ["empty"])
 def test_fmpy_validator_reports_no_problem(fmu_paths, kind):
-    from build_fmu import validate
-
     assert validate(fmu_paths[kind]) == []
 
 
@@ -142,8 +141,6 @@ def test_communication_steps_from_0p1_to_10_ms_are_stable_and_accurate(runners, 
 
 
 def test_exported_fmu_carries_tuned_start_values(tmp_path):
-    from build_fmu import build, validate
-
     p = defaults("lumped")
     tuned = {"k_B": 2e8, "c_B": 9e5, "Fc_14": 27e3, "M_C": 3.0}
     path = build("lumped", tmp_path, start_values=tuned, filename="tuned.fmu")

@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from damper_fmu.fmu import native_reason
 from tuner.data.reading import DataError, load_dataset, load_test, load_tests
 from tuner.data.preprocess import prepare
 from tuner.cli.folders import DEFAULT_DATASET
@@ -273,7 +274,7 @@ def test_a_fit_of_a_faster_damper_exports_tables_covering_its_velocity_range(tmp
     assert main(["fit", "--identification", str(files[0]), "--validation", str(files[1]), "--out", str(out),
                  "--models", "lumped", "--population", "3", "--iterations", "1", "--polish", "0", "--workers", "0",
                  "--no-diagnose", "--diff-band", "40",
-                 "--engine", "inprocess" if __import__("build_fmu").native_reason() else "native"]) == 0
+                 "--engine", "inprocess" if native_reason() else "native"]) == 0
     settings = __import__("json").loads((out / "metrics.json").read_text())["settings"]
     assert settings["diff_band_hz"] == 40.0 and "0.5 % up to 40 Hz" in settings["preprocessing"][0]
     vals = __import__("json").loads((out / "parameters.json").read_text())["lumped"]["values"]

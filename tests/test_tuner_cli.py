@@ -10,6 +10,7 @@ import pytest
 
 from campaign.synthetic import write_model_dataset
 from damper_fmu import defaults
+from damper_fmu.fmu import native_reason, validate
 from tuner.__main__ import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -42,7 +43,6 @@ def test_small_identification_through_the_fmu_recovers_maxwell_parameters(maxwel
     # the model that made the data, fitted at 200 Hz, holds on the 1 kHz files (tuner.identification.full_rate)
     assert metrics["full_rate"]["maxwell"]["holds"] is True, metrics["full_rate"]["maxwell"]["text"]
     assert set(metrics["full_rate"]["maxwell"]["tests"]) == set(metrics["tests"])
-    from build_fmu import validate
 
     assert validate(out / "fmu" / "DamperMaxwell_tuned.fmu") == []
     hist = json.loads((out / "history_maxwell.json").read_text())
@@ -143,8 +143,6 @@ def test_a_stroke_in_the_wrong_unit_stops_the_fit_with_the_fmus_reason(maxwell_d
     """A small-stroke file whose millimetres pass the reader's 2 m plausibility check as metres:
     the native FMU refuses strokes beyond its stroke_limit (1 m), no candidate can be simulated,
     and the fit stops with exit status 2 and the reason instead of a useless result."""
-    from build_fmu import native_reason
-
     if native_reason():
         pytest.skip(f"the input limits are the native FMU's: {native_reason()}")
     import pandas as pd

@@ -11,6 +11,7 @@ import pytest
 from campaign.irregularity import A_LATERAL, synthesize
 from campaign.scenarios import SCENARIOS, START_OFFSET
 from campaign.vehicle import VehicleParams
+from damper_fmu.fmu import ensure_fmu
 from tuner.vehicle.cosim import VehicleCosim, check_damper_fmu, master_loop, reference_run
 
 LINEAR = dataclasses.replace(VehicleParams(), yaw_blowoff_velocity=math.inf)
@@ -19,8 +20,6 @@ AT_BUILTIN = {"k_s": LINEAR.yaw_series_stiffness, "c": LINEAR.yaw_damping}
 
 @pytest.fixture(scope="module")
 def maxwell_fmu():
-    from build_fmu import ensure_fmu
-
     return ensure_fmu("maxwell")
 
 
@@ -57,7 +56,6 @@ def test_table_maxwell_fmu_reproduces_the_builtin_blowoff_damper():
     FMU's Fc,O (exact: v_b = 5 mm/s is a table abscissa, the end pieces extrapolate with c2): the curve
     entry with the dashpot beyond blow-off on a tenth of the samples gives the built-in vehicle's
     response (measured: bogie yaw within 4.6e-5 of its peak, damper force within 1.4e-4)."""
-    from build_fmu import ensure_fmu
     from damper_fmu.parameters import FC_ABSCISSAE
 
     p = dataclasses.replace(VehicleParams(), yaw_blowoff_velocity=0.005)

@@ -19,7 +19,7 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from build_fmu import SLAVES, build
+from damper_fmu.fmu import SLAVES, build
 from damper_fmu.parameters import EFFECT_MODELS, MODEL_PARAMETERS
 from tuner.data.reading import RigTest
 from tuner.diagnosis.diagnose import DiagnosisSettings, choose_base, diagnose

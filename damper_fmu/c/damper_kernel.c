@@ -3,6 +3,13 @@
 #include "damper_kernel.h"
 #include "damper_params.h"
 
+/* the parameter specs (damper_params.h, generated per build) and the committed index names
+   (damper_index.h) come from the same damper_fmu/parameters.py: refuse a stale header */
+#if DK_PARAMS_LUMPED_N != DK_LUMPED_N || DK_PARAMS_MAXWELL_N != DK_MAXWELL_N || \
+    DK_PARAMS_MAXWELL_TABLE_N != DK_MAXWELL_TABLE_N || DK_PARAMS_TWOCHAMBER_N != DK_TWOCHAMBER_N
+#error "damper_index.h is out of date with damper_fmu/parameters.py: python -m damper_fmu.c_header"
+#endif
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -141,11 +148,13 @@ static double table_primitive(const DkTable *t, double x) {
 
 /* ---- parameters and models ------------------------------------------------------------------- */
 
-/* effect parameters e[0..10] in the order of parameters.EFFECT_PARAMETERS */
+/* the effect parameters: the block e of parameters.EFFECT_PARAMETERS */
 static void effects_init(DkModel *m, const double *e) {
-    m->ff = e[0]; m->v_eps = e[1]; m->f0 = e[2]; m->gap = e[3]; m->beta = e[4];
-    m->heat_c = e[5]; m->heat_g = e[6]; m->t_ref = e[7]; m->tau = e[8]; m->delay = e[9];
-    m->m_eq = e[10];
+    m->ff = e[DK_EFFECT_FRICTION_FORCE]; m->v_eps = e[DK_EFFECT_FRICTION_VELOCITY];
+    m->f0 = e[DK_EFFECT_PRELOAD_FORCE]; m->gap = e[DK_EFFECT_FREE_PLAY]; m->beta = e[DK_EFFECT_THERMAL_BETA];
+    m->heat_c = e[DK_EFFECT_THERMAL_CAPACITY]; m->heat_g = e[DK_EFFECT_THERMAL_CONDUCTANCE];
+    m->t_ref = e[DK_EFFECT_THERMAL_REFERENCE]; m->tau = e[DK_EFFECT_VALVE_TAU]; m->delay = e[DK_EFFECT_TIME_DELAY];
+    m->m_eq = e[DK_EFFECT_INERTIA_MASS];
     m->effects_active = m->ff != 0.0 || m->f0 != 0.0 || m->gap != 0.0 || m->beta != 0.0 ||
                         m->tau != 0.0 || m->delay != 0.0 || m->m_eq != 0.0;
 }
@@ -176,20 +185,24 @@ DK_API int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg
     m->kind = kind;
     m->damping_scale = 1.0;
     if (kind == DK_LUMPED) {
-        m->mC = p[0]; m->mO = p[1]; m->mP = p[2]; m->kB = p[3]; m->cB = p[4];
-        if (table_init(&m->fk, p + 5 + DK_NFK + DK_NFC,
-                       p + 5, DK_NFK, "Fk", msg, msglen)) return DK_ERROR;
-        if (table_init(&m->fc, p + 5 + 2 * DK_NFK + DK_NFC, p + 5 + DK_NFK, DK_NFC, "Fc", msg, msglen))
+        m->mC = p[DK_LUMPED_M_C]; m->mO = p[DK_LUMPED_M_O]; m->mP = p[DK_LUMPED_M_P];
+        m->kB = p[DK_LUMPED_K_B]; m->cB = p[DK_LUMPED_C_B];
+        if (table_init(&m->fk, p + DK_LUMPED_FK_X01, p + DK_LUMPED_FK_01, DK_LUMPED_FK_COUNT, "Fk", msg, msglen))
             return DK_ERROR;
-        effects_init(m, p + 5 + 2 * DK_NFK + 2 * DK_NFC);
+        if (table_init(&m->fc, p + DK_LUMPED_FC_V01, p + DK_LUMPED_FC_01, DK_LUMPED_FC_COUNT, "Fc", msg, msglen))
+            return DK_ERROR;
+        effects_init(m, p + DK_LUMPED_EFFECTS);
     } else if (kind == DK_MAXWELL) {
-        m->ks = p[0]; m->c = p[1];
+        m->ks = p[DK_MAXWELL_K_S]; m->c = p[DK_MAXWELL_C];
     } else if (kind == DK_TWOCHAMBER) {
-        double xs[DK_NFC_TC + 1], fs[DK_NFC_TC + 1], cchk = p[DK_NTC + DK_NFC_TC], r;
+        double xs[DK_TWOCHAMBER_FC_COUNT + 1], fs[DK_TWOCHAMBER_FC_COUNT + 1], cchk = p[DK_TWOCHAMBER_CHECK_DAMPING], r;
         int k, np_ = 0;
-        m->kM = p[0]; m->cM = p[1]; m->kR0 = p[2]; m->kC0 = p[3]; m->ar = p[4];
-        m->LR = p[5]; m->LC = p[6]; m->air = p[7]; m->fres = p[8]; m->kgas = p[9];
-        if (table_init(&m->fc, p + DK_NTC + 1 + DK_NFC_TC, p + DK_NTC, DK_NFC_TC, "Fc", msg, msglen))
+        m->kM = p[DK_TWOCHAMBER_K_M]; m->cM = p[DK_TWOCHAMBER_C_M]; m->kR0 = p[DK_TWOCHAMBER_K_R];
+        m->kC0 = p[DK_TWOCHAMBER_K_C]; m->ar = p[DK_TWOCHAMBER_AREA_RATIO]; m->LR = p[DK_TWOCHAMBER_L_R];
+        m->LC = p[DK_TWOCHAMBER_L_C]; m->air = p[DK_TWOCHAMBER_AIR]; m->fres = p[DK_TWOCHAMBER_F_RES];
+        m->kgas = p[DK_TWOCHAMBER_K_GAS];
+        if (table_init(&m->fc, p + DK_TWOCHAMBER_FC_V01, p + DK_TWOCHAMBER_FC_01, DK_TWOCHAMBER_FC_COUNT, "Fc", msg,
+                       msglen))
             return DK_ERROR;
         r = 1.0 - m->ar;
         /* piston valve: the check (slope cchk) below zero, the table's rebound half above */
@@ -202,15 +215,17 @@ DK_API int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg
         for (k = m->fc.n - 1; k >= 0; k--)
             if (m->fc.xs[k] < 0.0) { xs[np_] = -r * m->fc.xs[k]; fs[np_] = -m->fc.fs[k] / r; np_++; }
         if (table_init(&m->vf, xs, fs, np_, "foot valve", msg, msglen)) return DK_ERROR;
-        effects_init(m, p + DK_NTC + 1 + 2 * DK_NFC_TC);
+        effects_init(m, p + DK_TWOCHAMBER_EFFECTS);
         m->inside = 1;
         m->tc_gap = m->gap;  /* the free play is the mount's dead band (models.py: TwoChamberModel.mount) */
         m->gap = 0.0;
         m->effects_active = m->ff != 0.0 || m->f0 != 0.0 || m->beta != 0.0 || m->tau != 0.0 || m->delay != 0.0 ||
                             m->m_eq != 0.0;
     } else {
-        m->ks = p[0];
-        if (table_init(&m->fc, p + 1 + DK_NFC, p + 1, DK_NFC, "Fc", msg, msglen)) return DK_ERROR;
+        m->ks = p[DK_MAXWELL_TABLE_K_S];
+        if (table_init(&m->fc, p + DK_MAXWELL_TABLE_FC_V01, p + DK_MAXWELL_TABLE_FC_01, DK_MAXWELL_TABLE_FC_COUNT, "Fc",
+                       msg, msglen))
+            return DK_ERROR;
     }
     return DK_OK;
 }
@@ -518,41 +533,60 @@ static double tc_residual(const DkModel *m, const double *q, const double *yb, d
     return fabs(r[0]) + fabs(r[1]) + fabs(r[2]) + fabs(r[3]) + fabs(r[4]);
 }
 
-/* the chamber and valve equations (residuals 0-3) solved for p4 = (up, uf, fR, gC) at the piston
-   velocity w; *dfw = d(fR - gC)/dw; returns the sum of |r0..r3| (models.py: _valves_given_w) */
-static double tc_valves_given_w(DkModel *m, double w, double *p4, const double *yb, double g, double x1,
-                                double v1, double *dfw) {
-    double q[5], r[5], J[5][5], A[5][5], d[5], qt[5], rt[5], rhs[5], rn, rnt = 0.0;
-    int it, i, j, h;
-    q[0] = w;
-    for (i = 0; i < 4; i++) q[i + 1] = p4[i];
+static double abs_sum(const double *r, int n) {
+    double s = fabs(r[0]);
+    int i;
+    for (i = 1; i < n; i++) s += fabs(r[i]);
+    return s;
+}
+
+/* Newton's method on the stage residuals for the unknowns q[held..4] (q[0..held-1] stay as given),
+   on as many residuals as unknowns: full steps first, then a backtracking line search on the sum of
+   those |residuals| (models.py: TwoChamberModel._newton). On return r, J are at q and *rn is the
+   residual sum; DK_ERROR when a Jacobian could not be solved. */
+static int tc_newton(DkModel *m, double *q, int held, const double *yb, double g, double x1, double v1,
+                     double *r, double J[5][5], double *rn) {
+    double A[5][5], d[5], qt[5], rt[5], rnt = 0.0;
+    int n = 5 - held, it, i, j, h;
     tc_residual(m, q, yb, g, x1, v1, r, J);
-    rn = fabs(r[0]) + fabs(r[1]) + fabs(r[2]) + fabs(r[3]);
+    *rn = abs_sum(r, n);
     for (it = 0; it < TC_MAX_NEWTON; it++) {
         int accepted = 0;
         double lam = 1.0;
-        if (rn <= m->tc_tol) break;
-        for (i = 0; i < 4; i++) for (j = 0; j < 4; j++) A[i][j] = J[i][j + 1];
-        if (solve_n(A, r, d, 4)) break;
+        if (*rn <= m->tc_tol) break;
+        for (i = 0; i < n; i++) for (j = 0; j < n; j++) A[i][j] = J[i][j + held];
+        if (solve_n(A, r, d, n)) return DK_ERROR;
         if (it < TC_PLAIN) {
-            for (i = 0; i < 4; i++) q[i + 1] = q[i + 1] - d[i];
+            for (i = 0; i < n; i++) q[i + held] = q[i + held] - d[i];
             tc_residual(m, q, yb, g, x1, v1, r, J);
-            rn = fabs(r[0]) + fabs(r[1]) + fabs(r[2]) + fabs(r[3]);
+            *rn = abs_sum(r, n);
             continue;
         }
         for (h = 0; h < TC_MAX_HALVINGS; h++) {
-            qt[0] = w;
-            for (i = 0; i < 4; i++) qt[i + 1] = q[i + 1] - lam * d[i];
+            for (i = 0; i < held; i++) qt[i] = q[i];
+            for (i = 0; i < n; i++) qt[i + held] = q[i + held] - lam * d[i];
             tc_residual(m, qt, yb, g, x1, v1, rt, NULL);
-            rnt = fabs(rt[0]) + fabs(rt[1]) + fabs(rt[2]) + fabs(rt[3]);
-            if (rnt < rn) { accepted = 1; break; }
+            rnt = abs_sum(rt, n);
+            if (rnt < *rn) { accepted = 1; break; }
             lam *= 0.5;
         }
         if (!accepted) break;
         for (i = 0; i < 5; i++) q[i] = qt[i];
-        rn = rnt;
+        *rn = rnt;
         tc_residual(m, q, yb, g, x1, v1, r, J);
     }
+    return DK_OK;
+}
+
+/* the chamber and valve equations (residuals 0-3) solved for p4 = (up, uf, fR, gC) at the piston
+   velocity w; *dfw = d(fR - gC)/dw; returns the sum of |r0..r3| (models.py: _valves_given_w) */
+static double tc_valves_given_w(DkModel *m, double w, double *p4, const double *yb, double g, double x1,
+                                double v1, double *dfw) {
+    double q[5], r[5], J[5][5], A[5][5], d[5], rhs[5], rn;
+    int i, j;
+    q[0] = w;
+    for (i = 0; i < 4; i++) q[i + 1] = p4[i];
+    tc_newton(m, q, 1, yb, g, x1, v1, r, J, &rn); /* a singular Jacobian ends the iteration: rn says how far */
     for (i = 0; i < 4; i++) {
         for (j = 0; j < 4; j++) A[i][j] = J[i][j + 1];
         rhs[i] = -J[i][0];
@@ -606,35 +640,14 @@ static int tc_stage_nested(DkModel *m, const double *yb, double g, double x1, do
 
 static int tc_stage(DkModel *m, const double *yb, double g, double x1, double v1, double *out, char *msg,
                     size_t msglen) {
-    double fb = yb[1] - yb[2] + (m->ff != 0.0 ? m->ff * tanh(yb[6] / m->v_eps) : 0.0), q[5], w0, r[5], J[5][5], d[5], qt[5], rt[5], rn, rnt = 0.0;
-    int it, i, h;
+    double fb = yb[1] - yb[2] + (m->ff != 0.0 ? m->ff * tanh(yb[6] / m->v_eps) : 0.0), q[5], w0, r[5], J[5][5], rn;
     if (m->tc_tol == 0.0) m->tc_tol = TC_TOL * force_scale(m);
     q[0] = (m->cM * v1 - fb + m->kM * (x1 - yb[0])) / (m->cM + m->kM * g);
     q[1] = yb[4]; q[2] = yb[5]; q[3] = yb[1]; q[4] = yb[2];
     w0 = q[0];
-    rn = tc_residual(m, q, yb, g, x1, v1, r, J);
-    for (it = 0; it < TC_MAX_NEWTON; it++) {
-        int accepted = 0;
-        double lam = 1.0;
-        if (rn <= m->tc_tol) break;
-        if (solve_n(J, r, d, 5)) {
-            snprintf(msg, msglen, "two-chamber stage: singular Jacobian");
-            return DK_ERROR;
-        }
-        if (it < TC_PLAIN) {
-            for (i = 0; i < 5; i++) q[i] = q[i] - d[i];
-            rn = tc_residual(m, q, yb, g, x1, v1, r, J);
-            continue;
-        }
-        for (h = 0; h < TC_MAX_HALVINGS; h++) {
-            for (i = 0; i < 5; i++) qt[i] = q[i] - lam * d[i];
-            rnt = tc_residual(m, qt, yb, g, x1, v1, rt, NULL);
-            if (rnt < rn) { accepted = 1; break; }
-            lam *= 0.5;
-        }
-        if (!accepted) break;
-        for (i = 0; i < 5; i++) q[i] = qt[i];
-        rn = tc_residual(m, q, yb, g, x1, v1, r, J);
+    if (tc_newton(m, q, 0, yb, g, x1, v1, r, J, &rn)) {
+        snprintf(msg, msglen, "two-chamber stage: singular Jacobian");
+        return DK_ERROR;
     }
     if (!(rn <= m->tc_tol) && tc_stage_nested(m, yb, g, x1, v1, w0, rn, q, msg, msglen)) return DK_ERROR;
     out[0] = yb[0] + g * q[0]; out[1] = q[3]; out[2] = q[4]; out[3] = yb[3]; out[4] = q[1]; out[5] = q[2];

@@ -11,6 +11,10 @@
 
 #include <stddef.h>
 
+/* DK_<KIND>_<PARAMETER>: index of every parameter in a model's parameter vector, table sizes and
+   blocks, parameter counts (generated from damper_fmu/parameters.py: python -m damper_fmu.c_header) */
+#include "damper_index.h"
+
 #define DK_LUMPED 0
 #define DK_MAXWELL 1
 #define DK_MAXWELL_TABLE 2
@@ -19,21 +23,13 @@
 #define DK_EXTRAPOLATE 0
 #define DK_REPLAY 1
 
-#define DK_NFK 10 /* Fk,O ordinates (zero point implied) */
-#define DK_NFC 14 /* Fc,O ordinates (zero point implied) */
-#define DK_NEFFECT 11
-#define DK_NFC_TC 28 /* two-chamber damping-table ordinates (zero point implied) */
-#define DK_NTC 10    /* two-chamber scalar parameters before the table */
-
-/* Parameter counts per model, in the order of damper_fmu.parameters.MODEL_PARAMETERS. */
-#define DK_NPAR_LUMPED (5 + 2 * DK_NFK + 2 * DK_NFC + DK_NEFFECT)
-#define DK_NPAR_MAXWELL 2
-#define DK_NPAR_MAXWELL_TABLE (1 + 2 * DK_NFC)
-#define DK_NPAR_TWOCHAMBER (DK_NTC + 1 + 2 * DK_NFC_TC + DK_NEFFECT)
 #define DK_NSTATE 7 /* largest model state (two-chamber) */
-#define DK_NPAR_MAX (DK_NPAR_TWOCHAMBER > DK_NPAR_LUMPED ? DK_NPAR_TWOCHAMBER : DK_NPAR_LUMPED)
 
-#define DK_MAXPTS 32
+#define DK_MAXPTS 32 /* points of a table: its ordinates and the origin */
+#if DK_LUMPED_FK_COUNT >= DK_MAXPTS || DK_LUMPED_FC_COUNT >= DK_MAXPTS || \
+    DK_MAXWELL_TABLE_FC_COUNT >= DK_MAXPTS || DK_TWOCHAMBER_FC_COUNT >= DK_MAXPTS
+#error "a table of damper_fmu/parameters.py has more points than DK_MAXPTS"
+#endif
 
 #define DK_OK 0
 #define DK_ERROR 1

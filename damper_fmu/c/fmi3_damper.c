@@ -1,17 +1,17 @@
 /* FMI 3.0 co-simulation interface of the damper models (native FMU).
  *
- * The FMI 3.0 twin of fmi2_damper.c, around the same kernel (damper_kernel.c, included here: one
- * translation unit, compile this file alone) with the same generated headers: damper_fmu_config.h
- * (model kind, instantiation token, start values of the settings) and damper_params.h (the
- * parameters, from damper_fmu/parameters.py). Same life cycle, same checks, same messages, same
- * calls into the kernel in the same order, so the forces equal the FMI 2.0 FMU's bit for bit
- * (tests/test_fmi3.py). What FMI 3.0 changes:
+ * The FMI 3.0 twin of fmi2_damper.c: the same FMI-independent part (fmu_common.c, with the kernel
+ * damper_kernel.c, included here: one translation unit, compile this file alone) and the same
+ * generated headers: damper_fmu_config.h (model kind, instantiation token, start values of the
+ * settings) and damper_params.h (the parameters, from damper_fmu/parameters.py). Same life cycle,
+ * same checks, same messages, same calls into the kernel in the same order, so the forces equal the
+ * FMI 2.0 FMU's bit for bit (tests/test_fmi3.py). What FMI 3.0 changes:
  *
  * - one value-reference space for all types: the Float64 variables keep the FMI 2.0 Real value
  *   references (0 stroke, 1 stroke_velocity, 2 force, 3 oil_temperature, 10.. internal element
  *   outputs, 50..53 settings, 100 + i the i-th model parameter); the Int32 settings move from FMI
  *   2.0 Integer 0 and 1 to 60 input_interpolation and 61 thermal_source; 4 is the independent
- *   variable time (build_fmu.FMI3_VR);
+ *   variable time (damper_fmu/model_description.py: FMI3_VR);
  * - no input derivatives (FMI 3.0 has no fmi3SetRealInputDerivatives): the acceleration of the
  *   stroke within a step is always estimated from the last velocity samples, as in the FMI 2.0 FMU
  *   when the master sets no derivatives (fmpy's simulate_fmu, most masters);
@@ -25,117 +25,45 @@
  * logging setting. Functions of other interface types (model exchange, scheduled execution, event
  * mode, clocks, configuration mode, derivatives) return fmi3Error with a message saying why.
  */
-#include <math.h>
-#include <stdarg.h>
-#include <stdio.h>
-#include <stdlib.h>
-#include <string.h>
-
 /* FMI3_FUNCTION_PREFIX (source-code import of several FMUs into one program) is honoured by the
    standard header; everything else in this translation unit is static, the kernel included. */
 #include "fmi3Functions.h"
 
-#define DK_API static
-#define DK_EMBEDDED
-#include "damper_kernel.c"
-#include "damper_params.h"
-#include "damper_fmu_config.h"
-
-#if DK_MODEL_KIND == DK_LUMPED
-#define NPAR DK_PARAMS_LUMPED_N
-#define SPECS DK_PARAMS_LUMPED
-#define NDIAG 8
-#elif DK_MODEL_KIND == DK_MAXWELL
-#define NPAR DK_PARAMS_MAXWELL_N
-#define SPECS DK_PARAMS_MAXWELL
-#define NDIAG 1
-#elif DK_MODEL_KIND == DK_TWOCHAMBER
-#define NPAR DK_PARAMS_TWOCHAMBER_N
-#define SPECS DK_PARAMS_TWOCHAMBER
-#define NDIAG 5
-#else
-#define NPAR DK_PARAMS_MAXWELL_TABLE_N
-#define SPECS DK_PARAMS_MAXWELL_TABLE
-#define NDIAG 1
-#endif
-
-#define HAS_EFFECTS (DK_MODEL_KIND == DK_LUMPED || DK_MODEL_KIND == DK_TWOCHAMBER)
-
-#define VR_STROKE 0
-#define VR_VELOCITY 1
-#define VR_FORCE 2
-#define VR_TEMPERATURE 3
+#define FMI "fmi3"
+#define STATE_MAGIC 0x44616d33 /* "Dam3": an FMI 2.0 FMU's serialized state is refused */
 #define VR_TIME 4
-#define VR_DIAG 10
-#define VR_MAX_STEP 50
-#define VR_TOLERANCE 51
-#define VR_STROKE_LIMIT 52
-#define VR_VELOCITY_LIMIT 53
-#define VR_INPUT_INTERPOLATION 60
-#define VR_THERMAL_SOURCE 61
-#define VR_PARAM 100
-
-enum { ST_INSTANTIATED, ST_INIT, ST_STEP, ST_TERMINATED, ST_ERROR };
-
-/* Everything a rollback must restore (fmi3GetFMUState / fmi3SetFMUState). */
-typedef struct {
-    double p[NPAR];
-    double max_step, tolerance, stroke_limit, velocity_limit;
-    int input_interpolation, thermal_source;
-    double stroke, velocity, temperature;
-    int dirty, state;
-    double time;
-    DkSim sim;
-} Snapshot;
-
+#define VR_INPUT_INTERPOLATION 60 /* Int32 */
+#define VR_THERMAL_SOURCE 61      /* Int32 */
 typedef struct {
     fmi3InstanceEnvironment env;
     fmi3LogMessageCallback log;
-    char *name;
-    int logging;
-    Snapshot s;
-} Instance;
+} Callbacks;
+
+/* the FMI-independent part: the kernel, the instance and its state, checks, steps (shared with FMI 2.0) */
+#include "fmu_common.c"
 
 /* The message is prefixed with the instance name (FMI 3.0's logger has no instance argument). */
 static void logmsg(Instance *c, fmi3Status status, const char *category, const char *fmt, ...) {
     char buf[1024];
     int n;
     va_list ap;
-    if (!c || !c->log) return;
+    if (!c || !c->cb.log) return;
     if (status == fmi3OK && !c->logging) return;
     n = snprintf(buf, sizeof buf, "%s: ", c->name);
     if (n < 0 || (size_t)n >= sizeof buf) n = 0;
     va_start(ap, fmt);
     vsnprintf(buf + n, sizeof buf - (size_t)n, fmt, ap);
     va_end(ap);
-    c->log(c->env, status, category, buf);
+    c->cb.log(c->cb.env, status, category, buf);
+}
+
+static void error_message(Instance *c, const char *fmt, const char *detail) {
+    logmsg(c, fmi3Error, "logStatusError", fmt, detail);
 }
 
 static fmi3Status fail(Instance *c, const char *fmt, const char *detail) {
-    logmsg(c, fmi3Error, "logStatusError", fmt, detail);
+    error_message(c, fmt, detail);
     return fmi3Error;
-}
-
-/* an error the instance cannot continue from (FMI 3.0: fmi3Error) */
-static fmi3Status fail_state(Instance *c, const char *fmt, const char *detail) {
-    c->s.state = ST_ERROR;
-    return fail(c, fmt, detail);
-}
-
-static void defaults(Snapshot *s) {
-    int i;
-    memset(s, 0, sizeof *s);
-    for (i = 0; i < NPAR; i++) s->p[i] = SPECS[i].start;
-    s->max_step = DK_START_MAX_STEP;
-    s->tolerance = DK_START_TOLERANCE;
-    s->stroke_limit = DK_START_STROKE_LIMIT;
-    s->velocity_limit = DK_START_VELOCITY_LIMIT;
-    s->input_interpolation = DK_START_INPUT_INTERPOLATION;
-    s->thermal_source = 0;
-    s->temperature = 20.0;
-    s->dirty = 1;
-    s->state = ST_INSTANTIATED;
-    dk_sim_clear(&s->sim);
 }
 
 /* ---- inquiry ------------------------------------------------------------------------------- */
@@ -157,7 +85,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String name, fmi3String token, fmi3
                                          size_t nRequired, fmi3InstanceEnvironment env,
                                          fmi3LogMessageCallback logMessage,
                                          fmi3IntermediateUpdateCallback intermediateUpdate) {
-    Instance *c;
+    Callbacks cb;
     (void)resourcePath; (void)visible; (void)earlyReturnAllowed; (void)required; (void)nRequired;
     (void)intermediateUpdate; /* providesIntermediateUpdate="false": never called */
     if (eventModeUsed) {
@@ -173,16 +101,9 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String name, fmi3String token, fmi3
                        " (modelDescription.xml and binary from different builds)");
         return NULL;
     }
-    c = (Instance *)calloc(1, sizeof *c);
-    if (!c) return NULL;
-    c->env = env;
-    c->log = logMessage;
-    c->name = (char *)malloc(strlen(name ? name : "") + 1);
-    if (!c->name) { free(c); return NULL; }
-    strcpy(c->name, name ? name : "");
-    c->logging = logging;
-    defaults(&c->s);
-    return c;
+    cb.env = env;
+    cb.log = logMessage;
+    return instance_new(name, &cb, logging);
 }
 
 fmi3Instance fmi3InstantiateModelExchange(fmi3String name, fmi3String token, fmi3String resourcePath,
@@ -204,13 +125,7 @@ fmi3Instance fmi3InstantiateScheduledExecution(fmi3String name, fmi3String token
     return NULL;
 }
 
-void fmi3FreeInstance(fmi3Instance comp) {
-    Instance *c = (Instance *)comp;
-    if (!c) return;
-    dk_sim_free(&c->s.sim);
-    free(c->name);
-    free(c);
-}
+void fmi3FreeInstance(fmi3Instance comp) { instance_free((Instance *)comp); }
 
 fmi3Status fmi3EnterInitializationMode(fmi3Instance comp, fmi3Boolean tolDefined, fmi3Float64 tol,
                                        fmi3Float64 start, fmi3Boolean stopDefined, fmi3Float64 stop) {
@@ -224,72 +139,10 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance comp, fmi3Boolean tolDefined
     return fmi3OK;
 }
 
-static int check_inputs(Instance *c) {
-    Snapshot *s = &c->s;
-    char d[256];
-    if (!dk_finite(s->stroke) || !dk_finite(s->velocity)) {
-        snprintf(d, sizeof d, "stroke = %g m, stroke_velocity = %g m/s", s->stroke, s->velocity);
-        fail(c, "non-finite input (%s)", d);
-        return 1;
-    }
-    if (fabs(s->stroke) > s->stroke_limit || fabs(s->velocity) > s->velocity_limit) {
-        snprintf(d, sizeof d, "stroke = %g m (limit %g m), stroke_velocity = %g m/s (limit %g m/s); "
-                 "inputs are SI: a stroke in mm or a velocity in mm/s gives this. Raise stroke_limit / "
-                 "velocity_limit if the values are real", s->stroke, s->stroke_limit, s->velocity, s->velocity_limit);
-        fail(c, "input out of range: %s", d);
-        return 1;
-    }
-    if (HAS_EFFECTS && s->thermal_source && !dk_finite(s->temperature)) {
-        fail(c, "non-finite input: %s", "oil_temperature");
-        return 1;
-    }
-    return 0;
-}
-
-/* as fmi2_damper.c's build(): the model from the parameters, at initialization or after a change of
-   a tunable parameter */
-static int build(Instance *c) {
-    Snapshot *s = &c->s;
-    if (s->state == ST_INIT) {
-        dk_sim_free(&s->sim);
-        dk_sim_clear(&s->sim);
-        if (dk_sim_setup(&s->sim, DK_MODEL_KIND, s->p, NPAR, s->max_step, s->tolerance, s->input_interpolation)) {
-            fail(c, "invalid parameters: %s", s->sim.msg);
-            return 1;
-        }
-    } else {
-        DkModel m;
-        char msg[512];
-        int was_active = s->sim.model.effects_active;
-        if (dk_model_init(&m, DK_MODEL_KIND, s->p, NPAR, msg, sizeof msg)) {
-            fail(c, "invalid parameters: %s", msg);
-            return 1;
-        }
-        s->sim.model = m;
-        if (m.effects_active && !was_active) {
-            s->sim.e.x_eff = s->sim.x1; s->sim.e.engaged = 1; s->sim.e.temperature = m.t_ref;
-            s->sim.e.time = 0.0; s->sim.e.hist_len = 0; s->sim.e.hist_head = 0;
-        }
-    }
-    s->dirty = 0;
-    return 0;
-}
-
 fmi3Status fmi3ExitInitializationMode(fmi3Instance comp) {
     Instance *c = (Instance *)comp;
-    Snapshot *s;
     if (!c) return fmi3Error;
-    s = &c->s;
-    if (s->state != ST_INIT) return fail(c, "%s", "fmi3ExitInitializationMode outside initialization mode");
-    if (!(s->stroke_limit > 0.0) || !(s->velocity_limit > 0.0))
-        return fail_state(c, "%s", "stroke_limit and velocity_limit must be positive");
-    if (build(c) || check_inputs(c)) { s->state = ST_ERROR; return fmi3Error; }
-    s->sim.has_temperature = HAS_EFFECTS && s->thermal_source;
-    s->sim.temperature_input = s->temperature;
-    if (dk_sim_initialize(&s->sim, s->stroke, s->velocity, s->time))
-        return fail_state(c, "initialisation failed: %s", s->sim.msg);
-    s->state = ST_STEP;
-    return fmi3OK;
+    return exit_initialization(c) ? fmi3Error : fmi3OK;
 }
 
 fmi3Status fmi3Terminate(fmi3Instance comp) {
@@ -302,42 +155,11 @@ fmi3Status fmi3Terminate(fmi3Instance comp) {
 fmi3Status fmi3Reset(fmi3Instance comp) {
     Instance *c = (Instance *)comp;
     if (!c) return fmi3Error;
-    dk_sim_free(&c->s.sim);
-    defaults(&c->s);
+    instance_reset(c);
     return fmi3OK;
 }
 
 /* ---- variables ----------------------------------------------------------------------------- */
-
-static int is_param(fmi3ValueReference vr) { return vr >= VR_PARAM && vr < VR_PARAM + NPAR; }
-
-/* the initial outputs before fmi3ExitInitializationMode (as fmi2_damper.c) */
-static int initial_outputs(Instance *c, double *force, double *diag) {
-    Snapshot *s = &c->s;
-    DkSim *sim;
-    if (check_inputs(c)) return 1;
-    sim = (DkSim *)calloc(1, sizeof *sim);
-    if (!sim) { fail(c, "%s", "out of memory for the initial outputs"); return 1; }
-    dk_sim_clear(sim);
-    if (dk_sim_setup(sim, DK_MODEL_KIND, s->p, NPAR, s->max_step, s->tolerance, s->input_interpolation)) {
-        fail(c, "invalid parameters: %s", sim->msg);
-        free(sim);
-        return 1;
-    }
-    sim->has_temperature = HAS_EFFECTS && s->thermal_source;
-    sim->temperature_input = s->temperature;
-    if (dk_sim_initialize(sim, s->stroke, s->velocity, s->time)) {
-        fail(c, "initial outputs: %s", sim->msg);
-        dk_sim_free(sim);
-        free(sim);
-        return 1;
-    }
-    *force = sim->force;
-    dk_diagnostics(sim, diag);
-    dk_sim_free(sim);
-    free(sim);
-    return 0;
-}
 
 /* scalar variables only: one value per value reference */
 static int count_ok(Instance *c, const char *fn, size_t nvr, size_t nvalues) {
@@ -359,14 +181,14 @@ fmi3Status fmi3GetFloat64(fmi3Instance comp, const fmi3ValueReference vr[], size
                           size_t nValues) {
     Instance *c = (Instance *)comp;
     size_t i;
-    double diag[8], force0 = 0.0;
+    double diag[DK_NDIAG_MAX], force0 = 0.0;
     int have_diag = 0;
     if (!c) return fmi3Error;
     if (!count_ok(c, "fmi3GetFloat64", n, nValues)) return fmi3Error;
     for (i = 0; i < n; i++) {
         fmi3ValueReference r = vr[i];
         Snapshot *s = &c->s;
-        if ((r == VR_FORCE || (r >= VR_DIAG && r < VR_DIAG + NDIAG)) && !have_diag) {
+        if (is_output(r) && !have_diag) {
             /* outputs: of the last step, or the initial ones before the first */
             if (s->state == ST_STEP || s->state == ST_TERMINATED) {
                 force0 = s->sim.force;
@@ -378,23 +200,11 @@ fmi3Status fmi3GetFloat64(fmi3Instance comp, const fmi3ValueReference vr[], size
             }
             have_diag = 1;
         }
-        if (r == VR_STROKE) value[i] = s->stroke;
-        else if (r == VR_VELOCITY) value[i] = s->velocity;
-        else if (r == VR_FORCE) value[i] = force0;
-        else if (r == VR_TEMPERATURE && HAS_EFFECTS) value[i] = s->temperature;
-        else if (r == VR_TIME) value[i] = s->time;
-        else if (r >= VR_DIAG && r < VR_DIAG + NDIAG) value[i] = diag[r - VR_DIAG];
-        else if (r == VR_MAX_STEP) value[i] = s->max_step;
-        else if (r == VR_TOLERANCE) value[i] = s->tolerance;
-        else if (r == VR_STROKE_LIMIT) value[i] = s->stroke_limit;
-        else if (r == VR_VELOCITY_LIMIT) value[i] = s->velocity_limit;
-        else if (is_param(r)) value[i] = s->p[r - VR_PARAM];
-        else return unknown_vr(c, "fmi3GetFloat64", r);
+        if (r == VR_TIME) value[i] = s->time;
+        else if (get_float(c, r, force0, diag, &value[i])) return unknown_vr(c, "fmi3GetFloat64", r);
     }
     return fmi3OK;
 }
-
-static int is_fixed_param(int i) { return SPECS[i].fixed; }
 
 fmi3Status fmi3SetFloat64(fmi3Instance comp, const fmi3ValueReference vr[], size_t n, const fmi3Float64 value[],
                           size_t nValues) {
@@ -403,28 +213,11 @@ fmi3Status fmi3SetFloat64(fmi3Instance comp, const fmi3ValueReference vr[], size
     if (!c) return fmi3Error;
     if (!count_ok(c, "fmi3SetFloat64", n, nValues)) return fmi3Error;
     for (i = 0; i < n; i++) {
-        fmi3ValueReference r = vr[i];
-        Snapshot *s = &c->s;
-        int after_init = s->state >= ST_STEP;
-        if (r == VR_STROKE) s->stroke = value[i];
-        else if (r == VR_VELOCITY) s->velocity = value[i];
-        else if (r == VR_TEMPERATURE && HAS_EFFECTS) s->temperature = value[i];
-        else if (r == VR_MAX_STEP || r == VR_TOLERANCE || r == VR_STROKE_LIMIT || r == VR_VELOCITY_LIMIT) {
-            if (after_init) return fail(c, "%s", "the integrator settings and input limits are fixed parameters: "
-                                                "set them before fmi3ExitInitializationMode");
-            if (r == VR_MAX_STEP) s->max_step = value[i];
-            else if (r == VR_TOLERANCE) s->tolerance = value[i];
-            else if (r == VR_STROKE_LIMIT) s->stroke_limit = value[i];
-            else s->velocity_limit = value[i];
-        } else if (is_param(r)) {
-            int k = (int)(r - VR_PARAM);
-            if (after_init && is_fixed_param(k))
-                return fail(c, "%s is a fixed parameter: set it before fmi3ExitInitializationMode", SPECS[k].name);
-            s->p[k] = value[i];
-            s->dirty = 1;
-        } else {
+        int st = set_float(c, vr[i], value[i]);
+        if (st == 1) return fmi3Error;
+        if (st == 2) {
             char d[160];
-            snprintf(d, sizeof d, "fmi3SetFloat64: unknown or read-only value reference %u", (unsigned)r);
+            snprintf(d, sizeof d, "fmi3SetFloat64: unknown or read-only value reference %u", (unsigned)vr[i]);
             return fail(c, "%s", d);
         }
     }
@@ -438,9 +231,9 @@ fmi3Status fmi3GetInt32(fmi3Instance comp, const fmi3ValueReference vr[], size_t
     if (!c) return fmi3Error;
     if (!count_ok(c, "fmi3GetInt32", n, nValues)) return fmi3Error;
     for (i = 0; i < n; i++) {
-        if (vr[i] == VR_INPUT_INTERPOLATION) value[i] = c->s.input_interpolation;
-        else if (vr[i] == VR_THERMAL_SOURCE && HAS_EFFECTS) value[i] = c->s.thermal_source;
-        else return unknown_vr(c, "fmi3GetInt32", vr[i]);
+        int v;
+        if (get_integer(c, vr[i], &v)) return unknown_vr(c, "fmi3GetInt32", vr[i]);
+        value[i] = v;
     }
     return fmi3OK;
 }
@@ -452,16 +245,9 @@ fmi3Status fmi3SetInt32(fmi3Instance comp, const fmi3ValueReference vr[], size_t
     if (!c) return fmi3Error;
     if (!count_ok(c, "fmi3SetInt32", n, nValues)) return fmi3Error;
     for (i = 0; i < n; i++) {
-        if (c->s.state >= ST_STEP)
-            return fail(c, "%s", "input_interpolation and thermal_source are fixed: set them before "
-                                 "fmi3ExitInitializationMode");
-        if (vr[i] == VR_INPUT_INTERPOLATION) {
-            if (value[i] != 0 && value[i] != 1) return fail(c, "%s", "input_interpolation must be 0 or 1");
-            c->s.input_interpolation = value[i];
-        } else if (vr[i] == VR_THERMAL_SOURCE && HAS_EFFECTS) {
-            if (value[i] != 0 && value[i] != 1) return fail(c, "%s", "thermal_source must be 0 or 1");
-            c->s.thermal_source = value[i];
-        } else return unknown_vr(c, "fmi3SetInt32", vr[i]);
+        int st = set_integer(c, vr[i], value[i]);
+        if (st == 1) return fmi3Error;
+        if (st == 2) return unknown_vr(c, "fmi3SetInt32", vr[i]);
     }
     return fmi3OK;
 }
@@ -600,112 +386,39 @@ fmi3Status fmi3ExitConfigurationMode(fmi3Instance c) {
 
 fmi3Status fmi3GetFMUState(fmi3Instance comp, fmi3FMUState *state) {
     Instance *c = (Instance *)comp;
-    Snapshot *snap;
     if (!c || !state) return fmi3Error;
-    snap = (Snapshot *)*state;
-    if (!snap) {
-        snap = (Snapshot *)calloc(1, sizeof *snap);
-        if (!snap) return fail(c, "%s", "out of memory for the FMU state");
-    }
-    {
-        DkSim keep = snap->sim;
-        *snap = c->s;
-        snap->sim = keep;
-        if (dk_sim_copy(&snap->sim, &c->s.sim)) return fail(c, "%s", "out of memory for the FMU state");
-    }
-    *state = snap;
-    return fmi3OK;
+    return state_get(c, state) ? fmi3Error : fmi3OK;
 }
 
 fmi3Status fmi3SetFMUState(fmi3Instance comp, fmi3FMUState state) {
     Instance *c = (Instance *)comp;
-    Snapshot *snap = (Snapshot *)state;
     if (!c) return fmi3Error;
-    if (!snap) return fail(c, "%s", "fmi3SetFMUState: no FMU state given");
-    {
-        DkSim keep = c->s.sim;
-        c->s = *snap;
-        c->s.sim = keep;
-        if (dk_sim_copy(&c->s.sim, &snap->sim)) return fail(c, "%s", "out of memory restoring the FMU state");
-    }
-    return fmi3OK;
-}
-
-/* The fmi3 functions never call one another (a host that loads several FMUs with RTLD_GLOBAL may
-   resolve an exported name to another FMU's). */
-static void free_snapshot(fmi3FMUState *state) {
-    if (state && *state) {
-        Snapshot *snap = (Snapshot *)*state;
-        dk_sim_free(&snap->sim);
-        free(snap);
-        *state = NULL;
-    }
+    if (!state) return fail(c, "%s", "fmi3SetFMUState: no FMU state given");
+    return state_set(c, (const Snapshot *)state) ? fmi3Error : fmi3OK;
 }
 
 fmi3Status fmi3FreeFMUState(fmi3Instance comp, fmi3FMUState *state) {
     (void)comp;
-    free_snapshot(state);
+    state_free(state);
     return fmi3OK;
 }
 
-#define MAGIC 0x44616d33 /* "Dam3": an FMI 2.0 FMU's serialized state is refused */
-
-static size_t serialized_size(const Snapshot *snap) {
-    return 2 * sizeof(int) + sizeof(Snapshot) + 2 * (size_t)snap->sim.e.hist_len * sizeof(double);
-}
-
 fmi3Status fmi3SerializedFMUStateSize(fmi3Instance comp, fmi3FMUState state, size_t *size) {
-    Snapshot *snap = (Snapshot *)state;
     if (!comp) return fmi3Error;
-    if (!snap || !size) return fail((Instance *)comp, "%s", "fmi3SerializedFMUStateSize: no FMU state given");
-    *size = serialized_size(snap);
+    if (!state || !size) return fail((Instance *)comp, "%s", "fmi3SerializedFMUStateSize: no FMU state given");
+    *size = serialized_size((const Snapshot *)state);
     return fmi3OK;
 }
 
 fmi3Status fmi3SerializeFMUState(fmi3Instance comp, fmi3FMUState state, fmi3Byte buf[], size_t size) {
-    Snapshot *snap = (Snapshot *)state;
-    int head[2] = {MAGIC, (int)sizeof(Snapshot)}, i;
-    fmi3Byte *p = buf;
     if (!comp) return fmi3Error;
-    if (!snap) return fail((Instance *)comp, "%s", "fmi3SerializeFMUState: no FMU state given");
-    if (size < serialized_size(snap)) return fail((Instance *)comp, "%s", "fmi3SerializeFMUState: buffer too small");
-    memcpy(p, head, sizeof head); p += sizeof head;
-    memcpy(p, snap, sizeof *snap); p += sizeof *snap;
-    for (i = 0; i < snap->sim.e.hist_len; i++) {
-        const double *q = snap->sim.e.hist + 2 * ((snap->sim.e.hist_head + i) % snap->sim.e.hist_cap);
-        memcpy(p, q, 2 * sizeof(double)); p += 2 * sizeof(double);
-    }
-    return fmi3OK;
+    return state_serialize((Instance *)comp, (const Snapshot *)state, buf, size, "fmi3SerializeFMUState")
+               ? fmi3Error : fmi3OK;
 }
 
 fmi3Status fmi3DeserializeFMUState(fmi3Instance comp, const fmi3Byte buf[], size_t size, fmi3FMUState *state) {
-    Instance *c = (Instance *)comp;
-    int head[2];
-    Snapshot *snap;
-    size_t nh;
-    if (!c || !state) return fmi3Error;
-    if (size < sizeof head + sizeof(Snapshot)) return fail(c, "%s", "serialized FMU state too short");
-    memcpy(head, buf, sizeof head);
-    if (head[0] != MAGIC || head[1] != (int)sizeof(Snapshot))
-        return fail(c, "%s", "serialized FMU state is not from this FMU build");
-    if (*state) free_snapshot(state);
-    snap = (Snapshot *)calloc(1, sizeof *snap);
-    if (!snap) return fail(c, "%s", "out of memory for the FMU state");
-    memcpy(snap, buf + sizeof head, sizeof *snap);
-    nh = (size_t)snap->sim.e.hist_len;
-    if (size < sizeof head + sizeof(Snapshot) + 2 * nh * sizeof(double)) {
-        free(snap);
-        return fail(c, "%s", "serialized FMU state truncated");
-    }
-    snap->sim.e.hist = NULL; snap->sim.e.hist_cap = 0; snap->sim.e.hist_head = 0;
-    if (nh) {
-        snap->sim.e.hist = (double *)malloc(2 * nh * sizeof(double));
-        if (!snap->sim.e.hist) { free(snap); return fail(c, "%s", "out of memory for the FMU state"); }
-        memcpy(snap->sim.e.hist, buf + sizeof head + sizeof(Snapshot), 2 * nh * sizeof(double));
-        snap->sim.e.hist_cap = (int)nh;
-    }
-    *state = snap;
-    return fmi3OK;
+    if (!comp || !state) return fmi3Error;
+    return state_deserialize((Instance *)comp, buf, size, state) ? fmi3Error : fmi3OK;
 }
 
 /* ---- co-simulation ------------------------------------------------------------------------- */
@@ -727,34 +440,18 @@ fmi3Status fmi3DoStep(fmi3Instance comp, fmi3Float64 t, fmi3Float64 h, fmi3Boole
                       fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation, fmi3Boolean *earlyReturn,
                       fmi3Float64 *lastSuccessfulTime) {
     Instance *c = (Instance *)comp;
-    Snapshot *s;
-    char d[600];
+    int st;
     (void)noSetPrior;
     if (!c) return fmi3Error;
-    s = &c->s;
     /* never an event, never a request to stop, never an early return */
     if (eventHandlingNeeded) *eventHandlingNeeded = fmi3False;
     if (terminateSimulation) *terminateSimulation = fmi3False;
     if (earlyReturn) *earlyReturn = fmi3False;
-    if (lastSuccessfulTime) *lastSuccessfulTime = s->time;
-    if (s->state != ST_STEP) {
-        return fail(c, "%s", s->state == ST_ERROR ? "the FMU is in an error state (see the earlier message); "
-                                                    "reset or re-instantiate it"
-                                                  : "fmi3DoStep before fmi3ExitInitializationMode");
-    }
-    if (!(h > 0.0)) {
-        snprintf(d, sizeof d, "%g", h);
-        return fail(c, "communication step size must be positive, got %s s", d);
-    }
-    if ((s->dirty && build(c)) || check_inputs(c)) { s->state = ST_ERROR; return fmi3Error; }
-    s->sim.has_temperature = HAS_EFFECTS && s->thermal_source;
-    s->sim.temperature_input = s->temperature;
-    if (dk_sim_step(&s->sim, h, s->stroke, s->velocity, NULL)) {
-        snprintf(d, sizeof d, "step at t = %.9g s failed: %s", t, s->sim.msg);
-        return fail_state(c, "%s", d);
-    }
-    s->time = t + h;
-    if (lastSuccessfulTime) *lastSuccessfulTime = s->time;
+    if (lastSuccessfulTime) *lastSuccessfulTime = c->s.time;
+    st = do_step(c, t, h, NULL); /* no input derivatives in FMI 3.0: the acceleration is estimated */
+    if (st == STEP_BAD_INPUT || st == STEP_FAILED) c->s.state = ST_ERROR;
+    if (st != STEP_OK) return fmi3Error;
+    if (lastSuccessfulTime) *lastSuccessfulTime = c->s.time;
     return fmi3OK;
 }
 

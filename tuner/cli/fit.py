@@ -6,7 +6,7 @@ import sys
 import time
 from pathlib import Path
 
-from build_fmu import fast_path_note, native_reason
+from damper_fmu.fmu import fast_path_note, native_reason
 from damper_fmu.parameters import EFFECT_MODELS, MODEL_KINDS
 from tuner import job
 from tuner.cli.folders import DEFAULT_DATASET, DEFAULT_RESULTS, free_folder, prepare_out, tidy_checkpoints

@@ -58,7 +58,7 @@ from pathlib import Path
 
 import numpy as np
 
-from build_fmu import SLAVES, build, ensure_fmu
+from damper_fmu.fmu import SLAVES, build, ensure_fmu
 from damper_fmu.parameters import (EFFECT_IDENTIFIED, EFFECT_MODELS, EFFECT_PARAMETERS, EFFECT_TYPICAL,
                                    FK_REFERENCE_STIFFNESS, defaults)
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from build_fmu import ensure_fmu
+from damper_fmu.fmu import ensure_fmu
 from damper_fmu.parameters import EFFECT_MODELS
 from tuner import job
 from tuner.data.reading import DataError, load_dataset, load_files

@@ -22,13 +22,25 @@ samples: the true parameters then score 8.6 N (``simulate_signals``, the one pla
 """
 from __future__ import annotations
 
+import atexit
 import math
 import multiprocessing as mp
+import os
+import threading
+import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+from scipy.interpolate import CubicHermiteSpline
+
+from damper_fmu import native, simulate
+from damper_fmu.fmu import ensure_fmu
+from damper_fmu.integrator import DEFAULT_MAX_STEP, DEFAULT_TOLERANCE
+from damper_fmu.models import ConvergenceError
+from tuner.data.preprocess import Resampler
+from tuner.identification.runner import FmuRunner, SimulationError
 
 __all__ = ["Signals", "Engine", "ENGINES", "fastest_engine", "oversampling", "simulate_signals",
            "IDENTIFICATION_STEP", "IDENTIFICATION_TOLERANCE"]
@@ -46,8 +58,6 @@ IDENTIFICATION_TOLERANCE = 0.0
 
 def fastest_engine() -> str:
     """'native' where the C kernel is compiled, else 'inprocess' (same results, slower)."""
-    from damper_fmu import native
-
     return "native" if native.available() else "inprocess"
 
 
@@ -71,8 +81,6 @@ class Signals:
     def fine(self) -> tuple:
         """(time [s], stroke [m], velocity [m/s], temperature [degC] or None) on the fine grid:
         cubic Hermite through (stroke, velocity) samples, temperature linear."""
-        from scipy.interpolate import CubicHermiteSpline
-
         m = int(self.oversample)
         t = self.time
         tf = np.append((t[:-1, None] + np.diff(t)[:, None] * (np.arange(m) / m)).ravel(), t[-1])
@@ -83,8 +91,6 @@ class Signals:
     @cached_property
     def low_pass(self):
         """The anti-aliasing resampler fine grid -> these samples (``tuner.data.preprocess.Resampler``)."""
-        from tuner.data.preprocess import Resampler
-
         rate = (len(self.time) - 1) / (self.time[-1] - self.time[0])
         return Resampler.design(rate * self.oversample, rate)
 
@@ -117,8 +123,6 @@ def simulate_signals(model: str, params: dict, s: Signals, *, engine: str = "fmu
     way the identification objective computes it; steps as in ``Engine`` (None: the FMU's own
     defaults)."""
     if engine == "fmu" and fmu_path is None:
-        from build_fmu import ensure_fmu
-
         fmu_path = ensure_fmu(model)
     sim = _Simulator(model, engine, str(fmu_path) if fmu_path else None, max_internal_step, tolerance)
     try:
@@ -136,8 +140,6 @@ class _Simulator:
         self.max_internal_step, self.tolerance = max_internal_step, tolerance
         self.runner = None
         if engine == "fmu":
-            from tuner.identification.runner import FmuRunner
-
             self.runner = FmuRunner(fmu_path, max_internal_step=max_internal_step, tolerance=tolerance)
 
     def force(self, params: dict, s: Signals) -> np.ndarray:
@@ -151,9 +153,6 @@ class _Simulator:
         temp = temperature if params.get("thermal_beta", 0.0) and temperature is not None else None
         if self.runner is not None:
             return self.runner.run(t, x, v, params, temperature=temp)
-        from damper_fmu import simulate
-        from damper_fmu.integrator import DEFAULT_MAX_STEP, DEFAULT_TOLERANCE
-
         return simulate(self.model, t, x, v, params=params,
                         max_step=DEFAULT_MAX_STEP if self.max_internal_step is None else self.max_internal_step,
                         tolerance=DEFAULT_TOLERANCE if self.tolerance is None else self.tolerance,
@@ -163,9 +162,6 @@ class _Simulator:
         """(measured minus simulated force [N] over the counted samples of all tests, ''), or
         (None, the reason) when the candidate cannot be simulated (invalid parameters, a failed
         implicit solve, inputs the FMU refuses). Other exceptions are bugs and propagate."""
-        from damper_fmu.models import ConvergenceError
-        from tuner.identification.runner import SimulationError
-
         try:
             r = np.concatenate([(s.force - self.force(params, s))[s.mask] for s in tests])
         except (SimulationError, ConvergenceError, ValueError, FloatingPointError) as err:
@@ -188,9 +184,6 @@ _WORKER: dict = {}
 
 def _exit_with_parent(parent: int) -> None:
     """Daemon thread of a worker: end the worker when the parent process is gone (killed run)."""
-    import os
-    import time
-
     while os.getppid() == parent:
         time.sleep(2.0)
     os._exit(0)
@@ -202,10 +195,6 @@ def _close_worker() -> None:
 
 
 def _init_worker(model, engine, fmu_path, max_internal_step, tolerance, tests):
-    import atexit
-    import os
-    import threading
-
     threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
     _WORKER["sim"] = _Simulator(model, engine, fmu_path, max_internal_step, tolerance)
     _WORKER["tests"] = tests
@@ -233,8 +222,6 @@ class Engine:
         if engine not in ENGINES:
             raise ValueError(f"unknown engine '{engine}', expected one of {ENGINES}")
         if engine == "fmu" and fmu_path is None:
-            from build_fmu import ensure_fmu
-
             fmu_path = ensure_fmu(model)
         if workers < 0:
             raise ValueError("workers must be >= 0")

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from build_fmu import ensure_fmu
+from damper_fmu.fmu import ensure_fmu
 from damper_fmu.parameters import EFFECT_MODELS, FK_REFERENCE_STIFFNESS, defaults
 
 from tuner.data.preprocess import prepare

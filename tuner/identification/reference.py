@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from damper_fmu import make_model
+
 __all__ = ["lumped_reference"]
 
 
@@ -16,8 +18,6 @@ def lumped_reference(params: dict, stroke, velocity, t_eval, *, rtol: float = 1e
     """Output force [N] of the lumped model at ``t_eval`` [s] under the stroke ``stroke(t)`` [m]
     with derivative ``velocity(t)`` [m/s] (callables), from the force-free state at t_eval[0]."""
     from scipy.integrate import solve_ivp
-
-    from damper_fmu import make_model
 
     m = make_model("lumped", params)
     kB, cB, mP, mO, mC = m.kB, m.cB, m.mP, m.mO, m.mC

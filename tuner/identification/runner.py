@@ -21,6 +21,10 @@ import weakref
 from pathlib import Path
 
 import numpy as np
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Integer
+
+from damper_fmu.native import compile_library
 
 __all__ = ["FmuRunner", "SimulationError", "as_stroke_arrays", "stepper"]
 
@@ -41,8 +45,6 @@ def _close_live_runners() -> None:
 def stepper():
     """The compiled C stepping loop (ctypes library), or None without a C compiler."""
     if "lib" not in _STEPPER:
-        from damper_fmu.native import compile_library
-
         try:
             lib = ctypes.CDLL(str(compile_library(Path(__file__).resolve().parent / "c" / "fmi2_stepper.c",
                                                   "fmi2_stepper")))
@@ -91,9 +93,6 @@ class FmuRunner:
 
     def __init__(self, fmu_path, *, input_mode: int = _REPLAY, max_internal_step: float | None = None,
                  tolerance: float | None = None, instance_name: str = "damper", c_loop: bool = True):
-        from fmpy import extract, read_model_description
-        from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, defaultCallbacks
-
         self.path = Path(fmu_path)
         if not self.path.is_file():
             raise FileNotFoundError(f"FMU not found: {self.path} (build it with: python build_fmu.py)")
@@ -140,7 +139,6 @@ class FmuRunner:
             raise SimulationError(f"{self.path.name}: {what} failed (FMI status {status}): {detail}")
 
     def _apply_parameters(self, params: dict | None):
-        from fmpy.fmi2 import fmi2Integer
         reals, ints = {}, {}
         if self.max_internal_step is not None:
             reals["max_internal_step"] = float(self.max_internal_step)

@@ -35,8 +35,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from fmpy import read_model_description
 
 from campaign.vehicle import DAMPER_NAMES, DT_MAX, N_BODIES, N_DAMPERS, N_DOF, VehicleModel, VehicleParams
+from damper_fmu.native import compile_library
+from tuner.identification.runner import FmuRunner
 
 __all__ = ["VehicleCosim", "VehicleRun", "reference_run", "check_damper_fmu", "master_loop", "N_MECH",
            "DEFAULT_STEP"]
@@ -51,8 +54,6 @@ _MASTER: dict = {}
 def master_loop():
     """The compiled C master loop (ctypes function), or None without a C compiler."""
     if "fn" not in _MASTER:
-        from damper_fmu.native import compile_library
-
         try:
             lib = ctypes.CDLL(str(compile_library(Path(__file__).resolve().parent / "c" / "vehicle_master.c",
                                                   "vehicle_master")))
@@ -71,8 +72,6 @@ def check_damper_fmu(path) -> None:
     """Raise FileNotFoundError (missing file) or ValueError naming ``path`` and the variable when the
     FMU is not an FMI 2.0 co-simulation FMU with the inputs ``stroke`` [m], ``stroke_velocity`` [m/s]
     and the output ``force`` [N] of a damper."""
-    from fmpy import read_model_description
-
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"damper FMU not found: {path}")
@@ -150,8 +149,6 @@ class _Damper:
     """One damper FMU instance (extracted and instantiated once, reset for every run)."""
 
     def __init__(self, path, name: str, parameters: dict | None):
-        from tuner.identification.runner import FmuRunner
-
         check_damper_fmu(path)
         self.name = name
         self.runner = r = FmuRunner(path, input_mode=0, instance_name=f"yaw_damper_{name}", c_loop=False)
