@@ -184,3 +184,15 @@ def test_the_problem_records_the_estimate_it_uses():
     p = Problem.build([test], [], DataSettings(fit_rate_hz=200.0))
     assert p.noise["credible"] and p.noise["method"] == "cycle_scatter x1", p.noise
     assert p.noise_n == p.noise["in_band_n"] and _within(p.noise_n, truth["in_band_n"], 1.25)
+
+
+def test_tests_too_short_for_any_estimate_give_nan_not_an_error():
+    """200 samples of a continuous (unquantised) force: no estimator can run; the pooled record is NaN,
+    not credible, and says so."""
+    t = np.arange(200) / 500.0
+    x = 0.01 * np.sin(2 * np.pi * 0.7 * t)
+    short = RigTest(name="tiny", role="identification", scenario="", time=t, stroke=x,
+                    force=1e5 * x + np.random.default_rng(2).normal(0, 5, t.size), sample_rate=500.0)
+    rec = pooled_noise([short], 200.0)
+    assert math.isnan(rec["in_band_n"]) and not rec["credible"] and rec["reasons"][0].startswith("tiny")
+    assert "not credible" in rec["text"]

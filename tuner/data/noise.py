@@ -50,7 +50,8 @@ import numpy as np
 from scipy import signal
 
 __all__ = ["Estimate", "cycle_scatter_noise", "quiet_band_noise", "resolution_noise", "force_noise",
-           "pooled_noise", "noise_text", "channel_noise", "in_band", "SUB_BANDS", "MIN_CYCLES", "MIN_BAND_SAMPLES", "FLATNESS"]
+           "pooled_noise", "noise_text", "channel_noise", "in_band", "SUB_BANDS", "MIN_CYCLES", "MIN_BAND_SAMPLES",
+           "FLATNESS"]
 
 #: sub-bands [fraction of the sample rate] of the quiet-band estimate
 SUB_BANDS = ((0.10, 0.15), (0.15, 0.20), (0.20, 0.25), (0.25, 0.30))
@@ -381,7 +382,8 @@ def force_noise(test, fit_rate_hz: float | None = None, warmup_s: float = 0.5) -
 
 def pooled_noise(tests: list, fit_rate_hz: float, warmup_s: float = 0.5) -> dict:
     """Force noise in the fit band [N rms] of several rig tests: the median of the tests' credible
-    ``force_noise`` in-band values (of all of them, not credible, when none is credible).
+    ``force_noise`` in-band values (of all of them, not credible, when none is credible; NaN when no
+    test allows any estimate).
     Returns {"in_band_n", "fit_rate_hz", "credible", "method" (e.g. 'cycle_scatter x2, quiet_band x1'),
     "reasons" (why not credible, per test), "tests": {name: ``force_noise`` record}, "text"
     (``noise_text``)}."""
@@ -390,14 +392,13 @@ def pooled_noise(tests: list, fit_rate_hz: float, warmup_s: float = 0.5) -> dict
     per = {t.name: force_noise(t, fit_rate_hz, warmup_s) for t in tests}
     good = [r for r in per.values() if r["credible"]]
     pool = good or [r for r in per.values() if r["in_band_n"] is not None]
-    if not pool:
-        raise ValueError("pooled_noise: no test allows an estimate of the force noise (too short)")
     methods = {}
     for r in pool:
         methods[r["method"]] = methods.get(r["method"], 0) + 1
     reasons = [f"{name}: not credible ({'; '.join(r['reasons']) or 'no estimate'})"
                for name, r in per.items() if not r["credible"]]
-    out = {"in_band_n": float(np.median([r["in_band_n"] for r in pool])), "fit_rate_hz": float(fit_rate_hz),
+    out = {"in_band_n": float(np.median([r["in_band_n"] for r in pool])) if pool else math.nan,
+           "fit_rate_hz": float(fit_rate_hz),
            "credible": bool(good), "method": ", ".join(f"{k} x{v}" for k, v in methods.items()),
            "reasons": reasons, "tests": per}
     out["text"] = noise_text(out)
@@ -407,7 +408,8 @@ def pooled_noise(tests: list, fit_rate_hz: float, warmup_s: float = 0.5) -> dict
 def noise_text(record: dict) -> str:
     """One line on a ``pooled_noise`` record: the value and how it was estimated, or why it is not
     credible (the first test's reasons; the record has all)."""
-    where = f"{record['in_band_n']:.3g} N rms in the {record['fit_rate_hz'] / 2:g} Hz fit band"
+    where = (f"{record['in_band_n']:.3g} N rms in the {record['fit_rate_hz'] / 2:g} Hz fit band"
+             if math.isfinite(record["in_band_n"]) else "nothing (no test long enough)")
     if record["credible"]:
         return f"{where} ({record['method'].replace('_', ' ')})"
     more = len(record["reasons"]) - 1
