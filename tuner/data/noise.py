@@ -21,7 +21,8 @@ Estimators of the noise of one channel [its unit, rms]:
   rig controller's drift) makes force differences of its own: the force deviations are regressed on
   the stroke's slow differences and their rate (coefficients per eighth of the cycle) and what that
   explains is taken out; the stroke's measurement noise, to which the force does not respond,
-  explains nothing. Not credible when that force exceeds ``STROKE_FORCE_LIMIT`` x what is left.
+  explains nothing (it is taken out only above ``STROKE_EXPLAINS`` x the scatter). Not credible when
+  that force exceeds ``STROKE_FORCE_LIMIT`` x what is left.
 * ``quiet_band`` (:func:`quiet_band_noise`): the residual of a flexible smoother -- the force
   band-passed to four sub-bands of 0.1-0.3 x the sample rate (above a damper's force content, below
   rigs' anti-alias filters) -- measured in its quietest stretches: the mean square in windows of
@@ -78,6 +79,9 @@ STROKE_HARMONICS = 10
 #: half length [samples] of the windowed-sinc interpolation kernel, and its Kaiser window's beta
 _HALF = 16
 _BETA = 8.0
+#: the force the stroke's cycle-to-cycle differences make is taken out of the scatter when it is above this
+#: fraction of it (below, 16 regressors on filtered noise took 5-10 % of its rms for nothing)
+STROKE_EXPLAINS = 0.3
 #: largest ratio of the force the stroke's cycle-to-cycle differences make to the scatter left when
 #: they are taken out, for a credible estimate (a 5 % amplitude drift: 51 N taken out, 10 N left)
 STROKE_FORCE_LIMIT = 10.0
@@ -257,7 +261,7 @@ def cycle_scatter_noise(stroke, force, sample_rate_hz: float, fit_rate_hz: float
     if x.size - k0 < 4 * _HALF + 16:
         return unavailable(f"only {max(0, x.size - k0)} samples after the {warmup_s:g} s warm-up")
     start, n_before = k0, 0
-    for _ in range(2):      # the second pass: the period again from the cycles alike only (not a fade-in)
+    for _ in range(4):      # again from the first cycle alike, until it is the first (a fade-in biases the period)
         T = _period(x[start:], rate)
         if T is None:
             return unavailable("no periodic component in the stroke")
@@ -305,19 +309,19 @@ def cycle_scatter_noise(stroke, force, sample_rate_hz: float, fit_rate_hz: float
     coef, *_ = np.linalg.lstsq(A, dY.ravel(), rcond=None)
     fitted = A @ coef
     from_stroke = math.sqrt(float(np.mean(fitted ** 2)) * corr)
-    dY = dY - fitted.reshape(dY.shape)
-    value = math.sqrt(float(np.mean(dY ** 2)) * corr)
     details["force_from_stroke_n"] = from_stroke
     reasons, credible = [], True
+    if from_stroke > STROKE_EXPLAINS * math.sqrt(float(np.mean(dY ** 2)) * corr):
+        dY = dY - fitted.reshape(dY.shape)     # else the regression only took its share of the noise
+        reasons.append(f"the stroke's cycle-to-cycle differences ({stroke_scatter:.3g} m rms) made about "
+                       f"{from_stroke:.3g} N of the force scatter: taken out (linearised)")
+    value = math.sqrt(float(np.mean(dY ** 2)) * corr)
     if from_stroke > STROKE_FORCE_LIMIT * value:
         credible = False
         reasons.append(f"the stroke does not repeat within its noise: its cycle-to-cycle differences "
                        f"({stroke_scatter:.3g} m rms) make about {from_stroke:.3g} N of force, more than "
                        f"{STROKE_FORCE_LIMIT:g} x the {value:.3g} N left (a linearised correction is not to be "
                        f"trusted that far)")
-    elif from_stroke > value:
-        reasons.append(f"the stroke's cycle-to-cycle differences ({stroke_scatter:.3g} m rms) made about "
-                       f"{from_stroke:.3g} N of the force scatter: taken out (linearised)")
 
     in_band_value = None
     if fit_rate_hz is not None:
