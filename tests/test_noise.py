@@ -196,3 +196,16 @@ def test_tests_too_short_for_any_estimate_give_nan_not_an_error():
     rec = pooled_noise([short], 200.0)
     assert math.isnan(rec["in_band_n"]) and not rec["credible"] and rec["reasons"][0].startswith("tiny")
     assert "not credible" in rec["text"]
+
+
+def test_inspect_shows_the_estimate_its_method_and_whether_it_is_credible():
+    """`tuner inspect`'s summary: the method used, and NOT credible with the reason when so."""
+    from tuner.data.summary import format_summary, summarize
+
+    periodic, _ = noise_case("sine_200_filtered", 0)
+    s = summarize(periodic, 200.0)
+    assert s["force_noise"]["method"] == "cycle_scatter" and s["force_noise"]["credible"]
+    assert "(cycle scatter, " in format_summary(periodic, 200.0)
+    random_filtered, _ = noise_case("random_200_filtered", 0)
+    text = format_summary(random_filtered, 200.0)
+    assert "NOT credible" in text and "not white" in text

@@ -42,8 +42,9 @@ Procedure (``diagnose``):
    'unexplained', no "N x the floor", and the verdict says why (``residual_floor_credible``).
 6. Output: ``diagnosis.json`` (cause, causes, selection steps, unexplained, ranking, noise (the
    estimate used and every one made), effect parameters with units, intervals and typical ranges,
-   validation MSE/AME before and after per test in the Table 3 definition, evidence), figures, and the extended model as a tuned FMU
-   (``fmu/<model identifier>_<causes>_tuned.fmu``, e.g. ``DamperLumped_friction_tuned.fmu``).
+   validation MSE/AME before and after per test in the Table 3 definition, evidence), figures, and
+   the extended model as a tuned FMU (``fmu/<model identifier>_<causes>_tuned.fmu``, e.g.
+   ``DamperLumped_friction_tuned.fmu``).
 
 Search bounds (``search_bounds``) cover twice the catalogue's typical range
 (``damper_fmu.parameters.EFFECT_TYPICAL``, the one source), force scales at least 10 % of the
