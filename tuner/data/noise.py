@@ -11,7 +11,8 @@ records which one was used.
 Estimators of the noise of one channel [its unit, rms]:
 
 * ``cycle_scatter`` (:func:`cycle_scatter_noise`): periodic tests repeat the same cycle. The period
-  comes from the stroke (its spectral peak, refined by a least-squares sine fit); after the warm-up,
+  comes from the stroke (its spectral peak, refined by a least-squares sine fit, and found again from
+  the first cycle like the others until that is the first: a fade-in biases it); after the warm-up,
   every whole cycle is put on one phase grid (windowed-sinc interpolation, which keeps band-limited
   noise's variance) and the noise is the rms deviation from the cycle mean times sqrt(n/(n-1)) (n
   cycles). It measures everything that does not repeat, whatever its spectrum -- on filtered data too.
@@ -29,8 +30,9 @@ Estimators of the noise of one channel [its unit, rms]:
   ``WINDOW`` samples, its ``QUANTILE`` quantile, calibrated on white noise through the same steps.
   The force's own high-frequency content (the harmonics of a characteristic's kinks) comes in bursts
   where the velocity crosses a knee; the quiet windows leave it out, where a spectrum's median did
-  not (28.4 N for 9.9 N on 500 Hz campaign data). The estimate is the lowest sub-band level
-  (white-equivalent over the Nyquist band). Not credible when the sub-band levels differ by more
+  not (28.4 N for 9.9 N on 500 Hz campaign data). The estimate is the level in ``ESTIMATE_BAND``
+  (0.2-0.3 x the sample rate, where the force's content is least), white-equivalent over the
+  Nyquist band. Not credible when the sub-band levels differ by more
   than ``FLATNESS`` x (white noise is flat: the data were low-pass filtered or smoothed, or the force's
   own content fills the band) or with fewer than ``MIN_BAND_SAMPLES`` samples.
 * ``resolution`` (:func:`resolution_noise`): a channel stored in steps q carries at least the
@@ -51,8 +53,8 @@ import numpy as np
 from scipy import signal
 
 __all__ = ["Estimate", "cycle_scatter_noise", "quiet_band_noise", "resolution_noise", "force_noise",
-           "pooled_noise", "noise_text", "channel_noise", "in_band", "SUB_BANDS", "MIN_CYCLES", "MIN_BAND_SAMPLES",
-           "FLATNESS"]
+           "pooled_noise", "noise_text", "channel_noise", "in_band", "SUB_BANDS", "ESTIMATE_BAND", "MIN_CYCLES",
+           "MIN_BAND_SAMPLES", "FLATNESS"]
 
 #: sub-bands [fraction of the sample rate] of the quiet-band estimate
 SUB_BANDS = ((0.10, 0.15), (0.15, 0.20), (0.20, 0.25), (0.25, 0.30))
@@ -104,7 +106,9 @@ class Estimate(dict):
 
 def in_band(white_rms: float, sample_rate_hz: float, fit_rate_hz: float | None) -> float | None:
     """Rms of white noise [its unit] left after the anti-aliased resampling from ``sample_rate_hz`` to
-    ``fit_rate_hz`` [Hz]: white_rms x sqrt(min(1, fit_rate / sample_rate)); None without a fit rate."""
+    ``fit_rate_hz`` [Hz]: white_rms x sqrt(min(1, fit_rate / sample_rate)); None without a fit rate.
+    It counts the resampler's transition band (0.8-1.0 x the fit band's edge) in full: 6.6-7 % above
+    what ``tuner.data.preprocess.Resampler`` leaves of white noise, the conservative side."""
     if fit_rate_hz is None:
         return None
     return float(white_rms) * math.sqrt(min(1.0, float(fit_rate_hz) / float(sample_rate_hz)))
