@@ -374,3 +374,34 @@ def test_an_unfinished_fit_is_not_called_a_form_error_nor_a_reason_to_switch_bas
     assert "model-form error that no catalogue" not in res["verdict"]
     assert res["base_model"] == "lumped"
     assert "did not converge" in res["base_choice"]["not_repeated_on"]["twochamber"]
+
+
+def test_a_residual_is_not_judged_against_a_floor_that_is_not_credible(tmp_path):
+    """Lumped-model data whose force and stroke were low-pass filtered (at 0.1 x the 1 kHz rate, as a
+    rig's software may) and whose strokes repeat nothing: no noise estimate is credible (the spectrum
+    collapses, there are no cycles). Diagnosed from a base far off with a budget that cannot close
+    the gap, the residual is far above the collapsed floor -- the same setting reports 'unexplained'
+    on unfiltered data -- but here the verdict must not call it "N x the floor" nor a form error, and
+    must say that the noise estimate is not credible."""
+    from scipy import signal
+
+    from campaign.synthetic import model_tests
+    from tuner.data.reading import RigTest
+
+    sos = signal.butter(4, 0.2, output="sos")
+    tests = [RigTest(name=c["name"], role=c["role"], scenario=c["scenario"], time=c["frame"]["time"].to_numpy(),
+                     stroke=signal.sosfiltfilt(sos, c["frame"]["stroke"].to_numpy()),
+                     force=signal.sosfiltfilt(sos, c["frame"]["force"].to_numpy()), sample_rate=1000.0)
+             for c in model_tests("lumped", defaults("lumped"), seed=4, durations=(6.0, 6.0, 4.0),
+                                  roles=("identification", "identification", "validation"), noise_n=20.0)]
+    start = defaults("lumped")
+    start.update({k: 0.5 * v for k, v in start.items() if k.startswith("Fc_") and not k.startswith("Fc_v")})
+    res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
+                   tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), candidates=("preload",),
+                                                      polish_jacobians=2, final_jacobians=1, guess_start=False),
+                   base_params=start, base_model="lumped", log=lambda m: None)
+    assert res["residual_floor_credible"] is False and res["noise"]["credible"] is False
+    assert res["unexplained"] is None and res["cause"] != "unexplained", res["verdict"]
+    assert "x the residual floor" not in res["verdict"] and "noise estimate not credible" in res["verdict"]
+    saved = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
+    assert saved["noise"]["tests"]["lumped_ide1"]["all"]["quiet_band"]["credible"] is False

@@ -2,7 +2,8 @@
 ``fit``/``diagnose`` print before they start.
 
 Per test: file, columns used and ignored, units and signs as read, time base, sample rate,
-duration, stroke/velocity/force/temperature ranges (SI and the file's units), force noise, and
+duration, stroke/velocity/force/temperature ranges (SI and the file's units), force noise (the
+estimate ``tuner.data.noise.force_noise`` chose, its method and whether it is credible), and
 which part of the damping and elastic tables' range the data covers.
 """
 from __future__ import annotations
@@ -11,8 +12,8 @@ from damper_fmu.parameters import FC_ABSCISSAE
 
 from tuner.data.reading import RigTest
 from tuner.data.differentiator import Differentiator
+from tuner.data.noise import force_noise
 from tuner.data.preprocess import stroke_band_hz
-from tuner.metrics import noise_std
 
 __all__ = ["summarize", "format_summary"]
 
@@ -22,6 +23,7 @@ def summarize(test: RigTest, fit_rate_hz: float, diff_band_hz: float | None = No
     the fit will see it: measured, or differentiated with ``diff_band_hz`` [Hz] (None: the band
     ``tuner.data.preprocess.stroke_band_hz`` derives for a fit at ``fit_rate_hz`` [Hz])."""
     read = test.metadata.get("read", {})
+    noise = force_noise(test, fit_rate_hz)
     if test.velocity is not None:
         v, vsrc = test.velocity, "measured (velocity column)"
     else:
@@ -39,7 +41,8 @@ def summarize(test: RigTest, fit_rate_hz: float, diff_band_hz: float | None = No
         "stroke_m": [float(test.stroke.min()), float(test.stroke.max())],
         "velocity_m_s": [float(v.min()), float(v.max())], "velocity_source": vsrc,
         "force_n": [float(test.force.min()), float(test.force.max())],
-        "force_noise_n": noise_std(test.force, test.sample_rate) if len(test.force) >= 64 else None,
+        "force_noise_n": noise["value_n"],
+        "force_noise": {k: noise[k] for k in ("value_n", "in_band_n", "fit_rate_hz", "method", "credible", "reasons")},
         "channels": {k: [float(x.min()), float(x.max()), test.channel_units.get(k, "")]
                      for k, x in test.channels.items()},
         "warnings": list(test.metadata.get("warnings", [])),
@@ -53,6 +56,16 @@ def summarize(test: RigTest, fit_rate_hz: float, diff_band_hz: float | None = No
         "beyond_damping_table": vmax > table_v,
     }
     return out
+
+
+def _noise_text(n: dict) -> str:
+    """'; force noise ...' for the summary line: value, method, fit-band value, credible or why not."""
+    if n["value_n"] is None:
+        return "; force noise: no estimate (" + "; ".join(n["reasons"]) + ")"
+    text = (f"; force noise {n['value_n']:.3g} N rms ({n['method'].replace('_', ' ')}"
+            + (f", {n['in_band_n']:.3g} N in the {n['fit_rate_hz'] / 2:g} Hz fit band" if n["in_band_n"] is not None
+               else "") + ")")
+    return text + ("" if n["credible"] else " NOT credible: " + "; ".join(n["reasons"]))
 
 
 def _range(lo: float, hi: float, scale: float, unit: str, digits: int = 4) -> str:
@@ -74,7 +87,7 @@ def format_summary(test: RigTest, fit_rate_hz: float, diff_band_hz: float | None
              f"  {s['samples']} samples at {s['sample_rate_hz']:.6g} Hz, {s['duration_s']:.4g} s",
              f"  stroke {_range(*s['stroke_m'], 1e3, 'mm')}; velocity {_range(*s['velocity_m_s'], 1e3, 'mm/s')} "
              f"({s['velocity_source']}); force {_range(*s['force_n'], 1e-3, 'kN')}"
-             + (f"; force noise {s['force_noise_n']:.3g} N rms" if s["force_noise_n"] is not None else "")]
+             + _noise_text(s["force_noise"])]
     for k, (lo, hi, u) in s["channels"].items():
         lines.append(f"  channel {k}: {lo:.4g} .. {hi:.4g} {u}".rstrip())
     c = s["coverage"]

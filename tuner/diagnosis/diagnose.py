@@ -36,11 +36,15 @@ Procedure (``diagnose``):
    a model-form error the catalogue does not explain (cause 'unexplained' when nothing was named).
    With nothing named, the base refit is first continued until its first-order test holds
    (``final_jacobians`` cap); if it still has not converged, the verdict says so and claims no
-   form error.
-6. Output: ``diagnosis.json`` (cause, causes, selection steps, unexplained, ranking, effect
-   parameters with units, intervals and typical ranges, validation MSE/AME before and after per
-   test in the Table 3 definition, evidence), figures, and the extended model as a tuned FMU
-   (``fmu/<model identifier>_<causes>_tuned.fmu``, e.g. ``DamperLumped_friction_tuned.fmu``).
+   form error. The force noise comes from ``tuner.data.noise`` (the cycle-to-cycle scatter of
+   periodic tests, else the quiet band of the force's spectrum); when that estimate is not credible
+   (filtered data, too few samples) the residual is not compared with the floor at all: no
+   'unexplained', no "N x the floor", and the verdict says why (``residual_floor_credible``).
+6. Output: ``diagnosis.json`` (cause, causes, selection steps, unexplained, ranking, noise (the
+   estimate used and every one made), effect parameters with units, intervals and typical ranges,
+   validation MSE/AME before and after per test in the Table 3 definition, evidence), figures, and
+   the extended model as a tuned FMU (``fmu/<model identifier>_<causes>_tuned.fmu``, e.g.
+   ``DamperLumped_friction_tuned.fmu``).
 
 Search bounds (``search_bounds``) cover twice the catalogue's typical range
 (``damper_fmu.parameters.EFFECT_TYPICAL``, the one source), force scales at least 10 % of the
@@ -62,6 +66,7 @@ from damper_fmu.fmu import SLAVES, build, ensure_fmu
 from damper_fmu.parameters import (EFFECT_IDENTIFIED, EFFECT_MODELS, EFFECT_PARAMETERS, EFFECT_TYPICAL,
                                    FK_REFERENCE_STIFFNESS, defaults)
 
+from tuner.data.noise import channel_noise
 from tuner.data.reading import RigTest
 from tuner.diagnosis.detection import detection_limits
 from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidence, residual_figures
@@ -71,7 +76,7 @@ from tuner.identification.engine import Engine
 from tuner.identification.fit import RACE_RATIO, FitSettings, identify, initial_guess, validation_run
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.polish import polish
-from tuner.identification.problem import DataSettings, Problem, in_band_noise_of
+from tuner.identification.problem import DataSettings, Problem
 from tuner.metrics import pooled_mse
 from tuner.progress import advance
 
@@ -193,8 +198,8 @@ class DiagnosisSettings:
 
 def _stroke_noise_force(kind: str, params: dict, tests: list[RigTest], signals: list, settings) -> float:
     """Force [N rms, fit band] that the stroke channel's noise makes in the simulation: the model
-    driven by the measured stroke plus white noise at the stroke's own noise level (``in_band_noise_of``
-    the stroke), minus the same without it; pooled over the tests, seed 0.
+    driven by the measured stroke plus white noise at the stroke's own noise level in the fit band
+    (``tuner.data.noise.channel_noise``), minus the same without it; pooled over the tests, seed 0.
     The velocity input is left as measured: the differentiator's band (20 Hz and up) keeps the
     stroke noise's share in it small, and the series stiffness acts on the stroke."""
     import dataclasses
@@ -202,7 +207,7 @@ def _stroke_noise_force(kind: str, params: dict, tests: list[RigTest], signals: 
     rng = np.random.default_rng(0)
     se = n = 0.0
     for t, s in zip(tests, signals):
-        sigma = in_band_noise_of(t, settings.fit_rate_hz, "stroke")
+        sigma = channel_noise(t, settings.fit_rate_hz, "stroke")
         noisy = dataclasses.replace(s, stroke=s.stroke + rng.normal(0.0, sigma, s.stroke.size))
         d = (validation_run(kind, params, noisy, settings.engine)[0] - validation_run(kind, params, s, settings.engine)[0])
         se, n = se + float(np.sum(d[s.mask] ** 2)), n + int(s.mask.sum())
@@ -494,13 +499,12 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
                          f"{problem.settings.warmup_s:g} s warm-up, the settings ask for {settings.fit_rate_hz:g} Hz "
                          f"and {settings.warmup_s:g} s")
     data, sig_id, sig_val = problem, problem.sig_id, problem.sig_val
-    # force noise in the fit band (``in_band_noise``: from the spectrum of the measured force; the
-    # base model's residual is no better a source: its model-form error is broadband at the velocity
-    # reversals, measured 10x the noise on lumped-damper data). An effect whose force is below it is
-    # not resolved.
-    noise = problem.noise_n
-    log(f"diagnosis: force measurement noise about {noise:.1f} N rms in the {problem.settings.fit_rate_hz / 2:g} Hz "
-        f"fit band (from the spectrum of the identification tests)")
+    # force noise in the fit band (``tuner.data.noise``: the cycle-to-cycle scatter of periodic tests,
+    # else the quiet band of the force's spectrum; the base model's residual is no better a source: its
+    # model-form error is broadband at the velocity reversals, measured 10x the noise on lumped-damper
+    # data). An effect whose force is below it is not resolved; when the estimate is not credible the
+    # residual is not compared with the floor (``_diagnose_on``).
+    log(f"diagnosis: force measurement noise: {problem.noise.get('text') or f'{problem.noise_n:.3g} N rms'}")
 
     def parametrization(kind: str, given: dict | None) -> Parametrization:
         # the local solver needs monotone tables: the 'improved' scheme whatever the fit used
@@ -622,7 +626,12 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
     # model of the damper can remove it from the residual, so it belongs to the floor of "explained"
     stroke_noise_n = _stroke_noise_force(kind, base, identification, sig_id, settings)
     floor = math.hypot(noise, stroke_noise_n)
-    log(f"diagnosis: stroke noise through the base model {stroke_noise_n:.1f} N rms; residual floor {floor:.1f} N")
+    # a floor from a noise estimate that is not credible (filtered data, too few samples) decides nothing:
+    # no "N x the floor", no "unexplained" and no "settled" from a ratio against it
+    credible = bool(data.noise.get("credible", True))
+    not_credible = None if credible else data.noise.get("text", "noise estimate not credible")
+    log(f"diagnosis: stroke noise through the base model {stroke_noise_n:.1f} N rms; residual floor {floor:.1f} N"
+        + ("" if credible else f" - not used to judge the residual: {not_credible}"))
 
     # residual analysis of the base model (evidence, joint screen, figures)
     tr = [TestResidual(p.name, p.role or "", p.time, p.stroke, p.stroke_velocity, p.force,
@@ -683,7 +692,8 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
 
         def settled(info: dict, g: float) -> bool:
             reachable = math.sqrt(max(0.0, 1.0 - info["predicted"]) / g) if g > 0 else math.inf
-            return bool(info["converged"] or (not info["budget_spent"] and reachable > UNEXPLAINED_RATIO * floor))
+            return bool(info["converged"] or (credible and not info["budget_spent"]
+                                              and reachable > UNEXPLAINED_RATIO * floor))
 
         jac_base = _base_jacobian(eid, par, par.from_params(base))  # shared by every candidate
         # 'none' is a candidate like the others: the base model refitted from the same starts with
@@ -811,7 +821,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
         # an "unexplained" verdict (a model-form error) must rest on a converged fit, not an unfinished
         # one: with nothing named and the residual above the floor, the base refit is continued until
         # its first-order test holds (or the cap, reported)
-        if (not causes and none_row["identification_rmse_n"] > UNEXPLAINED_RATIO * floor
+        if (credible and not causes and none_row["identification_rmse_n"] > UNEXPLAINED_RATIO * floor
                 and settings.final_jacobians > 0 and "" not in converged_fits):
             z_c, g_c, n, info = polish(eid, par, z_none, max_jacobians=settings.final_jacobians, log=lambda m: None)
             converged_fits[""] = settled(info, g_c)
@@ -843,7 +853,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
     # what the final model leaves: at the noise, or structured beyond what the catalogue explains
     final_rmse = best["identification_rmse_n"] if causes else none_row["identification_rmse_n"]
     unexplained = None
-    if final_rmse > UNEXPLAINED_RATIO * floor:
+    if credible and final_rmse > UNEXPLAINED_RATIO * floor:
         pooled = (evidence.get("general") or {}).get("pooled") or {}
         bands = pooled.get("band_fraction") or {}
         r2 = {e: d.get("r2") or 0.0 for e, d in (evidence.get("effects") or {}).items()}
@@ -880,11 +890,16 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
                                     "plausible_range": [lo, hi], "plausible": bool(lo <= abs(v) <= hi)}
 
     verdict = _verdict(causes, best, none_row, unresolved, unexplained, noise, limits)
+    if not credible:
+        verdict += (f". The remaining residual, {final_rmse:.3g} N rms, is not compared with the residual floor: "
+                    f"{not_credible}")
     return {"cause": cause, "causes": causes, "verdict": verdict, "selection": selection,
             "detection_limits": limits,
             "unexplained": unexplained, "ranking": ranking, "effect_parameters": effect_parameters,
             "validation": validation, "evidence": evidence, "figures": figures,
             "note": " ".join(NOTES[c] for c in causes if c in NOTES), "noise_std_n": noise,
+            "noise": data.noise,  # how the noise was estimated (tuner.data.noise.pooled_noise)
+            "residual_floor_credible": credible,
             "stroke_noise_force_n": stroke_noise_n, "residual_floor_n": floor,
             "base_model": kind, "base_parameters": {k: base[k] for k in par.names},
             "after_params": after_params, "final_validation_mse": pooled_mse(final_metrics),

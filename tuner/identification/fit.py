@@ -417,9 +417,12 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
                              "parametrization": settings.parametrization}
             rmse_id = 1.0 / math.sqrt(hist["best_fitness_final"]) if hist["best_fitness_final"] > 0 else math.inf
             hist["noise_floor_n"] = noise
+            hist["noise_credible"] = bool(problem.noise.get("credible", True))
             hist["identification_rmse_n"] = rmse_id
-            log(f"[{model}] identification RMSE {rmse_id:.1f} N = {rmse_id / noise:.1f} x the measurement noise in "
-                f"the fit band ({noise:.1f} N); local refinement {'converged' if hist['converged'] else 'NOT converged'}")
+            against = (f"= {rmse_id / noise:.1f} x the measurement noise in the fit band ({noise:.1f} N)"
+                       if hist["noise_credible"] else f"({problem.noise.get('text')})")
+            log(f"[{model}] identification RMSE {rmse_id:.1f} N {against}; local refinement "
+                f"{'converged' if hist['converged'] else 'NOT converged'}")
             histories[model] = hist
     finally:
         if scratch is not None:

@@ -11,20 +11,19 @@ diagnosis each prepared the tests, and the diagnosis ignored ``--force-limit``).
 from __future__ import annotations
 
 import hashlib
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from damper_fmu.parameters import FC_ABSCISSAE, FK_ABSCISSAE, FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS, densify_abscissae
 
+from tuner.data.noise import pooled_noise
 from tuner.data.preprocess import prepare
 from tuner.data.reading import RigTest
 from tuner.identification.engine import Signals, oversampling
 from tuner.identification.parametrization import Parametrization
-from tuner.metrics import noise_std
 
-__all__ = ["DataSettings", "Problem", "in_band_noise", "to_signals", "table_abscissae", "model_abscissae",
+__all__ = ["DataSettings", "Problem", "to_signals", "table_abscissae", "model_abscissae",
            "default_force_limit", "data_digest", "STRETCH_BEYOND"]
 
 #: The tables keep the paper's Table 2 abscissae until the data reach this many times the last one.
@@ -50,20 +49,6 @@ class DataSettings:
     force_limit_n: float | None = None
     spring_reference_n_per_m: float = FK_REFERENCE_STIFFNESS
     parametrization: str = "improved"
-
-
-def in_band_noise(tests: list[RigTest], fit_rate_hz: float, channel: str = "force") -> float:
-    """Measurement noise of ``channel`` ('force' [N] or 'stroke' [m]) left in the fit band, rms:
-    ``tuner.metrics.noise_std`` of each test at its own rate, scaled by sqrt(fit_rate / sample_rate)
-    (white noise keeps that share of its power after the anti-aliased resampling), median over the
-    tests. The spectrum estimate is biased high by broadband signal (the harmonics of a
-    characteristic's kinks): the conservative side for "is this effect above the noise"."""
-    return float(np.median([in_band_noise_of(t, fit_rate_hz, channel) for t in tests]))
-
-
-def in_band_noise_of(test: RigTest, fit_rate_hz: float, channel: str = "force") -> float:
-    """``in_band_noise`` of one test."""
-    return noise_std(getattr(test, channel), test.sample_rate) * math.sqrt(min(1.0, fit_rate_hz / test.sample_rate))
 
 
 def to_signals(p, warmup_s: float, oversample: int | None = None) -> Signals:
@@ -169,7 +154,9 @@ class Problem:
     prep_id/prep_val: the PreparedTests (fit rate, differentiated stroke); sig_id/sig_val: their
     engine signals; peak_n: peak |force| of the identification tests [N] (counted samples);
     stroke_range_m: the largest stroke range of an identification test [m]; noise_n: force noise in
-    the fit band [N rms] (``in_band_noise``); axes: the table abscissae (``table_abscissae``);
+    the fit band [N rms] of the identification tests; noise: how it was estimated, whether it is
+    credible and why (``tuner.data.noise.pooled_noise``: per test the estimate used, cycle scatter or
+    quiet band, and every estimate made); axes: the table abscissae (``table_abscissae``);
     force_limit_n: the Fc,O ordinate cap [N] (the settings' or ``default_force_limit``); digest: of
     the identification data (resume keys)."""
 
@@ -186,6 +173,7 @@ class Problem:
     axes: dict
     force_limit_n: float
     digest: str
+    noise: dict = field(default_factory=dict, repr=False)
 
     @classmethod
     def build(cls, identification: list[RigTest], validation: list[RigTest],
@@ -200,10 +188,11 @@ class Problem:
         peak = max(float(np.abs(s.force[s.mask]).max()) for s in sig_id)
         axes = table_abscissae(sig_id, peak, settings.spring_reference_n_per_m, settings.damping_abscissae_m_s,
                                settings.elastic_abscissae_m)
+        noise = pooled_noise(identification, settings.fit_rate_hz, settings.warmup_s)
         return cls(settings=settings, identification=list(identification), validation=list(validation),
                    prep_id=prep_id, prep_val=prep_val, sig_id=sig_id, sig_val=sig_val, peak_n=peak,
                    stroke_range_m=max(float(np.ptp(s.stroke[s.mask])) for s in sig_id),
-                   noise_n=in_band_noise(identification, settings.fit_rate_hz), axes=axes,
+                   noise_n=noise["in_band_n"], noise=noise, axes=axes,
                    force_limit_n=settings.force_limit_n or default_force_limit(sig_id, axes),
                    digest=data_digest(identification))
 

@@ -964,6 +964,10 @@ def diagnosis_section_html(out_dir) -> str:
     floor_text = (f" The residual floor is {d['residual_floor_n']:.3g} N: the force noise and the "
                   f"{d['stroke_noise_force_n']:.3g} N the stroke channel's noise makes through the model."
                   if d.get("residual_floor_n") else "")
+    noise = d.get("noise") or {}
+    if noise and not noise.get("credible", True):
+        floor_text += (" The residual was not compared with it: "
+                       + e(noise.get("text", "noise estimate not credible")) + ".")
     return (
         "<section id='diagnosis'><h2>Diagnosis: what the model gets wrong, and why</h2>"
         f"<p class='verdict'>{e(d['verdict'])}{'. ' + e(d['note']) if d.get('note') else ''}</p>"
@@ -975,7 +979,7 @@ def diagnosis_section_html(out_dir) -> str:
         "<p>'none' is the base model refitted from the same starts with the same effort; every score is "
         "measured against it, so a refit's own progress is not credited to an effect. An effect whose force "
         f"contribution (fitted model minus the same with the effect off) is below the measurement noise "
-        f"({d.get('noise_std_n', float('nan')):.3g} N, from the force spectrum) is not named.</p>"
+        f"({e(noise.get('text') or format(d.get('noise_std_n', float('nan')), '.3g') + ' N')}) is not named.</p>"
         "<p>A cause is also significant: the 95 % confidence interval of its magnitude excludes zero. The "
         "interval comes from the identification residual's Jacobian by a block sandwich estimate (blocks of "
         "three residual correlation times), because the residuals are correlated and the textbook interval "
