@@ -22,7 +22,11 @@ def test_damper_fmu_imports_neither_the_tuner_nor_the_campaign():
 @pytest.mark.parametrize("path", [*sorted((ROOT / "damper_fmu").glob("*.py")), ROOT / "build_fmu.py",
                                   ROOT / "tuner" / "__main__.py", ROOT / "tuner" / "job.py",
                                   *[ROOT / "tuner" / "identification" / f for f in ("engine.py", "runner.py", "fit.py")],
-                                  ROOT / "tuner" / "vehicle" / "cosim.py"], ids=lambda p: p.relative_to(ROOT).as_posix())
+                                  ROOT / "tuner" / "vehicle" / "cosim.py", ROOT / "tuner" / "diagnosis" / "diagnose.py",
+                                  *sorted((ROOT / "tuner" / "cli").glob("*.py")), *sorted((ROOT / "tuner" / "fleet").glob("*.py")),
+                                  *sorted((ROOT / "tuner" / "results").glob("*.py")),
+                                  *sorted((ROOT / "damper_dataset").glob("*.py"))],
+                         ids=lambda p: p.relative_to(ROOT).as_posix())
 def test_own_modules_are_imported_at_module_top(path):
     tree = ast.parse(path.read_text())
     hidden = []

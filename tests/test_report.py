@@ -15,7 +15,8 @@ from matplotlib.image import imread
 from damper_fmu.parameters import MODEL_PARAMETERS, defaults
 from tuner.metrics import error_metrics, variation_percent
 from tuner.formatting import eng
-from tuner.results.report import bound_position, make_report
+from tuner.results.fit_figures import bound_position
+from tuner.results.report import make_report
 
 RATE = 100.0      # [Hz]
 N = 500           # samples per test
@@ -264,7 +265,7 @@ def test_bound_position():
 def test_loop_velocity_exact_for_cubic_stroke():
     """The Savitzky-Golay cubic derivative is exact for a cubic stroke (interior samples);
     the end samples use second-order differences, exact for a quadratic."""
-    from tuner.results.report import _velocity
+    from tuner.results.fit_figures import loop_velocity as _velocity
 
     t = np.arange(400) / 200.0
     x = 1e-3 * (0.5 - 2.0 * t + 1.5 * t ** 2 - 0.7 * t ** 3)

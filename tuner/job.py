@@ -26,7 +26,8 @@ from tuner.diagnosis.diagnose import DiagnosisSettings, choose_base, diagnose
 from tuner.identification.fit import FitResult, FitSettings, fit, full_rate_checks
 from tuner.identification.problem import Problem
 from tuner.progress import SubStages, stage
-from tuner.results.report import make_diagnosis_report, make_report
+from tuner.results.diagnosis_report import make_diagnosis_report
+from tuner.results.report import make_report
 from tuner.vehicle.compare import SCENARIO_NAMES, VEHICLE_FOLDER, compare_fmus
 
 __all__ = ["JobResult", "run", "run_diagnosis", "diagnosis_settings", "export_fmus", "wants_diagnosis",

@@ -1,0 +1,141 @@
+"""The diagnosis section of the report (``diagnosis.json``: ranking, selection, intervals, detection limits,
+validation before and after, evidence) and the report of a diagnosis on its own."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from tuner.formatting import effect_value, fmt_quantity
+from tuner.results.html import MODEL_LABEL, esc, table, write_page
+
+
+__all__ = ["diagnosis_section_html", "make_diagnosis_report", "detection_html"]
+
+def make_diagnosis_report(out_dir) -> Path:
+    """``out_dir/report.html`` for a diagnosis run on its own (no fit in the folder): the
+    diagnosis section of the full report. Returns its path."""
+
+    out = Path(out_dir)
+    title = "Damper diagnosis report"
+    return write_page(out, title, [f"<h1>{title}</h1>", diagnosis_section_html(out)])
+
+
+def detection_html(limits: dict) -> str:
+    """The detection limits of a diagnosis (``tuner.diagnosis.detection``) as a table ('' without any)."""
+    if not limits:
+        return ""
+    rows = [[esc(effect), esc(fmt_quantity(r["limit"], r["unit"]) if r["reachable"] else "not within its search range"),
+             esc(r["best_test"] or "-"),
+             {"score": "held-out score", "noise": "force above the noise", "range": "physical range"}[r["limited_by"]]]
+            for effect, r in limits.items()]
+    return ("<h3>What these tests could have detected</h3><p>The smallest magnitude of each effect that the "
+            "diagnosis would have named on these tests (linearised at the base refit: the part of the effect's "
+            "force the base refit cannot absorb, against the acceptance score and the noise), and the held-out "
+            "test that shows it best. A verdict 'none' means nothing above these sizes.</p>"
+            + table(["effect", "detectable from", "best test", "limited by"], rows))
+
+
+def diagnosis_section_html(out_dir) -> str:
+    """HTML section of the report for ``out_dir/diagnosis.json`` ('' when there is none)."""
+    import html
+
+    path = Path(out_dir) / "diagnosis.json"
+    if not path.exists():
+        return ""
+    d = json.loads(path.read_text())
+    e = html.escape
+    causes = d.get("causes") or ([d["cause"]] if d["cause"] not in ("none", "unexplained") else [])
+
+    def _rows(ranking, winner):
+        out = []
+        for r in ranking:
+            cls = " class='winner'" if r["effect"] == winner else ""
+            fitted = ", ".join(f"{n} = {effect_value(n, v, r['units'][n])}" for n, v in r["parameters"].items())
+            why = " (evidence disagrees)" if r.get("evidence_agrees") is False else " (below noise)"
+            size = (f"{r['effect_rms_n']:.3g}" + ("" if r.get("resolved", True) else why)
+                    if r.get("parameters") else "-")
+            ci = ", ".join(f"{fmt_quantity(lo, r['units'][n])} .. {fmt_quantity(hi, r['units'][n])}"
+                           for n, (lo, hi) in r.get("interval", {}).items())
+            ci += "" if "significant" not in r else (" (excludes 0)" if r["significant"] else " (includes 0)")
+            ci += "; magnitude below the effect's physical range" if r.get("meaningful") is False else ""
+            out.append(f"<tr{cls}><td>{e(r['effect'])}</td><td>{e(fitted)}</td><td>{e(ci or '-')}</td>"
+                       f"<td>{r['validation_mse_change_pct']:+.1f} %</td><td>{r['score']:+.3f}</td>"
+                       f"<td>{e(size)}</td></tr>")
+        return "".join(out)
+
+    head = ("<tr><th>candidate</th><th>fitted parameters</th><th>95 % interval</th><th>validation MSE change vs "
+            "{ref}</th><th>score</th><th>effect force [N rms]</th></tr>")
+    rows = _rows(d["ranking"], causes[0] if causes else None)
+    steps = ""
+    for k, st in enumerate(d.get("selection", [])):
+        if st.get("tried"):
+            added = causes[k + 1] if st["cause"] != "none" else None
+            winner = next((r["effect"] for r in st["tried"] if r.get("added") == added), None) if added else None
+            steps += (f"<h3>Forward selection, step {k + 2}: on top of {e(' + '.join(causes[:k + 1]))}</h3>"
+                      f"<table>{head.format(ref='the causes so far')}{_rows(st['tried'], winner)}</table>")
+    val = "".join(f"<tr><td>{e(n)}</td><td>{v['mse_before']:.3e}</td><td>{v['mse_after']:.3e}</td>"
+                  f"<td>{v['mse_change_pct']:+.1f} %</td><td>{v['ame_before']:.0f}</td><td>{v['ame_after']:.0f}</td></tr>"
+                  for n, v in d["validation"].items())
+    eff = "".join(f"<tr><td>{e(n)}</td><td>{e(fmt_quantity(p['value'], p['unit']))}</td><td>"
+                  f"{e(fmt_quantity(p['plausible_range'][0], p['unit']))} - {e(fmt_quantity(p['plausible_range'][1], p['unit']))}</td>"
+                  f"<td>{'yes' if p['plausible'] else 'NO'}</td></tr>" for n, p in d["effect_parameters"].items())
+    ev = (d.get("evidence") or {}).get("effects", {})
+    ev_rows = "".join(f"<li><b>{e(k)}</b>: {e(str(v.get('sentence', '')))}</li>" for k, v in ev.items()
+                      if isinstance(v, dict) and v.get("sentence"))
+    scr = (d.get("evidence") or {}).get("joint_screen")
+    if scr:
+        kept = " + ".join(f"{k} ({scr['terms'][k]['contribution_n']:.3g} N)" for k in scr["kept"]) or "nothing"
+        ev_rows += (f"<li><b>joint screen</b> (the residual on all seven signatures at once, terms below "
+                    f"{scr['threshold_n']:.3g} N or of unphysical sign dropped): keeps {e(kept)}, explaining "
+                    f"{100 * scr['r2_kept']:.0f} % of the residual power; all seven together "
+                    f"{100 * scr['r2_all']:.0f} %: the most any linear mix of catalogue effects could remove</li>")
+    figs = "".join(f"<figure><img src='{e(f)}' alt='{e(f)}'></figure>" for f in d.get("figures", []))
+    s = d["settings"]
+    base_kind = d.get("base_model", "lumped")
+    choice = d.get("base_choice") or {}
+    base_text = (f"<p>Base model: <b>{e(MODEL_LABEL.get(base_kind, base_kind))}</b>"
+                 + (", chosen by " + e(choice.get("by", "")) + ": " + ", ".join(
+                     f"{e(MODEL_LABEL.get(k, k))} {math.sqrt(v):.3g} N rms" for k, v in choice["validation_mse"].items())
+                    if choice.get("validation_mse") else "") + ".</p>")
+    if choice.get("after_diagnosis"):  # the first choice left a residual above the floor: both diagnosed
+        base_text += ("<p>The first choice, " + e(MODEL_LABEL.get(choice["first_choice"], choice["first_choice"]))
+                      + ", left a residual above the floor, so the diagnosis was repeated on every base form and "
+                      "the final model with the lowest held-out MSE kept: " + ", ".join(
+                          f"{e(MODEL_LABEL.get(k, k))} with {e(' + '.join(v['causes']) or 'no cause')} "
+                          f"{math.sqrt(v['validation_mse']):.3g} N rms" for k, v in choice["after_diagnosis"].items())
+                      + ".</p>")
+    floor_text = (f" The residual floor is {d['residual_floor_n']:.3g} N: the force noise and the "
+                  f"{d['stroke_noise_force_n']:.3g} N the stroke channel's noise makes through the model."
+                  if d.get("residual_floor_n") else "")
+    noise = d.get("noise") or {}
+    if noise and not noise.get("credible", True):
+        floor_text += (" The residual was not compared with it: "
+                       + e(noise.get("text", "noise estimate not credible")) + ".")
+    return (
+        "<section id='diagnosis'><h2>Diagnosis: what the model gets wrong, and why</h2>"
+        f"<p class='verdict'>{e(d['verdict'])}{'. ' + e(d['note']) if d.get('note') else ''}</p>"
+        + base_text +
+        "<p>Each candidate effect was added to the base model and the extended model refitted on the "
+        "identification tests; the decision rests on the validation (held-out) MSE: score = -ln(MSE_ext / "
+        f"MSE_base) - {s['penalty_per_parameter']} per extra parameter, a cause is named when its score exceeds "
+        f"{s['accept_score']}.</p>"
+        "<p>'none' is the base model refitted from the same starts with the same effort; every score is "
+        "measured against it, so a refit's own progress is not credited to an effect. An effect whose force "
+        f"contribution (fitted model minus the same with the effect off) is below the measurement noise "
+        f"({e(noise.get('text') or format(d.get('noise_std_n', float('nan')), '.3g') + ' N')}) is not named.</p>"
+        "<p>A cause is also significant: the 95 % confidence interval of its magnitude excludes zero. The "
+        "interval comes from the identification residual's Jacobian by a block sandwich estimate (blocks of "
+        "three residual correlation times), because the residuals are correlated and the textbook interval "
+        "would be far too narrow. Causes are added one at a time (forward selection) while the next one "
+        "earns its score against the model of the causes found so far. When the final model's residual stays "
+        f"above {s.get('unexplained_ratio', 2)} x the residual floor, the report says so: a model-form error the "
+        f"catalogue does not explain.{floor_text}</p>"
+        f"<table>{head.format(ref=chr(39) + 'none' + chr(39))}{rows}</table>{steps}"
+        + (f"<h3>Effect parameters vs plausible ranges</h3><table><tr><th>parameter</th><th>fitted</th>"
+           f"<th>typical range</th><th>plausible</th></tr>{eff}</table>" if eff else "")
+        + "<h3>Validation before and after</h3><table><tr><th>test</th><th>MSE before [N&sup2;]</th>"
+          f"<th>MSE after [N&sup2;]</th><th>change</th><th>AME before [N]</th><th>AME after [N]</th></tr>{val}</table>"
+        + (f"<h3>Residual evidence (base model)</h3><ul>{ev_rows}</ul>" if ev_rows else "")
+        + detection_html(d.get("detection_limits") or {})
+        + figs + "</section>")
