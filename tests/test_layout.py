@@ -42,3 +42,15 @@ def test_own_modules_are_imported_at_module_top(path):
                 if name.startswith(".") or name.split(".")[0] in OURS:
                     hidden.append(f"line {node.lineno}: {name} in {fn.name}()")
     assert not hidden, f"{path.name} imports our own modules inside functions: {hidden}"
+
+
+def test_the_readme_layout_table_names_every_module():
+    """The README's "What is in here" table is the map of the code: every module of the packages is named."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    start = text.index("## What is in here")
+    table = text[start:text.index("\n## ", start + 5)]
+    missing = [str(f.relative_to(ROOT)) for pkg in ("tuner", "damper_fmu", "damper_dataset", "campaign")
+               for f in sorted((ROOT / pkg).rglob("*.py"))
+               if f.name not in ("__init__.py", "__main__.py") and f"`{f.name}`" not in table
+               and f"`{f.relative_to(ROOT / pkg).as_posix()}`" not in table]
+    assert not missing, f"README layout table does not name: {missing}"
