@@ -32,9 +32,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pandas as pd
 
+from damper_dataset.writer import write_dataset
+from damper_fmu import REPLAY, simulate
+from damper_fmu.integrator import DEFAULT_MAX_STEP
 from damper_fmu.parameters import (FC_ABSCISSAE, FK_ABSCISSAE, FK_REFERENCE_STIFFNESS, TWOCHAMBER_FC_ABSCISSAE,
                                    defaults)
+from campaign.scenarios import SCENARIOS, damper_stroke
+from campaign.sensors import SensorChain
 
 __all__ = ["random_damper", "random_stroke", "class_tests", "write_class_dataset", "STROKE_KINDS", "CLASS_MODELS",
            "NOISE_RANGE_N", "SAMPLE_RATE_HZ"]
@@ -150,7 +156,6 @@ def random_stroke(kind: str, seed: int, duration: float, fs: float) -> tuple[np.
     n = int(round(duration * fs)) + 1
     t = np.arange(n) / fs
     if kind == "campaign":
-        from .scenarios import SCENARIOS, damper_stroke
 
         names = list(SCENARIOS)
         sc = SCENARIOS[names[int(rng.integers(len(names)))]]
@@ -199,12 +204,8 @@ def class_tests(model: str, seed: int, *, durations=None, noise_n: float | None 
     drawn log-uniform in ``NOISE_RANGE_N``); ``sensors``: other ``campaign.sensors.SensorChain`` settings
     (default: the rig's stroke channel, 2 um noise and a 16-bit ADC over +-0.1 m). ``truth``: {"parameters", "noise_n", "kinds", ...}.
     """
-    import pandas as pd
 
-    from damper_fmu import REPLAY, simulate
-    from damper_fmu.integrator import DEFAULT_MAX_STEP
 
-    from .sensors import SensorChain
 
     rng = np.random.default_rng([seed, 7919, CLASS_MODELS.index(model)])
     params = random_damper(model, seed)
@@ -239,8 +240,6 @@ def class_tests(model: str, seed: int, *, durations=None, noise_n: float | None 
 
 def write_class_dataset(out_dir, model: str, seed: int, **kwargs):
     """Write :func:`class_tests` as a dataset folder (the truth in the manifest's generator); return its Path."""
-    from damper_dataset.writer import write_dataset
-
     tests, truth = class_tests(model, seed, **kwargs)
     return write_dataset(out_dir, tests, description=f"a random {model} damper of the model's class (seed {seed})",
                          generator={"command": "campaign.damper_class.write_class_dataset", **truth})

@@ -13,9 +13,15 @@ realisations are different streams of the same master seed).
 """
 from __future__ import annotations
 
+import platform
 import time
+from importlib.metadata import version
 from pathlib import Path
 
+from campaign.effects import EFFECTS, validate_effects
+from campaign.plots import plot_dataset
+from campaign.rig import DAMPERS, check_oil_temperature, measure
+from campaign.scenarios import SCENARIOS, damper_stroke
 from damper_dataset.writer import write_dataset
 
 __all__ = ["generate_dataset", "library_versions", "STROKE_RATE_HZ", "DEFAULT_SEED", "CHAMBER_TEMPERATURES_C",
@@ -34,9 +40,6 @@ GENERATING_LIBRARIES = ("numpy", "scipy", "pandas", "matplotlib")
 
 def library_versions() -> dict[str, str]:
     """{"python": "3.11.7", "numpy": ..., ...}: the versions that generate a dataset's bytes."""
-    import platform
-    from importlib.metadata import version
-
     return {"python": platform.python_version(), **{m: version(m) for m in GENERATING_LIBRARIES}}
 
 
@@ -53,10 +56,6 @@ def generate_dataset(out, *, seed: int = DEFAULT_SEED, effects: dict | None = No
     oil_temperatures: optional oil (climatic chamber) temperature [degC] per scenario, a sequence in
     the order of ``scenarios`` or a mapping scenario name -> degC (default: 20 degC for every test).
     """
-    from .effects import EFFECTS, validate_effects
-    from .rig import DAMPERS, measure
-    from .scenarios import SCENARIOS, damper_stroke
-
     if int(seed) != seed or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
     chosen = list(SCENARIOS) if scenarios is None else list(scenarios)
@@ -93,7 +92,6 @@ def generate_dataset(out, *, seed: int = DEFAULT_SEED, effects: dict | None = No
                                             "lumped-model damper, Table 2 family") + ", sensor chain)"}
     path = write_dataset(out, tests, description="Virtual test campaign: the six manoeuvres of the paper's "
                          "Table 1 replayed on a virtual damper rig", generator=generator, overwrite=overwrite)
-    from .plots import plot_dataset
 
     log(f"  overview figure: {plot_dataset(path)}")
     return path
@@ -113,6 +111,5 @@ def _oil_temperatures(spec, chosen: list[str]) -> dict[str, float]:
         if len(spec) != len(chosen):
             raise ValueError(f"{len(spec)} oil temperatures for {len(chosen)} scenarios; give one per scenario")
         temps = dict(zip(chosen, spec))
-    from .rig import check_oil_temperature
 
     return {k: check_oil_temperature(v, f"oil temperature of {k!r}") for k, v in temps.items()}

@@ -33,6 +33,9 @@ import pandas as pd
 from campaign import effects as fx
 from campaign.rig_damper import DamperConfig, DamperParams, RigDamper, StrokeInput
 from campaign.sensors import SensorChain
+from damper_fmu import defaults
+from damper_fmu.integrator import REPLAY, Simulator
+from damper_fmu.models import make_model
 
 DAMPERS = ("twin-tube", "lumped")
 
@@ -132,7 +135,6 @@ def lumped_parameters(effects: Mapping[str, float], params: DamperParams | None 
     and the silent blocks by 0.6 (so the tuner's preset start is not the answer), plus the
     damper-side effects mapped onto the model's effect elements. The oil temperature is the
     rig's (``_run_lumped``), fed to the model as a measured input."""
-    from damper_fmu import defaults
 
     e = fx.validate_effects(effects)
     par = params or DamperParams()
@@ -156,8 +158,6 @@ def _run_lumped(t, stroke, t_int, effects, params: DamperParams):
     The oil temperature follows the rig damper's heat balance C dT/dt = F v - hA (T - T_amb)
     (C, hA, T_amb from ``params``; F v: power the damper absorbs) and drives the model's
     thermal element as a measured input."""
-    from damper_fmu.integrator import REPLAY, Simulator
-    from damper_fmu.models import make_model
 
     s_in = StrokeInput(t, stroke)
     x, v = s_in(t_int), s_in(t_int, 1)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from damper_dataset.writer import write_dataset
 from damper_fmu import simulate
 
 __all__ = ["random_stroke", "model_tests", "write_model_dataset"]
@@ -55,8 +56,6 @@ def model_tests(model: str, params: dict, *, seed: int = 0, durations=(20.0, 20.
 
 def write_model_dataset(out_dir, model: str, params: dict, **kwargs):
     """Write a synthetic dataset folder (see ``model_tests``) and return its path."""
-    from damper_dataset.writer import write_dataset
-
     return write_dataset(out_dir, model_tests(model, params, **kwargs),
                          description=f"synthetic data from the {model} model with known parameters",
                          generator={"model": model, "parameters": params, **{k: v for k, v in kwargs.items()
