@@ -39,3 +39,33 @@ def test_the_force_rule_sets_the_limit_when_the_noise_is_large():
     u = j.copy()
     row = limit_from_signature(u, j, mse_ref=1e-6, noise_n=10.0, accept=0.05, penalty=0.02)
     assert row["limit"] == row["by_noise"] == pytest.approx(5.0)
+
+
+@pytest.mark.full
+def test_the_held_out_score_crosses_the_threshold_where_the_limit_says(tmp_path):
+    """On lumped-model data, a friction hidden at half the score limit of the clean data scores below
+    the acceptance threshold, one at twice the limit above it (measured 2026-11-25: limit 5.13 N; 2.57 N
+    scored +0.004, 10.3 N +0.264 against the linear model's -0.002 and +0.235)."""
+    from campaign.synthetic import write_model_dataset
+    from damper_fmu import defaults
+    from tuner.data.reading import load_dataset
+    from tuner.diagnosis.diagnose import ACCEPT_SCORE, DiagnosisSettings, diagnose
+    from tuner.identification.fit import FitSettings, fit
+
+    def run(tag, friction):
+        path = write_model_dataset(tmp_path / f"d_{tag}", "lumped", {**defaults("lumped"), "friction_force": friction},
+                                   seed=4, durations=(6.0, 6.0, 4.0, 4.0), noise_n=20.0,
+                                   roles=("identification", "identification", "validation", "validation"))
+        tests = load_dataset(path)
+        ident = [t for t in tests if t.role == "identification"]
+        valid = [t for t in tests if t.role == "validation"]
+        fitted = fit(ident, valid, FitSettings(models=("lumped",), iterations=0, workers=2, engine="native"),
+                     log=lambda m: None)
+        return diagnose(ident, valid, tmp_path / f"o_{tag}", DiagnosisSettings(engine="native", workers=2,
+                                                                                 candidates=("friction",)),
+                        base_params=fitted.params["lumped"]["values"], base_model="lumped", log=lambda m: None)
+
+    limit = run("clean", 0.0)["detection_limits"]["friction"]["by_score"]
+    score = {f: next(r for r in run(f"x{f}", f * limit)["ranking"] if r["effect"] == "friction")["score"]
+             for f in (0.5, 2.0)}
+    assert score[0.5] < ACCEPT_SCORE < score[2.0], (limit, score)
