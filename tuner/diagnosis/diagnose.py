@@ -837,57 +837,26 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
                 ranking[next(i for i, r in enumerate(ranking) if r["effect"] == "none")] = none_row
         # what these tests could not have told apart from the base: the smallest magnitude of each
         # candidate that would have been named (``tuner.diagnosis.detection``), and the test showing it
-        limits = detection_limits(
-            eid, ev, par, z_none, {e: EFFECT_IDENTIFIED[e][0] for e in settings.candidates if e not in causes},
-            {EFFECT_IDENTIFIED[e][0]: EFFECT_TYPICAL[EFFECT_IDENTIFIED[e][0]][0] for e in settings.candidates},
-            {EFFECT_IDENTIFIED[e][0]: search_bounds(EFFECT_IDENTIFIED[e][0], peak, stroke_range)
-             for e in settings.candidates},
-            {n: MEANINGFUL_FRACTION * PLAUSIBLE[n][0] for e in settings.candidates for n in EFFECT_IDENTIFIED[e]}, mse_none, noise, ACCEPT_SCORE, PENALTY_PER_PARAMETER, lengths,
-            [s.name for s in sig_val])
-        for r in limits.values():
-            r["unit"] = UNITS[r["parameter"]]
-        if limits:
-            log("diagnosis: detection limits on these tests (the smallest magnitude that would have been named): "
-                + ", ".join(f"{e} {_limit_text(r)}" for e, r in limits.items()))
+        limits = _detection(eid, ev, par, z_none, [e for e in settings.candidates if e not in causes], peak,
+                            stroke_range, mse_none, noise, lengths, [s.name for s in sig_val], log)
 
     # what the final model leaves: at the noise, or structured beyond what the catalogue explains
     final_rmse = best["identification_rmse_n"] if causes else none_row["identification_rmse_n"]
     unexplained = None
     if credible and final_rmse > UNEXPLAINED_RATIO * floor:
-        pooled = (evidence.get("general") or {}).get("pooled") or {}
-        bands = pooled.get("band_fraction") or {}
-        r2 = {e: d.get("r2") or 0.0 for e, d in (evidence.get("effects") or {}).items()}
-        unexplained = {"identification_rmse_n": final_rmse, "noise_std_n": noise, "floor_n": floor,
-                       "stroke_noise_force_n": stroke_noise_n, "ratio": final_rmse / floor,
-                       "dominant_band": max(bands, key=bands.get) if bands else None,
-                       "band_fraction": bands, "best_signature": max(r2, key=r2.get) if r2 else None,
-                       "best_signature_r2": max(r2.values()) if r2 else None,
-                       "linear_share": pooled.get("linear_share"), "band_linear_share": pooled.get("band_linear_share"),
-                       "loop": pooled.get("loop"),
-                       "catalogue_r2_all": (evidence.get("joint_screen") or {}).get("r2_all"),
-                       # whether the final refit settled (converged, or the gain its last Gauss-Newton
-                       # step predicts cannot reach the floor); None: not continued
-                       "fit_converged": converged_fits.get("+".join(causes))}
+        # whether the final refit settled (converged, or the gain its last Gauss-Newton step predicts
+        # cannot reach the floor); None: not continued
+        unexplained = _unexplained(final_rmse, noise, floor, stroke_noise_n, evidence,
+                                   converged_fits.get("+".join(causes)))
         if not causes:
             cause = "unexplained"
     key = "+".join(causes)
     # reported before/after figures: the validation definition of Table 3 (tuner.identification.fit.validation_run:
     # the FMU at its own steps), so that "before" is the Table 3 figure of the same base model
     after_params = refits[key][0].to_params(refits[key][1]) if causes else base
-    validation, final_metrics, base_metrics = {}, [], []
-    for s in sig_val:
-        mb = validation_run(kind, base, s, settings.engine)[1]
-        base_metrics.append(mb)
-        ma = validation_run(kind, after_params, s, settings.engine)[1] if causes else mb
-        final_metrics.append(ma)
-        validation[s.name] = {"mse_before": mb["mse"], "ame_before": mb["ame"], "mse_after": ma["mse"],
-                              "ame_after": ma["ame"], "mse_change_pct": 100 * (ma["mse"] / mb["mse"] - 1)}
-    effect_parameters = {}
-    if causes:
-        for n, v in best["parameters"].items():
-            lo, hi = PLAUSIBLE[n]
-            effect_parameters[n] = {"value": v, "unit": UNITS[n], "interval_95": best["interval"][n],
-                                    "plausible_range": [lo, hi], "plausible": bool(lo <= abs(v) <= hi)}
+    validation, base_metrics, final_metrics = _before_after(kind, base, after_params if causes else None, sig_val,
+                                                            settings.engine)
+    effect_parameters = _effect_parameters(best) if causes else {}
 
     verdict = _verdict(causes, best, none_row, unresolved, unexplained, noise, limits)
     if not credible:
@@ -904,6 +873,66 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
             "base_model": kind, "base_parameters": {k: base[k] for k in par.names},
             "after_params": after_params, "final_validation_mse": pooled_mse(final_metrics),
             "base_validation_mse": pooled_mse(base_metrics)}
+
+
+def _detection(eid: Engine, ev: Engine, par: Parametrization, z: np.ndarray, candidates: list[str], peak: float,
+               stroke_range: float, mse_ref: float, noise: float, lengths: list[int], tests: list[str], log) -> dict:
+    """``tuner.diagnosis.detection.detection_limits`` of ``candidates`` at the base refit ``z`` with the
+    diagnosis's rules (acceptance score, penalty, search bounds, physical range); logged, units added."""
+    names = {e: EFFECT_IDENTIFIED[e][0] for e in candidates}
+    limits = detection_limits(eid, ev, par, z, names, {n: EFFECT_TYPICAL[n][0] for n in names.values()},
+                              {n: search_bounds(n, peak, stroke_range) for n in names.values()},
+                              {n: MEANINGFUL_FRACTION * PLAUSIBLE[n][0] for n in names.values()}, mse_ref, noise,
+                              ACCEPT_SCORE, PENALTY_PER_PARAMETER, lengths, tests)
+    for r in limits.values():
+        r["unit"] = UNITS[r["parameter"]]
+    if limits:
+        log("diagnosis: detection limits on these tests (the smallest magnitude that would have been named): "
+            + ", ".join(f"{e} {_limit_text(r)}" for e, r in limits.items()))
+    return limits
+
+
+def _unexplained(final_rmse: float, noise: float, floor: float, stroke_noise_n: float, evidence: dict,
+                 fit_converged: bool | None) -> dict:
+    """The record of a residual left above the floor [N]: where it lies (band, loop, linear share) and how
+    much of it the closest catalogue signature and all of them together explain (``evidence``)."""
+    pooled = (evidence.get("general") or {}).get("pooled") or {}
+    bands = pooled.get("band_fraction") or {}
+    r2 = {e: d.get("r2") or 0.0 for e, d in (evidence.get("effects") or {}).items()}
+    return {"identification_rmse_n": final_rmse, "noise_std_n": noise, "floor_n": floor,
+            "stroke_noise_force_n": stroke_noise_n, "ratio": final_rmse / floor,
+            "dominant_band": max(bands, key=bands.get) if bands else None,
+            "band_fraction": bands, "best_signature": max(r2, key=r2.get) if r2 else None,
+            "best_signature_r2": max(r2.values()) if r2 else None,
+            "linear_share": pooled.get("linear_share"), "band_linear_share": pooled.get("band_linear_share"),
+            "loop": pooled.get("loop"),
+            "catalogue_r2_all": (evidence.get("joint_screen") or {}).get("r2_all"),
+            "fit_converged": fit_converged}
+
+
+def _before_after(kind: str, base: dict, after: dict | None, signals: list, engine: str):
+    """(per test {mse/ame before and after, change}, base metrics, final metrics) in the Table 3
+    definition (``validation_run``: the FMU at its own steps), so that "before" is the Table 3 figure
+    of the same base model; ``after`` None: nothing was added (after = before)."""
+    validation, base_metrics, final_metrics = {}, [], []
+    for s in signals:
+        mb = validation_run(kind, base, s, engine)[1]
+        base_metrics.append(mb)
+        ma = validation_run(kind, after, s, engine)[1] if after is not None else mb
+        final_metrics.append(ma)
+        validation[s.name] = {"mse_before": mb["mse"], "ame_before": mb["ame"], "mse_after": ma["mse"],
+                              "ame_after": ma["ame"], "mse_change_pct": 100 * (ma["mse"] / mb["mse"] - 1)}
+    return validation, base_metrics, final_metrics
+
+
+def _effect_parameters(best: dict) -> dict:
+    """The named causes' fitted magnitudes with units, 95 % intervals and their typical ranges."""
+    out = {}
+    for n, v in best["parameters"].items():
+        lo, hi = PLAUSIBLE[n]
+        out[n] = {"value": v, "unit": UNITS[n], "interval_95": best["interval"][n],
+                  "plausible_range": [lo, hi], "plausible": bool(lo <= abs(v) <= hi)}
+    return out
 
 
 def _interval_text(row: dict) -> str:
