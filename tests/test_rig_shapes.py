@@ -135,6 +135,20 @@ def press(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
+def heat_gun(tmp_path_factory):
+    params = defaults("lumped")
+    kw = dict(seed=7, durations=(96.0,), roles=("identification",), fs=300.0)
+    (noisy,), (clean,) = model_tests("lumped", params, noise_n=15.0, **kw), model_tests("lumped", params, noise_n=0.0, **kw)
+    frame = noisy["frame"]
+    noise = frame["force"].to_numpy() - clean["frame"]["force"].to_numpy()
+    path = tmp_path_factory.mktemp("heat_gun") / "heat_gun_run_03.csv"
+    t = frame["time"].to_numpy()
+    write_heat_gun_300(path, t, frame["stroke"].to_numpy(), frame["force"].to_numpy())
+    in_band = float(np.std(Resampler.design(300.0, FIT_RATE).apply(noise)))
+    return path, frame, {"noise_n": float(np.std(noise)), "in_band_n": in_band}
+
+
+@pytest.fixture(scope="module")
 def logger(tmp_path_factory):
     t, x, v = white_noise_stroke(11, 8.0, LOGGER_RATE)
     clean = simulate("lumped", t, x, v, params=random_damper("lumped", 11))
@@ -209,6 +223,51 @@ def test_inspect_on_the_press_file_names_positions_units_and_rate(press, capsys)
     assert "stroke in mm, force in N, time in s" in out
     assert f"{2401} samples at 200 Hz" in out
     assert "force noise" in out and "cycle scatter" in out
+
+
+# --------------------------------------------------------------------------- heat gun: stamps, volts, incomplete columns
+
+def test_heat_gun_file_is_read_as_written(heat_gun):
+    path, frame, _ = heat_gun
+    g = load_test(path, time_col="Timestamp", stroke_col="Displacement", force_col="Force (N)")
+    t = frame["time"].to_numpy()
+    assert g.time.size == t.size
+    assert g.sample_rate == pytest.approx(300.0, rel=1e-5)  # the clock behind the ms stamps
+    np.testing.assert_allclose(g.time, t, rtol=0, atol=_half_step(3))
+    np.testing.assert_allclose(g.stroke, frame["stroke"].to_numpy(), rtol=0, atol=1e-3 * _half_step(4))
+    np.testing.assert_allclose(g.force, frame["force"].to_numpy(), rtol=0, atol=_half_step(2))
+    # the temperature in degC is the oil temperature; its volt twin is a channel in V, and so is the force's
+    np.testing.assert_allclose(g.channels["temperature"], heat_gun_temperature(t), rtol=0, atol=_half_step(2))
+    assert g.channel_units["temperature"] == "degC"
+    assert g.channel_units["Force (V)"] == "V" and g.channel_units["Temperature (V)"] == "V"
+    np.testing.assert_allclose(g.channels["Force (V)"], FORCE_GAIN_V_PER_N * frame["force"].to_numpy()
+                               + FORCE_OFFSET_V, rtol=0, atol=_half_step(5))
+    np.testing.assert_allclose(g.channels["Temperature (V)"], TEMP_GAIN_V_PER_C * heat_gun_temperature(t)
+                               + TEMP_OFFSET_V, rtol=0, atol=_half_step(5))
+    read = g.metadata["read"]
+    assert read["time"] == "timestamp" and read["columns"]["temperature"] == "Temperature (degC)"
+    assert {"Sample Rate (Hz)", ""} <= set(read["ignored"])
+    assert set(g.channels) == {"temperature", "Force (V)", "Temperature (V)"}
+    warnings = " ".join(g.metadata["warnings"])
+    assert "'Sample Rate (Hz)' not read" in warnings and "regular 300 Hz clock" in warnings
+
+
+def test_heat_gun_noise_is_credible_within_a_factor_2(heat_gun):
+    path, _, truth = heat_gun
+    n = force_noise(load_test(path, time_col="Timestamp", stroke_col="Displacement", force_col="Force (N)"),
+                    FIT_RATE)
+    assert n["credible"], n["reasons"]
+    assert _within_factor_2(n["in_band_n"], truth["in_band_n"]), (n["in_band_n"], truth["in_band_n"])
+
+
+def test_inspect_on_the_heat_gun_file_names_the_stamps_and_the_volt_channels(heat_gun, capsys):
+    path, _, _ = heat_gun
+    assert main(["inspect", str(path), "--time-col", "Timestamp", "--stroke-col", "Displacement",
+                 "--force-col", "Force (N)"]) == 0
+    out = capsys.readouterr().out
+    assert "force <- 'Force (N)'" in out and "temperature <- 'Temperature (degC)'" in out
+    assert "time: timestamp" in out and "samples at 300 Hz, 96 s" in out
+    assert "channel Force (V):" in out and out.split("channel Force (V):")[1].split("\n")[0].endswith(" V")
 
 
 # --------------------------------------------------------------------------- logger: 3004.8 Hz, jittered, cm
