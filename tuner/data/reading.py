@@ -287,8 +287,10 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
     both must agree), else SI. ``velocity_col``: a measured stroke velocity (default unit:
     stroke unit per second), used instead of differentiating the stroke.
     ``temperature_col``: the oil temperature (degC or K), loaded as channel ``temperature``
-    (without it a column named ``temperature`` is that channel, and another column that looks
-    like a temperature gives a warning). Signs: ``stroke_sign``/``force_sign`` = -1 for rigs
+    (without it the column named ``temperature`` in degC or K, or in no declared unit, is that
+    channel -- ``Temperature (V)`` beside ``Temperature (degC)`` stays a channel in V -- and another
+    column that looks like a temperature gives a warning). Every other channel keeps the unit its
+    own header declares. Signs: ``stroke_sign``/``force_sign`` = -1 for rigs
     writing compression positive. ``t_start``/``t_end`` [s from the first sample] select a
     segment. Duplicated or irregular stamps are regularised with a warning (see
     :func:`_regularise`). ``extra_cols``: channel columns to keep (None: every other column).
@@ -318,16 +320,20 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
         use["velocity"] = raw.find(velocity_col, "velocity", source)
     if temperature_col is not None:
         use["temperature"] = raw.find(temperature_col, "temperature", source)
-    elif (extra_cols is None or "temperature" in extra_cols) and \
-            "temperature" in [raw.names[c].lower() for c in found if c not in use.values()]:
-        col = raw.find("temperature", "temperature", source)
-        declared = raw.units.get(col)
-        if declared and declared not in TEMPERATURE_UNITS:  # e.g. a thermocouple's raw volts
-            warn.append(f"{source}: column {col!r} is in {declared!r}, not a temperature unit "
-                        f"({', '.join(TEMPERATURE_UNITS)}): kept as a plain channel, not as the oil temperature; "
-                        f"give --temperature-col with a column in degC or K to use one")
-        else:
-            use["temperature"] = col
+    elif extra_cols is None or "temperature" in extra_cols:
+        named = [c for c in found if c not in use.values() and "temperature" in (raw.names[c].lower(), c.lower())]
+        in_temperature = [c for c in named if not raw.units.get(c) or raw.units[c] in TEMPERATURE_UNITS]
+        for col in named if not in_temperature else ():
+            declared = raw.units.get(col)
+            if declared and declared not in TEMPERATURE_UNITS:  # e.g. a thermocouple's raw volts
+                warn.append(f"{source}: column {col!r} is in {declared!r}, not a temperature unit "
+                            f"({', '.join(TEMPERATURE_UNITS)}): kept as a plain channel, not as the oil "
+                            f"temperature; give --temperature-col with a column in degC or K to use one")
+        if len(in_temperature) > 1:
+            raise DataError(f"{source}: temperature column 'temperature' is ambiguous: {in_temperature}; "
+                            f"name the oil temperature with --temperature-col (the full header)")
+        if in_temperature:  # the one in a temperature unit (or none declared); 'Temperature (V)' beside it is a channel
+            use["temperature"] = in_temperature[0]
     if test_col is not None:
         use["test"] = raw.find(test_col, "test id", source)
     if len(set(use.values())) != len(use):
@@ -371,7 +377,7 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
         cols["velocity"] = stroke_sign * _numeric(raw, use["velocity"], source) * _unit_factor(
             VELOCITY_UNITS, units["velocity"], "velocity", source)
     ch_units = {}
-    declared_ch = {**{raw.names[c]: u for c, u in raw.units.items() if u}, **(channel_units or {})}
+    given_ch = channel_units or {}
     if "temperature" in use:
         tu = _unit(temperature_unit or (channel_units or {}).get("temperature"), raw.units.get(use["temperature"]), "degC", "temperature",
                    use["temperature"], source, "--temperature-unit")
@@ -394,7 +400,9 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
                         f"columns in use and complete extra ones are kept")
             dropped.append(c)
             continue
-        u = declared_ch.get(c, declared_ch.get(raw.names[c], ""))
+        # the unit this column declares: 'Force (V)' beside 'Force (N)' is in V (by its own header, not by
+        # the name they share)
+        u = given_ch.get(c) or raw.units.get(c) or given_ch.get(raw.names[c]) or ""
         if u in TEMPERATURE_UNITS:
             v = v + TEMPERATURE_UNITS[u]
             u = "degC"

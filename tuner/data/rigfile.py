@@ -11,7 +11,10 @@ Accepted files
   decimal comma (``1,25``) is accepted. Lines starting with ``#`` or ``%`` are comments.
   The first other line is the header. Units may be given in the header (``force [kN]``,
   ``force (kN)``, ``force in kN``) or in a units row right under it (every cell non-numeric,
-  e.g. ``s, mm, kN`` or ``[s], [mm], [kN]``).
+  e.g. ``s, mm, kN`` or ``[s], [mm], [kN]``). A first line of numbers only is data, not a
+  header (a rig writing no header): the columns are named ``column 1``, ``column 2``, ... and
+  found by position; their units come from the options. Only column numbers ``0 1 2 ...`` or
+  ``1 2 3 ...`` (what pandas writes for an unnamed table) are taken as a header.
 * Parquet (``.parquet``, ``.pq``), units in the column names as above.
 
 Excel workbooks are not read: save the sheet as CSV.
@@ -111,6 +114,15 @@ def _is_number(cell: str, decimal: str) -> bool:
         return False
 
 
+def _is_header_less(cells: list[str], decimal: str) -> bool:
+    """True when a first line is a data row: every non-empty cell a number (at least two), and not
+    just the column numbers 0..n-1 or 1..n that pandas writes as the header of an unnamed table."""
+    full = [c.strip() for c in cells if c.strip()]
+    if len(full) < 2 or not all(_is_number(c, decimal) for c in full):
+        return False
+    return full not in ([str(k) for k in range(len(full))], [str(k + 1) for k in range(len(full))])
+
+
 def _detect_delimiter(header: str, sample: list[str]) -> str | None:
     """The delimiter giving the same number (> 1) of fields on the header and the sample rows;
     None for runs of blanks."""
@@ -150,11 +162,15 @@ def _read_text(path: Path, source: str) -> RawTable:
     if delim in (";", "\t", None) and any(re.fullmatch(r"[-+]?\d+,\d+(?:[eE][-+]?\d+)?", c) for c in probe):
         decimal = ","
     units_row = None
-    if len(kept) > 2 and first and not any(_is_number(c, decimal) for c in first if c) and \
-            any(_is_number(c, decimal) for c in split(kept[2])):
-        units_row = first
-    body = kept[2:] if units_row else kept[1:]
-    body_lines = lines[2:] if units_row else lines[1:]
+    if _is_header_less(header, decimal):  # no header: the first line is the first sample
+        header = [f"column {k + 1}" for k in range(len(header))]
+        body, body_lines = kept, lines
+    else:
+        if len(kept) > 2 and first and not any(_is_number(c, decimal) for c in first if c) and \
+                any(_is_number(c, decimal) for c in split(kept[2])):
+            units_row = first
+        body = kept[2:] if units_row else kept[1:]
+        body_lines = lines[2:] if units_row else lines[1:]
     if not body:
         raise DataError(f"{source}: file is empty: header {header} but no data rows")
     try:
