@@ -238,3 +238,20 @@ print(json.dumps({"base": EXTRA_VR_BASE, "vr": {v.name: v.value_reference for v 
     assert (vr["extra_a"], vr["extra_b"], vr["extra_i"]) == (base, base + 1, base)
     assert vr["stroke"] == 0 and vr["force"] == 2 and vr["input_interpolation"] == 0
     assert res["real"] == [1.5, 4.0, 0.0, 0.0] and res["int"] == [7, 0]
+
+
+def test_tuned_fmus_of_both_flavours_carry_the_same_start_values_to_the_last_bit(tmp_path):
+    """An exported FMU (tuner: identified start values, settings): the Python FMU's start values
+    are the native's exactly (pythonfmu's own '%.16g' would drop the last bit of 0.1 + 0.2)."""
+    from damper_fmu.fmu import build
+
+    tuned = {"k_B": 0.1 + 0.2, "c_B": 9e5 / 7, "Fc_14": 27e3 + 1e-11, "M_C": 3.0}
+    settings = {"max_internal_step": 2.5e-4, "internal_tolerance": 1e-5, "stroke_limit": 0.3,
+                "input_interpolation": REPLAY}
+    mds = [read_model_description(str(build("lumped", tmp_path, start_values=tuned, settings=settings,
+                                            filename=f"tuned_{flavour}.fmu", flavour=flavour)))
+           for flavour in ("native", "python")]
+    starts = [{v.name: v.start for v in md.modelVariables if v.start is not None} for md in mds]
+    assert starts[1] == starts[0]  # the strings as written
+    assert float(starts[1]["k_B"]) == 0.1 + 0.2 and float(starts[1]["c_B"]) == 9e5 / 7
+    assert float(starts[1]["stroke_limit"]) == 0.3 and int(starts[1]["input_interpolation"]) == REPLAY
