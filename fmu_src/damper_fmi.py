@@ -37,12 +37,11 @@ from xml.etree.ElementTree import Element, SubElement
 from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
-from damper_fmu.integrator import (DEFAULT_MAX_STEP, DEFAULT_TOLERANCE, EXTRAPOLATE,
-                                   INPUT_INTERPOLATION_DESCRIPTION, Simulator)
+from damper_fmu.integrator import DEFAULT_MAX_STEP, DEFAULT_TOLERANCE, EXTRAPOLATE, Simulator
 from damper_fmu.model_description import DEFAULT_EXPERIMENT, NATIVE_SETTINGS, fmi2_model_structure
 from damper_fmu.model_description import variables as native_variables
 from damper_fmu.models import ConvergenceError, make_model
-from damper_fmu.parameters import EFFECT_MODELS, MODEL_PARAMETERS, UNIT_DEFINITIONS, check_values
+from damper_fmu.parameters import MODEL_PARAMETERS, UNIT_DEFINITIONS, check_values
 
 START_VALUES_FILE = "start_values.json"
 
@@ -85,7 +84,7 @@ class UnitReal(Real):
 
 
 class DamperSlave(Fmi2Slave):
-    """Base class: subclasses set ``MODEL_KIND`` and ``DIAGNOSTICS`` (name -> (unit, description)).
+    """Base class: subclasses set ``MODEL_KIND``.
 
     The variables are the native FMU's (``damper_fmu.model_description.variables``, the list the
     native model description is written from): names, value references, causality, variability,
@@ -97,7 +96,6 @@ class DamperSlave(Fmi2Slave):
     """
 
     MODEL_KIND = ""
-    DIAGNOSTICS: dict[str, tuple[str, str]] = {}
     author = "yaw-damper-toolchain"
     license = "MIT"
 
