@@ -16,7 +16,8 @@ from .integrator import DEFAULT_MAX_STEP, DEFAULT_TOLERANCE, INPUT_INTERPOLATION
 from .models import DIAGNOSTICS
 from .parameters import EFFECT_MODELS, MODEL_PARAMETERS, UNIT_DEFINITIONS
 
-__all__ = ["NATIVE_SETTINGS", "SETTING_VR", "FMI3_VR", "variables", "units", "fmi2", "fmi3"]
+__all__ = ["NATIVE_SETTINGS", "SETTING_VR", "FMI3_VR", "DEFAULT_EXPERIMENT", "variables", "units",
+           "fmi2_model_structure", "fmi2", "fmi3"]
 
 #: start values of the native FMUs' settings: name -> (value, unit, description)
 NATIVE_SETTINGS = {
@@ -35,6 +36,9 @@ SETTING_VR = {"max_internal_step": 50, "internal_tolerance": 51, "stroke_limit":
 #: and the independent variable 'time' (none in FMI 2.0) gets one. Every Real keeps its FMI 2.0 value
 #: reference. fmi3_damper.c uses the same numbers.
 FMI3_VR = {"time": 4, "input_interpolation": 60, "thermal_source": 61}
+
+#: DefaultExperiment of every damper FMU (native FMI 2.0 and 3.0, pythonfmu), as written
+DEFAULT_EXPERIMENT = {"startTime": "0", "stopTime": "10", "stepSize": "0.001"}
 
 _DESCRIPTION = ("Railway hydraulic damper, {kind} model (native C; SI units, stroke positive in extension, force "
                 "positive in tension)")
@@ -95,11 +99,31 @@ def _common(root: Element, kind: str) -> None:
         SubElement(SubElement(el, "Unit", {"name": name}), "BaseUnit", exponents)
     cats = SubElement(root, "LogCategories")
     SubElement(cats, "Category", {"name": "logStatusError", "description": "Errors with their reason"})
-    SubElement(root, "DefaultExperiment", {"startTime": "0", "stopTime": "10", "stepSize": "0.001"})
+    SubElement(root, "DefaultExperiment", DEFAULT_EXPERIMENT)
 
 
 def _start(v: dict) -> str:
     return repr(float(v["start"])) if v["type"] == "Real" else str(int(v["start"]))
+
+
+def fmi2_model_structure(outputs: list[int], knowns: list[int]) -> Element:
+    """FMI 2.0 <ModelStructure> of a damper FMU: ``outputs``, ``knowns``: 1-based indices in
+    ModelVariables of the outputs and of the variables marked 'known' in ``variables`` (the
+    pythonfmu slaves write theirs with this too, from the same list)."""
+    # Dependencies (fmi2_damper.c): after initialization the outputs are those of the last doStep, and
+    # fmi2SetReal of an input changes none of them before the next doStep: no direct feedthrough, so
+    # no input dependencies (an importer assuming feedthrough reports algebraic loops that do not
+    # exist). In initialization mode the outputs are computed from the stroke, the stroke velocity
+    # (friction) and the model parameters.
+    ms = Element("ModelStructure")
+    outs = SubElement(ms, "Outputs")
+    for i in outputs:
+        SubElement(outs, "Unknown", {"index": str(i), "dependencies": ""})
+    init = SubElement(ms, "InitialUnknowns")
+    initial_knowns = " ".join(str(k) for k in sorted(knowns))
+    for i in outputs:
+        SubElement(init, "Unknown", {"index": str(i), "dependencies": initial_knowns})
+    return ms
 
 
 def fmi2(kind: str, identifier: str, guid: str, start_values: dict, settings: dict, source_file: str) -> bytes:
@@ -137,19 +161,7 @@ def fmi2(kind: str, identifier: str, guid: str, start_values: dict, settings: di
             outputs.append(len(mv))
         if v["known"]:
             knowns.append(len(mv))
-    # Dependencies (fmi2_damper.c): after initialization the outputs are those of the last doStep, and
-    # fmi2SetReal of an input changes none of them before the next doStep: no direct feedthrough, so
-    # no input dependencies (an importer assuming feedthrough reports algebraic loops that do not
-    # exist). In initialization mode the outputs are computed from the stroke, the stroke velocity
-    # (friction) and the model parameters.
-    ms = SubElement(root, "ModelStructure")
-    outs = SubElement(ms, "Outputs")
-    for i in outputs:
-        SubElement(outs, "Unknown", {"index": str(i), "dependencies": ""})
-    init = SubElement(ms, "InitialUnknowns")
-    initial_knowns = " ".join(str(k) for k in sorted(knowns))
-    for i in outputs:
-        SubElement(init, "Unknown", {"index": str(i), "dependencies": initial_knowns})
+    root.append(fmi2_model_structure(outputs, knowns))
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + tostring(root, encoding="utf-8")
 
 

@@ -1,9 +1,6 @@
 """pythonfmu slave: the nonlinear lumped damper model (Isacchi, Ripamonti, Corsi 2023)."""
 from damper_fmi import DamperSlave
 
-from damper_fmu.models import DIAGNOSTICS
-
 
 class DamperLumpedPy(DamperSlave):
     MODEL_KIND = "lumped"
-    DIAGNOSTICS = DIAGNOSTICS["lumped"]

@@ -1,9 +1,6 @@
 """pythonfmu slave: linear Maxwell damper model (spring k_s in series with a linear dashpot c)."""
 from damper_fmi import DamperSlave
 
-from damper_fmu.models import DIAGNOSTICS
-
 
 class DamperMaxwellPy(DamperSlave):
     MODEL_KIND = "maxwell"
-    DIAGNOSTICS = DIAGNOSTICS["maxwell"]

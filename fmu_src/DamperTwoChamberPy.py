@@ -1,9 +1,6 @@
 """pythonfmu slave: the two-chamber (twin-tube) damper model (damper_fmu.models.TwoChamberModel)."""
 from damper_fmi import DamperSlave
 
-from damper_fmu.models import DIAGNOSTICS
-
 
 class DamperTwoChamberPy(DamperSlave):
     MODEL_KIND = "twochamber"
-    DIAGNOSTICS = DIAGNOSTICS["twochamber"]
