@@ -1,12 +1,14 @@
-"""The tuner's job, in one place: prepare -> fit -> choose the base -> diagnose -> export -> report.
+"""The tuner's job, in one place: prepare -> fit -> export -> choose the base -> diagnose -> vehicle -> report.
 
 ``run`` is what ``python -m tuner fit`` and every row of ``python -m tuner batch`` do; ``run_diagnosis``
 what ``python -m tuner diagnose`` does. The stages hand their results on in memory (the prepared
-``Problem``, the ``FitResult``); each output file is written once:
+``Problem``, the ``FitResult``); each output file is written once (metrics.json a second time with the
+full-rate check, which runs after the results are safe on disk):
 
     parameters.json, metrics.json, history_<model>.json, simulations.npz   the fit (FitResult.write)
     fmu/<Model>_tuned.fmu                                                   the tuned FMUs
     diagnosis.json, figures/, fmu/<Model>_<causes>_tuned.fmu                the diagnosis
+    vehicle/vehicle.json, vehicle/<scenario>.png                            the vehicle (``vehicle=True``)
     report.html, figures/                                                   the report (last)
     checkpoints/                                                            what --resume continues from
 
