@@ -13,10 +13,11 @@ from pathlib import Path
 from campaign.effects import parse_effect
 from campaign.generate import generate_dataset
 
-__all__ = ["add_generate_arguments", "cmd_generate", "main"]
+__all__ = ["add_generate_arguments", "cmd_generate", "main", "float_list"]
 
 
-def _float_list(text: str) -> list[float]:
+def float_list(text: str) -> list[float]:
+    """argparse type: comma-separated numbers ('1,2.5,3')."""
     try:
         return [float(v) for v in text.split(",")]
     except ValueError:
@@ -34,7 +35,7 @@ def add_generate_arguments(p: argparse.ArgumentParser) -> None:
                    help="damper on the rig: the physical twin-tube (default) or one whose hydraulics are "
                         "the lumped model with the paper's Table 2 (no model-form error)")
     p.add_argument("--t-end", type=float, default=None, help="shorter manoeuvres: duration [s] of each")
-    p.add_argument("--oil-temperatures", type=_float_list, default=None, metavar="T1,T2,...",
+    p.add_argument("--oil-temperatures", type=float_list, default=None, metavar="T1,T2,...",
                    help="oil temperature [degC] the damper is conditioned to before each test, one per "
                         "scenario in order (default 20 degC for all)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing dataset folder")

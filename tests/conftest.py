@@ -29,3 +29,27 @@ def pytest_collection_modifyitems(config, items):
     if len(keep) != len(items):
         config.hook.pytest_deselected(items=[it for it in items if it.get_closest_marker("full") is not None])
         items[:] = keep
+
+
+@pytest.fixture
+def small_lumped(tmp_path):
+    """(identification tests, validation tests) of a 4 s + 3 s dataset of the preset lumped model with
+    20 N of force noise (``campaign.synthetic``), read as a user's dataset."""
+    from campaign.synthetic import write_model_dataset
+    from damper_fmu import defaults
+    from tuner.data.reading import load_dataset
+
+    tests = load_dataset(write_model_dataset(tmp_path / "d", "lumped", defaults("lumped"), seed=4,
+                                             durations=(4.0, 3.0), roles=("identification", "validation"),
+                                             noise_n=20.0))
+    return [t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"]
+
+
+@pytest.fixture
+def prepared_names(monkeypatch):
+    """The names of the tests ``tuner.identification.problem`` prepares, in order (a spy on ``prepare``)."""
+    import tuner.identification.problem as problem_module
+
+    names, real = [], problem_module.prepare
+    monkeypatch.setattr(problem_module, "prepare", lambda t, *a, **k: names.append(t.name) or real(t, *a, **k))
+    return names

@@ -9,7 +9,6 @@ from campaign.synthetic import write_model_dataset
 from damper_fmu import defaults
 from tuner import job
 from tuner.__main__ import main as cli_main
-from tuner.data.reading import load_dataset
 from tuner.identification.engine import fastest_engine
 from tuner.identification.fit import FitSettings
 
@@ -28,19 +27,10 @@ def test_the_diagnosis_gets_the_fits_problem_definition_field_by_field():
     assert (ds.engine, ds.seed, ds.workers) == ("native", 7, 0)
 
 
-def test_the_job_prepares_once_writes_each_stage_and_reports_last(tmp_path, monkeypatch):
+def test_the_job_prepares_once_writes_each_stage_and_reports_last(tmp_path, monkeypatch, small_lumped, prepared_names):
     """One run of the job: each test prepared once for fit and diagnosis, the diagnosis on the fit's
     force limit, full-rate check in metrics.json, tuned FMUs, and a report holding the diagnosis."""
-    import tuner.identification.problem as problem_module
-
-    path = write_model_dataset(tmp_path / "d", "lumped", defaults("lumped"), seed=4, durations=(4.0, 3.0),
-                               roles=("identification", "validation"), noise_n=20.0)
-    tests = load_dataset(path)
-    ident = [t for t in tests if t.role == "identification"]
-    valid = [t for t in tests if t.role == "validation"]
-    calls = []
-    real_prepare = problem_module.prepare
-    monkeypatch.setattr(problem_module, "prepare", lambda t, *a, **k: calls.append(t.name) or real_prepare(t, *a, **k))
+    ident, valid = small_lumped
     real_settings = job.diagnosis_settings  # the real mapping, with a small candidate set to keep this quick
     monkeypatch.setattr(job, "diagnosis_settings", lambda s: dataclasses.replace(
         real_settings(s), candidates=("friction",), polish_jacobians=1, final_jacobians=1))
@@ -49,7 +39,7 @@ def test_the_job_prepares_once_writes_each_stage_and_reports_last(tmp_path, monk
     out = tmp_path / "out"
     out.mkdir()
     res = job.run(ident, valid, out, settings, log=lambda m: None)
-    assert sorted(calls) == sorted(t.name for t in ident + valid)
+    assert sorted(prepared_names) == sorted(t.name for t in ident + valid)
     metrics = json.loads((out / "metrics.json").read_text())
     diagnosis = json.loads((out / "diagnosis.json").read_text())
     assert set(metrics["full_rate"]) == {"lumped", "maxwell"}

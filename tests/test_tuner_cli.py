@@ -160,19 +160,14 @@ def test_a_stroke_in_the_wrong_unit_stops_the_fit_with_the_fmus_reason(maxwell_d
     assert "no candidate could be simulated" in err and "stroke_limit" in err
 
 
-def test_diagnosis_before_is_the_table3_figure_of_the_same_model(tmp_path):
+def test_diagnosis_before_is_the_table3_figure_of_the_same_model(tmp_path, small_lumped):
     """One validation definition: the diagnosis' 'before' MSE/AME of the fitted lumped model equals
     the fit's validation metrics (Table 3) of the same test, computed by the other code path."""
-    from tuner.data.reading import load_dataset
     from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
     from tuner.identification.engine import fastest_engine
     from tuner.identification.fit import FitSettings, fit
 
-    path = write_model_dataset(tmp_path / "d", "lumped", defaults("lumped"), seed=4, durations=(4.0, 3.0),
-                               roles=("identification", "validation"), noise_n=20.0)
-    tests = load_dataset(path)
-    ident = [t for t in tests if t.role == "identification"]
-    valid = [t for t in tests if t.role == "validation"]
+    ident, valid = small_lumped
     fitted = fit(ident, valid, FitSettings(models=("lumped",), population=4, iterations=1, workers=0,
                                            engine=fastest_engine(), polish_jacobians=1), log=lambda m: None)
     metrics, base = fitted.metrics, fitted.params["lumped"]["values"]
@@ -185,34 +180,26 @@ def test_diagnosis_before_is_the_table3_figure_of_the_same_model(tmp_path):
         assert res["validation"][t.name]["ame_before"] == pytest.approx(table3["ame"], rel=1e-9)
 
 
-def test_fit_and_diagnosis_share_one_problem_prepared_once(tmp_path, monkeypatch):
+def test_fit_and_diagnosis_share_one_problem_prepared_once(tmp_path, small_lumped, prepared_names):
     """One problem definition: the tests are prepared once for the fit and the diagnosis after it, and
     the diagnosis works with the fit's force limit (before, it ignored --force-limit); a problem built
     with other settings than the stage's is refused."""
-    import tuner.identification.problem as problem_module
-    from tuner.data.reading import load_dataset
     from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
     from tuner.identification.engine import fastest_engine
     from tuner.identification.fit import FitSettings, fit
+    from tuner.identification.problem import Problem
 
-    path = write_model_dataset(tmp_path / "d", "lumped", defaults("lumped"), seed=4, durations=(4.0, 3.0),
-                               roles=("identification", "validation"), noise_n=20.0)
-    tests = load_dataset(path)
-    ident = [t for t in tests if t.role == "identification"]
-    valid = [t for t in tests if t.role == "validation"]
-    calls = []
-    real_prepare = problem_module.prepare
-    monkeypatch.setattr(problem_module, "prepare", lambda t, *a, **k: calls.append(t.name) or real_prepare(t, *a, **k))
+    ident, valid = small_lumped
     settings = FitSettings(models=("lumped",), population=4, iterations=1, workers=0, engine=fastest_engine(),
                            polish_jacobians=1, force_limit_n=31000.0)
-    problem = problem_module.Problem.build(ident, valid, settings.data())
+    problem = Problem.build(ident, valid, settings.data())
     assert problem.force_limit_n == 31000.0 and problem.parametrization("lumped").force_limit == 31000.0
     fitted = fit(ident, valid, settings, problem=problem, log=lambda m: None)
     metrics, base = fitted.metrics, fitted.params["lumped"]["values"]
     res = diagnose(ident, valid, tmp_path / "diag", DiagnosisSettings(engine=fastest_engine(), workers=0,
                                                                       candidates=(), polish_jacobians=1),
                    base_params=base, problem=problem, log=lambda m: None)
-    assert sorted(calls) == sorted(t.name for t in ident + valid)  # each test prepared once
+    assert sorted(prepared_names) == sorted(t.name for t in ident + valid)  # each test prepared once
     assert metrics["settings"]["force_limit_n_used"] == res["settings"]["problem"]["force_limit_n_used"] == 31000.0
     with pytest.raises(ValueError, match="problem"):
         fit(ident, valid, FitSettings(models=("lumped",), fit_rate_hz=100.0), problem=problem, log=lambda m: None)

@@ -17,7 +17,6 @@ setting given on the command line reaches the fit and the diagnosis alike.
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -91,7 +90,7 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
     export_fmus(result, out)
     # after the results are written: a failure here (an exception, never a number) loses nothing
     result.metrics["full_rate"] = full_rate_checks([*identification, *validation], result.params, settings, log)
-    (out / "metrics.json").write_text(json.dumps(result.metrics, indent=2, sort_keys=True, default=str))
+    result.write_metrics(out)
     diagnosis = None
     if diagnose_after and wants_diagnosis(settings, validation):
         kind, values, choice, others = choose_base(result.params, result.metrics)

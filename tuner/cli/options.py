@@ -5,13 +5,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from campaign.cli import float_list  # the one argparse type for number lists
 from tuner.cli.log import log
 from tuner.data.reading import DEFAULT_DAMPER_CLASS, load_dataset, load_files, read_column_mapping
 from tuner.data.summary import format_summary
 from tuner.identification.fit import FitSettings
 
 __all__ = ["add_data_options", "add_fit_options", "column_options", "fit_settings", "load_tests", "fit_rate_and_band",
-           "float_list", "DATA_OPTIONS"]
+           "DATA_OPTIONS"]
 
 
 def add_data_options(g) -> None:
@@ -182,10 +183,3 @@ def load_tests(args, file_role: str | None = "identification"):
 def fit_rate_and_band(args) -> tuple[float, float | None]:
     """Fit rate [Hz] and differentiator band [Hz] (None: from the data) the command will use."""
     return getattr(args, "fit_rate", None) or FitSettings().fit_rate_hz, getattr(args, "diff_band", None)
-
-
-def float_list(text: str) -> list[float]:
-    try:
-        return [float(v) for v in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None

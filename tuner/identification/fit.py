@@ -368,7 +368,11 @@ class FitResult:
             (out / f"history_{model}.json").write_text(json.dumps(hist, indent=1))
         (out / "parameters.json").write_text(json.dumps(self.params, indent=2, sort_keys=True))
         np.savez_compressed(out / "simulations.npz", **self.simulations)
-        (out / "metrics.json").write_text(json.dumps(self.metrics, indent=2, sort_keys=True, default=str))
+        self.write_metrics(out)
+
+    def write_metrics(self, out: Path) -> None:
+        """metrics.json into ``out`` (again after a later stage added to ``metrics``)."""
+        (Path(out) / "metrics.json").write_text(json.dumps(self.metrics, indent=2, sort_keys=True, default=str))
 
 
 def fit(identification: list[RigTest], validation: list[RigTest], settings: FitSettings, *,
