@@ -27,6 +27,19 @@ extension +, SI units; temperatures in degC.
 * ``time_delay``: the force channel is delayed by d relative to the stroke: F_out(t) = F(t - d)
   (a DAQ skew, not damper physics: keep it out of a co-simulation model).
 * ``inertia``: F += m_eq x1'' (fluid and rod inertia seen by the load cell).
+
+Form elements beyond the catalogue (the diagnosis tries them when the catalogue leaves a residual):
+
+* ``hysteresis`` (pre-yield hysteresis, a Dahl element in parallel, outside the mounts in both
+  models): F += z with dz/dx = (s F_h - z) / x_h, s = sign(dx), x the stroke the damper sees. Per
+  step the exact solution for a monotone stroke increment dx: z <- s F_h + (z - s F_h)
+  exp(-|dx| / x_h). A rate-independent loop: stiffness F_h / x_h right after a reversal, F_h once
+  the stroke has moved a few x_h (MR fluid below yield, seals sticking before they slide; friction,
+  by contrast, switches within a velocity band).
+* ``bypass`` (position-dependent damping: a groove past the piston near mid-stroke, or the
+  opposite of an end-stop cushion): the damping characteristic is scaled by 1 - r b(x), with
+  b(x) = (tanh((x - c + w/2) / e) - tanh((x - c - w/2) / e)) / 2 (1 inside the groove of length w
+  around c, tanh ends of length e), x the stroke the damper sees at the start of each step.
 """
 from __future__ import annotations
 
@@ -53,9 +66,14 @@ class Effects:
         self.tau = p.get("valve_tau", 0.0)
         self.delay = p.get("time_delay", 0.0)
         self.m_eq = p.get("inertia_mass", 0.0)
+        self.fh, self.xh = p.get("hysteresis_force", 0.0), p.get("hysteresis_displacement", 5e-4)
+        self.bp_r, self.bp_c = p.get("bypass_ratio", 0.0), p.get("bypass_center", 0.0)
+        self.bp_w, self.bp_e = p.get("bypass_width", 0.01), p.get("bypass_edge", 1e-3)
         self.active = any(v != 0.0 for v in (self.ff, self.f0, self.gap, self.beta, self.tau, self.delay,
-                                              self.m_eq))
+                                              self.m_eq, self.fh, self.bp_r))
         # state
+        self.x_seen = 0.0  # stroke [m] the damper saw at the end of the last step
+        self.z = 0.0  # hysteresis force [N]
         self.x_eff = 0.0
         self.engaged = True
         self.temperature = self.t_ref
@@ -65,21 +83,28 @@ class Effects:
     # -- state ------------------------------------------------------------------------------
     def initialize(self, x1: float, force: float) -> None:
         self.x_eff, self.engaged, self.temperature, self.time = x1, True, self.t_ref, 0.0
+        self.x_seen, self.z = x1, 0.0
         self.history = deque([(0.0, force)])
 
     def get_state(self) -> list:
         flat = [v for pair in self.history for v in pair]
-        return [self.x_eff, float(self.engaged), self.temperature, self.time, *flat]
+        return [self.x_eff, float(self.engaged), self.temperature, self.time, self.x_seen, self.z, *flat]
 
     def set_state(self, s) -> None:
-        self.x_eff, engaged, self.temperature, self.time = (float(v) for v in s[:4])
+        self.x_eff, engaged, self.temperature, self.time, self.x_seen, self.z = (float(v) for v in s[:6])
         self.engaged = engaged != 0.0
-        rest = [float(v) for v in s[4:]]
+        rest = [float(v) for v in s[6:]]
         self.history = deque(zip(rest[0::2], rest[1::2]))
 
     # -- pieces used by the simulator ---------------------------------------------------------
     def damping_scale(self) -> float:
-        return math.exp(-self.beta * (self.temperature - self.t_ref)) if self.beta else 1.0
+        """Factor [1] on the damping characteristic for the next step: thermal drift and bypass."""
+        scale = math.exp(-self.beta * (self.temperature - self.t_ref)) if self.beta else 1.0
+        if self.bp_r:
+            u = self.x_seen - self.bp_c
+            half = 0.5 * self.bp_w
+            scale *= 1.0 - self.bp_r * 0.5 * (math.tanh((u + half) / self.bp_e) - math.tanh((u - half) / self.bp_e))
+        return scale
 
     def play(self, state: tuple[float, bool], x1: float, v1: float) -> tuple[tuple[float, bool], float, float]:
         """Backlash operator of the free play: from the gap state (x_eff [m], engaged) and the
@@ -98,14 +123,23 @@ class Effects:
             engaged = False
         return (x_eff, engaged), x_eff, (v1 if engaged else 0.0)
 
-    def output(self, f_model: float, h: float, v_eff: float, a1: float, valve_gain: float,
+    def output(self, f_model: float, h: float, x_eff: float, v_eff: float, a1: float, valve_gain: float,
                temperature_input: float | None) -> float:
         """Measured force [N] at the end of a step of h [s] from the model force f_model [N].
 
-        v_eff [m/s]: velocity the damper sees; a1 [m/s^2]: stroke acceleration; valve_gain
-        [N s/m]: c0 - Fc'(v_eff); temperature_input [degC] or None.
+        x_eff [m], v_eff [m/s]: stroke and velocity the damper sees at the end of the step; a1
+        [m/s^2]: stroke acceleration; valve_gain [N s/m]: c0 - Fc'(v_eff); temperature_input [degC]
+        or None.
         """
         f = f_model if (self.engaged or not self.gap) else 0.0
+        if self.fh:
+            dx = x_eff - self.x_seen
+            if dx != 0.0:
+                sat = self.fh if dx > 0.0 else -self.fh
+                self.z = sat + (self.z - sat) * math.exp(-abs(dx) / self.xh)
+            if self.engaged or not self.gap:
+                f += self.z
+        self.x_seen = x_eff
         if self.ff and not self.inside:
             f += self.ff * math.tanh(v_eff / self.v_eps)
         if self.tau and (self.engaged or not self.gap):

@@ -279,7 +279,7 @@ class Simulator:
         self.x1, self.v1 = xh, vh
         if with_effects:
             e.x_eff, e.engaged = pstate
-            f = e.output(model.force(y, xs, vs), h, vs, (vh - v0) / h,
+            f = e.output(model.force(y, xs, vs), h, xs, vs, (vh - v0) / h,
                          model.valve_gain(vs) if e.tau else 0.0, self.temperature_input)
         else:
             f = model.force(y, xs, vs)

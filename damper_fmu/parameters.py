@@ -30,6 +30,8 @@ __all__ = [
     "EFFECT_PARAMETERS",
     "EFFECT_IDENTIFIED",
     "EFFECT_TYPICAL",
+    "FORM_EFFECTS",
+    "CATALOGUE_EFFECTS",
     "FK_ABSCISSAE",
     "FC_ABSCISSAE",
     "LUMPED_PARAMETERS",
@@ -167,6 +169,20 @@ EFFECT_PARAMETERS: tuple[Parameter, ...] = (
               0.0, 0.0, 0.05, tunable=False, effect="time_delay"),
     Parameter("inertia_mass", "kg", "Equivalent inertia seen by the load cell: m_eq x1''",
               0.0, 0.0, 500.0, tunable=False, effect="inertia"),
+    # form elements beyond the catalogue (damper_fmu.effects): tried by the diagnosis when the catalogue
+    # leaves a residual above the floor
+    Parameter("hysteresis_force", "N", "Pre-yield hysteresis (Dahl element in parallel): force it saturates at",
+              0.0, 0.0, 2e5, tunable=False, effect="hysteresis"),
+    Parameter("hysteresis_displacement", "m", "Pre-yield hysteresis: displacement scale x_h of the approach to "
+              "saturation (initial stiffness F_h / x_h)", 5e-4, 1e-6, 0.05, tunable=False, effect="hysteresis"),
+    Parameter("bypass_ratio", "1", "Position-dependent damping (bypass groove): damping force reduced by this "
+              "fraction inside the groove", 0.0, 0.0, 0.95, tunable=False, effect="bypass"),
+    Parameter("bypass_center", "m", "Bypass groove centre (stroke, extension +)", 0.0, -1.0, 1.0, tunable=False,
+              effect="bypass"),
+    Parameter("bypass_width", "m", "Bypass groove length along the stroke", 0.01, 1e-4, 1.0, tunable=False,
+              effect="bypass"),
+    Parameter("bypass_edge", "m", "Bypass groove: length of its tapered ends (tanh edges)", 1e-3, 1e-5, 0.1,
+              tunable=False, effect="bypass"),
 )
 
 #: The effect catalogue's typical magnitudes |value| (SI) of each identified effect parameter (design
@@ -176,14 +192,23 @@ EFFECT_TYPICAL: dict[str, tuple[float, float]] = {
     "friction_force": (50.0, 300.0), "preload_force": (30.0, 400.0), "free_play": (1e-4, 1e-3),
     "thermal_beta": (2e-3, 2e-2), "valve_tau": (1e-3, 1e-2), "time_delay": (1e-3, 1e-2),
     "inertia_mass": (20.0, 200.0),
+    "hysteresis_force": (50.0, 1000.0), "hysteresis_displacement": (5e-5, 2e-3), "bypass_ratio": (0.1, 0.8),
 }
 
-#: effect name -> its identified parameters (the others of the effect stay at their defaults)
+#: effect name -> its identified parameters (the others of the effect stay at their defaults); the first
+#: is the effect's magnitude, which switches it off at 0 (the others shape it)
 EFFECT_IDENTIFIED: dict[str, tuple[str, ...]] = {
     "friction": ("friction_force",), "preload": ("preload_force",), "free_play": ("free_play",),
     "thermal_drift": ("thermal_beta",), "valve_lag": ("valve_tau",), "time_delay": ("time_delay",),
     "inertia": ("inertia_mass",),
+    "hysteresis": ("hysteresis_force", "hysteresis_displacement"),
+    "bypass": ("bypass_ratio", "bypass_center", "bypass_width"),
 }
+#: forms beyond the effect catalogue: elements real dampers show and the base forms lack (pre-yield
+#: hysteresis of MR dampers and seals, position-dependent damping of a bypass groove)
+FORM_EFFECTS = ("hysteresis", "bypass")
+#: the effect catalogue of the design notes (the diagnosis's candidate causes)
+CATALOGUE_EFFECTS = tuple(e for e in EFFECT_IDENTIFIED if e not in FORM_EFFECTS)
 
 LUMPED_PARAMETERS: tuple[Parameter, ...] = (
     Parameter("M_C", "kg", "Lumped mass C (cylinder side, next to silent block B)", 15.8, 1.0, 20.0),
