@@ -155,8 +155,11 @@ static void effects_init(DkModel *m, const double *e) {
     m->heat_c = e[DK_EFFECT_THERMAL_CAPACITY]; m->heat_g = e[DK_EFFECT_THERMAL_CONDUCTANCE];
     m->t_ref = e[DK_EFFECT_THERMAL_REFERENCE]; m->tau = e[DK_EFFECT_VALVE_TAU]; m->delay = e[DK_EFFECT_TIME_DELAY];
     m->m_eq = e[DK_EFFECT_INERTIA_MASS];
+    m->fh = e[DK_EFFECT_HYSTERESIS_FORCE]; m->xh = e[DK_EFFECT_HYSTERESIS_DISPLACEMENT];
+    m->bp_r = e[DK_EFFECT_BYPASS_RATIO]; m->bp_c = e[DK_EFFECT_BYPASS_CENTER];
+    m->bp_w = e[DK_EFFECT_BYPASS_WIDTH]; m->bp_e = e[DK_EFFECT_BYPASS_EDGE];
     m->effects_active = m->ff != 0.0 || m->f0 != 0.0 || m->gap != 0.0 || m->beta != 0.0 ||
-                        m->tau != 0.0 || m->delay != 0.0 || m->m_eq != 0.0;
+                        m->tau != 0.0 || m->delay != 0.0 || m->m_eq != 0.0 || m->fh != 0.0 || m->bp_r != 0.0;
 }
 
 DK_API int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg, size_t msglen) {
@@ -220,7 +223,7 @@ DK_API int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg
         m->tc_gap = m->gap;  /* the free play is the mount's dead band (models.py: TwoChamberModel.mount) */
         m->gap = 0.0;
         m->effects_active = m->ff != 0.0 || m->f0 != 0.0 || m->beta != 0.0 || m->tau != 0.0 || m->delay != 0.0 ||
-                            m->m_eq != 0.0;
+                            m->m_eq != 0.0 || m->fh != 0.0 || m->bp_r != 0.0;
     } else {
         m->ks = p[DK_MAXWELL_TABLE_K_S];
         if (table_init(&m->fc, p + DK_MAXWELL_TABLE_FC_V01, p + DK_MAXWELL_TABLE_FC_01, DK_MAXWELL_TABLE_FC_COUNT, "Fc",
@@ -718,19 +721,39 @@ static const double *hist_at(const DkEffectsState *e, int i) {
 static void effects_initialize(DkSim *s, double x1, double force) {
     DkEffectsState *e = &s->e;
     e->x_eff = x1; e->engaged = 1; e->temperature = s->model.t_ref; e->time = 0.0;
+    e->x_seen = x1; e->z = 0.0;
     e->hist_len = 0; e->hist_head = 0;
     hist_push(e, 0.0, force);
 }
 
+/* factor on the damping characteristic for the next step: thermal drift and bypass groove, the
+   latter at the stroke seen at the end of the last step (effects.py: damping_scale) */
 static double damping_scale(const DkSim *s) {
-    return s->model.beta != 0.0 ? exp(-s->model.beta * (s->e.temperature - s->model.t_ref)) : 1.0;
+    const DkModel *m = &s->model;
+    double scale = m->beta != 0.0 ? exp(-m->beta * (s->e.temperature - m->t_ref)) : 1.0;
+    if (m->bp_r != 0.0) {
+        double u = s->e.x_seen - m->bp_c, half = 0.5 * m->bp_w;
+        scale *= 1.0 - m->bp_r * 0.5 * (tanh((u + half) / m->bp_e) - tanh((u - half) / m->bp_e));
+    }
+    return scale;
 }
 
-static int effects_output(DkSim *s, double f_model, double h, double v_eff, double a1, double vg,
+/* the measured force at the end of a step (effects.py: output); x_eff, v_eff: the stroke and
+   velocity the damper sees at the end of the step */
+static int effects_output(DkSim *s, double f_model, double h, double x_eff, double v_eff, double a1, double vg,
                           double *out) {
     const DkModel *m = &s->model;
     DkEffectsState *e = &s->e;
     double f = (e->engaged || m->gap == 0.0) ? f_model : 0.0, target, t0, f0, t1, f1;
+    if (m->fh != 0.0) {  /* Dahl element: exact for a monotone increment of the stroke seen */
+        double dx = x_eff - e->x_seen;
+        if (dx != 0.0) {
+            double sat = dx > 0.0 ? m->fh : -m->fh;
+            e->z = sat + (e->z - sat) * exp(-fabs(dx) / m->xh);
+        }
+        if (e->engaged || m->gap == 0.0) f += e->z;
+    }
+    e->x_seen = x_eff;
     if (m->ff != 0.0 && !m->inside) f += m->ff * tanh(v_eff / m->v_eps);
     if (m->tau != 0.0 && (e->engaged || m->gap == 0.0)) f += m->tau * vg * a1;
     if (m->m_eq != 0.0) f += m->m_eq * a1;
@@ -999,7 +1022,7 @@ DK_API int dk_sim_step(DkSim *s, double h, double x1, double v1, const double *a
     s->x1 = xh; s->v1 = vh;
     if (fx) {
         s->e.x_eff = x_eff; s->e.engaged = engaged;
-        if (effects_output(s, model_force(m, y, xs, vs), h, vs, (vh - va0) / h,
+        if (effects_output(s, model_force(m, y, xs, vs), h, xs, vs, (vh - va0) / h,
                            m->tau != 0.0 ? valve_gain(m, vs) : 0.0, &f)) {
             snprintf(s->msg, sizeof s->msg, "out of memory for the time-delay history");
             return DK_ERROR;

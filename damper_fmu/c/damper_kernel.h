@@ -63,11 +63,15 @@ typedef struct {
        piston inside the mounts (its stage), not at the output, and its free play (tc_gap) is a
        dead band in its mount (gap 0) */
     double ff, v_eps, f0, gap, beta, heat_c, heat_g, t_ref, tau, delay, m_eq, tc_gap;
+    /* form elements: pre-yield hysteresis (saturation force, displacement scale) and bypass groove
+       (ratio, centre, width, edge length) */
+    double fh, xh, bp_r, bp_c, bp_w, bp_e;
     int effects_active, inside;
 } DkModel;
 
 typedef struct {
     double x_eff, temperature, time;
+    double x_seen, z;           /* stroke seen at the end of the last step [m], hysteresis force [N] */
     int engaged;
     /* force history of the time delay: ring buffer of (time, force) pairs */
     double *hist;
