@@ -61,7 +61,9 @@ def eng(x, unit: str = "", digits: int = 3) -> str:
 
 
 def fmt_quantity(v: float, unit: str) -> str:
-    """A value [SI] for people: lengths in mm, times in ms, 3 significant digits."""
+    """A value [SI] for people: lengths in mm, times in ms, ratios without a unit, 3 significant digits."""
+    if unit == "1":
+        return f"{v:.3g}"
     if unit == "m":
         return f"{v * 1e3:.3g} mm"
     if unit == "s":

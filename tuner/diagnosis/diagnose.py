@@ -16,7 +16,7 @@ Procedure (``diagnose``):
    figures (``tuner.diagnosis.residuals``): in time, against velocity and stroke, around velocity reversals,
    against frequency, drift over the test and against the temperature channel.
 3. For every candidate of the catalogue (``damper_fmu.effects``): extend the model by that effect,
-   refit on the identification tests, and measure the validation MSE. The refit (``_refit``) runs
+   refit on the identification tests, and measure the validation MSE. The refit (``refit``) runs
    a profile line search on the effect parameter (each grid value with the base re-balanced by
    Levenberg-Marquardt steps on the base Jacobian, since the base fit may have absorbed part of
    the effect into its tables) and a joint least-squares polish, from two
@@ -53,7 +53,6 @@ damper.
 """
 from __future__ import annotations
 
-import copy
 import json
 import math
 import time
@@ -63,14 +62,16 @@ from pathlib import Path
 import numpy as np
 
 from damper_fmu.fmu import SLAVES, build, ensure_fmu
-from damper_fmu.parameters import (EFFECT_IDENTIFIED, EFFECT_MODELS, EFFECT_PARAMETERS, EFFECT_TYPICAL,
-                                   FK_REFERENCE_STIFFNESS, defaults)
+from damper_fmu.parameters import (CATALOGUE_EFFECTS, EFFECT_IDENTIFIED, EFFECT_MODELS, EFFECT_PARAMETERS,
+                                   EFFECT_TYPICAL, FK_REFERENCE_STIFFNESS, FORM_EFFECTS, defaults)
 
 from tuner.data.noise import channel_noise
 from tuner.data.reading import RigTest
 from tuner.diagnosis.detection import detection_limits
+from tuner.diagnosis.forms import FORM_LABELS, screen, shape_grid
+from tuner.diagnosis.refit import (MIN_BLOCKS, ExtendedParametrization, base_jacobian, effect_intervals, refit,
+                                   search_bounds)
 from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidence, residual_figures
-from tuner.diagnosis.significance import block_sandwich, correlation_time, interval
 from tuner.formatting import fmt_quantity
 from tuner.identification.engine import Engine
 from tuner.identification.fit import RACE_RATIO, FitSettings, identify, initial_guess, validation_run
@@ -83,20 +84,23 @@ from tuner.progress import advance
 __all__ = ["DiagnosisSettings", "diagnose", "decide", "cross_check", "choose_base", "CANDIDATES", "BASE_MODELS",
            "ExtendedParametrization"]
 
-CANDIDATES = tuple(EFFECT_IDENTIFIED)
+CANDIDATES = CATALOGUE_EFFECTS
 #: base forms the diagnosis chooses from (the models that carry the effect catalogue): the lumped
 #: model of the paper, and the two-chamber form of a twin-tube damper
 BASE_MODELS = EFFECT_MODELS
 PENALTY_PER_PARAMETER = 0.02
 ACCEPT_SCORE = 0.05
-#: fewest independent residual blocks for a confidence interval to be trusted
-MIN_BLOCKS = 10
 #: a magnitude below this fraction of the low end of the catalogue's typical range is no physical cause
 #: (a 0.2 ms valve lag or a 0.04 mm play fitted where the typical ranges start at 1 ms and 0.1 mm is the
 #: refit compensating something else)
 MEANINGFUL_FRACTION = 0.5
 #: identification RMSE above this multiple of the measured noise: a structured residual remains
 UNEXPLAINED_RATIO = 2.0
+#: a form beyond the catalogue is named only when it removes at least this share of the held-out residual
+#: power above the floor: a form that patches part of another model-form error (measured: a Dahl element
+#: took 34 % of a lumped base's error on two-chamber-model data, leaving 119 x the floor) is not the
+#: missing element
+FORM_EXCESS_SHARE = 0.5
 #: a fitted delay agrees with the base residual's delay when fitted / residual lies in this range. It is
 #: asymmetric: the base refit absorbs part of a real delay (its series compliance is itself a lag), so
 #: the residual shows less than the whole delay (down to a third on lumped data, 2.20 ms fitted for
@@ -108,56 +112,6 @@ UNITS = {p.name: p.unit for p in EFFECT_PARAMETERS}
 NOTES = {"time_delay": "a skew between the force and stroke channels (DAQ, filters): fix the acquisition; "
                        "the exported co-simulation model should not contain it",
          "preload": "an un-tared gas force or load-cell offset: check the rig's zero before the test"}
-
-
-def search_bounds(name: str, peak_force: float, stroke_range_m: float | None = None) -> tuple[float, float]:
-    """Refit bounds of an effect parameter (SI): twice the top of the catalogue's typical range, so
-    that every documented magnitude is reachable; force scales at least 10 % of the measured peak
-    force [N] (a larger damper may have more) and at most the peak force itself; a free play at
-    most the data's stroke range [m] (a wider gap would leave the damper unloaded all along);
-    within the parameter's model bounds."""
-    top = 2.0 * EFFECT_TYPICAL[name][1]
-    if name in ("friction_force", "preload_force"):
-        top = min(max(top, 0.1 * peak_force), peak_force)
-    if name == "free_play" and stroke_range_m is not None and stroke_range_m > 0:
-        top = min(top, stroke_range_m)
-    top = min(top, next(p.high for p in EFFECT_PARAMETERS if p.name == name))  # what the model accepts
-    return (-top, top) if name == "preload_force" else (0.0, top)
-
-
-class ExtendedParametrization:
-    """The base design vector followed by the identified parameters of one or more effects
-    (``effect``: a name, or names joined by '+'; linear within their search bounds)."""
-
-    def __init__(self, base: Parametrization, effect: str, peak_force: float, stroke_range_m: float | None = None):
-        self.base, self.effect, self.stroke_range_m = base, effect, stroke_range_m
-        self.effects = effect.split("+")
-        self.extra = [n for e in self.effects for n in EFFECT_IDENTIFIED[e]]
-        self.extra_bounds = [search_bounds(n, peak_force, stroke_range_m) for n in self.extra]
-        self.dimension = base.dimension + len(self.extra)
-        self.names = base.names + self.extra
-
-    def to_params(self, z) -> dict:
-        z = np.clip(np.asarray(z, dtype=float), 0.0, 1.0)
-        p = self.base.to_params(z[: self.base.dimension])
-        for i, (n, (lo, hi)) in enumerate(zip(self.extra, self.extra_bounds)):
-            p[n] = lo + z[self.base.dimension + i] * (hi - lo)
-        return p
-
-    def from_params(self, params: dict) -> np.ndarray:
-        zb = self.base.from_params(params)
-        ze = [(params.get(n, 0.0) - lo) / (hi - lo) for n, (lo, hi) in zip(self.extra, self.extra_bounds)]
-        return np.concatenate([zb, np.clip(ze, 0.0, 1.0)])
-
-    def local_space(self) -> "ExtendedParametrization":
-        """The same with the base in its local solver's coordinates (``Parametrization.local_space``)."""
-        local = copy.copy(self)
-        local.base = self.base.local_space()
-        local.names = local.base.names + self.extra
-        return local
-
-    def describe(self) -> str:
-        return f"{self.base.describe()}; plus {', '.join(self.extra)} (linear within the search bounds)"
 
 
 @dataclass
@@ -178,6 +132,8 @@ class DiagnosisSettings:
     final_jacobians: int = 100  # continued refit of the leading candidate: a cap, it stops when converged
     max_causes: int = 3  # forward selection stops here at the latest
     candidates: tuple = CANDIDATES
+    #: forms beyond the catalogue tried when a residual above the floor remains (tuner.diagnosis.forms)
+    forms: tuple = FORM_EFFECTS
     #: base model: 'auto' (identify every one of BASE_MODELS, keep the lowest held-out MSE), or a kind
     base_model: str = "auto"
     diff_band_hz: float | None = None  # as tuner.identification.problem.DataSettings
@@ -248,119 +204,6 @@ def _split_mse(residual: np.ndarray | None, lengths: list[int]) -> list[tuple[fl
     return out
 
 
-def _grid(lo: float, hi: float, n: int) -> list[float]:
-    """Candidate values for the line search: both signs when the range straddles zero."""
-    if lo < 0.0 < hi:
-        return list(np.linspace(lo, hi, 2 * (n // 2) + 1))
-    return [lo + (hi - lo) * f for f in np.geomspace(0.02, 1.0, n)]
-
-
-def _base_jacobian(eid: Engine, par, z0: np.ndarray, step: float = 1e-4, dims: int | None = None):
-    """SVD (U, s, Vt) of the identification residual's Jacobian [N per scaled unit] with respect
-    to the first ``dims`` scaled coordinates (default all) of ``par`` (a Parametrization or an
-    ExtendedParametrization) at z0 (forward differences, one parallel batch of dims + 1 runs);
-    None when z0 cannot be simulated."""
-    dims = len(z0) if dims is None else dims
-    steps = np.where(z0[:dims] + step <= 1.0, step, -step)
-    pts = [z0] + [z0 + np.eye(len(z0))[i] * steps[i] for i in range(dims)]
-    res = eid.residuals_batch([par.to_params(p) for p in pts])
-    if res[0] is None:
-        return None
-    cols = [(r - res[0]) / h if r is not None else np.zeros_like(res[0]) for r, h in zip(res[1:], steps)]
-    return np.linalg.svd(np.column_stack(cols), full_matrices=False)
-
-
-def _refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: float, jac_svd,
-           settings: DiagnosisSettings, jacobians: int, search: int = 0) -> tuple[np.ndarray, float, int]:
-    """Profile line search on the effect parameter(s) from index ``search`` of ``ext.extra`` on
-    from z0 (identification SSE sse0 [N^2]),
-    then a joint polish of at most ``jacobians`` Jacobians; returns (z, fitness G = N / SSE,
-    evaluations).
-
-    Line search: for each grid value, the effect parameter is set with the base fixed, then the
-    base is re-balanced (what it had absorbed of the effect) by Levenberg-Marquardt steps with the
-    base Jacobian ``jac_svd`` at z0 kept fixed (at most ``profile_steps`` batches, while the fit
-    improves by more than 1 %; none when ``jac_svd`` is None); the best point seen starts the
-    polish.
-    """
-    dim = ext.base.dimension
-    pts = []
-    for i, (lo, hi) in enumerate(ext.extra_bounds):
-        if i < search:  # an effect already selected: kept at its fitted value during the profile
-            continue
-        for val in _grid(lo, hi, settings.grid_points):
-            z = z0.copy()
-            z[dim + i] = (val - lo) / (hi - lo)
-            pts.append(z)
-    res = eid.residuals_batch([ext.to_params(z) for z in pts])
-    evals = len(pts)
-    if jac_svd is not None:
-        u, sv, vt = jac_svd
-        # Levenberg-Marquardt with the fixed base Jacobian, per grid value: a step that does not
-        # lower the SSE is retried with 10x the damping, a successful one relaxes it 3x
-        active = [[z, r, float(r @ r), (1e-3 * sv[0]) ** 2] for z, r in zip(pts, res) if r is not None]
-        for _ in range(settings.profile_steps):
-            trial = []
-            for z, r, _, lam in active:
-                zc = z.copy()
-                zc[:dim] = np.clip(z[:dim] - vt.T @ ((sv / (sv * sv + lam)) * (u.T @ r)), 0.0, 1.0)
-                trial.append(zc)
-            res_t = eid.residuals_batch([ext.to_params(z) for z in trial])
-            evals += len(trial)
-            pts += trial
-            res += res_t
-            still = []
-            for a, zc, rc in zip(active, trial, res_t):
-                sse_c = float(rc @ rc) if rc is not None else math.inf
-                if sse_c < a[2]:
-                    if sse_c > 0.99 * a[2]:
-                        continue  # converged: less than 1 % gain
-                    still.append([zc, rc, sse_c, a[3] / 3.0])
-                elif a[3] < 1e3 * sv[0] ** 2:
-                    still.append([a[0], a[1], a[2], a[3] * 10.0])
-            active = still
-            if not active:
-                break
-    sse = [float(r @ r) if r is not None else math.inf for r in res]
-    k = int(np.argmin(sse))
-    z_start = pts[k] if sse[k] < sse0 else z0
-    z, g, n, _ = polish(eid, ext, z_start, max_jacobians=jacobians, log=lambda m: None)
-    return z, g, evals + n
-
-
-def effect_intervals(eid: Engine, ext: ExtendedParametrization, z: np.ndarray, step: float = 1e-4) -> dict:
-    """95 % confidence interval of each effect parameter of the extended model fitted at ``z`` (SI
-    units), from the identification residual's Jacobian by the block sandwich
-    (``tuner.diagnosis.significance``: valid for correlated residuals). Base coordinates at a bound are held
-    there. Returns {name: {value, std, low, high, excludes_zero}} plus '_blocks' and
-    '_correlation_time_s' (the residual's, which sets the block length: 3 correlation times)."""
-    z = np.clip(np.asarray(z, dtype=float), 0.0, 1.0)
-    dim = ext.base.dimension
-    free = [i for i in range(ext.dimension) if i >= dim or 1e-9 < z[i] < 1 - 1e-9]
-    steps = {i: (step if z[i] + step <= 1.0 else -step) for i in free}
-    pts = [z] + [z + np.eye(ext.dimension)[i] * steps[i] for i in free]
-    res = eid.residuals_batch([ext.to_params(p) for p in pts])
-    r0 = res[0]
-    out: dict = {}
-    if r0 is None or any(r is None for r in res[1:]):
-        return {n: {"value": ext.to_params(z)[n], "std": math.inf, "low": -math.inf, "high": math.inf,
-                    "excludes_zero": False} for n in ext.extra}
-    jac = np.column_stack([(r - r0) / steps[i] for r, i in zip(res[1:], free)])
-    lengths = [int(s.mask.sum()) for s in eid.tests]
-    tau = correlation_time(r0)
-    cov, blocks = block_sandwich(jac, r0, lengths, math.ceil(3 * tau))
-    rate = (len(eid.tests[0].time) - 1) / (eid.tests[0].time[-1] - eid.tests[0].time[0])
-    params = ext.to_params(z)
-    for k, (n, (lo, hi)) in enumerate(zip(ext.extra, ext.extra_bounds)):
-        j = free.index(dim + k)
-        std = math.sqrt(max(cov[j, j], 0.0)) * (hi - lo)
-        low, high = interval(params[n], std)
-        out[n] = {"value": params[n], "std": std, "low": low, "high": high,
-                  "excludes_zero": bool(blocks >= MIN_BLOCKS and (low > 0.0 or high < 0.0))}
-    out["_blocks"], out["_correlation_time_s"] = blocks, tau / rate
-    return out
-
-
 def _next_cause(eid: Engine, par: Parametrization, peak: float, current: tuple, current_row: dict,
                 ranking: list[dict], evidence: dict, settings: DiagnosisSettings, share: int, held_out,
                 log) -> dict:
@@ -387,8 +230,8 @@ def _next_cause(eid: Engine, par: Parametrization, peak: float, current: tuple, 
         ext = ExtendedParametrization(par, f"{cur_ext.effect}+{e}", peak, cur_ext.stroke_range_m)
         z0 = ext.from_params({**params_cur, **{n: 0.0 for n in EFFECT_IDENTIFIED[e]}})
         if jac is None:  # the new effect is off at z0: the current model's Jacobian, shared
-            jac = _base_jacobian(eid, ext, z0, dims=par.dimension)
-        z, g, n = _refit(eid, ext, z0, sse_cur, jac, settings, share, search=len(cur_ext.extra))
+            jac = base_jacobian(eid, ext, z0, dims=par.dimension)
+        z, g, n = refit(eid, ext, z0, sse_cur, jac, settings, share, profile=range(len(cur_ext.extra), len(ext.extra)))
         row = held_out(ext.effect, ext.to_params(z), ext.extra, g, n, current_row["validation_mse"],
                        new=EFFECT_IDENTIFIED[e])
         row["added"] = e
@@ -421,6 +264,87 @@ def _next_cause(eid: Engine, par: Parametrization, peak: float, current: tuple, 
         return {"cause": "none", "tried": rows}
     log(f"  further cause: {named[0]['added']} (" + _interval_text(named[0]) + f"), score {named[0]['score']:+.3f}")
     return {"cause": named[0]["added"], "tried": rows, "row": named[0], "refit": fits[named[0]["effect"]]}
+
+
+def _try_forms(eid: Engine, par: Parametrization, current: dict, current_row: dict, causes: list[str], peak: float,
+               stroke_range: float, stroke_limits: tuple[float, float], floor: float, settings: DiagnosisSettings,
+               share: int, held_out, settled, log) -> dict:
+    """The forms beyond the catalogue (``settings.forms``, ``tuner.diagnosis.forms``) on top of the current
+    model (parameter values ``current``, ranking row ``current_row``: the base refit, or the model of the
+    causes named). For each form: the screen picks two shapes, each is refitted (profile of the magnitude
+    with the model re-balanced, joint polish of ``share`` Jacobians), the better one is kept; the best form
+    is continued to convergence (``final_jacobians``) and given its interval. It is named on the rules of a
+    cause (``_earned``) against the current model, its magnitude standing for it (force above the noise,
+    physical size, interval excluding zero) and the score penalised for all its parameters, and when it
+    removes at least ``FORM_EXCESS_SHARE`` of the held-out residual power above the ``floor`` [N rms].
+    Returns {"form": name or None, "tried": rows, and for a named form "row", "refit" (ext, z, evaluations)
+    and "settled" (``settled`` of its continued refit)}."""
+    sse_cur = float(eid.sse_batch([current])[0])
+    rows, fits, jac = [], {}, None
+    for form in settings.forms:
+        ext = ExtendedParametrization(par, "+".join([*causes, form]), peak, stroke_range, stroke_limits)
+        magnitude = EFFECT_IDENTIFIED[form][0]
+        z_off = ext.from_params({**current, magnitude: 0.0})
+        if jac is None:  # the current model's Jacobian (its causes included), shared by the forms
+            jac = base_jacobian(eid, ext, z_off, dims=ext.dimension - len(EFFECT_IDENTIFIED[form]))
+        shapes = screen(eid, ext, form, current, jac)
+        best_z, g, evals = None, -math.inf, len(shape_grid(form, dict(zip(ext.extra, ext.extra_bounds)))) + 1
+        at = [ext.extra.index(magnitude)]
+        for cand in shapes:
+            z0 = ext.from_params({**current, **cand["shape"], magnitude: 0.0})
+            z, g_s, n = refit(eid, ext, z0, sse_cur, jac, settings, share, profile=at)
+            evals += n
+            if g_s > g:
+                best_z, g = z, g_s
+        if best_z is None:
+            log(f"  form {form:10s} cannot be simulated on these tests")
+            continue
+        names = EFFECT_IDENTIFIED[form]
+        row = held_out(ext.effect, ext.to_params(best_z), ext.extra, g, evals, current_row["validation_mse"],
+                       new=[magnitude], n_params=len(names))
+        row["added"], row["form"] = form, FORM_LABELS[form]
+        row["screen"] = shapes
+        row["excess_explained"] = _excess_explained(row, current_row, floor)
+        fits[form] = (ext, best_z, evals)
+        rows.append(row)
+        log(f"  form {form:10s} " + ", ".join(f"{n} = {fmt_quantity(row['parameters'][n], UNITS[n])}" for n in names)
+            + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
+            + f"  effect {row['effect_rms_n']:.3g} N rms{'' if row['resolved'] else ' (below the noise)'}")
+    if not rows:
+        return {"form": None, "tried": rows}
+    lead = max(rows, key=lambda r: r["score"] if r["resolved"] else -math.inf)
+    form = lead["added"]
+    ext, z, n0 = fits[form]
+    info = {"converged": False, "budget_spent": True, "predicted": 0.0}
+    if lead["score"] > ACCEPT_SCORE and lead["resolved"]:
+        if settings.final_jacobians > 0:
+            z, g, n, info = polish(eid, ext, z, max_jacobians=settings.final_jacobians, log=lambda m: None)
+            fits[form] = (ext, z, n0 + n)
+            row = held_out(ext.effect, ext.to_params(z), ext.extra, g, n0 + n, current_row["validation_mse"],
+                           new=[EFFECT_IDENTIFIED[form][0]], n_params=len(EFFECT_IDENTIFIED[form]))
+            row.update({k: lead[k] for k in ("added", "form", "screen")})
+            row["excess_explained"] = _excess_explained(row, current_row, floor)
+            rows[rows.index(lead)] = lead = row
+        ci = effect_intervals(eid, ext, z)
+        lead["interval"] = {k: [ci[k]["low"], ci[k]["high"]] for k in ext.extra}
+        lead["significant"] = bool(ci[EFFECT_IDENTIFIED[form][0]]["excludes_zero"])
+        lead["interval_blocks"] = ci["_blocks"]
+    if lead["score"] > ACCEPT_SCORE and _earned(lead) and lead["excess_explained"] >= FORM_EXCESS_SHARE:
+        log(f"  form named: {FORM_LABELS[form]} (" + _interval_text(lead, EFFECT_IDENTIFIED[form])
+            + f"), validation MSE {lead['validation_mse_change_pct']:+.0f} %, score {lead['score']:+.3f}")
+        return {"form": form, "tried": rows, "row": lead, "refit": fits[form],
+                "settled": settled(info, lead["identification_rmse_n"] ** -2)}
+    log("  no form beyond the catalogue earns its parameters" + (
+        f" (the best, {form}, removes {100 * lead['excess_explained']:.0f} % of the held-out residual above the floor)"
+        if lead["score"] > ACCEPT_SCORE and _earned(lead) else ""))
+    return {"form": None, "tried": rows}
+
+
+def _excess_explained(row: dict, current_row: dict, floor: float) -> float:
+    """Share of the held-out residual power above the floor [N rms] that the row's model removes from the
+    current model's (1: down to the floor; 0: none; negative: worse)."""
+    excess = current_row["validation_mse"] - floor ** 2
+    return (current_row["validation_mse"] - row["validation_mse"]) / excess if excess > 0 else 0.0
 
 
 def cross_check(ranking: list[dict], evidence: dict) -> list[dict]:
@@ -612,6 +536,8 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
     model's values) and ``final_validation_mse`` [N^2] (pooled, Table 3 definition)."""
     identification, prep_id, prep_val = data.identification, data.prep_id, data.prep_val
     sig_id, sig_val, peak, stroke_range, noise = data.sig_id, data.sig_val, data.peak_n, data.stroke_range_m, data.noise_n
+    stroke_limits = (min(float(s.stroke[s.mask].min()) for s in sig_id),
+                     max(float(s.stroke[s.mask].max()) for s in sig_id))  # [m]
 
     engine_path = None
     if settings.engine == "fmu":
@@ -656,18 +582,19 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
         log(f"diagnosis: base model RMSE identification {math.sqrt(sse_base_id / eid.n_samples):.1f} N, "
             f"validation {math.sqrt(mse_base):.1f} N")
 
-        def _held_out(effect, params, extra, g, evals, mse_ref, new=None) -> dict:
+        def _held_out(effect, params, extra, g, evals, mse_ref, new=None, n_params=None) -> dict:
             """Ranking entry of a refitted model: validation MSE/AME, score against the validation
             MSE ``mse_ref`` [N^2] of the reference (the base refitted alike, or the model of the
             causes already selected), and the force contribution [N rms] of the ``new`` effect
             parameters (default all of ``extra``) on the identification tests (the fitted model
-            minus the same with them off)."""
+            minus the same with them off); n_params: the parameters the score is penalised for
+            (default as many as ``new``: a form is switched off by its magnitude but has more)."""
             new = list(extra) if new is None else list(new)
             r_val = ev.residuals_batch([params])[0]
             per_test = _split_mse(r_val, lengths)
             mse = math.inf if r_val is None else float(r_val @ r_val) / n_val
             ratio = mse / mse_ref
-            score = _score(mse, mse_ref, len(new))
+            score = _score(mse, mse_ref, len(new) if n_params is None else n_params)
             values = {n: params[n] for n in extra}
             contribution = 0.0
             if new:
@@ -695,7 +622,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
             return bool(info["converged"] or (credible and not info["budget_spent"]
                                               and reachable > UNEXPLAINED_RATIO * floor))
 
-        jac_base = _base_jacobian(eid, par, par.from_params(base))  # shared by every candidate
+        jac_base = base_jacobian(eid, par, par.from_params(base))  # shared by every candidate
         # 'none' is a candidate like the others: the base model refitted from the same starts with
         # the same local effort (an unfinished base fit would otherwise be credited to any effect)
         starts = [(base, sse_base_id, jac_base)] + ([(guess, math.inf, None)] if settings.guess_start else [])
@@ -716,11 +643,11 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
             advance(log, 0.2 + 0.5 * k_cand / len(settings.candidates))
             ext = ExtendedParametrization(par, effect, peak, stroke_range)
             # the fitted base may have absorbed part of the effect into its tables: a profile line
-            # search re-balances it (``_refit``); a second start from the data-driven initial guess,
+            # search re-balances it (``refit``); a second start from the data-driven initial guess,
             # which has not absorbed it, is kept when its refit fits the identification data better
             best_z, g, evals = None, -math.inf, 0
             for start, sse_start, svd in starts:
-                z, g_s, n = _refit(eid, ext, ext.from_params(start), sse_start, svd, settings, share)
+                z, g_s, n = refit(eid, ext, ext.from_params(start), sse_start, svd, settings, share)
                 evals += n
                 if g_s > g:
                     best_z, g = z, g_s
@@ -837,6 +764,25 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
                 ranking[next(i for i, r in enumerate(ranking) if r["effect"] == "none")] = none_row
         # what these tests could not have told apart from the base: the smallest magnitude of each
         # candidate that would have been named (``tuner.diagnosis.detection``), and the test showing it
+        # forms beyond the catalogue, when what the catalogue found leaves a residual above the floor on a
+        # settled fit (an unfinished one is no evidence of a missing element)
+        key = "+".join(causes)
+        rmse_now = best["identification_rmse_n"] if causes else none_row["identification_rmse_n"]
+        form_step = None
+        if (credible and settings.forms and rmse_now > UNEXPLAINED_RATIO * floor
+                and converged_fits.get(key) is not False):
+            current = refits[key][0].to_params(refits[key][1]) if causes else par.to_params(z_none)
+            current_row = best if causes else none_row
+            form_step = _try_forms(eid, par, current, current_row, causes, peak, stroke_range, stroke_limits, floor,
+                                   settings, share, _held_out, settled, log)
+            if form_step["form"] is not None:
+                causes.append(form_step["form"])
+                key = "+".join(causes)
+                refits[key] = form_step.pop("refit")
+                converged_fits[key] = form_step.pop("settled")
+                best = form_step["row"]
+                if cause in ("none", "unexplained"):
+                    cause = form_step["form"]
         limits = _detection(eid, ev, par, z_none, [e for e in settings.candidates if e not in causes], peak,
                             stroke_range, mse_none, noise, lengths, [s.name for s in sig_val], log)
 
@@ -858,12 +804,14 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
                                                             settings.engine)
     effect_parameters = _effect_parameters(best) if causes else {}
 
-    verdict = _verdict(causes, best, none_row, unresolved, unexplained, noise, limits)
+    verdict = _verdict(causes, best, none_row, unresolved, unexplained, noise, limits, form_step)
     if not credible:
         verdict += (f". The remaining residual, {final_rmse:.3g} N rms, is not compared with the residual floor: "
                     f"{not_credible}")
     return {"cause": cause, "causes": causes, "verdict": verdict, "selection": selection,
             "detection_limits": limits,
+            "form": form_step["form"] if form_step else None,
+            "forms_tried": form_step["tried"] if form_step else None,
             "unexplained": unexplained, "ranking": ranking, "effect_parameters": effect_parameters,
             "validation": validation, "evidence": evidence, "figures": figures,
             "note": " ".join(NOTES[c] for c in causes if c in NOTES), "noise_std_n": noise,
@@ -929,15 +877,18 @@ def _effect_parameters(best: dict) -> dict:
     """The named causes' fitted magnitudes with units, 95 % intervals and their typical ranges."""
     out = {}
     for n, v in best["parameters"].items():
-        lo, hi = PLAUSIBLE[n]
-        out[n] = {"value": v, "unit": UNITS[n], "interval_95": best["interval"][n],
-                  "plausible_range": [lo, hi], "plausible": bool(lo <= abs(v) <= hi)}
+        out[n] = {"value": v, "unit": UNITS[n], "interval_95": best["interval"][n]}
+        if n in PLAUSIBLE:  # a form's shape (a groove's centre and length) has no typical size
+            lo, hi = PLAUSIBLE[n]
+            out[n].update({"plausible_range": [lo, hi], "plausible": bool(lo <= abs(v) <= hi)})
     return out
 
 
-def _interval_text(row: dict) -> str:
+def _interval_text(row: dict, names=None) -> str:
+    """'name = value (95 % interval low .. high)' of the row's parameters (``names``: only these)."""
     return ", ".join(f"{n} = {fmt_quantity(v, UNITS[n])} (95 % interval {fmt_quantity(row['interval'][n][0], UNITS[n])}"
-                     f" .. {fmt_quantity(row['interval'][n][1], UNITS[n])})" for n, v in row["parameters"].items())
+                     f" .. {fmt_quantity(row['interval'][n][1], UNITS[n])})" for n, v in row["parameters"].items()
+                     if names is None or n in names)
 
 
 def _limit_text(row: dict) -> str:
@@ -948,19 +899,32 @@ def _limit_text(row: dict) -> str:
 
 
 def _verdict(causes: list[str], best: dict, none_row: dict, rejected: list[dict], unexplained: dict | None,
-             noise: float, limits: dict | None = None) -> str:
+             noise: float, limits: dict | None = None, form_step: dict | None = None) -> str:
     """One-paragraph verdict: the causes with magnitudes and intervals and their held-out gain, or
-    none with what these tests could have detected (``limits``), and what stays unexplained."""
-    if causes:
+    none with what these tests could have detected (``limits``), a form beyond the catalogue named
+    with its gain (``form_step``: what ``_try_forms`` tried), and what stays unexplained."""
+    form = form_step["form"] if form_step else None
+    found = [c for c in causes if c != form]
+    if form:
+        change = 100 * (best["validation_mse"] / none_row["validation_mse"] - 1)
+        step = best["validation_mse_change_pct"]  # against the model it was added to
+        text = (f"form beyond the catalogue: {FORM_LABELS[form]} ({_interval_text(best, EFFECT_IDENTIFIED[form])}): "
+                f"held-out MSE {step:+.0f} %" + (f" on top of {' + '.join(found)}" if found else "")
+                + f"; {change:+.0f} % against the base refitted alike")
+        if found:
+            text = (f"cause{'s' if len(found) > 1 else ''}: {' + '.join(found)} ("
+                    + _interval_text(best, [n for c in found for n in EFFECT_IDENTIFIED[c]]) + "); " + text)
+    elif causes:
         change = 100 * (best["validation_mse"] / none_row["validation_mse"] - 1)
         text = (f"cause{'s' if len(causes) > 1 else ''}: {' + '.join(causes)} ({_interval_text(best)}); "
                 f"validation MSE {change:+.0f} % against the base refitted alike")
     else:
-        text = ("cause: none (no extension earns its parameters on held-out data"
-                + ("; " + ", ".join(f"{r['effect']} scored {r['score']:+.3f} but " + _why_not(r, noise)
-                                    for r in rejected) if rejected else "") + ")")
-        if limits:
-            text += ("; these tests would have named: " + ", ".join(f"{e} {_limit_text(r)}" for e, r in limits.items()))
+        none_inner = ("no extension earns its parameters on held-out data"
+                      + ("; " + ", ".join(f"{r['effect']} scored {r['score']:+.3f} but " + _why_not(r, noise)
+                                          for r in rejected) if rejected else ""))
+        limits_text = ("; these tests would have named: " + ", ".join(f"{e} {_limit_text(r)}" for e, r in limits.items())
+                       if limits else "")
+        text = f"cause: none ({none_inner}){limits_text}"
     if unexplained:
         where = (f"; most of it in the {unexplained['dominant_band']} band" if unexplained["dominant_band"] else "")
         sig = (f"; the closest catalogue signature ({unexplained['best_signature']}) explains "
@@ -975,6 +939,11 @@ def _verdict(causes: list[str], best: dict, none_row: dict, rejected: list[dict]
                     + ("- a missing linear element (spring, Maxwell branch, delay) fits that" if lin >= 0.7 else
                        "- so no added linear element (spring, Maxwell branch, delay) can remove most of it: "
                        "the error is nonlinear or time-varying"))
+        if form_step and not form:
+            sig += "; forms beyond the catalogue tried, none earns its parameters: " + ", ".join(
+                f"{r['form']} {r['validation_mse_change_pct']:+.0f} % held-out MSE (score {r['score']:+.3f}"
+                + (", " + _why_not(r, noise) if r["score"] > ACCEPT_SCORE and "interval" in r else "") + ")"
+                for r in form_step["tried"])
         loop = unexplained.get("loop") or {}
         if loop:
             low = sum(v["power_share"] for k, v in loop.items() if k.startswith("below"))
@@ -988,8 +957,7 @@ def _verdict(causes: list[str], best: dict, none_row: dict, rejected: list[dict]
             f"the remaining residual, {unexplained['identification_rmse_n']:.3g} N rms, is "
             f"{unexplained['ratio']:.1f} x the residual floor ({unexplained['floor_n']:.2g} N: force noise "
             f"{noise:.2g} N, stroke noise through the model {unexplained['stroke_noise_force_n']:.2g} N): "
-            f"{what}{where}{sig}") + ("" if causes else "; " + text.replace(
-                "cause: none (", "no named cause: ").rstrip(")"))
+            f"{what}{where}{sig}") + ("" if causes else f"; no named cause: {none_inner}{limits_text}")
     return text
 
 
@@ -999,6 +967,10 @@ def _why_not(row: dict, noise: float) -> str:
         return "its delay disagrees with the residual's"
     if not row["resolved"]:
         return f"its force, {row['effect_rms_n']:.2g} N rms, is below the measurement noise ({noise:.2g} N)"
+    if row.get("excess_explained") is not None and row["excess_explained"] < FORM_EXCESS_SHARE and _earned(row):
+        return (f"it removes only {100 * row['excess_explained']:.0f} % of the held-out residual above the floor "
+                f"(a form must remove {100 * FORM_EXCESS_SHARE:.0f} %: one that patches part of another error is not "
+                "the missing element)")
     if not row.get("meaningful", True):
         return ("its magnitude (" + ", ".join(f"{fmt_quantity(v, UNITS[n])}" for n, v in row["parameters"].items())
                 + ") is below the physical range of the effect")

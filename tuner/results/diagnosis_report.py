@@ -59,6 +59,8 @@ def diagnosis_section_html(out_dir) -> str:
                            for n, (lo, hi) in r.get("interval", {}).items())
             ci += "" if "significant" not in r else (" (excludes 0)" if r["significant"] else " (includes 0)")
             ci += "; magnitude below the effect's physical range" if r.get("meaningful") is False else ""
+            if r.get("excess_explained") is not None:  # a form: how much of the residual above the floor it removes
+                ci += f"; removes {100 * r['excess_explained']:.0f} % of the held-out residual above the floor"
             out.append(f"<tr{cls}><td>{e(r['effect'])}</td><td>{e(fitted)}</td><td>{e(ci or '-')}</td>"
                        f"<td>{r['validation_mse_change_pct']:+.1f} %</td><td>{r['score']:+.3f}</td>"
                        f"<td>{e(size)}</td></tr>")
@@ -78,8 +80,19 @@ def diagnosis_section_html(out_dir) -> str:
                   f"<td>{v['mse_change_pct']:+.1f} %</td><td>{v['ame_before']:.0f}</td><td>{v['ame_after']:.0f}</td></tr>"
                   for n, v in d["validation"].items())
     eff = "".join(f"<tr><td>{e(n)}</td><td>{e(fmt_quantity(p['value'], p['unit']))}</td><td>"
-                  f"{e(fmt_quantity(p['plausible_range'][0], p['unit']))} - {e(fmt_quantity(p['plausible_range'][1], p['unit']))}</td>"
-                  f"<td>{'yes' if p['plausible'] else 'NO'}</td></tr>" for n, p in d["effect_parameters"].items())
+                  + (f"{e(fmt_quantity(p['plausible_range'][0], p['unit']))} - "
+                     f"{e(fmt_quantity(p['plausible_range'][1], p['unit']))}</td>"
+                     f"<td>{'yes' if p['plausible'] else 'NO'}</td></tr>" if "plausible_range" in p else
+                     "- (a shape: no typical size)</td><td>-</td></tr>") for n, p in d["effect_parameters"].items())
+    if d.get("forms_tried"):  # the catalogue left a residual above the floor: forms beyond it were tried
+        named = next((r["effect"] for r in d["forms_tried"] if r["added"] == d.get("form")), None)
+        model = " + ".join(c for c in causes if c != d.get("form")) or "the base refitted alike"
+        steps += (f"<h3>Forms beyond the catalogue, on top of {e(model)}</h3><p>Tried because the residual stayed "
+                  "above the floor. A form is named on the rules of a cause and only when it removes at least half "
+                  "of the held-out residual above the floor (one that patches part of another error is not the "
+                  f"missing element).</p><table>{head.format(ref=e(model))}"
+                  f"{_rows(d['forms_tried'], named)}"
+                  "</table>")
     ev = (d.get("evidence") or {}).get("effects", {})
     ev_rows = "".join(f"<li><b>{e(k)}</b>: {e(str(v.get('sentence', '')))}</li>" for k, v in ev.items()
                       if isinstance(v, dict) and v.get("sentence"))

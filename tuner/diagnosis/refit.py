@@ -1,0 +1,207 @@
+"""Refits of a base model extended by effect elements (the diagnosis's workhorse).
+
+``ExtendedParametrization``: the base design vector plus effect parameters, linear within their
+search bounds (``search_bounds``); ``refit``: a profile line search on the effect parameter(s) with
+the base re-balanced, then a joint least-squares polish; ``base_jacobian``: the SVD of the
+residual's Jacobian that re-balances the base; ``effect_intervals``: 95 % intervals of the effect
+parameters (block sandwich: residuals are correlated in time). Units: SI; residuals in N.
+"""
+from __future__ import annotations
+
+import copy
+import math
+
+import numpy as np
+
+from damper_fmu.parameters import EFFECT_IDENTIFIED, EFFECT_PARAMETERS, EFFECT_TYPICAL
+
+from tuner.diagnosis.significance import block_sandwich, correlation_time, interval
+from tuner.identification.engine import Engine
+from tuner.identification.parametrization import Parametrization
+from tuner.identification.polish import polish
+
+__all__ = ["search_bounds", "ExtendedParametrization", "grid", "base_jacobian", "refit", "effect_intervals",
+           "MIN_BLOCKS"]
+
+#: fewest independent residual blocks for a confidence interval to be trusted
+MIN_BLOCKS = 10
+DEFAULTS = {p.name: p.default for p in EFFECT_PARAMETERS}
+
+
+def search_bounds(name: str, peak_force: float, stroke_range_m: float | None = None,
+                  stroke_limits: tuple[float, float] | None = None) -> tuple[float, float]:
+    """Refit bounds of an effect parameter (SI): twice the top of the catalogue's typical range, so
+    that every documented magnitude is reachable; force scales at least 10 % of the measured peak
+    force [N] (a larger damper may have more) and at most the peak force itself; a free play at
+    most the data's stroke range [m] (a wider gap would leave the damper unloaded all along);
+    within the parameter's model bounds. Form shapes: a hysteresis displacement up to half the
+    stroke range; a bypass groove centred within the stroke's limits [m] (min, max; default centred
+    on zero) and 5-80 % of the stroke range long (a longer one is a change of the whole
+    characteristic, which the base absorbs)."""
+    span = stroke_range_m if stroke_range_m and stroke_range_m > 0 else 0.02
+    if name == "hysteresis_displacement":
+        return (1e-5, max(1e-4, min(4e-3, 0.5 * span)))
+    if name == "bypass_center":
+        return tuple(stroke_limits) if stroke_limits is not None else (-0.5 * span, 0.5 * span)
+    if name == "bypass_width":
+        return (max(2e-3, 0.05 * span), max(4e-3, 0.8 * span))
+    if name == "bypass_ratio":
+        return (0.0, 0.9)
+    top = 2.0 * EFFECT_TYPICAL[name][1]
+    if name in ("friction_force", "preload_force", "hysteresis_force"):
+        top = min(max(top, 0.1 * peak_force), peak_force)
+    if name == "free_play" and stroke_range_m is not None and stroke_range_m > 0:
+        top = min(top, stroke_range_m)
+    top = min(top, next(p.high for p in EFFECT_PARAMETERS if p.name == name))  # what the model accepts
+    return (-top, top) if name == "preload_force" else (0.0, top)
+
+
+class ExtendedParametrization:
+    """The base design vector followed by the identified parameters of one or more effects
+    (``effect``: a name, or names joined by '+'; linear within their search bounds)."""
+
+    def __init__(self, base: Parametrization, effect: str, peak_force: float, stroke_range_m: float | None = None,
+                 stroke_limits: tuple[float, float] | None = None):
+        self.base, self.effect, self.stroke_range_m = base, effect, stroke_range_m
+        self.peak_force, self.stroke_limits = peak_force, stroke_limits
+        self.effects = effect.split("+")
+        self.extra = [n for e in self.effects for n in EFFECT_IDENTIFIED[e]]
+        self.extra_bounds = [search_bounds(n, peak_force, stroke_range_m, stroke_limits) for n in self.extra]
+        self.dimension = base.dimension + len(self.extra)
+        self.names = base.names + self.extra
+
+    def to_params(self, z) -> dict:
+        z = np.clip(np.asarray(z, dtype=float), 0.0, 1.0)
+        p = self.base.to_params(z[: self.base.dimension])
+        for i, (n, (lo, hi)) in enumerate(zip(self.extra, self.extra_bounds)):
+            p[n] = lo + z[self.base.dimension + i] * (hi - lo)
+        return p
+
+    def from_params(self, params: dict) -> np.ndarray:
+        zb = self.base.from_params(params)
+        ze = [(params.get(n, DEFAULTS[n]) - lo) / (hi - lo) for n, (lo, hi) in zip(self.extra, self.extra_bounds)]
+        return np.concatenate([zb, np.clip(ze, 0.0, 1.0)])
+
+    def local_space(self) -> "ExtendedParametrization":
+        """The same with the base in its local solver's coordinates (``Parametrization.local_space``)."""
+        local = copy.copy(self)
+        local.base = self.base.local_space()
+        local.names = local.base.names + self.extra
+        return local
+
+    def describe(self) -> str:
+        return f"{self.base.describe()}; plus {', '.join(self.extra)} (linear within the search bounds)"
+
+
+def grid(lo: float, hi: float, n: int) -> list[float]:
+    """Candidate values for the line search: both signs when the range straddles zero."""
+    if lo < 0.0 < hi:
+        return list(np.linspace(lo, hi, 2 * (n // 2) + 1))
+    return [lo + (hi - lo) * f for f in np.geomspace(0.02, 1.0, n)]
+
+
+def base_jacobian(eid: Engine, par, z0: np.ndarray, step: float = 1e-4, dims: int | None = None):
+    """SVD (U, s, Vt) of the identification residual's Jacobian [N per scaled unit] with respect
+    to the first ``dims`` scaled coordinates (default all) of ``par`` (a Parametrization or an
+    ExtendedParametrization) at z0 (forward differences, one parallel batch of dims + 1 runs);
+    None when z0 cannot be simulated."""
+    dims = len(z0) if dims is None else dims
+    steps = np.where(z0[:dims] + step <= 1.0, step, -step)
+    pts = [z0] + [z0 + np.eye(len(z0))[i] * steps[i] for i in range(dims)]
+    res = eid.residuals_batch([par.to_params(p) for p in pts])
+    if res[0] is None:
+        return None
+    cols = [(r - res[0]) / h if r is not None else np.zeros_like(res[0]) for r, h in zip(res[1:], steps)]
+    return np.linalg.svd(np.column_stack(cols), full_matrices=False)
+
+
+def refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: float, jac_svd,
+           settings, jacobians: int, profile=None) -> tuple[np.ndarray, float, int]:
+    """Profile line search on the effect parameters of ``ext.extra`` at the indices ``profile``
+    (default all; the others, e.g. effects already selected or a form's shape, are kept at their
+    values in z0) from z0 (identification SSE sse0 [N^2]),
+    then a joint polish of at most ``jacobians`` Jacobians; returns (z, fitness G = N / SSE,
+    evaluations).
+
+    Line search: for each grid value, the effect parameter is set with the base fixed, then the
+    base is re-balanced (what it had absorbed of the effect) by Levenberg-Marquardt steps with the
+    base Jacobian ``jac_svd`` at z0 kept fixed (at most ``profile_steps`` batches, while the fit
+    improves by more than 1 %; none when ``jac_svd`` is None); the best point seen starts the
+    polish.
+    """
+    dim = ext.base.dimension
+    pts = []
+    for i, (lo, hi) in enumerate(ext.extra_bounds):
+        if profile is not None and i not in profile:  # kept at its value in z0 during the profile
+            continue
+        for val in grid(lo, hi, settings.grid_points):
+            z = z0.copy()
+            z[dim + i] = (val - lo) / (hi - lo)
+            pts.append(z)
+    res = eid.residuals_batch([ext.to_params(z) for z in pts])
+    evals = len(pts)
+    if jac_svd is not None:
+        u, sv, vt = jac_svd
+        # Levenberg-Marquardt with the fixed base Jacobian, per grid value: a step that does not
+        # lower the SSE is retried with 10x the damping, a successful one relaxes it 3x
+        active = [[z, r, float(r @ r), (1e-3 * sv[0]) ** 2] for z, r in zip(pts, res) if r is not None]
+        for _ in range(settings.profile_steps):
+            trial = []
+            for z, r, _, lam in active:
+                zc = z.copy()
+                zc[:dim] = np.clip(z[:dim] - vt.T @ ((sv / (sv * sv + lam)) * (u.T @ r)), 0.0, 1.0)
+                trial.append(zc)
+            res_t = eid.residuals_batch([ext.to_params(z) for z in trial])
+            evals += len(trial)
+            pts += trial
+            res += res_t
+            still = []
+            for a, zc, rc in zip(active, trial, res_t):
+                sse_c = float(rc @ rc) if rc is not None else math.inf
+                if sse_c < a[2]:
+                    if sse_c > 0.99 * a[2]:
+                        continue  # converged: less than 1 % gain
+                    still.append([zc, rc, sse_c, a[3] / 3.0])
+                elif a[3] < 1e3 * sv[0] ** 2:
+                    still.append([a[0], a[1], a[2], a[3] * 10.0])
+            active = still
+            if not active:
+                break
+    sse = [float(r @ r) if r is not None else math.inf for r in res]
+    k = int(np.argmin(sse))
+    z_start = pts[k] if sse[k] < sse0 else z0
+    z, g, n, _ = polish(eid, ext, z_start, max_jacobians=jacobians, log=lambda m: None)
+    return z, g, evals + n
+
+
+def effect_intervals(eid: Engine, ext: ExtendedParametrization, z: np.ndarray, step: float = 1e-4) -> dict:
+    """95 % confidence interval of each effect parameter of the extended model fitted at ``z`` (SI
+    units), from the identification residual's Jacobian by the block sandwich
+    (``tuner.diagnosis.significance``: valid for correlated residuals). Base coordinates at a bound are held
+    there. Returns {name: {value, std, low, high, excludes_zero}} plus '_blocks' and
+    '_correlation_time_s' (the residual's, which sets the block length: 3 correlation times)."""
+    z = np.clip(np.asarray(z, dtype=float), 0.0, 1.0)
+    dim = ext.base.dimension
+    free = [i for i in range(ext.dimension) if i >= dim or 1e-9 < z[i] < 1 - 1e-9]
+    steps = {i: (step if z[i] + step <= 1.0 else -step) for i in free}
+    pts = [z] + [z + np.eye(ext.dimension)[i] * steps[i] for i in free]
+    res = eid.residuals_batch([ext.to_params(p) for p in pts])
+    r0 = res[0]
+    out: dict = {}
+    if r0 is None or any(r is None for r in res[1:]):
+        return {n: {"value": ext.to_params(z)[n], "std": math.inf, "low": -math.inf, "high": math.inf,
+                    "excludes_zero": False} for n in ext.extra}
+    jac = np.column_stack([(r - r0) / steps[i] for r, i in zip(res[1:], free)])
+    lengths = [int(s.mask.sum()) for s in eid.tests]
+    tau = correlation_time(r0)
+    cov, blocks = block_sandwich(jac, r0, lengths, math.ceil(3 * tau))
+    rate = (len(eid.tests[0].time) - 1) / (eid.tests[0].time[-1] - eid.tests[0].time[0])
+    params = ext.to_params(z)
+    for k, (n, (lo, hi)) in enumerate(zip(ext.extra, ext.extra_bounds)):
+        j = free.index(dim + k)
+        std = math.sqrt(max(cov[j, j], 0.0)) * (hi - lo)
+        low, high = interval(params[n], std)
+        out[n] = {"value": params[n], "std": std, "low": low, "high": high,
+                  "excludes_zero": bool(blocks >= MIN_BLOCKS and (low > 0.0 or high < 0.0))}
+    out["_blocks"], out["_correlation_time_s"] = blocks, tau / rate
+    return out
