@@ -18,7 +18,7 @@ from campaign.sensors import SensorChain
 
 IDEAL = SensorChain.ideal()
 PAR = DamperParams()
-BYPASS_AREA = 6e-8  # m^2, the bypass groove's default area
+BYPASS_AREA = 6e-8  # m^2, the bypass form's default (campaign.effects.FORMS)
 
 
 def sine(f, amp, duration, fs=1000.0, ramp=1.0):
@@ -245,6 +245,36 @@ def test_bypass_drop_documented_at_5_and_30_mm_per_s():
     assert abs(drop[-5e-3]) < 1e-3
 
 
+def test_forms_are_selectable_like_the_effects():
+    """``hysteresis`` and ``bypass`` are parsed, ranged and recorded like the catalogue's effects, set
+    the damper's form parameters, and are refused by the lumped damper (the tuner's own model)."""
+    assert set(fx.FORMS) == {"hysteresis", "bypass"} and not set(fx.FORMS) & set(fx.EFFECTS)
+    assert fx.FORMS["hysteresis"].model_parameter == "hysteresis_force"
+    assert fx.FORMS["bypass"].model_parameter == "bypass_ratio"
+    assert fx.FORMS["bypass"].default == BYPASS_AREA  # the documented drop (43 % at 5 mm/s) is for this
+    lo, hi = fx.FORMS["bypass"].low, fx.FORMS["bypass"].high  # 18 % and 72 % at 5 mm/s
+    assert 0.15 < 1 - quasi_static_force(5e-3, PAR, lo) / quasi_static_force(5e-3, PAR) < 0.2
+    assert 0.7 < 1 - quasi_static_force(5e-3, PAR, hi) / quasi_static_force(5e-3, PAR) < 0.75
+    for name, spec in fx.FORMS.items():
+        assert spec.name == name and spec.low < spec.default < spec.high
+    hyst = fx.FORMS["hysteresis"]
+    assert (hyst.low, hyst.default, hyst.high, hyst.unit) == (100, 400, 800, "N")
+    assert fx.parse_effects("hysteresis, bypass=1e-7, friction") == {"hysteresis": 400.0, "bypass": 1e-7,
+                                                                      "friction": 150.0}
+    with pytest.raises(ValueError, match="outside the realistic range"):
+        fx.parse_effect("hysteresis=5000")
+    cfg = fx.physics_config({"hysteresis": 300, "bypass": None})
+    assert (cfg.preyield_force, cfg.bypass_area) == (300.0, BYPASS_AREA)
+    assert fx.physics_config({}) == DamperConfig()
+    t, s = sine(2.0, 0.002, 1.0)
+    df = measure(t, s, {"hysteresis": None}, seed=2)
+    assert df.attrs["effects"] == {"hysteresis": 400.0}
+    with pytest.raises(ValueError, match="twin-tube physics only"):
+        measure(t, s, {"bypass": None}, damper="lumped")
+    with pytest.raises(ValueError, match="hysteresis"):
+        lumped_parameters({"hysteresis": 400.0})
+
+
 # ---------------------------------------------------------------- rig output
 def test_measure_output_format_and_determinism():
     t, s = sine(2.0, 0.002, 2.0)
@@ -278,7 +308,7 @@ def test_measure_rejects_bad_input(kwargs, match):
 
 def test_effect_registry_and_parser():
     assert set(fx.EFFECTS) == {"friction", "preload", "free_play", "thermal_drift",
-                               "valve_lag", "time_delay", "inertia"}
+                               "valve_lag", "time_delay", "inertia"}  # the catalogue; forms: FORMS
     for name, spec in fx.EFFECTS.items():
         assert spec.name == name and spec.low < spec.default < spec.high
     assert fx.DEFAULT_EFFECTS == {}
