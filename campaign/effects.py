@@ -36,8 +36,35 @@ the static reservoir gas force is tared away as on a real rig, so ``preload`` is
 unless asked for; seal friction, play, heating, valve dynamics, channel skew and extra
 fluid inertia are what the catalogue asks the tuner to find, so they are off too.
 
-Effect specifications: ``friction``, ``friction=150``, ``free_play=0.4e-3`` (a bare name
-means the default value); several may be joined by commas.
+Two model *forms* beyond the catalogue (``FORMS``), for testing the diagnosis's form
+candidates blind: the rig makes them with physics of its own, not with the tuner's equations.
+
+============== ========= ====== ============ ======== ==============================================
+name           parameter unit   range        default  where it acts
+============== ========= ====== ============ ======== ==============================================
+hysteresis     F_y       N      100 - 800    400      MR / seal pre-yield hysteresis: a Bouc-Wen
+                                                      element ``F_y zeta`` between rod and cylinder,
+                                                      ``zeta' = (v / x_y)(1 - zeta^2 (0.5 sign(v zeta)
+                                                      + 0.5))``, x_y = 0.5 mm (v: piston velocity)
+bypass         A_g       m^2    2e-8 - 15e-8 6e-8     bypass groove R <-> C in the pressure tube, 10 mm
+                                                      long at mid-stroke (1 mm edges): a turbulent
+                                                      orifice ``Cd A_g g(x) sqrt(2 |dp| / rho)`` in
+                                                      parallel with the piston valve; rebound force
+                                                      inside the groove -43 % at 5 mm/s, -38 % at
+                                                      10 mm/s, -2.6 % at 30 mm/s (blow-off open);
+                                                      compression unchanged (the foot valve sets it)
+============== ========= ====== ============ ======== ==============================================
+
+The forms' ``model_parameter`` names the tuner model's form parameter (``hysteresis_force``,
+``bypass_ratio``), which this branch's ``damper_fmu`` need not have, so ``FORMS`` is not checked
+against it (the catalogue is, in the tests). ``hysteresis``: the fitted ``hysteresis_force`` ~
+``model_sign`` x F_y. ``bypass``: the model's ``bypass_ratio`` r (force x (1 - r) in the groove)
+is not a multiple of the groove area; the rig's drop (above, ``quasi_static_force``) is what it
+should find, and it depends on speed. The forms are twin-tube physics only: the lumped damper
+refuses them (its hydraulics are the tuner's model).
+
+Effect specifications: ``friction``, ``friction=150``, ``free_play=0.4e-3``, ``hysteresis=300``
+(a bare name means the default value); several may be joined by commas.
 """
 from __future__ import annotations
 
@@ -87,6 +114,19 @@ EFFECTS: dict[str, EffectSpec] = {
     )
 }
 
+#: model forms beyond the catalogue (module docstring); selectable like the effects
+FORMS: dict[str, EffectSpec] = {
+    s.name: s for s in (
+        EffectSpec("hysteresis", "F_y", "N", 100.0, 800.0, 400.0,
+                   "pre-yield hysteresis: Bouc-Wen element F_y zeta between rod and cylinder, x_y = 0.5 mm",
+                   "hysteresis_force"),
+        EffectSpec("bypass", "A_g", "m^2", 2e-8, 1.5e-7, 6e-8,
+                   "bypass groove R <-> C, 10 mm at mid-stroke: damping lower inside it", "bypass_ratio"),
+    )
+}
+#: every selectable name: the catalogue and the forms
+SPECS: dict[str, EffectSpec] = {**EFFECTS, **FORMS}
+
 DEFAULT_EFFECTS: dict[str, float] = {}  # nothing on by default (see module docstring)
 #: effects on the force channel after the damper (``apply_channel_effects``), not damper physics
 CHANNEL_EFFECTS = ("preload", "time_delay")
@@ -98,10 +138,10 @@ def parse_effect(text: str) -> tuple[str, float]:
         raise ValueError(f"empty effect specification: {text!r}")
     name, sep, value = text.strip().partition("=")
     name = name.strip()
-    if name not in EFFECTS:
-        raise ValueError(f"unknown effect {name!r}; known: {', '.join(EFFECTS)}")
+    if name not in SPECS:
+        raise ValueError(f"unknown effect {name!r}; known: {', '.join(SPECS)}")
     if not sep:
-        return name, EFFECTS[name].default
+        return name, SPECS[name].default
     try:
         v = float(value)
     except ValueError:
@@ -126,7 +166,7 @@ def parse_effects(specs: str | Iterable[str] | None) -> dict[str, float]:
 
 
 def _check(name: str, v: float) -> float:
-    spec = EFFECTS[name]
+    spec = SPECS[name]
     if not math.isfinite(v) or not (spec.low <= v <= spec.high):
         raise ValueError(f"effect {name!r}: {spec.parameter} = {v!r} {spec.unit} outside the "
                          f"realistic range [{spec.low:g}, {spec.high:g}] {spec.unit}")
@@ -141,10 +181,10 @@ def validate_effects(effects: Mapping[str, float | None] | None) -> dict[str, fl
         raise ValueError(f"effects must be a dict name -> value, got {type(effects).__name__}")
     out = {}
     for name, v in effects.items():
-        if name not in EFFECTS:
-            raise ValueError(f"unknown effect {name!r}; known: {', '.join(EFFECTS)}")
+        if name not in SPECS:
+            raise ValueError(f"unknown effect {name!r}; known: {', '.join(SPECS)}")
         if v is None:
-            out[name] = EFFECTS[name].default
+            out[name] = SPECS[name].default
             continue
         try:
             fv = float(v)
@@ -160,7 +200,8 @@ def physics_config(effects: Mapping[str, float]) -> DamperConfig:
     return DamperConfig(
         friction_force=e.get("friction", 0.0), free_play=e.get("free_play", 0.0),
         thermal_beta=e.get("thermal_drift", 0.0), valve_tau=e.get("valve_lag", 0.0),
-        extra_mass=e.get("inertia", 0.0))
+        extra_mass=e.get("inertia", 0.0), preyield_force=e.get("hysteresis", 0.0),
+        bypass_area=e.get("bypass", 0.0))
 
 
 def apply_channel_effects(t: np.ndarray, force: np.ndarray,

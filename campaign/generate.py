@@ -18,9 +18,9 @@ import time
 from importlib.metadata import version
 from pathlib import Path
 
-from campaign.effects import EFFECTS, validate_effects
+from campaign.effects import SPECS, validate_effects
 from campaign.plots import plot_dataset
-from campaign.rig import DAMPERS, check_oil_temperature, measure
+from campaign.rig import check_damper, check_oil_temperature, measure
 from campaign.scenarios import SCENARIOS, damper_stroke
 from damper_dataset.writer import write_dataset
 
@@ -49,7 +49,8 @@ def generate_dataset(out, *, seed: int = DEFAULT_SEED, effects: dict | None = No
                      log=print) -> Path:
     """Run the campaign and write a dataset folder; return its path.
 
-    effects: {name: value or None for the documented default} (campaign.effects.EFFECTS);
+    effects: {name: value or None for the documented default} (campaign.effects.EFFECTS and the
+    model forms campaign.effects.FORMS, twin-tube only);
     sample_rate: rig sample rate [Hz]; scenarios: names to run (default all six);
     t_end: optional shorter duration [s] for quick test datasets; damper: the damper on the rig
     (``campaign.rig.DAMPERS``: the physical ``twin-tube``, or ``lumped`` for the paper's model itself);
@@ -63,8 +64,7 @@ def generate_dataset(out, *, seed: int = DEFAULT_SEED, effects: dict | None = No
     if unknown:
         raise ValueError(f"unknown scenario(s) {unknown}; known: {list(SCENARIOS)}")
     eff = validate_effects(effects or {})
-    if damper not in DAMPERS:
-        raise ValueError(f"unknown damper {damper!r}; known: {', '.join(DAMPERS)}")
+    check_damper(damper, eff)
     if t_end is not None and not (t_end > 0):
         raise ValueError(f"t_end must be a positive duration [s], got {t_end!r}")
     temps = _oil_temperatures(oil_temperatures, chosen)
@@ -84,7 +84,7 @@ def generate_dataset(out, *, seed: int = DEFAULT_SEED, effects: dict | None = No
                       "speed_kmh": sc.speed_kmh})
     generator = {"command": "python -m tuner generate", "seed": int(seed), "sample_rate_hz": float(sample_rate),
                  "stroke_rate_hz": STROKE_RATE_HZ, "effects": {n: eff[n] for n in sorted(eff)},
-                 "effect_units": {n: EFFECTS[n].unit for n in sorted(eff)}, "t_end_s": t_end,
+                 "effect_units": {n: SPECS[n].unit for n in sorted(eff)}, "t_end_s": t_end,
                  "vehicle": "campaign.vehicle (7 bodies, linear creep), front-right yaw damper",
                  "damper": damper, "library_versions": library_versions(),
                  **({"oil_temperatures_degC": temps} if temps else {}),

@@ -79,7 +79,8 @@ def measure(t, stroke, effects: Mapping[str, float | None] | None = None, seed: 
     """Run the virtual rig.
 
     t [s] (strictly increasing), stroke [m] (extension +, from mid-stroke, |stroke| <=
-    75 mm); effects: {name: value or None (= default)} from ``campaign.effects.EFFECTS``;
+    75 mm); effects: {name: value or None (= default)} from ``campaign.effects.EFFECTS`` or
+    the model forms ``campaign.effects.FORMS`` (twin-tube only);
     seed: noise seed; sample_rate [Hz] of the recorded channels (time starts at t[0]).
     Keyword-only: sensors (default ``SensorChain()``), params (damper, default
     ``DamperParams()``; for the lumped damper only its thermal data are used), rtol
@@ -91,11 +92,11 @@ def measure(t, stroke, effects: Mapping[str, float | None] | None = None, seed: 
     seed, sample rate and damper. Bad input raises ValueError naming the problem.
     """
     t, stroke, fs, seed = _check_inputs(t, stroke, sample_rate, seed)
-    if damper not in DAMPERS:
-        raise ValueError(f"unknown damper {damper!r}; known: {', '.join(DAMPERS)}")
+    check_damper(damper)
     if oil_temperature is not None:
         oil_temperature = check_oil_temperature(oil_temperature)
     eff = fx.validate_effects(effects)
+    check_damper(damper, eff)
     chain = sensors or SensorChain()
     n_out = int(math.floor((t[-1] - t[0]) * fs + 1e-9)) + 1
     os_ = chain.oversampling
@@ -116,6 +117,18 @@ def measure(t, stroke, effects: Mapping[str, float | None] | None = None, seed: 
     df.attrs.update({"effects": dict(eff), "seed": seed, "sample_rate": fs, "damper": damper,
                      "oil_temperature": params.ambient_temperature})
     return df
+
+
+def check_damper(damper: str, effects: Mapping[str, float] | None = None) -> None:
+    """ValueError unless ``damper`` is one of ``DAMPERS`` and can have ``effects`` (validated):
+    the model forms (``campaign.effects.FORMS``) are twin-tube physics only, since the lumped
+    damper's hydraulics are the tuner's model."""
+    if damper not in DAMPERS:
+        raise ValueError(f"unknown damper {damper!r}; known: {', '.join(DAMPERS)}")
+    forms = sorted(set(effects or ()) & set(fx.FORMS))
+    if damper == "lumped" and forms:
+        raise ValueError(f"the model form(s) {', '.join(forms)} are twin-tube physics only: the lumped "
+                         f"damper's hydraulics are the tuner's model (use damper='twin-tube')")
 
 
 def check_oil_temperature(value, what: str = "oil_temperature") -> float:
@@ -145,6 +158,7 @@ def lumped_parameters(effects: Mapping[str, float], params: DamperParams | None 
     p["c_B"] *= 0.6
     p.update({"friction_velocity": DamperConfig().friction_v_eps,
               "thermal_reference": par.viscosity_reference_temperature})
+    check_damper("lumped", e)
     for name, value in e.items():
         if name not in fx.CHANNEL_EFFECTS:  # those the rig applies to the force channel
             spec = fx.EFFECTS[name]

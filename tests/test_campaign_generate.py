@@ -72,6 +72,27 @@ def test_effects_change_the_data_and_are_recorded(tmp_path):
     assert json.loads((fric / "manifest.json").read_text())["generator"]["effects"] == {"friction": 200.0}
 
 
+def test_model_forms_are_generated_and_recorded_like_effects(tmp_path, capsys):
+    """``--effect bypass --effect hysteresis=300`` (the forms of campaign.effects.FORMS) change the data
+    and are recorded in the manifest with their units; the lumped damper refuses them up front."""
+    from campaign.cli import main
+
+    kw = dict(seed=3, scenarios=["id1_straight_250"], t_end=2.0, log=lambda m: None)
+    clean = load_dataset(generate_dataset(tmp_path / "clean", **kw))[0]
+    assert main(["generate", "--out", str(tmp_path / "forms"), "--t-end", "2", "--seed", "3",
+                 "--effect", "bypass", "--effect", "hysteresis=300"]) == 0
+    formed = {t.name: t for t in load_dataset(tmp_path / "forms")}["id1_straight_250"]
+    np.testing.assert_array_equal(clean.stroke, formed.stroke)
+    assert np.abs(clean.force - formed.force).max() > 300.0
+    gen = json.loads((tmp_path / "forms" / "manifest.json").read_text())["generator"]
+    assert gen["effects"] == {"bypass": 6e-8, "hysteresis": 300.0}
+    assert gen["effect_units"] == {"bypass": "m^2", "hysteresis": "N"}
+    capsys.readouterr()
+    assert main(["generate", "--out", str(tmp_path / "lumped"), "--effect", "hysteresis",
+                 "--damper", "lumped"]) == 2
+    assert "twin-tube physics only" in capsys.readouterr().err and not (tmp_path / "lumped").exists()
+
+
 def test_generator_refuses_to_overwrite_and_rejects_bad_effects(tmp_path):
     (tmp_path / "taken").mkdir()
     (tmp_path / "taken" / "x.txt").write_text("mine")

@@ -12,12 +12,13 @@ import pytest
 
 from campaign import effects as fx
 from campaign.rig import lumped_parameters, measure
-from campaign.rig_damper import (DamperConfig, DamperParams, RigDamper, StrokeInput,
-                                 quasi_static_force, series_stiffness)
+from campaign.rig_damper import (BW_BETA, BW_GAMMA, BW_N, IZ, N_STATES, DamperConfig, DamperParams,
+                                 RigDamper, StrokeInput, quasi_static_force, series_stiffness)
 from campaign.sensors import SensorChain
 
 IDEAL = SensorChain.ideal()
 PAR = DamperParams()
+BYPASS_AREA = 6e-8  # m^2, the bypass form's default (campaign.effects.FORMS)
 
 
 def sine(f, amp, duration, fs=1000.0, ramp=1.0):
@@ -107,21 +108,29 @@ def test_energy_dissipated_over_closed_cycles_is_positive():
 
 
 def test_analytic_jacobian_and_fast_rhs_match_reference():
+    """Clean, every catalogue effect on, and each form on (with the others): s(0.37 s) = 7.3 mm,
+    so the groove is centred on the piston, has the piston on its edge, or 4 mm off centre."""
     t = np.linspace(0.0, 2.0, 201)
     inp = StrokeInput(t, 0.01 * np.sin(2 * np.pi * t))
     rng = np.random.default_rng(1)
-    cfg = DamperConfig(friction_force=150, free_play=3e-4, thermal_beta=0.01,
-                       valve_tau=3e-3, extra_mass=50)
-    scale = np.array([1e-4, 1e-2, 1e-5, 1e-2, 1e5, 1e5, 1e-6, 1.0, 1e-2, 1e-2])
-    for config in (DamperConfig(), cfg):
+    on = dict(friction_force=150, free_play=3e-4, thermal_beta=0.01, valve_tau=3e-3, extra_mass=50)
+    configs = (DamperConfig(), DamperConfig(**on), DamperConfig(preyield_force=400.0),
+               DamperConfig(bypass_area=6e-8, bypass_center=7e-3),
+               DamperConfig(bypass_area=6e-8, bypass_center=11.5e-3),
+               DamperConfig(**on, preyield_force=800.0, bypass_area=1.5e-7, bypass_center=3e-3))
+    scale = np.array([1e-4, 1e-2, 1e-5, 1e-2, 1e5, 1e5, 1e-6, 1.0, 1e-2, 1e-2, 1e-1])
+    for config in configs:
         m = RigDamper(config=config)
         fast = m.fast_rhs(inp)
         for _ in range(4):
             y = m.static_state(0.0)
+            assert y.size == (N_STATES if config.preyield else N_STATES - 1)
             y[0] += 2e-4 * rng.normal()
             y[1], y[3] = 0.05 * rng.normal(), 0.01 * rng.normal()
             y[4], y[5] = 10 ** rng.uniform(5.3, 7.2), 10 ** rng.uniform(5.3, 7.2)
             y[6], y[7], y[8], y[9] = 1e-5 * rng.normal(), 30.0, rng.uniform(), rng.uniform()
+            if config.preyield:
+                y[IZ] = rng.uniform(-1.0, 1.0)
             np.testing.assert_allclose(fast(y, 0.37), m.rhs(y, 0.37, inp), rtol=1e-12, atol=0)
             J = m.jac(y, 0.37, inp)
             Jfd = np.empty_like(J)
@@ -133,6 +142,137 @@ def test_analytic_jacobian_and_fast_rhs_match_reference():
                 Jfd[:, j] = (np.array(m.rhs(yp, 0.37, inp)) - np.array(m.rhs(ym, 0.37, inp))) / (2 * h)
             row_scale = np.abs(Jfd).max(axis=1, keepdims=True) + 1e-30
             assert np.max(np.abs(J - Jfd) / row_scale) < 1e-4
+            # per typical state change (scale): also checks the entries that are small per unit of
+            # their state, e.g. the valve conductances d p'/d p and the element forces d v'/d zeta
+            step = scale[:len(y)]
+            row_step = np.abs(Jfd * step).max(axis=1, keepdims=True) + 1e-30
+            assert np.max(np.abs(J - Jfd) * step / row_step) < 1e-4
+
+
+# ---------------------------------------------------------------- model forms
+@pytest.mark.parametrize("config", [DamperConfig(preyield_force=800.0), DamperConfig(bypass_area=1.5e-7),
+                                    DamperConfig(preyield_force=400.0, bypass_area=BYPASS_AREA)],
+                         ids=["hysteresis", "bypass", "both"])
+def test_step_refinement_converges_with_the_forms(config):
+    """The hunting-like stroke (+-2 mm) keeps the piston inside the mid-stroke groove and reverses
+    the Bouc-Wen element often: the default tolerance is as accurate as without the forms."""
+    t, s = random_stroke(2.0)
+    t_out = np.arange(0.0, 2.0, 2.5e-4)
+    forces = {tol: RigDamper(config=config).simulate(t, s, t_out, rtol=tol).force for tol in (1e-7, 1e-9)}
+    assert np.max(np.abs(forces[1e-7] - forces[1e-9])) < 5.0
+    clean = RigDamper().simulate(t, s, t_out, rtol=1e-9).force
+    assert np.max(np.abs(forces[1e-9] - clean)) > 100.0  # the form acts on this stroke
+
+
+def test_forms_off_are_bit_identical_and_integrate_ten_states():
+    """With F_y = 0 and A_g = 0 the damper is the one without the forms: the same 10 states
+    integrated (zeta reported as 0), the same numbers bit for bit; only F_y switches the state on."""
+    t, s = random_stroke(1.5, seed=3)
+    base = RigDamper().simulate(t, s)
+    off = RigDamper(config=DamperConfig(preyield_force=0.0, bypass_area=0.0, preyield_displacement=1e-3,
+                                        bypass_center=1e-3, bypass_length=5e-3, bypass_edge=0.5e-3))
+    again = off.simulate(t, s)
+    assert off.n_states == RigDamper().n_states == N_STATES - 1 == 10
+    assert RigDamper(config=DamperConfig(preyield_force=100.0)).n_states == N_STATES
+    np.testing.assert_array_equal(base.force, again.force)
+    np.testing.assert_array_equal(base.states, again.states)
+    assert base.states.shape[1] == N_STATES and not base.states[:, IZ].any()
+    for bad in (dict(preyield_force=-1.0), dict(bypass_area=float("nan")), dict(preyield_displacement=0.0),
+                dict(bypass_edge=0.0), dict(bypass_length=-1e-3), dict(bypass_center=float("inf"))):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            RigDamper(config=DamperConfig(**bad))
+
+
+def bouc_wen_loop_area(amp, xy):
+    """Area of the Bouc-Wen loop zeta(x) (beta = gamma = 0.5, n = 2) between +-amp, with zeta
+    saturated at the reversals: unloading zeta' = 1/x_y over x_y, then zeta = tanh(u / x_y)."""
+    assert (BW_BETA, BW_GAMMA, BW_N) == (0.5, 0.5, 2)
+    return 2.0 * (-0.5 * xy + xy * math.log(math.cosh((2 * amp - xy) / xy)))
+
+
+def test_preyield_hysteresis_is_a_bouc_wen_loop():
+    """Slow 5 mm sine (1.6 mm/s peak): force with minus force without the element is +-F_y on each
+    ramp once the piston has travelled a few x_y from the reversal, and its loop dissipates
+    ~ 4 F_y A per cycle (exactly: the Bouc-Wen loop area, 11 % less at A = 10 x_y)."""
+    f, amp, fy, xy = 0.05, 5e-3, 400.0, 0.5e-3
+    t, s = sine(f, amp, 3.0 / f, fs=200.0)
+    base = RigDamper().simulate(t, s)
+    r = RigDamper(config=DamperConfig(preyield_force=fy, preyield_displacement=xy)).simulate(t, s)
+    d, v = r.force - base.force, r.stroke_velocity
+    late = t > 1.0 / f  # past the fade-in
+    ramp = late & (np.abs(r.piston) < 0.5 * amp)  # >= 2.5 mm = 5 x_y from the last reversal
+    np.testing.assert_allclose(d[ramp], fy * np.sign(v[ramp]), rtol=0.01)
+    assert np.abs(r.states[late, IZ]).max() <= 1.0 + 1e-6  # zeta never leaves [-1, 1]
+    for k in (1, 2):
+        cyc = (t >= k / f - 1e-9) & (t <= (k + 1) / f + 1e-9)
+        area = np.trapezoid(d[cyc] * v[cyc], t[cyc])  # closed cycle of the stroke: loop area [J]
+        assert area == pytest.approx(fy * bouc_wen_loop_area(amp, xy), rel=0.03)
+        assert area == pytest.approx(4 * fy * amp, rel=0.15)
+
+
+def test_bypass_groove_lowers_the_rebound_force_only_inside_the_groove():
+    """Slow 20 mm sine with 5 mm/s peak speed across the default groove (10 mm at mid-stroke):
+    inside it the rebound force is the steady valve solution with the groove open in parallel
+    (43 % less); in compression the foot valve sets the force, so the groove changes nothing; far
+    outside it the force is the one without the bypass to the integrator's tolerance."""
+    amp, v, area = 0.02, 5e-3, BYPASS_AREA
+    f = v / (2 * np.pi * amp)
+    t = np.linspace(0.0, 1.25 / f, 3001)
+    s = amp * np.sin(2 * np.pi * f * t)
+    base = RigDamper().simulate(t, s)
+    r = RigDamper(config=DamperConfig(bypass_area=area)).simulate(t, s)
+    x, vel = r.piston, r.stroke_velocity
+    inside = (t > 0.25 / f) & (np.abs(x) < 2e-3)  # the start (at x = 0, from rest) excluded
+    reb, comp = inside & (vel > 0), inside & (vel < 0)
+    assert reb.sum() > 50 and comp.sum() > 50
+    ref = np.array([quasi_static_force(u, PAR, area) for u in vel[reb]])
+    np.testing.assert_allclose(r.force[reb], ref, rtol=0.01)
+    drop = 1 - r.force[reb] / base.force[reb]
+    assert 0.40 < drop.min() and drop.max() < 0.46  # 43 % at 5 mm/s
+    np.testing.assert_allclose(r.force[comp], base.force[comp], rtol=1e-3)
+    outside = np.abs(x) > 12e-3
+    assert np.abs(base.force[outside]).max() > 3e3
+    np.testing.assert_allclose(r.force[outside], base.force[outside], rtol=0, atol=0.5)
+
+
+def test_bypass_drop_documented_at_5_and_30_mm_per_s():
+    """The documented force drop of the default groove (campaign.effects): -43 % at 5 mm/s, -2.6 %
+    at 30 mm/s (the blow-off valve carries most of the flow there), none in compression."""
+    area = BYPASS_AREA
+    drop = {v: 1 - quasi_static_force(v, PAR, area) / quasi_static_force(v, PAR) for v in (5e-3, 30e-3, -5e-3)}
+    assert drop[5e-3] == pytest.approx(0.43, abs=0.01)
+    assert drop[30e-3] == pytest.approx(0.026, abs=0.003)
+    assert abs(drop[-5e-3]) < 1e-3
+
+
+def test_forms_are_selectable_like_the_effects():
+    """``hysteresis`` and ``bypass`` are parsed, ranged and recorded like the catalogue's effects, set
+    the damper's form parameters, and are refused by the lumped damper (the tuner's own model)."""
+    assert set(fx.FORMS) == {"hysteresis", "bypass"} and not set(fx.FORMS) & set(fx.EFFECTS)
+    assert fx.FORMS["hysteresis"].model_parameter == "hysteresis_force"
+    assert fx.FORMS["bypass"].model_parameter == "bypass_ratio"
+    assert fx.FORMS["bypass"].default == BYPASS_AREA  # the documented drop (43 % at 5 mm/s) is for this
+    lo, hi = fx.FORMS["bypass"].low, fx.FORMS["bypass"].high  # 18 % and 72 % at 5 mm/s
+    assert 0.15 < 1 - quasi_static_force(5e-3, PAR, lo) / quasi_static_force(5e-3, PAR) < 0.2
+    assert 0.7 < 1 - quasi_static_force(5e-3, PAR, hi) / quasi_static_force(5e-3, PAR) < 0.75
+    for name, spec in fx.FORMS.items():
+        assert spec.name == name and spec.low < spec.default < spec.high
+    hyst = fx.FORMS["hysteresis"]
+    assert (hyst.low, hyst.default, hyst.high, hyst.unit) == (100, 400, 800, "N")
+    assert fx.parse_effects("hysteresis, bypass=1e-7, friction") == {"hysteresis": 400.0, "bypass": 1e-7,
+                                                                      "friction": 150.0}
+    with pytest.raises(ValueError, match="outside the realistic range"):
+        fx.parse_effect("hysteresis=5000")
+    cfg = fx.physics_config({"hysteresis": 300, "bypass": None})
+    assert (cfg.preyield_force, cfg.bypass_area) == (300.0, BYPASS_AREA)
+    assert fx.physics_config({}) == DamperConfig()
+    t, s = sine(2.0, 0.002, 1.0)
+    df = measure(t, s, {"hysteresis": None}, seed=2)
+    assert df.attrs["effects"] == {"hysteresis": 400.0}
+    with pytest.raises(ValueError, match="twin-tube physics only"):
+        measure(t, s, {"bypass": None}, damper="lumped")
+    with pytest.raises(ValueError, match="hysteresis"):
+        lumped_parameters({"hysteresis": 400.0})
 
 
 # ---------------------------------------------------------------- rig output
@@ -168,7 +308,7 @@ def test_measure_rejects_bad_input(kwargs, match):
 
 def test_effect_registry_and_parser():
     assert set(fx.EFFECTS) == {"friction", "preload", "free_play", "thermal_drift",
-                               "valve_lag", "time_delay", "inertia"}
+                               "valve_lag", "time_delay", "inertia"}  # the catalogue; forms: FORMS
     for name, spec in fx.EFFECTS.items():
         assert spec.name == name and spec.low < spec.default < spec.high
     assert fx.DEFAULT_EFFECTS == {}
