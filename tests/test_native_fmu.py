@@ -135,6 +135,39 @@ def test_serialized_state_rolls_back_exactly_with_effect_history(fmu_paths, kind
     shutil.rmtree(unzip, ignore_errors=True)
 
 
+@pytest.mark.parametrize("reals", [FORMS, {"free_play": 4e-4, "time_delay": 2e-3}], ids=["forms", "play-delay"])
+@pytest.mark.parametrize("kind", ["lumped", "twochamber"])
+def test_effects_switched_on_mid_run_start_at_the_present_stroke_in_both_flavours(fmu_paths, kind, reals):
+    """Effect parameters are tunable: switched on between steps (stroke offset 3 mm), the elements
+    start at the stroke reached (free play engaged, no hysteresis force, the groove seen there), in
+    the native FMU and the pythonfmu one alike (Simulator.set_model: they used to start at 0 there)."""
+    t, x, v = stroke(duration=1.0)
+    x = x + 3e-3
+    runs = []
+    for path in (fmu_paths[kind], fmu_paths[f"{kind}_py"]):
+        fmu, vr, unzip = _instance(path)
+        fmu.setupExperiment(startTime=0.0)
+        fmu.enterInitializationMode()
+        fmu.setReal([vr["stroke"], vr["stroke_velocity"]], [x[0], v[0]])
+        fmu.exitInitializationMode()
+        out = []
+        for k in range(t.size - 1):
+            if k == 300:
+                fmu.setReal([vr[n] for n in reals], list(reals.values()))
+            fmu.setReal([vr["stroke"], vr["stroke_velocity"]], [x[k], v[k]])
+            fmu.doStep(t[k], t[k + 1] - t[k])
+            out.append(fmu.getReal([vr["force"]])[0])
+        fmu.terminate()
+        fmu.freeInstance()
+        shutil.rmtree(unzip, ignore_errors=True)
+        runs.append(np.array(out))
+    with FmuRunner(fmu_paths[kind], input_mode=EXTRAPOLATE) as r:
+        without = r.run(t, x, v)[1:]
+    np.testing.assert_array_equal(runs[0][:300], without[:300])
+    assert np.abs(runs[0] - without)[300:].max() > 100.0  # they act
+    assert np.abs(runs[0] - runs[1]).max() <= 1e-9 * np.abs(runs[1]).max()
+
+
 def test_input_derivatives_from_the_master_are_used(fmu_paths):
     """The acceleration given by fmi2SetRealInputDerivatives replaces the FMU's own estimate (which
     also extrapolates the jerk, so it is not worse) and keeps the force within the 5 ms bar."""
