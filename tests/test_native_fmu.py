@@ -64,10 +64,9 @@ def test_native_and_pythonfmu_fmus_agree(fmu_paths, kind, params, mode):
 
 @pytest.mark.parametrize("kind, bad, name", [
     ("lumped", {"M_P": 0.0}, "M_P"), ("lumped", {"k_B": float("nan")}, "k_B"), ("lumped", {"Fc_10": 1000.0}, "Fc"),
-    ("lumped", {"free_play": -1e-3}, "free_play"), ("lumped", {"hysteresis_displacement": 0.0}, "hysteresis_displacement"),
-    ("lumped", {"bypass_ratio": 1.5}, "bypass_ratio"), ("twochamber", {"hysteresis_displacement": 0.0},
-                                                        "hysteresis_displacement"),
-    ("twochamber", {"bypass_ratio": 1.5}, "bypass_ratio")])
+    ("lumped", {"free_play": -1e-3}, "free_play"),
+    *[(kind, {name: value}, name) for kind in ("lumped", "twochamber")
+      for name, value in (("hysteresis_displacement", 0.0), ("bypass_ratio", 1.5))]])
 def test_invalid_parameters_fail_initialisation_with_their_name(fmu_paths, kind, bad, name):
     t, x, v = stroke()
     with FmuRunner(fmu_paths[kind]) as r:
