@@ -63,8 +63,8 @@ from pathlib import Path
 import numpy as np
 
 from damper_fmu.fmu import SLAVES, build, ensure_fmu
-from damper_fmu.parameters import (EFFECT_IDENTIFIED, EFFECT_MODELS, EFFECT_PARAMETERS, EFFECT_TYPICAL,
-                                   FK_REFERENCE_STIFFNESS, defaults)
+from damper_fmu.parameters import (CATALOGUE_EFFECTS, EFFECT_IDENTIFIED, EFFECT_MODELS, EFFECT_PARAMETERS,
+                                   EFFECT_TYPICAL, FK_REFERENCE_STIFFNESS, defaults)
 
 from tuner.data.noise import channel_noise
 from tuner.data.reading import RigTest
@@ -83,7 +83,9 @@ from tuner.progress import advance
 __all__ = ["DiagnosisSettings", "diagnose", "decide", "cross_check", "choose_base", "CANDIDATES", "BASE_MODELS",
            "ExtendedParametrization"]
 
-CANDIDATES = tuple(EFFECT_IDENTIFIED)
+#: the candidate causes: the effect catalogue of the design notes (parameters.CATALOGUE_EFFECTS); the form
+#: elements beyond it (parameters.FORM_EFFECTS: hysteresis, bypass) are not candidates here
+CANDIDATES = CATALOGUE_EFFECTS
 #: base forms the diagnosis chooses from (the models that carry the effect catalogue): the lumped
 #: model of the paper, and the two-chamber form of a twin-tube damper
 BASE_MODELS = EFFECT_MODELS
