@@ -144,12 +144,17 @@ class Simulator:
         self.temperature_input: float | None = None
 
     def set_model(self, model) -> None:
-        """Replace the model (new parameter values) keeping the state, effect states included."""
+        """Replace the model (new parameter values) keeping the state, effect states included. Effects
+        switched on here start at the present stroke (free play engaged, no hysteresis force, the
+        bypass seen there), as in the C FMUs (fmu_common.c: build)."""
         old = self.effects
         self.model = model
         self.effects = _effects(model)
-        if old is not None and old.active and self.effects is not None and self.effects.active:
-            self.effects.set_state(old.get_state())
+        if self.effects is not None and self.effects.active:
+            if old is not None and old.active:
+                self.effects.set_state(old.get_state())
+            else:
+                self.effects.x_eff = self.effects.x_seen = self.x1
 
     def initialize(self, x1: float, v1: float, t0: float = 0.0) -> float:
         """Start in the model's force-free state at stroke x1 [m], velocity v1 [m/s], time t0 [s]."""

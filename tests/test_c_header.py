@@ -42,6 +42,9 @@ def test_index_names_point_at_the_kernels_own_parameter_list():
             e0 = d[f"DK_{tag}_EFFECTS"]
             assert names[e0 + d["DK_EFFECT_FRICTION_FORCE"]] == "friction_force"
             assert names[e0 + d["DK_EFFECT_INERTIA_MASS"]] == "inertia_mass"
+            for effect in ("hysteresis_force", "hysteresis_displacement", "bypass_ratio", "bypass_center",
+                           "bypass_width", "bypass_edge"):  # the form elements, read by effects_init
+                assert names[e0 + d[f"DK_EFFECT_{effect.upper()}"]] == effect
 
 
 def test_render_refuses_a_parameter_list_the_kernel_could_not_read(monkeypatch):

@@ -1,4 +1,5 @@
-"""Optional effect elements of the lumped model: each changes the force in its documented way."""
+"""Optional effect elements of the lumped model (and the form elements of both effect models): each
+changes the force in its documented way."""
 import numpy as np
 import pytest
 
@@ -91,3 +92,92 @@ def test_valve_lag_acts_only_beyond_the_blow_off_knee_and_leads_the_force():
     beyond = (t > 1.0) & (np.abs(v) > 0.015)
     # a lead: the force correction is tau (c0 - c_knee) x'' beyond the knee
     np.testing.assert_allclose(d[beyond], tau * 9e5 * a[beyond], rtol=0.05, atol=0.02 * tau * 9e5 * np.abs(a).max())
+
+
+# -- form elements (damper_fmu.effects: hysteresis, bypass), lumped and two-chamber -------------------------
+
+def triangle(amp, quarter_s=1.0, fs=1000.0, quarters=9):
+    """Triangle stroke 0 -> amp -> -amp -> ... with its reversals on samples (every ``quarter_s`` odd
+    multiple); returns t, x, v and the sample indices of the reversals."""
+    n = int(round(quarter_s * fs))
+    k = np.arange(quarters * n + 1)
+    ph = k % (4 * n)
+    x = amp * np.where(ph < n, ph / n, np.where(ph < 3 * n, (2 * n - ph) / n, (ph - 4 * n) / n))
+    t = k / fs
+    return t, x, np.gradient(x, t), np.arange(n, quarters * n + 1, 2 * n)
+
+
+def dahl(x, reversals, fh, xh):
+    """Analytic Dahl force along a piecewise-monotone stroke x from z = 0 at x[0]: after each start
+    or reversal at x_r (force z_r), z(x) = s F_h + (z_r - s F_h) exp(-|x - x_r| / x_h), s the sign of
+    the motion on that leg."""
+    z = np.empty_like(x)
+    starts = [0, *reversals]
+    ends = [*reversals, x.size - 1]
+    z_r = 0.0
+    for a, b in zip(starts, ends):
+        s = np.sign(x[b] - x[a])
+        leg = slice(a, b + 1)
+        z[leg] = s * fh + (z_r - s * fh) * np.exp(-np.abs(x[leg] - x[a]) / xh)
+        z_r = z[b]
+    return z
+
+
+@pytest.mark.parametrize("kind", ["lumped", "twochamber"])
+def test_hysteresis_is_the_analytic_dahl_loop_and_dissipates_4_fh_a_per_cycle(kind):
+    """On a slow 4 mm triangle the element alone (force with it minus without it: the element is in
+    parallel and feeds nothing back into the model) is z(x) of the analytic Dahl solution after every
+    reversal; the loop's energy per cycle, oint z dx, is 4 F_h (A - x_h) (the two exponential corners
+    each cost 2 F_h x_h), which approaches 4 F_h A for A >> x_h.
+
+    Tolerance 1e-6 F_h on z: per step the element applies the exact solution over the monotone
+    increment, and exp(-a) exp(-b) = exp(-(a + b)), so only rounding separates it from the closed form."""
+    amp, fh = 4e-3, 500.0
+    t, x, v, rev = triangle(amp)
+    base = simulate(kind, t, x, v, params=defaults(kind))
+    for xh in (5e-4, 8e-5):
+        p = {**defaults(kind), "hysteresis_force": fh, "hysteresis_displacement": xh}
+        z = simulate(kind, t, x, v, params=p) - base
+        np.testing.assert_allclose(z, dahl(x, rev, fh, xh), rtol=0, atol=1e-6 * fh)
+        assert z[rev[0]] == pytest.approx(fh * (1.0 - np.exp(-amp / xh)), abs=1e-6 * fh)  # the virgin leg
+        cycle = slice(rev[0], rev[2] + 1)  # A -> -A -> A: a closed, steady loop
+        energy = np.trapezoid(z[cycle], x[cycle])
+        assert energy == pytest.approx(4.0 * fh * (amp - xh), rel=1e-4)
+        assert 1.0 - energy / (4.0 * fh * amp) == pytest.approx(xh / amp, rel=1e-2)  # -> 0 as x_h / A -> 0
+    assert energy / (4.0 * fh * amp) > 0.97  # A = 50 x_h
+
+
+@pytest.mark.parametrize("kind", ["lumped", "twochamber"])
+def test_bypass_scales_the_force_by_1_minus_r_deep_in_the_groove_and_not_outside(kind):
+    """A slow sine (10 mm, 0.02 Hz: 1.3 mm/s at most) through a groove of 4 mm around +1 mm with 0.2 mm
+    edges, ratio 0.5: where the stroke is at least 5 edge lengths inside the groove the force is
+    (1 - r) times the force without the groove, and where it is 10 edge lengths beyond its ends it is
+    the force without it. Only while the stroke moves faster than 30 % of its peak (the force ratio
+    near a reversal is 0 / 0). In the two-chamber model the gas spring k_gas (x - x_0) is not part of
+    the damping characteristic: subtracted from both forces first.
+
+    Tolerance 2e-3 on the ratio, for what the series elements change (silent blocks and the Fk
+    elastic element of the lumped model; the mounts and the chamber compliance of the two-chamber
+    model; stiffness k ~ 1.5e7 N/m in series with a damping slope c ~ 1e6 N s/m): the damper's own
+    velocity differs from the stroke's by dF/dt / k. (a) After each groove end the force settles to
+    its new level with tau = c / k ~ 60 ms, i.e. within ~0.1 mm of stroke at 1.3 mm/s: 1 mm (5 edge
+    lengths) inside, that transient is below 1e-5. (b) The slow sine's acceleration keeps loading the
+    springs, differently with and without the groove (force halved): a relative velocity error of
+    c a / (k v) ~ 1e-3 at the groove, a few 1e-4 in the ratio. (c) The tanh tail inside, r (1 - tanh 5)
+    ~ 5e-5. Measured: about 5e-4 inside, below 1e-7 outside."""
+    amp, f, r, c, w, e = 10e-3, 0.02, 0.5, 1e-3, 4e-3, 2e-4
+    t = np.arange(0.0, 1.0 / f, 2e-3)
+    om = 2 * np.pi * f
+    x, v = -amp * np.cos(om * t), amp * om * np.sin(om * t)
+    base = defaults(kind)
+    p = {**base, "bypass_ratio": r, "bypass_center": c, "bypass_width": w, "bypass_edge": e}
+    gas = base["k_gas"] * (x - x[0]) if kind == "twochamber" else 0.0
+    with_groove = simulate(kind, t, x, v, params=p) - gas
+    without = simulate(kind, t, x, v, params=base) - gas
+    moving = np.abs(v) > 0.3 * amp * om
+    inside = moving & (np.abs(x - c) <= w / 2 - 5 * e)
+    outside = moving & (np.abs(x - c) >= w / 2 + 10 * e)
+    assert inside.sum() > 100 and outside.sum() > 1000  # both directions of motion through both
+    assert np.all(np.abs(without[inside]) > 500.0)  # the damping force, not a residue
+    np.testing.assert_allclose(with_groove[inside] / without[inside], 1.0 - r, rtol=0, atol=2e-3)
+    np.testing.assert_allclose(with_groove[outside] / without[outside], 1.0, rtol=0, atol=2e-3)

@@ -172,17 +172,19 @@ def test_simulate_fmu_gives_the_fmi2_fmus_result(fmu_paths, fmu3_paths, kind):
 
 # -- statuses ------------------------------------------------------------------------------------
 
-def test_bad_parameter_is_an_fmi3_error_naming_it(fmu3_paths):
+@pytest.mark.parametrize("kind, name, value", [("lumped", "M_P", 0.0), ("lumped", "hysteresis_displacement", 0.0),
+                                               ("twochamber", "bypass_ratio", 1.5)])
+def test_bad_parameter_is_an_fmi3_error_naming_it(fmu3_paths, kind, name, value):
     """As the FMI 2.0 FMU: a parameter the model refuses makes the initial output and
     fmi3ExitInitializationMode fmi3Error, with a logged message naming it."""
-    s = Slave3(fmu3_paths["lumped"])
-    s.start(reals={"M_P": 0.0})
+    s = Slave3(fmu3_paths[kind])
+    s.start(reals={name: value})
     with pytest.raises(Exception, match="fmi3GetFloat64.*status 3"):
         s.force()
     with pytest.raises(Exception, match="fmi3ExitInitializationMode.*status 3"):
         s.fmu.exitInitializationMode()
     errors = [text for status, text in s.log if status == 3]
-    assert len(errors) == 2 and all("invalid parameters" in t and "M_P" in t for t in errors), s.log
+    assert len(errors) == 2 and all("invalid parameters" in t and name in t for t in errors), s.log
     with pytest.raises(Exception, match="fmi3DoStep"):  # the error state
         s.fmu.doStep(0.0, H)
     assert "error state" in s.log[-1][1]
@@ -248,12 +250,16 @@ def test_wrong_instantiation_token_and_event_mode_are_refused(fmu3_paths):
 
 # -- FMU state -----------------------------------------------------------------------------------
 
+@pytest.mark.parametrize("reals", [{"time_delay": 2e-3, "friction_force": 200.0},
+                                   {"hysteresis_force": 500.0, "hysteresis_displacement": 5e-4, "bypass_ratio": 0.5,
+                                    "bypass_center": 1e-3, "bypass_width": 4e-3}], ids=["catalogue", "forms"])
 @pytest.mark.parametrize("kind", ["lumped", "twochamber"])
-def test_state_roll_back_is_exact(fmu3_paths, kind):
-    """Get the state at 0.2 s (the time-delay history filled), step on, roll back through the
-    state and through its serialization: the steps after it repeat bit for bit."""
+def test_state_roll_back_is_exact(fmu3_paths, kind, reals):
+    """Get the state at 0.2 s (the time-delay history filled, or the hysteresis force and the stroke
+    seen mid-loop), step on, roll back through the state and through its serialization: the steps
+    after it repeat bit for bit."""
     s = Slave3(fmu3_paths[kind])
-    s.start(*sine(0.0), reals={"time_delay": 2e-3, "friction_force": 200.0})
+    s.start(*sine(0.0), reals=reals)
     s.fmu.exitInitializationMode()
 
     def run(k0, n):

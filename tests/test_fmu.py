@@ -9,6 +9,9 @@ from tuner.cosim import mass_spring_cosimulation
 from tuner.identification.runner import FmuRunner, SimulationError
 
 KINDS = ["lumped", "maxwell", "maxwell_table", "twochamber"]
+#: the form elements (damper_fmu.effects) both on: hysteresis, and a bypass groove the stroke crosses
+FORMS = {"hysteresis_force": 500.0, "hysteresis_displacement": 5e-4, "bypass_ratio": 0.5, "bypass_center": 1e-3,
+         "bypass_width": 4e-3}
 
 
 def stroke(fs=1000.0, duration=2.0):
@@ -76,17 +79,23 @@ def test_parameters_change_between_runs_and_reset_restores_a_clean_state(runners
     np.testing.assert_array_equal(r.run(t, x, v), base)  # reset: start values back, state clean
 
 
-def test_get_and_set_fmu_state_resumes_identically(fmu_paths):
+@pytest.mark.parametrize("reals", [{}, FORMS], ids=["base", "forms"])
+@pytest.mark.parametrize("flavour", ["lumped", "lumped_py"])
+def test_get_and_set_fmu_state_resumes_identically(fmu_paths, flavour, reals):
+    """Native and pythonfmu FMUs; with the form elements on, their states (hysteresis force, stroke
+    seen at the last step) are rolled back too."""
     from fmpy import extract
     from fmpy.fmi2 import FMU2Slave
 
-    md = read_model_description(str(fmu_paths["lumped"]))
+    md = read_model_description(str(fmu_paths[flavour]))
     vr = {v.name: v.valueReference for v in md.modelVariables}
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu_paths["lumped"])),
-                    modelIdentifier="DamperLumped", instanceName="s")
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu_paths[flavour])),
+                    modelIdentifier=md.coSimulation.modelIdentifier, instanceName="s")
     fmu.instantiate()
     fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()
+    if reals:
+        fmu.setReal([vr[k] for k in reals], list(reals.values()))
     fmu.exitInitializationMode()
     t, x, v = stroke(duration=1.0)
     h = t[1] - t[0]
@@ -189,7 +198,8 @@ def test_cosimulation_with_the_lumped_damper_dissipates_and_comes_to_rest(fmu_pa
 
 @pytest.mark.parametrize("effect,value", [("friction_force", 150.0), ("free_play", 4e-4), ("time_delay", 4e-3),
                                           ("thermal_beta", 0.02), ("valve_tau", 4e-3), ("inertia_mass", 80.0),
-                                          ("preload_force", -250.0)])
+                                          ("preload_force", -250.0), ("hysteresis_force", 500.0),
+                                          ("bypass_ratio", 0.5)])
 def test_effect_elements_through_the_fmu_match_in_process_and_state_restores(runners, fmu_paths, effect, value):
     t, x, v = stroke()
     p = {effect: value}

@@ -46,21 +46,30 @@ def test_native_fmu_is_self_contained_and_declares_what_masters_need(fmu_paths, 
         shutil.rmtree(tmp, ignore_errors=True)
 
 
-@pytest.mark.parametrize("kind", KINDS)
+#: the form elements (damper_fmu.effects) both on: hysteresis, and a bypass groove the stroke crosses
+FORMS = {"hysteresis_force": 500.0, "hysteresis_displacement": 5e-4, "bypass_ratio": 0.5, "bypass_center": 1e-3,
+         "bypass_width": 4e-3}
+
+
+@pytest.mark.parametrize("kind, params", [
+    *[(k, {"friction_force": 90.0, "time_delay": 2e-3} if k == "lumped" else None) for k in KINDS],
+    ("lumped", FORMS), ("twochamber", FORMS)])
 @pytest.mark.parametrize("mode", [REPLAY, EXTRAPOLATE])
-def test_native_and_pythonfmu_fmus_agree(fmu_paths, kind, mode):
+def test_native_and_pythonfmu_fmus_agree(fmu_paths, kind, params, mode):
     t, x, v = stroke()
-    params = {"friction_force": 90.0, "time_delay": 2e-3} if kind == "lumped" else None
     with FmuRunner(fmu_paths[kind], input_mode=mode) as a, FmuRunner(fmu_paths[f"{kind}_py"], input_mode=mode) as b:
         fa, fb = a.run(t, x, v, params), b.run(t, x, v, params)
     assert np.abs(fa - fb).max() <= 1e-9 * np.abs(fb).max()
 
 
-@pytest.mark.parametrize("bad, name", [({"M_P": 0.0}, "M_P"), ({"k_B": float("nan")}, "k_B"),
-                                       ({"Fc_10": 1000.0}, "Fc"), ({"free_play": -1e-3}, "free_play")])
-def test_invalid_parameters_fail_initialisation_with_their_name(fmu_paths, bad, name):
+@pytest.mark.parametrize("kind, bad, name", [
+    ("lumped", {"M_P": 0.0}, "M_P"), ("lumped", {"k_B": float("nan")}, "k_B"), ("lumped", {"Fc_10": 1000.0}, "Fc"),
+    ("lumped", {"free_play": -1e-3}, "free_play"),
+    *[(kind, {name: value}, name) for kind in ("lumped", "twochamber")
+      for name, value in (("hysteresis_displacement", 0.0), ("bypass_ratio", 1.5))]])
+def test_invalid_parameters_fail_initialisation_with_their_name(fmu_paths, kind, bad, name):
     t, x, v = stroke()
-    with FmuRunner(fmu_paths["lumped"]) as r:
+    with FmuRunner(fmu_paths[kind]) as r:
         with pytest.raises(SimulationError, match=f"exit initialization failed.*{name}"):
             r.run(t, x, v, bad)
         assert np.all(np.isfinite(r.run(t, x, v)))  # reset and usable again
@@ -87,12 +96,17 @@ def _instance(path, name="inst"):
     return fmu, vr, unzip
 
 
-def test_serialized_state_rolls_back_exactly_with_effect_history(fmu_paths):
+@pytest.mark.parametrize("kind, reals", [("lumped", {"time_delay": 4e-3, "free_play": 2e-4}),
+                                         ("lumped", {**FORMS, "free_play": 2e-4}), ("twochamber", FORMS)],
+                         ids=["lumped-delay", "lumped-forms", "twochamber-forms"])
+def test_serialized_state_rolls_back_exactly_with_effect_history(fmu_paths, kind, reals):
+    """The time-delay history, the free play's gap state and the form elements' states (hysteresis
+    force, stroke seen at the last step) survive serialization: the steps after a roll-back repeat."""
     t, x, v = stroke()
-    fmu, vr, unzip = _instance(fmu_paths["lumped"])
+    fmu, vr, unzip = _instance(fmu_paths[kind])
     fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()
-    fmu.setReal([vr["time_delay"], vr["free_play"]], [4e-3, 2e-4])
+    fmu.setReal([vr[k] for k in reals], list(reals.values()))
     fmu.setReal([vr["stroke"], vr["stroke_velocity"]], [x[0], v[0]])
     fmu.exitInitializationMode()
 
@@ -114,10 +128,43 @@ def test_serialized_state_rolls_back_exactly_with_effect_history(fmu_paths):
     np.testing.assert_array_equal(first, second)
     # reset: back to the state after instantiation, parameters at their start values
     fmu.reset()
-    assert fmu.getReal([vr["time_delay"]])[0] == 0.0
+    assert fmu.getReal([vr[k] for k in reals]) == [defaults(kind)[k] for k in reals]
     fmu.terminate()
     fmu.freeInstance()
     shutil.rmtree(unzip, ignore_errors=True)
+
+
+@pytest.mark.parametrize("reals", [FORMS, {"free_play": 4e-4, "time_delay": 2e-3}], ids=["forms", "play-delay"])
+@pytest.mark.parametrize("kind", ["lumped", "twochamber"])
+def test_effects_switched_on_mid_run_start_at_the_present_stroke_in_both_flavours(fmu_paths, kind, reals):
+    """Effect parameters are tunable: switched on between steps (stroke offset 3 mm), the elements
+    start at the stroke reached (free play engaged, no hysteresis force, the groove seen there), in
+    the native FMU and the pythonfmu one alike (Simulator.set_model: they used to start at 0 there)."""
+    t, x, v = stroke(duration=1.0)
+    x = x + 3e-3
+    runs = []
+    for path in (fmu_paths[kind], fmu_paths[f"{kind}_py"]):
+        fmu, vr, unzip = _instance(path)
+        fmu.setupExperiment(startTime=0.0)
+        fmu.enterInitializationMode()
+        fmu.setReal([vr["stroke"], vr["stroke_velocity"]], [x[0], v[0]])
+        fmu.exitInitializationMode()
+        out = []
+        for k in range(t.size - 1):
+            if k == 300:
+                fmu.setReal([vr[n] for n in reals], list(reals.values()))
+            fmu.setReal([vr["stroke"], vr["stroke_velocity"]], [x[k], v[k]])
+            fmu.doStep(t[k], t[k + 1] - t[k])
+            out.append(fmu.getReal([vr["force"]])[0])
+        fmu.terminate()
+        fmu.freeInstance()
+        shutil.rmtree(unzip, ignore_errors=True)
+        runs.append(np.array(out))
+    with FmuRunner(fmu_paths[kind], input_mode=EXTRAPOLATE) as r:
+        without = r.run(t, x, v)[1:]
+    np.testing.assert_array_equal(runs[0][:300], without[:300])
+    assert np.abs(runs[0] - without)[300:].max() > 100.0  # they act
+    assert np.abs(runs[0] - runs[1]).max() <= 1e-9 * np.abs(runs[1]).max()
 
 
 def test_input_derivatives_from_the_master_are_used(fmu_paths):

@@ -129,9 +129,11 @@ def test_swapped_in_python_fmu_gives_the_native_forces_by_value_reference(fmu_pa
     vr = {v.name: v.valueReference for v in native.modelVariables}
     vr["_outputs"] = [v.name for v in native.modelVariables if v.causality == "output"]
     t, x, v = stroke()
-    # effects on (model parameters by reference), and a Real and an Integer setting: Integer 0 is
-    # input_interpolation where Real 0 is the stroke
-    reals = {"friction_force": 90.0, "time_delay": 2e-3, "preload_force": 250.0} if "preload_force" in vr else {}
+    # effects on, the form elements too (model parameters by reference), and a Real and an Integer
+    # setting: Integer 0 is input_interpolation where Real 0 is the stroke
+    reals = {"friction_force": 90.0, "time_delay": 2e-3, "preload_force": 250.0, "hysteresis_force": 300.0,
+             "hysteresis_displacement": 3e-4, "bypass_ratio": 0.4, "bypass_center": 1e-3,
+             "bypass_width": 4e-3} if "preload_force" in vr else {}
     reals["max_internal_step"] = 5e-4
     for mode in (EXTRAPOLATE, REPLAY):
         a = run_by_reference(fmu_paths[kind], vr, t, x, v, reals, {"input_interpolation": mode})
@@ -206,6 +208,20 @@ def test_input_limits_of_the_native_fmu_hold_in_the_python_fmu(fmu_paths):
             r.run(t, x, v + 1e6)
         f = r.run(t, x * 100, v * 100, {"stroke_limit": 2.0, "velocity_limit": 100.0})
         assert np.all(np.isfinite(f))
+
+
+@pytest.mark.parametrize("kind", ["lumped", "twochamber"])
+def test_form_element_parameters_are_checked_by_name_in_the_python_fmu(fmu_paths, kind):
+    """The form elements' parameters go through check_values as in the native FMU (which gives
+    fmi2Error at fmi2ExitInitializationMode, test_native_fmu): a value out of range names the
+    parameter and fails the run (pythonfmu: at the first step, where it can refuse without a fatal
+    status); the FMU is usable afterwards."""
+    t, x, v = stroke()
+    with FmuRunner(fmu_paths[f"{kind}_py"]) as r:
+        for name, value in (("hysteresis_displacement", 0.0), ("bypass_ratio", 1.5)):
+            with pytest.raises(SimulationError, match=f"initialisation failed: effect parameter {name} .* outside"):
+                r.run(t, x, v, {name: value})
+        assert np.all(np.isfinite(r.run(t, x, v, {"hysteresis_force": 200.0, "bypass_ratio": 0.3})))
 
 
 def test_variables_beyond_the_native_ones_get_stable_references_clear_of_them():

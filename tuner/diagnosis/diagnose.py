@@ -84,6 +84,8 @@ from tuner.progress import advance
 __all__ = ["DiagnosisSettings", "diagnose", "decide", "cross_check", "choose_base", "CANDIDATES", "BASE_MODELS",
            "ExtendedParametrization"]
 
+#: the candidate causes: the effect catalogue of the design notes (parameters.CATALOGUE_EFFECTS); the forms
+#: beyond it (parameters.FORM_EFFECTS) are tried after them, when a residual above the floor remains
 CANDIDATES = CATALOGUE_EFFECTS
 #: base forms the diagnosis chooses from (the models that carry the effect catalogue): the lumped
 #: model of the paper, and the two-chamber form of a twin-tube damper
