@@ -39,7 +39,11 @@ Form elements beyond the catalogue (the diagnosis tries them when the catalogue 
 * ``bypass`` (position-dependent damping: a groove past the piston near mid-stroke, or the
   opposite of an end-stop cushion): the damping characteristic is scaled by 1 - r b(x), with
   b(x) = (tanh((x - c + w/2) / e) - tanh((x - c - w/2) / e)) / 2 (1 inside the groove of length w
-  around c, tanh ends of length e), x the stroke the damper sees at the start of each step.
+  around c, tanh ends of length e), x the stroke the damper sees at the start of each step; with a
+  direction (+1: only in extension, v > 0, as a twin-tube groove in the pressure tube bypasses the
+  piston valve in rebound while the foot valve sets compression; -1: only in compression) and a fade
+  1 / (1 + (v / v_b)^2) beyond the speed v_b (past the blow-off knee the open valve carries most of
+  the flow), v the stroke velocity seen at the start of each step (v_b = 0: no fade).
 """
 from __future__ import annotations
 
@@ -69,10 +73,12 @@ class Effects:
         self.fh, self.xh = p.get("hysteresis_force", 0.0), p.get("hysteresis_displacement", 5e-4)
         self.bp_r, self.bp_c = p.get("bypass_ratio", 0.0), p.get("bypass_center", 0.0)
         self.bp_w, self.bp_e = p.get("bypass_width", 0.01), p.get("bypass_edge", 1e-3)
+        self.bp_d, self.bp_v = p.get("bypass_direction", 0.0), p.get("bypass_velocity", 0.0)
         self.active = any(v != 0.0 for v in (self.ff, self.f0, self.gap, self.beta, self.tau, self.delay,
                                               self.m_eq, self.fh, self.bp_r))
         # state
         self.x_seen = 0.0  # stroke [m] the damper saw at the end of the last step
+        self.v_seen = 0.0  # and its velocity [m/s]
         self.z = 0.0  # hysteresis force [N]
         self.x_eff = 0.0
         self.engaged = True
@@ -81,29 +87,32 @@ class Effects:
         self.history: deque = deque()
 
     # -- state ------------------------------------------------------------------------------
-    def initialize(self, x1: float, force: float) -> None:
+    def initialize(self, x1: float, force: float, v1: float = 0.0) -> None:
         self.x_eff, self.engaged, self.temperature, self.time = x1, True, self.t_ref, 0.0
-        self.x_seen, self.z = x1, 0.0
+        self.x_seen, self.v_seen, self.z = x1, v1, 0.0
         self.history = deque([(0.0, force)])
 
     def get_state(self) -> list:
         flat = [v for pair in self.history for v in pair]
-        return [self.x_eff, float(self.engaged), self.temperature, self.time, self.x_seen, self.z, *flat]
+        return [self.x_eff, float(self.engaged), self.temperature, self.time, self.x_seen, self.v_seen, self.z, *flat]
 
     def set_state(self, s) -> None:
-        self.x_eff, engaged, self.temperature, self.time, self.x_seen, self.z = (float(v) for v in s[:6])
+        self.x_eff, engaged, self.temperature, self.time, self.x_seen, self.v_seen, self.z = (float(v) for v in s[:7])
         self.engaged = engaged != 0.0
-        rest = [float(v) for v in s[6:]]
+        rest = [float(v) for v in s[7:]]
         self.history = deque(zip(rest[0::2], rest[1::2]))
 
     # -- pieces used by the simulator ---------------------------------------------------------
     def damping_scale(self) -> float:
         """Factor [1] on the damping characteristic for the next step: thermal drift and bypass."""
         scale = math.exp(-self.beta * (self.temperature - self.t_ref)) if self.beta else 1.0
-        if self.bp_r:
+        v = self.v_seen
+        if self.bp_r and not ((self.bp_d > 0.5 and v <= 0.0) or (self.bp_d < -0.5 and v >= 0.0)):
             u = self.x_seen - self.bp_c
             half = 0.5 * self.bp_w
-            scale *= 1.0 - self.bp_r * 0.5 * (math.tanh((u + half) / self.bp_e) - math.tanh((u - half) / self.bp_e))
+            q = v / self.bp_v if self.bp_v else 0.0
+            r = self.bp_r / (1.0 + q * q)
+            scale *= 1.0 - r * 0.5 * (math.tanh((u + half) / self.bp_e) - math.tanh((u - half) / self.bp_e))
         return scale
 
     def play(self, state: tuple[float, bool], x1: float, v1: float) -> tuple[tuple[float, bool], float, float]:
@@ -139,7 +148,7 @@ class Effects:
                 self.z = sat + (self.z - sat) * math.exp(-abs(dx) / self.xh)
             if self.engaged or not self.gap:
                 f += self.z
-        self.x_seen = x_eff
+        self.x_seen, self.v_seen = x_eff, v_eff
         if self.ff and not self.inside:
             f += self.ff * math.tanh(v_eff / self.v_eps)
         if self.tau and (self.engaged or not self.gap):

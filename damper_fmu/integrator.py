@@ -155,6 +155,7 @@ class Simulator:
                 self.effects.set_state(old.get_state())
             else:
                 self.effects.x_eff = self.effects.x_seen = self.x1
+                self.effects.v_seen = self.v1
 
     def initialize(self, x1: float, v1: float, t0: float = 0.0) -> float:
         """Start in the model's force-free state at stroke x1 [m], velocity v1 [m/s], time t0 [s]."""
@@ -167,7 +168,7 @@ class Simulator:
         self.force = self.model.force(self.y, x1, v1)
         e = self.effects
         if e is not None and e.active:
-            e.initialize(x1, self.force)
+            e.initialize(x1, self.force, v1)
             self.force += e.f0 + (e.ff * math.tanh(v1 / e.v_eps) if e.ff and not e.inside else 0.0)
         return self.force
 

@@ -183,6 +183,12 @@ EFFECT_PARAMETERS: tuple[Parameter, ...] = (
               effect="bypass"),
     Parameter("bypass_edge", "m", "Bypass groove: length of its tapered ends (tanh edges)", 1e-3, 1e-5, 0.1,
               tunable=False, effect="bypass"),
+    Parameter("bypass_direction", "1", "Bypass groove acts in: 0 both directions, +1 extension (rebound) only, "
+              "-1 compression only (a twin-tube groove in the pressure tube bypasses the piston valve in rebound)",
+              0.0, -1.0, 1.0, tunable=False, effect="bypass"),
+    Parameter("bypass_velocity", "m/s", "Bypass groove: speed above which its share fades, 1 / (1 + (v / v_b)^2) "
+              "(the valve opens past its blow-off knee and the groove's flow becomes a small part; 0: no fade)",
+              0.0, 0.0, 10.0, tunable=False, effect="bypass"),
 )
 
 #: The effect catalogue's typical magnitudes |value| (SI) of each identified effect parameter (design

@@ -147,8 +147,9 @@ def test_hysteresis_is_the_analytic_dahl_loop_and_dissipates_4_fh_a_per_cycle(ki
     assert energy / (4.0 * fh * amp) > 0.97  # A = 50 x_h
 
 
+@pytest.mark.parametrize("direction, v_b", [(0.0, 0.0), (1.0, 0.0), (-1.0, 1e-3)])
 @pytest.mark.parametrize("kind", ["lumped", "twochamber"])
-def test_bypass_scales_the_force_by_1_minus_r_deep_in_the_groove_and_not_outside(kind):
+def test_bypass_scales_the_force_by_1_minus_r_deep_in_the_groove_and_not_outside(kind, direction, v_b):
     """A slow sine (10 mm, 0.02 Hz: 1.3 mm/s at most) through a groove of 4 mm around +1 mm with 0.2 mm
     edges, ratio 0.5: where the stroke is at least 5 edge lengths inside the groove the force is
     (1 - r) times the force without the groove, and where it is 10 edge lengths beyond its ends it is
@@ -164,13 +165,17 @@ def test_bypass_scales_the_force_by_1_minus_r_deep_in_the_groove_and_not_outside
     lengths) inside, that transient is below 1e-5. (b) The slow sine's acceleration keeps loading the
     springs, differently with and without the groove (force halved): a relative velocity error of
     c a / (k v) ~ 1e-3 at the groove, a few 1e-4 in the ratio. (c) The tanh tail inside, r (1 - tanh 5)
-    ~ 5e-5. Measured: about 5e-4 inside, below 1e-7 outside."""
+    ~ 5e-5. Measured: about 5e-4 inside, below 1e-7 outside.
+
+    With a direction (+1: extension only, -1: compression only) the ratio is 1 in the other direction,
+    and with a fade speed v_b it is 1 - r / (1 + (v / v_b)^2) at the stroke velocity v."""
     amp, f, r, c, w, e = 10e-3, 0.02, 0.5, 1e-3, 4e-3, 2e-4
     t = np.arange(0.0, 1.0 / f, 2e-3)
     om = 2 * np.pi * f
     x, v = -amp * np.cos(om * t), amp * om * np.sin(om * t)
     base = defaults(kind)
-    p = {**base, "bypass_ratio": r, "bypass_center": c, "bypass_width": w, "bypass_edge": e}
+    p = {**base, "bypass_ratio": r, "bypass_center": c, "bypass_width": w, "bypass_edge": e,
+         "bypass_direction": direction, "bypass_velocity": v_b}
     gas = base["k_gas"] * (x - x[0]) if kind == "twochamber" else 0.0
     with_groove = simulate(kind, t, x, v, params=p) - gas
     without = simulate(kind, t, x, v, params=base) - gas
@@ -179,5 +184,8 @@ def test_bypass_scales_the_force_by_1_minus_r_deep_in_the_groove_and_not_outside
     outside = moving & (np.abs(x - c) >= w / 2 + 10 * e)
     assert inside.sum() > 100 and outside.sum() > 1000  # both directions of motion through both
     assert np.all(np.abs(without[inside]) > 500.0)  # the damping force, not a residue
-    np.testing.assert_allclose(with_groove[inside] / without[inside], 1.0 - r, rtol=0, atol=2e-3)
+    side = np.where(direction * v < 0.0, 0.0, 1.0)
+    expected = 1.0 - r * side / (1.0 + (v / v_b) ** 2 if v_b else 1.0)
+    assert np.ptp(expected[inside]) > (0.15 if direction or v_b else -1)  # the direction and fade are tested
+    np.testing.assert_allclose(with_groove[inside] / without[inside], expected[inside], rtol=0, atol=2e-3)
     np.testing.assert_allclose(with_groove[outside] / without[outside], 1.0, rtol=0, atol=2e-3)

@@ -57,7 +57,11 @@ EFFECTS = [{}, {"friction_force": 120.0}, {"preload_force": -300.0}, {"free_play
            {"bypass_ratio": 0.5, "bypass_center": 1e-3, "bypass_width": 4e-3},
            {"hysteresis_force": 300.0, "hysteresis_displacement": 2e-4, "bypass_ratio": 0.7, "bypass_center": -2e-3,
             "bypass_width": 6e-3, "bypass_edge": 5e-4, "free_play": 3e-4, "thermal_beta": 0.02,
-            "thermal_capacity": 300.0}]
+            "thermal_capacity": 300.0},
+           # a groove in extension only, fading with speed; one in compression only
+           {"bypass_ratio": 0.6, "bypass_center": 0.0, "bypass_width": 5e-3, "bypass_direction": 1.0,
+            "bypass_velocity": 0.01},
+           {"bypass_ratio": 0.4, "bypass_center": 1e-3, "bypass_width": 8e-3, "bypass_direction": -1.0}]
 
 
 def random_stroke(rng, fs=500.0, dur=1.2):
@@ -133,7 +137,9 @@ def test_kernel_equals_python_reference_with_effects(effect):
 
 
 FORMS = {"hysteresis": {"hysteresis_force": 500.0, "hysteresis_displacement": 5e-4},
-         "bypass": {"bypass_ratio": 0.5, "bypass_center": 1e-3, "bypass_width": 4e-3}}
+         "bypass": {"bypass_ratio": 0.5, "bypass_center": 1e-3, "bypass_width": 4e-3},
+         "bypass_rebound_fading": {"bypass_ratio": 0.5, "bypass_center": 1e-3, "bypass_width": 4e-3,
+                                   "bypass_direction": 1.0, "bypass_velocity": 0.01}}
 
 
 @pytest.mark.parametrize("form", FORMS)

@@ -158,6 +158,7 @@ static void effects_init(DkModel *m, const double *e) {
     m->fh = e[DK_EFFECT_HYSTERESIS_FORCE]; m->xh = e[DK_EFFECT_HYSTERESIS_DISPLACEMENT];
     m->bp_r = e[DK_EFFECT_BYPASS_RATIO]; m->bp_c = e[DK_EFFECT_BYPASS_CENTER];
     m->bp_w = e[DK_EFFECT_BYPASS_WIDTH]; m->bp_e = e[DK_EFFECT_BYPASS_EDGE];
+    m->bp_d = e[DK_EFFECT_BYPASS_DIRECTION]; m->bp_v = e[DK_EFFECT_BYPASS_VELOCITY];
     m->effects_active = m->ff != 0.0 || m->f0 != 0.0 || m->gap != 0.0 || m->beta != 0.0 ||
                         m->tau != 0.0 || m->delay != 0.0 || m->m_eq != 0.0 || m->fh != 0.0 || m->bp_r != 0.0;
 }
@@ -718,10 +719,10 @@ static const double *hist_at(const DkEffectsState *e, int i) {
     return e->hist + 2 * ((e->hist_head + i) % e->hist_cap);
 }
 
-static void effects_initialize(DkSim *s, double x1, double force) {
+static void effects_initialize(DkSim *s, double x1, double v1, double force) {
     DkEffectsState *e = &s->e;
     e->x_eff = x1; e->engaged = 1; e->temperature = s->model.t_ref; e->time = 0.0;
-    e->x_seen = x1; e->z = 0.0;
+    e->x_seen = x1; e->v_seen = v1; e->z = 0.0;
     e->hist_len = 0; e->hist_head = 0;
     hist_push(e, 0.0, force);
 }
@@ -731,9 +732,11 @@ static void effects_initialize(DkSim *s, double x1, double force) {
 static double damping_scale(const DkSim *s) {
     const DkModel *m = &s->model;
     double scale = m->beta != 0.0 ? exp(-m->beta * (s->e.temperature - m->t_ref)) : 1.0;
-    if (m->bp_r != 0.0) {
+    double v = s->e.v_seen;
+    if (m->bp_r != 0.0 && !((m->bp_d > 0.5 && v <= 0.0) || (m->bp_d < -0.5 && v >= 0.0))) {
         double u = s->e.x_seen - m->bp_c, half = 0.5 * m->bp_w;
-        scale *= 1.0 - m->bp_r * 0.5 * (tanh((u + half) / m->bp_e) - tanh((u - half) / m->bp_e));
+        double q = m->bp_v != 0.0 ? v / m->bp_v : 0.0, r = m->bp_r / (1.0 + q * q);
+        scale *= 1.0 - r * 0.5 * (tanh((u + half) / m->bp_e) - tanh((u - half) / m->bp_e));
     }
     return scale;
 }
@@ -753,7 +756,7 @@ static int effects_output(DkSim *s, double f_model, double h, double x_eff, doub
         }
         if (e->engaged || m->gap == 0.0) f += e->z;
     }
-    e->x_seen = x_eff;
+    e->x_seen = x_eff; e->v_seen = v_eff;
     if (m->ff != 0.0 && !m->inside) f += m->ff * tanh(v_eff / m->v_eps);
     if (m->tau != 0.0 && (e->engaged || m->gap == 0.0)) f += m->tau * vg * a1;
     if (m->m_eq != 0.0) f += m->m_eq * a1;
@@ -825,7 +828,7 @@ DK_API int dk_sim_initialize(DkSim *s, double x1, double v1, double t0) {
     s->x1 = x1; s->v1 = v1; s->time = t0; s->h_next = s->max_step; s->nsamples = 0;
     s->force = model_force(m, s->y, x1, v1);
     if (m->effects_active) {
-        effects_initialize(s, x1, s->force);
+        effects_initialize(s, x1, v1, s->force);
         s->force += m->f0 + (m->ff != 0.0 && !m->inside ? m->ff * tanh(v1 / m->v_eps) : 0.0);
     }
     return DK_OK;

@@ -65,13 +65,13 @@ typedef struct {
     double ff, v_eps, f0, gap, beta, heat_c, heat_g, t_ref, tau, delay, m_eq, tc_gap;
     /* form elements: pre-yield hysteresis (saturation force, displacement scale) and bypass groove
        (ratio, centre, width, edge length) */
-    double fh, xh, bp_r, bp_c, bp_w, bp_e;
+    double fh, xh, bp_r, bp_c, bp_w, bp_e, bp_d, bp_v;
     int effects_active, inside;
 } DkModel;
 
 typedef struct {
     double x_eff, temperature, time;
-    double x_seen, z;           /* stroke seen at the end of the last step [m], hysteresis force [N] */
+    double x_seen, v_seen, z;   /* stroke [m] and velocity [m/s] seen at the end of the last step, hysteresis force [N] */
     int engaged;
     /* force history of the time delay: ring buffer of (time, force) pairs */
     double *hist;

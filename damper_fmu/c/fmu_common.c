@@ -173,7 +173,7 @@ static int build(Instance *c) {
         if (m.effects_active && !was_active) {
             s->sim.e.x_eff = s->sim.x1; s->sim.e.engaged = 1; s->sim.e.temperature = m.t_ref;
             s->sim.e.time = 0.0; s->sim.e.hist_len = 0; s->sim.e.hist_head = 0;
-            s->sim.e.x_seen = s->sim.x1; s->sim.e.z = 0.0;
+            s->sim.e.x_seen = s->sim.x1; s->sim.e.v_seen = s->sim.v1; s->sim.e.z = 0.0;
         }
     }
     s->dirty = 0;
