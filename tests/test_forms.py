@@ -23,13 +23,18 @@ def test_shape_grid_stays_inside_the_search_bounds():
     bounds = {n: search_bounds(n, 2e4, 0.03, (-0.01, 0.02))
               for n in ("hysteresis_displacement", "bypass_center", "bypass_width")}
     for form in ("hysteresis", "bypass"):
-        shapes = shape_grid(form, bounds)
+        shapes = shape_grid(form, bounds, knee_m_s=0.012)
         assert len(shapes) >= 8
         for s in shapes:
             for n, v in s.items():
-                assert bounds[n][0] <= v <= bounds[n][1], (n, v, bounds[n])
-    centres = {s["bypass_center"] for s in shape_grid("bypass", bounds)}
+                if n in bounds:
+                    assert bounds[n][0] <= v <= bounds[n][1], (n, v, bounds[n])
+    grooves = shape_grid("bypass", bounds, knee_m_s=0.012)
+    centres = {s["bypass_center"] for s in grooves}
     assert min(centres) > -0.01 and max(centres) < 0.02  # inside the stroke's limits
+    assert {s["bypass_direction"] for s in grooves} == {0.0, 1.0, -1.0}  # both, extension only, compression only
+    assert {s["bypass_velocity"] for s in grooves} == {0.012}  # fading past the data's blow-off knee
+    assert {s["bypass_velocity"] for s in shape_grid("bypass", bounds)} == {0.0}  # no knee known: no fade
     with pytest.raises(ValueError, match="unknown form"):
         shape_grid("banana", bounds)
 

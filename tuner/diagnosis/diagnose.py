@@ -68,7 +68,7 @@ from damper_fmu.parameters import (CATALOGUE_EFFECTS, EFFECT_IDENTIFIED, EFFECT_
 from tuner.data.noise import channel_noise
 from tuner.data.reading import RigTest
 from tuner.diagnosis.detection import detection_limits
-from tuner.diagnosis.forms import FORM_LABELS, screen, shape_grid
+from tuner.diagnosis.forms import FORM_LABELS, screen, settings_text, shape_grid
 from tuner.diagnosis.refit import (MIN_BLOCKS, ExtendedParametrization, base_jacobian, effect_intervals, refit,
                                    search_bounds)
 from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidence, residual_figures
@@ -269,8 +269,8 @@ def _next_cause(eid: Engine, par: Parametrization, peak: float, current: tuple, 
 
 
 def _try_forms(eid: Engine, par: Parametrization, current: dict, current_row: dict, causes: list[str], peak: float,
-               stroke_range: float, stroke_limits: tuple[float, float], floor: float, settings: DiagnosisSettings,
-               share: int, held_out, settled, log) -> dict:
+               stroke_range: float, stroke_limits: tuple[float, float], floor: float, knee: float | None,
+               settings: DiagnosisSettings, share: int, held_out, settled, log) -> dict:
     """The forms beyond the catalogue (``settings.forms``, ``tuner.diagnosis.forms``) on top of the current
     model (parameter values ``current``, ranking row ``current_row``: the base refit, or the model of the
     causes named). For each form: the screen picks two shapes, each is refitted (profile of the magnitude
@@ -289,27 +289,30 @@ def _try_forms(eid: Engine, par: Parametrization, current: dict, current_row: di
         z_off = ext.from_params({**current, magnitude: 0.0})
         if jac is None:  # the current model's Jacobian (its causes included), shared by the forms
             jac = base_jacobian(eid, ext, z_off, dims=ext.dimension - len(EFFECT_IDENTIFIED[form]))
-        shapes = screen(eid, ext, form, current, jac)
-        best_z, g, evals = None, -math.inf, len(shape_grid(form, dict(zip(ext.extra, ext.extra_bounds)))) + 1
+        shapes = screen(eid, ext, form, current, jac, knee_m_s=knee)
+        best_z, g, evals = None, -math.inf, len(shape_grid(form, dict(zip(ext.extra, ext.extra_bounds)), knee)) + 1
         at = [ext.extra.index(magnitude)]
-        for cand in shapes:
-            z0 = ext.from_params({**current, **cand["shape"], magnitude: 0.0})
-            z, g_s, n = refit(eid, ext, z0, sse_cur, jac, settings, share, profile=at)
+        for cand in shapes:  # the shape's settings (a groove's direction, its fade speed) are fixed in its model
+            ext_c = ExtendedParametrization(par, ext.effect, peak, stroke_range, stroke_limits,
+                                            fixed={k: v for k, v in cand["shape"].items() if k not in ext.extra})
+            z0 = ext_c.from_params({**current, **cand["shape"], magnitude: 0.0})
+            z, g_s, n = refit(eid, ext_c, z0, sse_cur, jac, settings, share, profile=at)
             evals += n
             if g_s > g:
-                best_z, g = z, g_s
+                ext, best_z, g = ext_c, z, g_s
         if best_z is None:
             log(f"  form {form:10s} cannot be simulated on these tests")
             continue
         names = EFFECT_IDENTIFIED[form]
         row = held_out(ext.effect, ext.to_params(best_z), ext.extra, g, evals, current_row["validation_mse"],
                        new=[magnitude], n_params=len(names))
-        row["added"], row["form"] = form, FORM_LABELS[form]
+        row["added"], row["form"], row["settings"] = form, FORM_LABELS[form], dict(ext.fixed)
         row["screen"] = shapes
         row["excess_explained"] = _excess_explained(row, current_row, floor)
         fits[form] = (ext, best_z, evals)
         rows.append(row)
         log(f"  form {form:10s} " + ", ".join(f"{n} = {fmt_quantity(row['parameters'][n], UNITS[n])}" for n in names)
+            + (f" ({settings_text(ext.fixed)})" if ext.fixed else "")
             + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
             + f"  effect {row['effect_rms_n']:.3g} N rms{'' if row['resolved'] else ' (below the noise)'}")
     if not rows:
@@ -324,7 +327,7 @@ def _try_forms(eid: Engine, par: Parametrization, current: dict, current_row: di
             fits[form] = (ext, z, n0 + n)
             row = held_out(ext.effect, ext.to_params(z), ext.extra, g, n0 + n, current_row["validation_mse"],
                            new=[EFFECT_IDENTIFIED[form][0]], n_params=len(EFFECT_IDENTIFIED[form]))
-            row.update({k: lead[k] for k in ("added", "form", "screen")})
+            row.update({k: lead[k] for k in ("added", "form", "settings", "screen")})
             row["excess_explained"] = _excess_explained(row, current_row, floor)
             rows[rows.index(lead)] = lead = row
         ci = effect_intervals(eid, ext, z)
@@ -776,7 +779,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
             current = refits[key][0].to_params(refits[key][1]) if causes else par.to_params(z_none)
             current_row = best if causes else none_row
             form_step = _try_forms(eid, par, current, current_row, causes, peak, stroke_range, stroke_limits, floor,
-                                   settings, share, _held_out, settled, log)
+                                   evidence.get("knee_velocity"), settings, share, _held_out, settled, log)
             if form_step["form"] is not None:
                 causes.append(form_step["form"])
                 key = "+".join(causes)
@@ -910,7 +913,9 @@ def _verdict(causes: list[str], best: dict, none_row: dict, rejected: list[dict]
     if form:
         change = 100 * (best["validation_mse"] / none_row["validation_mse"] - 1)
         step = best["validation_mse_change_pct"]  # against the model it was added to
-        text = (f"form beyond the catalogue: {FORM_LABELS[form]} ({_interval_text(best, EFFECT_IDENTIFIED[form])}): "
+        how = settings_text(best.get("settings") or {})
+        text = (f"form beyond the catalogue: {FORM_LABELS[form]} ({_interval_text(best, EFFECT_IDENTIFIED[form])}"
+                + (f"; {how}" if how else "") + "): "
                 f"held-out MSE {step:+.0f} %" + (f" on top of {' + '.join(found)}" if found else "")
                 + f"; {change:+.0f} % against the base refitted alike")
         if found:

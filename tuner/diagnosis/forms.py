@@ -24,7 +24,7 @@ from damper_fmu.parameters import EFFECT_IDENTIFIED
 from tuner.diagnosis.refit import ExtendedParametrization
 from tuner.identification.engine import Engine
 
-__all__ = ["FORM_LABELS", "shape_grid", "screen", "PROBE_FRACTION"]
+__all__ = ["FORM_LABELS", "shape_grid", "screen", "settings_text", "PROBE_FRACTION"]
 
 #: how the verdict names each form
 FORM_LABELS = {"hysteresis": "pre-yield hysteresis", "bypass": "position-dependent damping (bypass groove)"}
@@ -33,10 +33,13 @@ FORM_LABELS = {"hysteresis": "pre-yield hysteresis", "bypass": "position-depende
 PROBE_FRACTION = 0.25
 
 
-def shape_grid(form: str, bounds: dict[str, tuple[float, float]]) -> list[dict]:
+def shape_grid(form: str, bounds: dict[str, tuple[float, float]], knee_m_s: float | None = None) -> list[dict]:
     """Shapes the screen tries for ``form``, within its search ``bounds`` {name: (low, high)} [SI]:
     eight hysteresis displacements spaced geometrically; bypass grooves centred at nine points
-    across the inner 80 % of the stroke limits, each of three lengths spaced geometrically."""
+    across the inner 80 % of the stroke limits, each of three lengths spaced geometrically, acting in
+    both directions, in extension only and in compression only, and fading past the blow-off knee
+    ``knee_m_s`` [m/s] of the data (``tuner.diagnosis.residuals.knee_velocity``; None: no fade). The
+    direction and the fade speed are settings of the model the refit keeps, not identified."""
     if form == "hysteresis":
         lo, hi = bounds["hysteresis_displacement"]
         return [{"hysteresis_displacement": float(x)} for x in np.geomspace(lo, hi, 8)]
@@ -44,18 +47,32 @@ def shape_grid(form: str, bounds: dict[str, tuple[float, float]]) -> list[dict]:
         c_lo, c_hi = bounds["bypass_center"]
         w_lo, w_hi = bounds["bypass_width"]
         margin = 0.1 * (c_hi - c_lo)
-        return [{"bypass_center": float(c), "bypass_width": float(w)}
-                for c in np.linspace(c_lo + margin, c_hi - margin, 9) for w in np.geomspace(w_lo, w_hi, 3)]
+        fade = float(knee_m_s) if knee_m_s else 0.0
+        return [{"bypass_center": float(c), "bypass_width": float(w), "bypass_direction": d, "bypass_velocity": fade}
+                for d in (0.0, 1.0, -1.0) for c in np.linspace(c_lo + margin, c_hi - margin, 9)
+                for w in np.geomspace(w_lo, w_hi, 3)]
     raise ValueError(f"unknown form {form!r}: expected one of {', '.join(FORM_LABELS)}")
 
 
+def settings_text(settings: dict) -> str:
+    """A form's fixed settings for people ('' when none): 'in extension only, fading above 12 mm/s'."""
+    parts = []
+    d = settings.get("bypass_direction")
+    if d is not None:
+        parts.append({1.0: "in extension only", -1.0: "in compression only"}.get(float(d), "in both directions"))
+    if settings.get("bypass_velocity"):
+        parts.append(f"fading above {1e3 * settings['bypass_velocity']:.3g} mm/s")
+    return ", ".join(parts)
+
+
 def screen(eid: Engine, ext: ExtendedParametrization, form: str, current: dict, jac_svd,
-           keep: int = 2) -> list[dict]:
+           keep: int = 2, knee_m_s: float | None = None) -> list[dict]:
     """The ``keep`` most promising shapes of ``form`` on top of the model ``current`` (its parameter
     values, the form off) of the identification engine ``eid``.
 
     ext: the current model extended by the form (its bounds); jac_svd: (U, s, Vt) of the current
-    model's residual Jacobian (``tuner.diagnosis.refit.base_jacobian``) or None. For every shape the
+    model's residual Jacobian (``tuner.diagnosis.refit.base_jacobian``) or None; knee_m_s: as
+    ``shape_grid``. For every shape the
     form's force at the probe magnitude is regressed on the residual, both projected off the
     Jacobian's span (what a re-balanced base absorbs); returns [{"shape": {...}, "magnitude": the
     regression's estimate (SI, clipped to the search range), "gain_n2": the SSE it removes [N^2]}],
@@ -64,7 +81,7 @@ def screen(eid: Engine, ext: ExtendedParametrization, form: str, current: dict, 
     bounds = dict(zip(ext.extra, ext.extra_bounds))
     lo, hi = bounds[magnitude]
     probe = lo + PROBE_FRACTION * (hi - lo)
-    shapes = shape_grid(form, bounds)
+    shapes = shape_grid(form, bounds, knee_m_s)
     runs = eid.residuals_batch([current] + [{**current, **s, magnitude: probe} for s in shapes])
     r0 = runs[0]
     if r0 is None:

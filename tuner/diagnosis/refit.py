@@ -58,11 +58,13 @@ def search_bounds(name: str, peak_force: float, stroke_range_m: float | None = N
 
 class ExtendedParametrization:
     """The base design vector followed by the identified parameters of one or more effects
-    (``effect``: a name, or names joined by '+'; linear within their search bounds)."""
+    (``effect``: a name, or names joined by '+'; linear within their search bounds); ``fixed``: effect
+    settings that are not identified but chosen for this model (a groove's direction) [SI]."""
 
     def __init__(self, base: Parametrization, effect: str, peak_force: float, stroke_range_m: float | None = None,
-                 stroke_limits: tuple[float, float] | None = None):
+                 stroke_limits: tuple[float, float] | None = None, fixed: dict | None = None):
         self.base, self.effect, self.stroke_range_m = base, effect, stroke_range_m
+        self.fixed = dict(fixed or {})
         self.peak_force, self.stroke_limits = peak_force, stroke_limits
         self.effects = effect.split("+")
         self.extra = [n for e in self.effects for n in EFFECT_IDENTIFIED[e]]
@@ -75,6 +77,7 @@ class ExtendedParametrization:
         p = self.base.to_params(z[: self.base.dimension])
         for i, (n, (lo, hi)) in enumerate(zip(self.extra, self.extra_bounds)):
             p[n] = lo + z[self.base.dimension + i] * (hi - lo)
+        p.update(self.fixed)
         return p
 
     def from_params(self, params: dict) -> np.ndarray:
