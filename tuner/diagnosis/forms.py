@@ -37,8 +37,8 @@ def shape_grid(form: str, bounds: dict[str, tuple[float, float]], knee_m_s: floa
     """Shapes the screen tries for ``form``, within its search ``bounds`` {name: (low, high)} [SI]:
     eight hysteresis displacements spaced geometrically; bypass grooves centred at nine points
     across the inner 80 % of the stroke limits, each of three lengths spaced geometrically, acting in
-    both directions, in extension only and in compression only, and fading past the blow-off knee
-    ``knee_m_s`` [m/s] of the data (``tuner.diagnosis.residuals.knee_velocity``; None: no fade). The
+    both directions, in extension only and in compression only, without a fade and fading past the
+    blow-off knee ``knee_m_s`` [m/s] of the data (``tuner.diagnosis.residuals.knee_velocity``). The
     direction and the fade speed are settings of the model the refit keeps, not identified."""
     if form == "hysteresis":
         lo, hi = bounds["hysteresis_displacement"]
@@ -47,9 +47,9 @@ def shape_grid(form: str, bounds: dict[str, tuple[float, float]], knee_m_s: floa
         c_lo, c_hi = bounds["bypass_center"]
         w_lo, w_hi = bounds["bypass_width"]
         margin = 0.1 * (c_hi - c_lo)
-        fade = float(knee_m_s) if knee_m_s else 0.0
-        return [{"bypass_center": float(c), "bypass_width": float(w), "bypass_direction": d, "bypass_velocity": fade}
-                for d in (0.0, 1.0, -1.0) for c in np.linspace(c_lo + margin, c_hi - margin, 9)
+        fades = (0.0, float(knee_m_s)) if knee_m_s else (0.0,)
+        return [{"bypass_center": float(c), "bypass_width": float(w), "bypass_direction": d, "bypass_velocity": f}
+                for f in fades for d in (0.0, 1.0, -1.0) for c in np.linspace(c_lo + margin, c_hi - margin, 9)
                 for w in np.geomspace(w_lo, w_hi, 3)]
     raise ValueError(f"unknown form {form!r}: expected one of {', '.join(FORM_LABELS)}")
 
