@@ -4,7 +4,9 @@
                                           [--chamber] [--out results/confusion]
                                           [--scheduler pool | pool:N | local:N | tcp://HOST:PORT]
 
-For every catalogue effect and for clean data, ``--seeds`` datasets are generated with the virtual
+For every catalogue effect, every form beyond it (``--effects none,hysteresis,bypass``: the rig's own
+Bouc-Wen pre-yield element and rebound bypass groove, ``campaign.effects.FORMS``; the diagnosis's forms
+are a Dahl element and a scaled groove, other equations) and for clean data, ``--seeds`` datasets are generated with the virtual
 rig (a new dataset seed each time; the effect magnitude drawn uniformly inside its documented
 range with a seeded generator and never passed to the diagnosis), the diagnosis runs blind
 (in-process engine: the same equations as the FMU), and the named cause is recorded. Prints the
@@ -44,12 +46,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from campaign.effects import EFFECTS  # noqa: E402
+from campaign.effects import FORMS, SPECS  # noqa: E402
 from campaign.generate import CHAMBER_TEMPERATURES_C, generate_dataset  # noqa: E402
 from tuner.data.reading import load_dataset  # noqa: E402
 from tuner.identification.engine import fastest_engine  # noqa: E402
 from tuner.fleet.executors import FleetExecutor  # noqa: E402
 from tuner.results.fleet_summary import write_atomic  # noqa: E402
+from damper_fmu.parameters import FORM_EFFECTS  # noqa: E402
 from tuner.diagnosis.diagnose import CANDIDATES, DiagnosisSettings, diagnose  # noqa: E402
 
 
@@ -95,8 +98,19 @@ def run_case(case: dict) -> dict:
            "effect_force_id_n": effect_force.get("identification"),
            "effect_force_val_n": effect_force.get("validation"), "noise_n": res["noise_std_n"],
            "first_base": (res.get("base_choice") or {}).get("first_choice", res["base_model"])}
-    if truth != "none":
-        name, factor = EFFECTS[truth].model_parameter, EFFECTS[truth].model_sign
+    row["form"] = res.get("form")
+    row["forms_tried"] = {r["added"]: {"score": r["score"], "mse_change_pct": r["validation_mse_change_pct"],
+                                       "excess_explained": r.get("excess_explained"), "parameters": r["parameters"],
+                                       "settings": r.get("settings")} for r in res.get("forms_tried") or []}
+    if truth in FORMS:  # the form's fitted magnitude; a bypass ratio is no multiple of the rig's groove area
+        tried = next((r for r in res.get("forms_tried") or [] if r["added"] == truth), None)
+        name = FORMS[truth].model_parameter
+        row["fitted"] = tried["parameters"][name] if tried else float("nan")
+        row["relative_error"] = (row["fitted"] / (FORMS[truth].model_sign * effects[truth]) - 1.0
+                                 if truth == "hysteresis" else float("nan"))
+        row["mse_change_pct"] = tried["validation_mse_change_pct"] if tried else float("nan")
+    elif truth != "none":
+        name, factor = SPECS[truth].model_parameter, SPECS[truth].model_sign
         ext = next(r for r in res["ranking"] if r["effect"] == truth)
         row["fitted"] = ext["parameters"][name]
         row["relative_error"] = ext["parameters"][name] / (factor * effects[truth]) - 1.0
@@ -130,7 +144,7 @@ def main(argv=None) -> int:
         for k in range(a.seeds):
             effects = {}
             if truth != "none":
-                spec = EFFECTS[truth]
+                spec = SPECS[truth]
                 effects[truth] = float(rng.uniform(spec.low, spec.high))
             cases.append({"truth": truth, "effects": effects, "seed": 1000 + a.seed_offset + 17 * k + 3 * len(cases),
                           "t_end": a.t_end, "damper": a.damper, "chamber": a.chamber, "workers": a.workers})
@@ -149,12 +163,14 @@ def main(argv=None) -> int:
                   + (f"  effect force {row['effect_force_id_n']:.3g} / {row['effect_force_val_n']:.3g} N "
                      f"(identification / validation; noise {row['noise_n']:.3g} N)"
                      if row.get("effect_force_val_n") is not None else "")
+                  + "".join(f"  form {k} {v['mse_change_pct']:+.0f} % ({100 * (v['excess_explained'] or 0):.0f} % of the "
+                            f"excess)" for k, v in row["forms_tried"].items())
                   + f"  screen {'+'.join(row['screen']) or '-'}  base {row['base']}"
                   + (f" (first {row['first_base']})" if row["first_base"] != row["base"] else "")
                   + f"  [{row['elapsed_s']:.0f} s]", flush=True)
     rows = [done[i] for i in range(len(cases))]
     write_atomic(a.out / "confusion.json", json.dumps({"rows": rows}, indent=1))
-    labels = ["none", "unexplained", *CANDIDATES]
+    labels = ["none", "unexplained", *CANDIDATES, *FORM_EFFECTS]
     matrix = {t: {n: sum(1 for r in rows if r["truth"] == t and r["named"] == n) for n in labels} for t in truths}
     print("\nconfusion matrix (rows: hidden effect, columns: named cause)")
     print(" " * 15 + "".join(f"{n[:9]:>10}" for n in labels))
@@ -168,7 +184,8 @@ def main(argv=None) -> int:
     for t in truths:
         n = sum(matrix[t].values())
         ok = matrix[t][t] + (matrix[t]["unexplained"] if t == "none" else 0)
-        errs = [abs(r["relative_error"]) for r in rows if r["truth"] == t and r["named"] == t and t != "none"]
+        errs = [abs(r["relative_error"]) for r in rows if r["truth"] == t and r["named"] == t and t != "none"
+                and np.isfinite(r["relative_error"])]
         summary[t] = {"runs": n, "correct": ok, "rate": ok / n if n else float("nan"),
                       "median_magnitude_error": float(np.median(errs)) if errs else None}
         extra = f", median |magnitude error| {100 * np.median(errs):.0f} %" if errs else ""

@@ -2,14 +2,16 @@
 
 Data from the models themselves (known truth, 10 N noise): a form present is named with its parameters;
 data the catalogue explains gets no form; a form error the forms do not represent (two-chamber-model data on
-the lumped base) gets none either, and stays "unexplained" with the forms tried in its evidence. The blind
-tests on the physical twin-tube damper (its own Bouc-Wen and bypass-orifice physics) are in
-tests/test_forms_blind.py and benchmarks/form_detection.py.
+the lumped base) gets none either, and stays "unexplained" with the forms tried in its evidence. Blind, on
+the physical twin-tube damper with its own physics (a Bouc-Wen pre-yield element, a rebound bypass orifice):
+the ``full`` tests below and, over many seeds, ``benchmarks/confusion_matrix.py --effects
+none,hysteresis,bypass``.
 """
 from __future__ import annotations
 
 import pytest
 
+from campaign.generate import CHAMBER_TEMPERATURES_C, generate_dataset
 from campaign.synthetic import write_model_dataset
 from damper_fmu import defaults
 from tuner.data.reading import load_dataset
@@ -93,3 +95,37 @@ def test_a_form_error_the_forms_do_not_represent_stays_unexplained(tmp_path):
     assert res["form"] is None and res["cause"] == "unexplained", res["verdict"]
     assert {r["added"] for r in res["forms_tried"]} == {"hysteresis", "bypass"}
     assert "forms beyond the catalogue tried, none earns its parameters" in res["verdict"]
+
+
+def _blind(tmp_path, effects: dict, seed: int):
+    """A blind diagnosis of the virtual twin-tube rig's data (the whole catalogue, then the forms)."""
+    data = generate_dataset(tmp_path / "data", seed=seed, effects=effects, t_end=6.0, damper="twin-tube",
+                            oil_temperatures=CHAMBER_TEMPERATURES_C, log=lambda m: None)
+    tests = load_dataset(data)
+    return diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
+                    tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), base_iterations=0), log=lambda m: None)
+
+
+@pytest.mark.slow
+@pytest.mark.full  # about 1.5 min
+def test_blind_bouc_wen_pre_yield_hysteresis_of_the_twin_tube_rig_is_named(tmp_path):
+    """The rig's Bouc-Wen element (n = 2, 400 N, 0.5 mm) is not the diagnosis's Dahl element: named as
+    pre-yield hysteresis with a held-out gain, its force of the order of the rig's."""
+    res = _blind(tmp_path, {"hysteresis": 400.0}, seed=1)
+    assert res["form"] == "hysteresis" and res["causes"] == ["hysteresis"], res["verdict"]
+    assert 250.0 < res["effect_parameters"]["hysteresis_force"]["value"] < 800.0
+    row = next(r for r in res["forms_tried"] if r["added"] == "hysteresis")
+    assert row["validation_mse_change_pct"] < -50.0
+
+
+@pytest.mark.slow
+@pytest.mark.full  # about 3 min
+def test_blind_rebound_bypass_groove_of_the_twin_tube_rig_is_named_where_it_is(tmp_path):
+    """The rig's groove (an orifice R <-> C, 10 mm long at mid-stroke, rebound only, fading as the valve
+    opens): named as a bypass in extension only, centred within 3 mm of mid-stroke."""
+    res = _blind(tmp_path, {"bypass": 6e-8}, seed=1)
+    assert res["form"] == "bypass", res["verdict"]
+    row = next(r for r in res["forms_tried"] if r["added"] == "bypass")
+    assert row["settings"]["bypass_direction"] == 1.0
+    assert abs(res["effect_parameters"]["bypass_center"]["value"]) < 3e-3
+    assert row["validation_mse_change_pct"] < -50.0

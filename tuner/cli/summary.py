@@ -24,6 +24,7 @@ def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
                          for m, r in t["models"].items()}
     summary = {
         "verdict": diag.get("verdict"), "cause": diag.get("cause"), "causes": diag.get("causes"),
+        "form": diag.get("form"),  # a form beyond the catalogue named (also among the causes), or None
         "effect_parameters": diag.get("effect_parameters"),
         "quality": {m: {k: q[k] for k in ("describes_data", "worst_ame_pct_of_peak", "worst_test", "gate_pct")}
                     for m, q in (metrics.get("quality") or {}).items()},
