@@ -6,8 +6,8 @@
 
 For every catalogue effect, every form beyond it (``--effects none,hysteresis,bypass``: the rig's own
 Bouc-Wen pre-yield element and rebound bypass groove, ``campaign.effects.FORMS``; the diagnosis's forms
-are a Dahl element and a scaled groove, other equations) and for clean data, ``--seeds`` datasets are generated with the virtual
-rig (a new dataset seed each time; the effect magnitude drawn uniformly inside its documented
+are a Dahl element and a scaled groove, other equations) and for clean data, ``--seeds`` datasets are
+generated with the virtual rig (a new dataset seed each time; the effect magnitude drawn uniformly inside its documented
 range with a seeded generator and never passed to the diagnosis), the diagnosis runs blind
 (in-process engine: the same equations as the FMU), and the named cause is recorded. Prints the
 confusion matrix, the detection rate per effect, the false-cause rate on clean data and the
@@ -163,8 +163,9 @@ def main(argv=None) -> int:
                   + (f"  effect force {row['effect_force_id_n']:.3g} / {row['effect_force_val_n']:.3g} N "
                      f"(identification / validation; noise {row['noise_n']:.3g} N)"
                      if row.get("effect_force_val_n") is not None else "")
-                  + "".join(f"  form {k} {v['mse_change_pct']:+.0f} % ({100 * (v['excess_explained'] or 0):.0f} % of the "
-                            f"excess)" for k, v in row["forms_tried"].items())
+                  + "".join(f"  form {k} {v['mse_change_pct']:+.0f} % "
+                            f"({100 * (v['excess_explained'] or 0):.0f} % of the excess)"
+                            for k, v in row["forms_tried"].items())
                   + f"  screen {'+'.join(row['screen']) or '-'}  base {row['base']}"
                   + (f" (first {row['first_base']})" if row["first_base"] != row["base"] else "")
                   + f"  [{row['elapsed_s']:.0f} s]", flush=True)

@@ -929,8 +929,8 @@ def _verdict(causes: list[str], best: dict, none_row: dict, rejected: list[dict]
         none_inner = ("no extension earns its parameters on held-out data"
                       + ("; " + ", ".join(f"{r['effect']} scored {r['score']:+.3f} but " + _why_not(r, noise)
                                           for r in rejected) if rejected else ""))
-        limits_text = ("; these tests would have named: " + ", ".join(f"{e} {_limit_text(r)}" for e, r in limits.items())
-                       if limits else "")
+        limits_text = ("; these tests would have named: "
+                       + ", ".join(f"{e} {_limit_text(r)}" for e, r in limits.items()) if limits else "")
         text = f"cause: none ({none_inner}){limits_text}"
     if unexplained:
         where = (f"; most of it in the {unexplained['dominant_band']} band" if unexplained["dominant_band"] else "")
