@@ -52,7 +52,7 @@ def test_form_search_bounds_follow_the_stroke():
 
 def _diagnose(tmp_path, model: str, extra: dict, seed: int = 3):
     data = write_model_dataset(tmp_path / "data", model, {**defaults(model), **extra}, seed=seed,
-                               durations=(8.0, 8.0, 8.0, 8.0), noise_n=10.0)
+                               durations=(6.0, 6.0, 6.0, 6.0), noise_n=10.0)
     tests = load_dataset(data)
     return diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
                     tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), base_iterations=0, base_model="lumped",
