@@ -281,6 +281,9 @@ def _try_forms(eid: Engine, par: Parametrization, current: dict, current_row: di
     removes at least ``FORM_EXCESS_SHARE`` of the held-out residual power above the ``floor`` [N rms].
     Returns {"form": name or None, "tried": rows, and for a named form "row", "refit" (ext, z, evaluations)
     and "settled" (``settled`` of its continued refit)}."""
+    t0 = time.perf_counter()
+    log(f"diagnosis: {' + '.join(causes) or 'the base'} leaves a residual above the floor: trying the forms beyond "
+        f"the catalogue ({', '.join(settings.forms)})")
     sse_cur = float(eid.sse_batch([current])[0])
     rows, fits, jac = [], {}, None
     for form in settings.forms:
@@ -311,10 +314,12 @@ def _try_forms(eid: Engine, par: Parametrization, current: dict, current_row: di
         row["excess_explained"] = _excess_explained(row, current_row, floor)
         fits[form] = (ext, best_z, evals)
         rows.append(row)
+        row["elapsed_s"] = time.perf_counter() - t0
         log(f"  form {form:10s} " + ", ".join(f"{n} = {fmt_quantity(row['parameters'][n], UNITS[n])}" for n in names)
             + (f" ({settings_text(ext.fixed)})" if ext.fixed else "")
             + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
-            + f"  effect {row['effect_rms_n']:.3g} N rms{'' if row['resolved'] else ' (below the noise)'}")
+            + f"  effect {row['effect_rms_n']:.3g} N rms{'' if row['resolved'] else ' (below the noise)'}"
+            + f"  [{row['elapsed_s']:.0f} s]")
     if not rows:
         return {"form": None, "tried": rows}
     lead = max(rows, key=lambda r: r["score"] if r["resolved"] else -math.inf)
