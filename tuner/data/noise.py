@@ -27,30 +27,32 @@ Estimators of the noise of one channel [its unit, rms]:
 * ``repeats`` (:func:`repeat_noise`, "repeated segments"): a rig that replays the same non-periodic drive
   (a random stroke, a measured track section) several times in one test repeats a segment without a
   cycle. After the warm-up, the shift at which the stroke best matches itself later (at least
-  ``MIN_REPEAT_S`` on) is the least normalised squared difference of the stroke and its shifted self
-  (FFT cross-correlation at the sample rate), refined to a sub-sample shift by least squares on the
-  matched stretch -- of the stroke, then within half a sample of the force difference itself (one
-  parameter over thousands of samples takes a negligible share of the noise, while a stroke stored in
-  coarse steps left a tenth of a sample of misalignment: 2.8x the noise of a stiff damper's force); the stretch is the longest run where the stroke and its shifted self agree within
-  ``REPEAT_FIND`` x the stroke's rms (windows of ``REPEAT_WINDOW`` s) and, once aligned, within
-  ``OUTLIER_FACTOR`` x the difference's median level there (a fade-in, a transient are left out: a
-  stroke 1 % off made a stiff damper's force differ by 2.5-4x the noise) while the stroke moves (its rms
-  there at least ``REPEAT_MOVING`` x the record's: a replayed drive, not the rig at rest), and over the
-  whole stretch too, relative to the stretch's own rms (else a chance likeness of a random stroke). The
-  noise is the rms of the force difference between the aligned repeats (its mean, a load-cell offset, taken out)
-  / sqrt(2): like the cycle scatter it measures everything that does not repeat, on filtered data too.
-  The shifted repeat is read by windowed-sinc interpolation (as the cycle scatter's grid), not linear:
-  linear interpolation half-way between samples keeps only half of white noise's variance, which would
-  read the noise up to 13 % low (a shift of a whole number of samples is not interpolated at all in
-  effect: the kernel is then a unit impulse). Not available when nothing repeats over at least
-  ``MIN_REPEAT_S`` / 2. Not credible when the aligned strokes differ by more than ``STROKE_REPEAT`` x
-  the stroke's rms over the stretch (the drive was not the same, so neither is the force), with fewer
-  than ``MIN_REPEAT_SAMPLES`` samples or ``MIN_REPEAT_S`` of repeat, or when the difference's power
-  below ``DRIFT_HZ`` is more than ``DRIFT_FACTOR`` x its mean level up to ``DRIFT_BAND_TOP`` x the
-  sample rate (Welch, segments of about 2 s). The damper's own differences between the repeats
-  (temperature drift, a stroke that was not replayed exactly) are not taken out here (unlike the cycle
-  scatter's regression, which needs many cycles): they inflate the estimate (an upper bound), and when
-  they come in slow -- a damper warming up -- that rule sees them.
+  ``MIN_REPEAT_S`` on: shorter is a cycle) is the least normalised squared difference of the stroke and
+  its shifted self (FFT cross-correlation at the sample rate). The matched stretch is the longest run
+  where the two agree within ``REPEAT_FIND`` x the stroke's rms in windows of ``REPEAT_WINDOW`` s, over
+  the whole stretch too (relative to its own rms: else a random stroke's chance likeness), while the
+  stroke moves (its rms there at least ``REPEAT_MOVING`` x the record's: a replayed drive, not the rig at
+  rest). The shift is refined to a sub-sample one by least squares of the stroke difference on that
+  stretch; the stretch is then cut to where the aligned strokes differ at their typical level (within
+  ``OUTLIER_FACTOR`` x the median window; a fade-in, a transient are left out: a stroke 1 % off made a
+  stiff damper's force differ by 2.5-4x the noise); and the shift is refined once more, within half a
+  sample, on the force difference itself (one parameter over thousands of samples takes a negligible
+  share of the noise, while a stroke stored in coarse steps left a tenth of a sample of misalignment:
+  2.8x the noise of a stiff damper's force). The noise is the rms of the force difference between the
+  aligned repeats (its mean, a load-cell offset, taken out) / sqrt(2): like the cycle scatter it
+  measures everything that does not repeat, on filtered data too. The shifted repeat is read by
+  windowed-sinc interpolation (as the cycle scatter's grid), not linear: linear interpolation half-way
+  between samples keeps only half of white noise's variance, which would read the noise up to 13 % low
+  (at a whole number of samples the kernel is a unit impulse: no interpolation in effect). Not
+  available when nothing repeats over at least ``MIN_REPEAT_S`` / 2. Not credible when the aligned
+  strokes differ by more than ``STROKE_REPEAT`` x the stroke's rms over the stretch (the drive was not
+  the same, so neither is the force), with fewer than ``MIN_REPEAT_SAMPLES`` samples or ``MIN_REPEAT_S``
+  of repeat, or when the difference's power below ``DRIFT_HZ`` is more than ``DRIFT_FACTOR`` x its mean
+  level up to ``DRIFT_BAND_TOP`` x the sample rate (Welch, segments of about 2 s). The damper's own
+  differences between the repeats (temperature drift, a stroke that was not replayed exactly) are not
+  taken out here (unlike the cycle scatter's regression, which has many cycles to fit): they inflate
+  the estimate (an upper bound), and when they come in slow -- a damper warming up -- that rule sees
+  them.
 * ``quiet_band`` (:func:`quiet_band_noise`): the residual of a flexible smoother -- the force
   band-passed to four sub-bands of 0.1-0.3 x the sample rate (above a damper's force content, below
   rigs' anti-alias filters) -- measured in its quietest stretches: the mean square in windows of
@@ -497,8 +499,8 @@ def repeat_noise(stroke, force, sample_rate_hz: float, fit_rate_hz: float | None
     dF = _interpolate(F, t + shift) - F[t]
     dF = dF - dF.mean()
     value = float(np.sqrt(np.mean(dF ** 2))) / math.sqrt(2.0)
-    details = dict(shift_s=shift / rate, stroke_shift_s=stroke_shift / rate, start_s=a / rate, repeat_s=t.size / rate, samples=int(t.size),
-                   stroke_difference=stroke_diff)
+    details = dict(shift_s=shift / rate, stroke_shift_s=stroke_shift / rate, start_s=a / rate, repeat_s=t.size / rate,
+                   samples=int(t.size), stroke_difference=stroke_diff)
     reasons, credible = [], True
     if t.size < MIN_REPEAT_SAMPLES or t.size < MIN_REPEAT_S * rate:
         credible = False
