@@ -2,7 +2,8 @@
 
 For each shape of ``tests/noise_cases.py`` (a random lumped damper through the rig's sensor chain,
 5-50 N of load-cell noise; sine strokes at 500 Hz and 2 kHz, the same at 200 Hz low-pass filtered at
-20 Hz, random multisine strokes at 500 Hz and at 200 Hz filtered, a sine through a 10-bit ADC) and
+20 Hz, random multisine strokes at 500 Hz and at 200 Hz filtered, a sine through a 10-bit ADC, a random
+drive replayed twice in one test at 500 Hz, at 200 Hz filtered, and starting between samples) and
 seed, every estimator of ``tuner.data.noise`` and the spectral median the tuner used before
 (``tuner.metrics.noise_std``, scaled to the fit band alike) is compared with the true noise in the
 fit band (the noise alone through the tuner's resampler to ``--fit-rate``). Prints per shape and
@@ -27,7 +28,7 @@ from noise_cases import SHAPES, noise_case  # noqa: E402
 from tuner.data.noise import force_noise, in_band  # noqa: E402
 from tuner.metrics import noise_std  # noqa: E402
 
-METHODS = ("cycle_scatter", "quiet_band", "resolution", "spectral (before)")
+METHODS = ("cycle_scatter", "repeats", "quiet_band", "resolution", "spectral (before)")
 
 
 def main(argv=None) -> int:
@@ -43,7 +44,7 @@ def main(argv=None) -> int:
         for seed in range(a.seeds):
             test, truth = noise_case(shape, seed, fit_rate_hz=a.fit_rate)
             r = force_noise(test, a.fit_rate)
-            for m in METHODS[:3]:
+            for m in METHODS[:4]:
                 e = r["all"][m]
                 if e["available"]:
                     rows[m].append((e["in_band_n"] / truth["in_band_n"], e["credible"]))

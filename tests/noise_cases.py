@@ -14,7 +14,11 @@ at 500 Hz / 2 kHz; ``sine_200_filtered``: the same at 200 Hz with force and stro
 (Butterworth, 4th order, zero-phase, cut-off 0.1 x the sample rate: the filtered MR-damper files);
 ``random_500``: a random multisine stroke (``campaign.damper_class.random_stroke``) at 500 Hz;
 ``random_200_filtered``: that at 200 Hz, filtered; ``sine_500_quantised``: the sine at 500 Hz
-through a 10-bit ADC over +-``force_range`` (steps of 2 x range / 1024) with 1 N of load-cell noise.
+through a 10-bit ADC over +-``force_range`` (steps of 2 x range / 1024) with 1 N of load-cell noise;
+``replay_500``: a random multisine drive replayed twice in one test (``replay_stroke``: faded in and
+out, 1 s at rest between) at 500 Hz; ``replay_200_filtered``: that at 200 Hz, filtered;
+``replay_500_shifted``: at 500 Hz with the rest a quarter to three quarters of a sample longer (the
+replay starts between the file's samples).
 """
 from __future__ import annotations
 
@@ -30,9 +34,33 @@ from damper_fmu.integrator import DEFAULT_MAX_STEP
 from tuner.data.preprocess import Resampler
 from tuner.data.reading import RigTest
 
-__all__ = ["SHAPES", "noise_case", "sine_stroke"]
+__all__ = ["SHAPES", "noise_case", "sine_stroke", "replay_stroke"]
 
-SHAPES = ("sine_500", "sine_2k", "sine_200_filtered", "random_500", "random_200_filtered", "sine_500_quantised")
+SHAPES = ("sine_500", "sine_2k", "sine_200_filtered", "random_500", "random_200_filtered", "sine_500_quantised",
+          "replay_500", "replay_200_filtered", "replay_500_shifted")
+
+
+def replay_stroke(seed: int, duration: float, fs: float, extra_samples: int = 0
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(time [s], stroke [m], velocity [m/s]) at ``fs`` [Hz] of ``duration`` [s]: a random multisine
+    drive (``campaign.damper_class.random_stroke``, faded in and out over 1 s) of (duration - 1) / 2 s,
+    at rest for 1 s plus ``extra_samples`` samples, then the same drive again (cut at ``duration``)."""
+    seg = 0.5 * (duration - 1.0)
+    t, x, v = random_stroke("multisine", seed, seg, fs)
+    fade = np.clip((t[-1] - t) / 1.0, 0.0, 1.0)               # 1 -> 0 over the last second
+    r = 0.5 - 0.5 * np.cos(np.pi * fade)
+    dr = np.where(fade < 1.0, -0.5 * np.pi * np.sin(np.pi * fade), 0.0)   # d r / dt (fade falls at 1 / s)
+    x, v = x * r, v * r + x * dr
+    n = int(round(duration * fs)) + 1
+    rest = int(round(1.0 * fs)) - 1 + int(extra_samples)      # the drive replayed 1 + (duration - 1) / 2 s on
+    xs, vs = np.zeros(n), np.zeros(n)
+    k = min(x.size, n)
+    xs[:k], vs[:k] = x[:k], v[:k]
+    k2 = x.size + rest
+    if k2 < n:
+        m = min(x.size, n - k2)
+        xs[k2:k2 + m], vs[k2:k2 + m] = x[:m], v[:m]
+    return np.arange(n) / fs, xs, vs
 
 
 def sine_stroke(seed: int, duration: float, fs: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -60,11 +88,15 @@ def noise_case(shape: str, seed: int, *, noise_n: float | None = None, duration_
     rng = np.random.default_rng([seed, 8111, SHAPES.index(shape)])
     fs = {"500": 500.0, "2k": 2000.0, "200": 200.0}[shape.split("_")[1]]
     filtered, periodic, quantised = shape.endswith("filtered"), shape.startswith("sine"), shape.endswith("quantised")
+    replay = shape.startswith("replay")
     if noise_n is None:
         noise_n = 1.0 if quantised else math.exp(rng.uniform(math.log(5.0), math.log(50.0)))
     fs_int = OVERSAMPLING * fs
     if periodic:
         t, x, v = sine_stroke(seed, duration_s, fs_int)
+    elif replay:      # shifted: 1-3 internal samples more at rest, a quarter to three quarters of a file sample
+        extra = 1 + seed % (OVERSAMPLING - 1) if shape.endswith("shifted") else 0
+        t, x, v = replay_stroke(seed, duration_s, fs_int, extra)
     else:
         t, x, v = random_stroke("multisine", seed, duration_s, fs_int)
     n = (t.size - 1) // OVERSAMPLING * OVERSAMPLING + 1
@@ -89,5 +121,5 @@ def noise_case(shape: str, seed: int, *, noise_n: float | None = None, duration_
                    time=t[::OVERSAMPLING].copy(), stroke=s_out, force=f_out, sample_rate=fs)
     truth = {"shape": shape, "noise_n": float(np.std(noise)), "in_band_n": in_band, "load_cell_noise_n": float(noise_n),
              "filtered": filtered, "step_n": SensorChain(**sensors).lsb(sensors["force_range"]),
-             "sample_rate_hz": fs, "periodic": periodic}
+             "sample_rate_hz": fs, "periodic": periodic, "replay": replay}
     return test, truth

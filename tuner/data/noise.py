@@ -24,6 +24,35 @@ Estimators of the noise of one channel [its unit, rms]:
   explains is taken out; the stroke's measurement noise, to which the force does not respond,
   explains nothing (it is taken out only above ``STROKE_EXPLAINS`` x the scatter). Not credible when
   that force exceeds ``STROKE_FORCE_LIMIT`` x what is left.
+* ``repeats`` (:func:`repeat_noise`, "repeated segments"): a rig that replays the same non-periodic drive
+  (a random stroke, a measured track section) several times in one test repeats a segment without a
+  cycle. After the warm-up, the shift at which the stroke best matches itself later (at least
+  ``MIN_REPEAT_S`` on: shorter is a cycle) is the least normalised squared difference of the stroke and
+  its shifted self (FFT cross-correlation at the sample rate). The matched stretch is the longest run
+  where the two agree within ``REPEAT_FIND`` x the stroke's rms in windows of ``REPEAT_WINDOW`` s, over
+  the whole stretch too (relative to its own rms: else a random stroke's chance likeness), while the
+  stroke moves (its rms there at least ``REPEAT_MOVING`` x the record's: a replayed drive, not the rig at
+  rest). The shift is refined to a sub-sample one by least squares of the stroke difference on that
+  stretch; the stretch is then cut to where the aligned strokes differ at their typical level (within
+  ``OUTLIER_FACTOR`` x the median window; a fade-in, a transient are left out: a stroke 1 % off made a
+  stiff damper's force differ by 2.5-4x the noise); and the shift is refined once more, within half a
+  sample, on the force difference itself (one parameter over thousands of samples takes a negligible
+  share of the noise, while a stroke stored in coarse steps left a tenth of a sample of misalignment:
+  2.8x the noise of a stiff damper's force). The noise is the rms of the force difference between the
+  aligned repeats (its mean, a load-cell offset, taken out) / sqrt(2): like the cycle scatter it
+  measures everything that does not repeat, on filtered data too. The shifted repeat is read by
+  windowed-sinc interpolation (as the cycle scatter's grid), not linear: linear interpolation half-way
+  between samples keeps only half of white noise's variance, which would read the noise up to 13 % low
+  (at a whole number of samples the kernel is a unit impulse: no interpolation in effect). Not
+  available when nothing repeats over at least ``MIN_REPEAT_S`` / 2. Not credible when the aligned
+  strokes differ by more than ``STROKE_REPEAT`` x the stroke's rms over the stretch (the drive was not
+  the same, so neither is the force), with fewer than ``MIN_REPEAT_SAMPLES`` samples or ``MIN_REPEAT_S``
+  of repeat, or when the difference's power below ``DRIFT_HZ`` is more than ``DRIFT_FACTOR`` x its mean
+  level up to ``DRIFT_BAND_TOP`` x the sample rate (Welch, segments of about 2 s). The damper's own
+  differences between the repeats (temperature drift, a stroke that was not replayed exactly) are not
+  taken out here (unlike the cycle scatter's regression, which has many cycles to fit): they inflate
+  the estimate (an upper bound), and when they come in slow -- a damper warming up -- that rule sees
+  them.
 * ``quiet_band`` (:func:`quiet_band_noise`): the residual of a flexible smoother -- the force
   band-passed to four sub-bands of 0.1-0.3 x the sample rate (above a damper's force content, below
   rigs' anti-alias filters) -- measured in its quietest stretches: the mean square in windows of
@@ -41,8 +70,8 @@ Estimators of the noise of one channel [its unit, rms]:
 In the fit band (``in_band``): white noise keeps sqrt(fit_rate / sample_rate) of its rms after the
 anti-aliased resampling to the fit rate (``tuner.data.preprocess``). The cycle scatter is not assumed
 white (filtered data's is not): its in-band part is its own power below fit_rate / 2 (Welch spectrum of
-the deviations). That is what the floor needs: the residual RMS of a model at the fit rate can fall to
-the noise inside the fit band, not below.
+the deviations); the repeats' likewise (Welch spectrum of the force difference). That is what the floor
+needs: the residual RMS of a model at the fit rate can fall to the noise inside the fit band, not below.
 """
 from __future__ import annotations
 
@@ -52,9 +81,10 @@ from functools import lru_cache
 import numpy as np
 from scipy import signal
 
-__all__ = ["Estimate", "cycle_scatter_noise", "quiet_band_noise", "resolution_noise", "force_noise",
+__all__ = ["Estimate", "cycle_scatter_noise", "repeat_noise", "quiet_band_noise", "resolution_noise", "force_noise",
            "pooled_noise", "noise_text", "channel_noise", "in_band", "SUB_BANDS", "ESTIMATE_BAND", "MIN_CYCLES",
-           "MIN_BAND_SAMPLES", "FLATNESS"]
+           "MIN_BAND_SAMPLES", "FLATNESS", "MIN_REPEAT_S", "MIN_REPEAT_SAMPLES", "REPEAT_FIND",
+           "STROKE_REPEAT", "DRIFT_HZ", "DRIFT_FACTOR"]
 
 #: sub-bands [fraction of the sample rate] of the quiet-band estimate
 SUB_BANDS = ((0.10, 0.15), (0.15, 0.20), (0.20, 0.25), (0.25, 0.30))
@@ -89,6 +119,25 @@ STROKE_EXPLAINS = 0.3
 STROKE_FORCE_LIMIT = 10.0
 #: parts of the cycle with their own coefficients when the force of the stroke's differences is regressed
 _PHASE_BINS = 8
+#: a repeated segment is credible from this long [s] and from this many samples (half as long: available,
+#: not credible); the shift between repeats is at least MIN_REPEAT_S (shorter is a cycle)
+MIN_REPEAT_S = 2.0
+MIN_REPEAT_SAMPLES = 400
+#: the stroke repeats where the rms of its difference from its shifted self, in windows of REPEAT_WINDOW
+#: [s], is below REPEAT_FIND x the stroke's rms (after the warm-up); credible needs the whole stretch's
+#: difference within STROKE_REPEAT x the stretch's stroke rms
+REPEAT_FIND = 0.2
+REPEAT_WINDOW = 0.5
+#: the matched stretch's stroke rms is at least this fraction of the record's (a drive, not the rig at rest)
+REPEAT_MOVING = 0.25
+#: the repeats' force difference is not credible when its mean power density below DRIFT_HZ [Hz] is above
+#: DRIFT_FACTOR x its mean density from DRIFT_HZ up to DRIFT_BAND_TOP x the sample rate (noise, even
+#: low-pass filtered at 0.1 x the rate, is flat there; the damper drifting between repeats is slow). On
+#: noise alone the ratio scatters about 1 (at most 2.8 over 60 replayed noise cases, tests/noise_cases.py);
+#: a force gain drifting by 1 % over the test read 13-60 (and inflated the estimate 2-12x)
+DRIFT_HZ = 1.0
+DRIFT_FACTOR = 4.0
+DRIFT_BAND_TOP = 0.05
 
 
 class Estimate(dict):
@@ -339,6 +388,149 @@ def cycle_scatter_noise(stroke, force, sample_rate_hz: float, fit_rate_hz: float
     return Estimate.make("cycle_scatter", value, in_band_value, True, credible, reasons, **details)
 
 
+# --------------------------------------------------------------------------- repeated segments
+
+def _best_shift(x: np.ndarray, lo: int, hi: int) -> int | None:
+    """Integer shift L in [lo, hi] minimising the squared difference of ``x`` (mean removed) and ``x``
+    shifted by L over their overlap, normalised by the overlap's energy (FFT correlation)."""
+    if hi < lo:
+        return None
+    n = x.size
+    X = np.fft.rfft(x, 2 * n)
+    r = np.fft.irfft(X * np.conj(X), 2 * n)[:n]          # r[L] = sum_t x[t] x[t + L]
+    P = np.concatenate([[0.0], np.cumsum(x * x)])
+    L = np.arange(lo, hi + 1)
+    e = P[n - L] + (P[n] - P[L])
+    d = (e - 2.0 * r[L]) / np.maximum(e, 1e-300)
+    return int(L[np.argmin(d)])
+
+
+def _moving_rms(d: np.ndarray, w: int) -> np.ndarray:
+    return np.sqrt(np.maximum(np.convolve(d * d, np.ones(w) / w, mode="same"), 0.0))
+
+
+def _longest_run(ok: np.ndarray) -> tuple[int, int]:
+    """[start, stop) of the longest run of True in ``ok`` ((0, 0) without one)."""
+    if not ok.any():
+        return 0, 0
+    e = np.diff(np.concatenate([[0], ok.astype(np.int8), [0]]))
+    starts, stops = np.flatnonzero(e == 1), np.flatnonzero(e == -1)
+    i = int(np.argmax(stops - starts))
+    return int(starts[i]), int(stops[i])
+
+
+def repeat_noise(stroke, force, sample_rate_hz: float, fit_rate_hz: float | None = None,
+                 warmup_s: float = 0.5) -> Estimate:
+    """The repeated-segments estimate (module docstring) of the force noise [N rms] of a test that
+    replays a drive: stroke [m] and force [N] sampled at ``sample_rate_hz`` [Hz]; samples in the first
+    ``warmup_s`` [s] do not count. Figures: ``shift_s`` (from the first repeat to the second; the
+    stroke's alone: ``stroke_shift_s``),
+    ``start_s`` (the first repeat's start), ``repeat_s`` and ``samples`` (its length),
+    ``stroke_difference`` (rms of the aligned strokes' difference / the stroke's rms there),
+    ``low_frequency_ratio`` (the drift rule's ratio), ``in_band_share``."""
+    x = _checked(stroke, sample_rate_hz, "repeat_noise: stroke")
+    F = _checked(force, sample_rate_hz, "repeat_noise: force")
+    if x.size != F.size:
+        raise ValueError(f"repeat_noise: stroke and force differ in length ({x.size} vs {F.size})")
+    rate = float(sample_rate_hz)
+
+    def unavailable(why: str, **details) -> Estimate:
+        return Estimate.make("repeats", None, None, False, False, [why], **details)
+
+    k0 = max(int(math.ceil(warmup_s * rate)), _HALF)
+    n_min = max(int(math.ceil(MIN_REPEAT_S * rate)), MIN_REPEAT_SAMPLES)
+    xs = x[k0:x.size - _HALF - 1] if x.size > k0 + _HALF + 1 else x[:0]
+    if xs.size < n_min + n_min // 2:
+        return unavailable(f"only {xs.size} samples after the {warmup_s:g} s warm-up: no room for a segment "
+                           f"and its repeat {MIN_REPEAT_S:g} s later (needs {n_min + n_min // 2})")
+    xs = xs - xs.mean()
+    s_rms = float(np.std(xs))
+    if s_rms <= 0:
+        return unavailable("the stroke does not move")
+    L = _best_shift(xs, n_min, xs.size - n_min // 2)
+    w = max(8, int(round(REPEAT_WINDOW * rate)))
+
+    def stretch(shift: float, typical: bool = False) -> tuple[int, int]:
+        """[a, b) absolute sample indices of the longest stretch that repeats at ``shift`` samples later;
+        ``typical``: also where the strokes' difference is within OUTLIER_FACTOR x its median level."""
+        m = int(math.floor(x.size - 1 - _HALF - shift)) - k0
+        if m <= w:
+            return k0, k0
+        t = k0 + np.arange(m)
+        r = _moving_rms(_interpolate(x, t + shift) - x[t], w)
+        ok = r <= REPEAT_FIND * s_rms
+        a, b = _longest_run(ok)
+        if typical and b > a:
+            a, b = _longest_run(ok & (r <= OUTLIER_FACTOR * float(np.median(r[a:b]))))
+        return k0 + a, k0 + b
+
+    a, b = stretch(float(L))
+    if b - a < n_min // 2:
+        return unavailable(f"no stretch of the stroke of {MIN_REPEAT_S / 2:g} s repeats later in the test "
+                           f"(the best shift, {L / rate:.4g} s, matches {(b - a) / rate:.3g} s within "
+                           f"{REPEAT_FIND:g} x the stroke's rms)")
+    from scipy.optimize import minimize_scalar
+
+    t = np.arange(a, b)
+    t = t[t + L + 1 <= x.size - 1 - _HALF]
+    res = minimize_scalar(lambda s_: float(np.mean((_interpolate(x, t + s_) - x[t]) ** 2)),
+                          bounds=(L - 1.0, L + 1.0), method="bounded", options={"xatol": 1e-4})
+    shift = float(res.x)
+    a, b = stretch(shift, typical=True)
+    t = np.arange(a, b)
+    if t.size < n_min // 2:
+        return unavailable(f"the repeat at {shift / rate:.4g} s falls apart after the sub-sample alignment")
+    stroke_shift = shift
+    t = t[t + shift + 0.5 <= x.size - 1 - _HALF]
+    res = minimize_scalar(lambda s_: float(np.var(_interpolate(F, t + s_) - F[t])),
+                          bounds=(shift - 0.5, shift + 0.5), method="bounded", options={"xatol": 1e-4})
+    shift = float(res.x)
+    X1, X2 = x[t], _interpolate(x, t + shift)
+    seg_rms = float(np.std(0.5 * (X1 + X2)))
+    if seg_rms < REPEAT_MOVING * s_rms:
+        return unavailable(f"only a stretch where the stroke hardly moves repeats (its rms {seg_rms:.3g} m, "
+                           f"under {REPEAT_MOVING:g} x the record's {s_rms:.3g} m): the rig at rest, not a replay")
+    dX = X2 - X1
+    stroke_diff = float(np.std(dX)) / seg_rms
+    if stroke_diff > REPEAT_FIND:
+        return unavailable(f"nothing repeats: the best match (a {t.size / rate:.3g} s stretch {shift / rate:.4g} s "
+                           f"later) differs by {100 * stroke_diff:.0f} % of its stroke's rms (more than "
+                           f"{100 * REPEAT_FIND:g} %), a chance likeness", shift_s=shift / rate)
+    dF = _interpolate(F, t + shift) - F[t]
+    dF = dF - dF.mean()
+    value = float(np.sqrt(np.mean(dF ** 2))) / math.sqrt(2.0)
+    details = dict(shift_s=shift / rate, stroke_shift_s=stroke_shift / rate, start_s=a / rate, repeat_s=t.size / rate,
+                   samples=int(t.size), stroke_difference=stroke_diff)
+    reasons, credible = [], True
+    if t.size < MIN_REPEAT_SAMPLES or t.size < MIN_REPEAT_S * rate:
+        credible = False
+        reasons.append(f"the repeat is only {t.size / rate:.3g} s ({t.size} samples; needs {MIN_REPEAT_S:g} s and "
+                       f"{MIN_REPEAT_SAMPLES}): too few samples")
+    if stroke_diff > STROKE_REPEAT:
+        credible = False
+        reasons.append(f"the repeats' strokes differ by {100 * stroke_diff:.1f} % of the stroke's rms after alignment "
+                       f"(more than {100 * STROKE_REPEAT:g} %): not the same drive, so not the same force")
+    nper = min(t.size, 1 << int(math.ceil(math.log2(2.0 * rate))))
+    f, p = signal.welch(dF, fs=rate, nperseg=nper)
+    low = (f > 0) & (f <= DRIFT_HZ)
+    ref = (f > DRIFT_HZ) & (f <= DRIFT_BAND_TOP * rate)
+    if low.any() and ref.any() and np.mean(p[ref]) > 0:
+        ratio = float(np.mean(p[low]) / np.mean(p[ref]))
+        details["low_frequency_ratio"] = ratio
+        if ratio > DRIFT_FACTOR:
+            credible = False
+            reasons.append(f"the repeats' force difference is {ratio:.3g} x denser below {DRIFT_HZ:g} Hz than up to "
+                           f"{DRIFT_BAND_TOP * rate:.3g} Hz (more than {DRIFT_FACTOR:g}x): the damper drifts between "
+                           "the repeats (temperature) or the drive differs; the estimate is an upper bound")
+    in_band_value = None
+    if fit_rate_hz is not None:
+        total = float(np.sum(p))
+        share = float(np.sum(p[f < fit_rate_hz / 2.0])) / total if total > 0 else 1.0
+        in_band_value = value * math.sqrt(min(1.0, share)) if fit_rate_hz < rate else value
+        details["in_band_share"] = share
+    return Estimate.make("repeats", value, in_band_value, True, credible, reasons, **details)
+
+
 # --------------------------------------------------------------------------- the choice
 
 def force_noise(test, fit_rate_hz: float | None = None, warmup_s: float = 0.5) -> dict:
@@ -347,9 +539,10 @@ def force_noise(test, fit_rate_hz: float | None = None, warmup_s: float = 0.5) -
 
     1. the cycle scatter when it is credible (it measures whatever does not repeat, on filtered data
        too);
-    2. else the quiet-band estimate when it is credible;
-    3. else no credible estimate: the cycle scatter if available (an upper bound), else the quiet-band
-       value, with ``credible`` False and the reasons;
+    2. else the repeated segments when credible (a replayed non-periodic drive: likewise);
+    3. else the quiet-band estimate when it is credible;
+    4. else no credible estimate: the cycle scatter if available (an upper bound), else the repeats if
+       available (likewise), else the quiet-band value, with ``credible`` False and the reasons;
     and never below the resolution bound (``method`` 'resolution' when that bound is the larger).
 
     Returns {"value_n" (over the file's band), "in_band_n" (in the ``fit_rate_hz`` band; None without),
@@ -357,23 +550,30 @@ def force_noise(test, fit_rate_hz: float | None = None, warmup_s: float = 0.5) -
     """
     rate = float(test.sample_rate)
     est = {"cycle_scatter": cycle_scatter_noise(test.stroke, test.force, rate, fit_rate_hz, warmup_s),
+           "repeats": repeat_noise(test.stroke, test.force, rate, fit_rate_hz, warmup_s),
            "quiet_band": quiet_band_noise(test.force, rate, fit_rate_hz),
            "resolution": resolution_noise(test.force, rate, fit_rate_hz)}
-    cyc, band, res = est["cycle_scatter"], est["quiet_band"], est["resolution"]
+    cyc, rep, band, res = est["cycle_scatter"], est["repeats"], est["quiet_band"], est["resolution"]
     reasons = []
+    # why the repeats were not used, when some repeat was found (nothing repeating is the usual case)
+    rep_reasons = [f"repeats: {r}" for r in rep["reasons"]] if rep["available"] else []
     if cyc["credible"]:
         chosen, credible = cyc, True
         if band["credible"] and cyc["value_n"] > 3.0 * band["value_n"]:
             reasons.append(f"the cycle scatter ({cyc['value_n']:.3g} N) is more than 3x the quiet-band white "
                            f"noise ({band['value_n']:.3g} N): noise that is not white, or a force that drifts "
                            "from cycle to cycle; the scatter is used (a model cannot fit it either)")
+    elif rep["credible"]:
+        chosen, credible = rep, True
+        reasons += [f"cycle scatter: {r}" for r in cyc["reasons"]]
     elif band["credible"]:
         chosen, credible = band, True
-        reasons += [f"cycle scatter: {r}" for r in cyc["reasons"]]
+        reasons += [f"cycle scatter: {r}" for r in cyc["reasons"]] + rep_reasons
     else:
-        chosen = cyc if cyc["available"] else band
+        chosen = cyc if cyc["available"] else rep if rep["available"] else band
         credible = False
-        reasons += [f"cycle scatter: {r}" for r in cyc["reasons"]] + [f"quiet band: {r}" for r in band["reasons"]]
+        reasons += ([f"cycle scatter: {r}" for r in cyc["reasons"]] + rep_reasons
+                    + [f"quiet band: {r}" for r in band["reasons"]])
     if not chosen["available"]:
         chosen = res if res["available"] else chosen
     if res["available"] and (chosen["value_n"] is None or res["value_n"] > chosen["value_n"]):
