@@ -180,6 +180,15 @@ def _sos(band: tuple[float, float]):
     return signal.butter(4, [2.0 * band[0], 2.0 * band[1]], btype="band", output="sos")
 
 
+def _checked_pair(stroke, force, sample_rate_hz: float, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """Stroke [m] and force [N] of one test as ``_checked`` arrays of equal length (ValueError naming ``what``)."""
+    x = _checked(stroke, sample_rate_hz, f"{what}: stroke")
+    F = _checked(force, sample_rate_hz, f"{what}: force")
+    if x.size != F.size:
+        raise ValueError(f"{what}: stroke and force differ in length ({x.size} vs {F.size})")
+    return x, F
+
+
 def _quiet_level(x: np.ndarray, band: tuple[float, float]) -> float:
     """Rms of ``x`` band-passed to ``band`` [fraction of the sample rate] in its quietest windows: the
     square root of the QUANTILE quantile of the WINDOW-sample mean squares (edges of the filter dropped)."""
@@ -301,10 +310,7 @@ def cycle_scatter_noise(stroke, force, sample_rate_hz: float, fit_rate_hz: float
     stroke [m] and force [N] sampled at ``sample_rate_hz`` [Hz]; samples in the first ``warmup_s`` [s]
     do not count. Figures: ``period_s``, ``cycles`` (used), ``cycles_left_out``, ``stroke_scatter_m``,
     ``force_from_stroke_n`` (the force the stroke's cycle-to-cycle differences make, linearised)."""
-    x = _checked(stroke, sample_rate_hz, "cycle_scatter_noise: stroke")
-    F = _checked(force, sample_rate_hz, "cycle_scatter_noise: force")
-    if x.size != F.size:
-        raise ValueError(f"cycle_scatter_noise: stroke and force differ in length ({x.size} vs {F.size})")
+    x, F = _checked_pair(stroke, force, sample_rate_hz, "cycle_scatter_noise")
     rate = float(sample_rate_hz)
 
     def unavailable(why: str, **details) -> Estimate:
@@ -428,10 +434,7 @@ def repeat_noise(stroke, force, sample_rate_hz: float, fit_rate_hz: float | None
     ``start_s`` (the first repeat's start), ``repeat_s`` and ``samples`` (its length),
     ``stroke_difference`` (rms of the aligned strokes' difference / the stroke's rms there),
     ``low_frequency_ratio`` (the drift rule's ratio), ``in_band_share``."""
-    x = _checked(stroke, sample_rate_hz, "repeat_noise: stroke")
-    F = _checked(force, sample_rate_hz, "repeat_noise: force")
-    if x.size != F.size:
-        raise ValueError(f"repeat_noise: stroke and force differ in length ({x.size} vs {F.size})")
+    x, F = _checked_pair(stroke, force, sample_rate_hz, "repeat_noise")
     rate = float(sample_rate_hz)
 
     def unavailable(why: str, **details) -> Estimate:
