@@ -193,21 +193,21 @@ class DamperSlave(Fmi2Slave):
     def get_string(self, vrs):
         return [str(self._var("String", vr).getter()) for vr in vrs]
 
-    def set_real(self, vrs, values):
+    def _set(self, kind: str, vrs, values):
         for vr, value in zip(vrs, values):
-            self._var("Real", vr).setter(value)
+            self._var(kind, vr).setter(value)
+
+    def set_real(self, vrs, values):
+        self._set("Real", vrs, values)
 
     def set_integer(self, vrs, values):
-        for vr, value in zip(vrs, values):
-            self._var("Integer", vr).setter(value)
+        self._set("Integer", vrs, values)
 
     def set_boolean(self, vrs, values):
-        for vr, value in zip(vrs, values):
-            self._var("Boolean", vr).setter(value)
+        self._set("Boolean", vrs, values)
 
     def set_string(self, vrs, values):
-        for vr, value in zip(vrs, values):
-            self._var("String", vr).setter(value)
+        self._set("String", vrs, values)
 
     # -- parameters and state -------------------------------------------------------------
     def _set_param(self, name: str, value: float) -> None:

@@ -7,6 +7,7 @@ from damper_fmu import EXTRAPOLATE, MODEL_PARAMETERS, REPLAY, defaults, simulate
 from damper_fmu.fmu import build, validate
 from tuner.cosim import mass_spring_cosimulation
 from tuner.identification.runner import FmuRunner, SimulationError
+from stroke_cases import two_sines
 
 KINDS = ["lumped", "maxwell", "maxwell_table", "twochamber"]
 #: the form elements (damper_fmu.effects) both on: hysteresis, and a bypass groove the stroke crosses
@@ -15,11 +16,7 @@ FORMS = {"hysteresis_force": 500.0, "hysteresis_displacement": 5e-4, "bypass_rat
 
 
 def stroke(fs=1000.0, duration=2.0):
-    t = np.arange(0.0, duration, 1.0 / fs)
-    w1, w2 = 2 * np.pi * 1.3, 2 * np.pi * 6.0
-    x = 4e-3 * np.sin(w1 * t) + 6e-4 * np.sin(w2 * t + 0.4)
-    v = 4e-3 * w1 * np.cos(w1 * t) + 6e-4 * w2 * np.cos(w2 * t + 0.4)
-    return t, x, v
+    return two_sines(fs, duration)
 
 
 @pytest.fixture(scope="module")

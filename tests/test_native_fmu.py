@@ -1,5 +1,4 @@
 """The native (C) FMUs as an importer sees them: FMI behaviour, errors, state, sources, libcosim."""
-import ctypes
 import shutil
 import subprocess
 import zipfile
@@ -11,16 +10,13 @@ from fmpy.fmi2 import FMU2Slave
 
 from damper_fmu import EXTRAPOLATE, REPLAY, defaults
 from tuner.identification.runner import FmuRunner, SimulationError
+from stroke_cases import two_sines
 
 KINDS = ["lumped", "maxwell", "maxwell_table", "twochamber"]
 
 
 def stroke(fs=1000.0, duration=1.5):
-    t = np.arange(0.0, duration, 1.0 / fs)
-    w1, w2 = 2 * np.pi * 1.3, 2 * np.pi * 6.0
-    x = 4e-3 * np.sin(w1 * t) + 6e-4 * np.sin(w2 * t + 0.4)
-    v = 4e-3 * w1 * np.cos(w1 * t) + 6e-4 * w2 * np.cos(w2 * t + 0.4)
-    return t, x, v
+    return two_sines(fs, duration)
 
 
 @pytest.mark.parametrize("kind", KINDS)
@@ -38,7 +34,6 @@ def test_native_fmu_is_self_contained_and_declares_what_masters_need(fmu_paths, 
     binary = [n for n in names if n.startswith("binaries/")]
     assert len(binary) == 1
     # linked against libc/libm only: no Python, no numpy
-    out = subprocess.run(["ldd", "/dev/null"], capture_output=True)  # noqa: F841 - ldd presence probe
     if shutil.which("ldd"):
         tmp = extract(str(fmu_paths[kind]))
         libs = subprocess.run(["ldd", f"{tmp}/{binary[0]}"], capture_output=True, text=True).stdout
@@ -228,7 +223,6 @@ def test_runs_in_libcosim_as_in_fmpy(fmu_paths):
     """libcosim (an independent importer) steps the FMU; a manipulator sets the stroke of each
     communication point, as a multibody master would; the force equals fmpy's in co-simulation mode."""
     libcosimpy = pytest.importorskip("libcosimpy", reason="libcosimpy has no wheel for this platform")
-    from libcosimpy.CosimEnums import CosimVariableType
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimManipulator import CosimManipulator
     from libcosimpy.CosimObserver import CosimObserver

@@ -17,6 +17,7 @@ from fmpy.validation import validate_fmu
 
 from damper_fmu import EXTRAPOLATE, REPLAY
 from tuner.identification.runner import FmuRunner, SimulationError
+from stroke_cases import two_sines
 
 KINDS = ["lumped", "maxwell", "maxwell_table", "twochamber"]
 ROOT = Path(__file__).resolve().parents[1]
@@ -82,11 +83,7 @@ def test_empty_benchmark_fmu_has_the_native_references_of_its_three_variables(fm
 # -- swapping the FMUs under a master that addresses by value reference -------------------------
 
 def stroke(fs=1000.0, duration=1.0):
-    t = np.arange(0.0, duration, 1.0 / fs)
-    w1, w2 = 2 * np.pi * 1.3, 2 * np.pi * 6.0
-    x = 4e-3 * np.sin(w1 * t) + 6e-4 * np.sin(w2 * t + 0.4)
-    v = 4e-3 * w1 * np.cos(w1 * t) + 6e-4 * w2 * np.cos(w2 * t + 0.4)
-    return t, x, v
+    return two_sines(fs, duration)
 
 
 def close(a, b):
@@ -94,14 +91,13 @@ def close(a, b):
     return np.abs(a - b).max() <= 1e-9 * np.abs(b).max()
 
 
-def run_by_reference(path, vr, t, x, v, reals=None, integers=None):
-    """A master that knows only the native FMU's value references ``vr`` (name -> int, taken from
-    the native model description once) and uses them on whatever FMU it is given: forces and
-    diagnostic outputs after every step."""
+def in_initialization(path, vr, name, reals=None, integers=None):
+    """(the FMU at ``path`` instantiated and in initialization mode with the parameters ``reals`` and
+    ``integers`` set by the value references ``vr``, its unzip folder)."""
     md = read_model_description(str(path))
     unzip = extract(str(path))
     fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier,
-                    instanceName="swap")
+                    instanceName=name)
     fmu.instantiate()
     fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()
@@ -109,6 +105,14 @@ def run_by_reference(path, vr, t, x, v, reals=None, integers=None):
         fmu.setReal([vr[k] for k in reals], list(reals.values()))
     if integers:
         fmu.setInteger([vr[k] for k in integers], list(integers.values()))
+    return fmu, unzip
+
+
+def run_by_reference(path, vr, t, x, v, reals=None, integers=None):
+    """A master that knows only the native FMU's value references ``vr`` (name -> int, taken from
+    the native model description once) and uses them on whatever FMU it is given: forces and
+    diagnostic outputs after every step."""
+    fmu, unzip = in_initialization(path, vr, "swap", reals, integers)
     fmu.setReal([vr["stroke"], vr["stroke_velocity"]], [x[0], v[0]])
     outs = [vr[n] for n in vr["_outputs"]]
     initial = fmu.getReal(outs)
@@ -176,14 +180,7 @@ def test_initial_outputs_are_calculated_in_initialization_mode_as_the_native_doe
     reals = {"preload_force": 1234.0, "friction_force": 300.0} if kind != "maxwell" else {}
     got = []
     for path in (fmu_paths[kind], fmu_paths[f"{kind}_py"]):
-        md = read_model_description(str(path))
-        fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(path)),
-                        modelIdentifier=md.coSimulation.modelIdentifier, instanceName="init")
-        fmu.instantiate()
-        fmu.setupExperiment(startTime=0.0)
-        fmu.enterInitializationMode()
-        if reals:
-            fmu.setReal([vr[k] for k in reals], list(reals.values()))
+        fmu, _ = in_initialization(path, vr, "init", reals)
         fmu.setReal([vr["stroke"], vr["stroke_velocity"]], [2e-3, 0.01])
         during = fmu.getReal(outs)
         fmu.exitInitializationMode()
