@@ -1,9 +1,11 @@
 """The virtual test campaign end to end: scenarios -> yaw damper strokes -> virtual rig -> dataset.
 
 ``generate_dataset(out, seed=2023)`` reproduces the bundled default dataset ``data/default``:
-bit for bit with the same code and the library versions recorded in its manifest
-(``generator.library_versions``, see ``library_versions()``), and within a fraction of the rig's
-noise and resolution with any other versions the project allows (ODE solvers, FFTs and BLAS may
+bit for bit with the same code, the library versions recorded in its manifest
+(``generator.library_versions``, see ``library_versions()``) *and* the same numerical kernels
+(``generator.numerical_kernels``, see ``numerical_kernels()``: numpy and OpenBLAS choose their SIMD
+kernels by processor at run time, glibc its libm), and within a fraction of the rig's noise and
+resolution with any other versions or processors (ODE solvers, FFTs, BLAS and vectorised maths may
 round differently; the ADC then flips a few samples by one or two steps). Each of the six scenarios of the paper's Table 1 is run on the
 vehicle model (front-right yaw damper stroke at ``STROKE_RATE_HZ``), replayed on the virtual rig
 (physical twin-tube damper, hidden effects, sensor chain at ``sample_rate``) and written as one
@@ -24,7 +26,7 @@ from campaign.rig import check_damper, check_oil_temperature, measure
 from campaign.scenarios import SCENARIOS, damper_stroke
 from damper_dataset.writer import write_dataset
 
-__all__ = ["generate_dataset", "library_versions", "STROKE_RATE_HZ", "DEFAULT_SEED", "CHAMBER_TEMPERATURES_C",
+__all__ = ["generate_dataset", "library_versions", "numerical_kernels", "STROKE_RATE_HZ", "DEFAULT_SEED", "CHAMBER_TEMPERATURES_C",
            "GENERATING_LIBRARIES"]
 
 STROKE_RATE_HZ = 2000.0
@@ -41,6 +43,26 @@ GENERATING_LIBRARIES = ("numpy", "scipy", "pandas", "matplotlib")
 def library_versions() -> dict[str, str]:
     """{"python": "3.11.7", "numpy": ..., ...}: the versions that generate a dataset's bytes."""
     return {"python": platform.python_version(), **{m: version(m) for m in GENERATING_LIBRARIES}}
+
+
+def numerical_kernels() -> dict:
+    """What picks the numerical kernels on this machine, beside the library versions (the same versions
+    round differently on another processor): the machine type and C library (libm), numpy's SIMD baseline
+    and the dispatch targets this processor offers (e.g. AVX512_SKX, AVX512_ICL), and each loaded
+    OpenBLAS's version, core type (``architecture``, which ``OPENBLAS_CORETYPE`` overrides) and threads."""
+    import numpy  # noqa: F401  (its OpenBLAS is loaded, so threadpoolctl lists it)
+    import scipy.linalg  # noqa: F401
+    from numpy._core._multiarray_umath import __cpu_baseline__, __cpu_dispatch__, __cpu_features__
+    from threadpoolctl import threadpool_info
+
+    libc, libc_version = platform.libc_ver()
+    blas = sorted(({k: lib.get(k) for k in ("internal_api", "version", "architecture", "threading_layer",
+                                              "num_threads")} for lib in threadpool_info() if lib["user_api"] == "blas"),
+                  key=lambda b: (str(b["internal_api"]), str(b["version"])))
+    return {"machine": platform.machine(), "libc": f"{libc} {libc_version}".strip(),
+            "numpy_simd_baseline": list(__cpu_baseline__),
+            "numpy_simd_dispatch_found": [t for t in __cpu_dispatch__ if __cpu_features__.get(t)],
+            "blas": blas}
 
 
 def generate_dataset(out, *, seed: int = DEFAULT_SEED, effects: dict | None = None,
@@ -87,6 +109,7 @@ def generate_dataset(out, *, seed: int = DEFAULT_SEED, effects: dict | None = No
                  "effect_units": {n: SPECS[n].unit for n in sorted(eff)}, "t_end_s": t_end,
                  "vehicle": "campaign.vehicle (7 bodies, linear creep), front-right yaw damper",
                  "damper": damper, "library_versions": library_versions(),
+                 "numerical_kernels": numerical_kernels(),
                  **({"oil_temperatures_degC": temps} if temps else {}),
                  "rig": "campaign.rig (" + ("physical twin-tube damper" if damper == "twin-tube" else
                                             "lumped-model damper, Table 2 family") + ", sensor chain)"}

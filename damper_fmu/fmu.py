@@ -26,6 +26,7 @@ of its sources so ``ensure_fmu`` rebuilds only when they changed. Without a C co
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -311,9 +312,28 @@ def ensure_fmu(kind: str, out: str | Path | None = None, flavour: str = "auto", 
     digest = source_hash(flavour)
     if not force and path.exists() and stamp.exists() and stamp.read_text().strip() == digest:
         return path
-    build(kind, out, flavour=flavour, fmi_version=fmi_version)
-    stamp.write_text(digest + "\n")
+    out.mkdir(parents=True, exist_ok=True)
+    with _exclusive(path.with_suffix(".lock")):  # processes building the same FMU at once wait for each other
+        if force or not (path.exists() and stamp.exists() and stamp.read_text().strip() == digest):
+            build(kind, out, flavour=flavour, fmi_version=fmi_version)
+            stamp.write_text(digest + "\n")
     return path
+
+
+@contextlib.contextmanager
+def _exclusive(lock_path: Path):
+    """An exclusive lock on ``lock_path`` across processes (POSIX ``flock``; none where it does not exist)."""
+    try:
+        import fcntl
+    except ImportError:  # Windows: builds are not run concurrently there by the project itself
+        yield
+        return
+    with open(lock_path, "a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 def validate(path: str | Path) -> list[str]:

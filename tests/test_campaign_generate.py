@@ -7,7 +7,7 @@ import matplotlib.image as plt_image
 import numpy as np
 import pytest
 
-from campaign.generate import DEFAULT_SEED, generate_dataset, library_versions
+from campaign.generate import DEFAULT_SEED, generate_dataset, library_versions, numerical_kernels
 from campaign.sensors import SensorChain
 from tuner.data.reading import load_dataset
 
@@ -16,16 +16,20 @@ BUNDLED = ROOT / "data" / "default"
 
 
 def test_regenerating_the_bundled_dataset_reproduces_it(tmp_path):
-    """Regenerated with any library versions the project allows, every sample of every channel is
-    within a quarter of the rig's noise rms or one step of its ADC (whichever is larger: the stroke's
-    ADC step, 3.05 um, exceeds its 2 um noise) and the force's rms difference is under 5 % of the
-    load cell's noise; with the versions recorded in the manifest, every byte is the same."""
+    """Regenerated with any library versions the project allows, on any processor, every sample of every
+    channel is within a quarter of the rig's noise rms or one step of its ADC (whichever is larger: the
+    stroke's ADC step, 3.05 um, exceeds its 2 um noise) and the force's rms difference is under 5 % of the
+    load cell's noise. Every byte is the same only with the library versions *and* the numerical kernels
+    recorded in the manifest (numpy's SIMD targets, OpenBLAS's core and threads, the C library): the same
+    versions round differently on another processor, so only then is byte equality asserted."""
     out = generate_dataset(tmp_path / "again", seed=DEFAULT_SEED, log=lambda m: None)
     files = sorted(p.name for p in BUNDLED.iterdir())
     assert files == sorted(p.name for p in out.iterdir())
     stored, again = (json.loads((d / "manifest.json").read_text()) for d in (BUNDLED, out))
     versions = stored["generator"].pop("library_versions")
+    kernels = stored["generator"].pop("numerical_kernels")  # None: made before the kernels were recorded
     assert again["generator"].pop("library_versions") == library_versions()
+    assert again["generator"].pop("numerical_kernels") == numerical_kernels()
     assert stored == again  # same seed, scenarios, rig and test list
 
     chain = SensorChain()  # the rig's sensor chain (campaign.rig uses the defaults)
@@ -45,9 +49,38 @@ def test_regenerating_the_bundled_dataset_reproduces_it(tmp_path):
     # fewer than 3.11); the pixels themselves depend on its version
     assert png_a.shape[2] == png_b.shape[2] and all(abs(a - b) <= 2 for a, b in zip(png_a.shape[:2], png_b.shape[:2]))
 
-    if versions == library_versions():
+    if versions == library_versions() and kernels == numerical_kernels():
         match, mismatch, errors = filecmp.cmpfiles(BUNDLED, out, files, shallow=False)
         assert not mismatch and not errors, (mismatch, errors)
+
+
+def test_generating_twice_on_one_machine_gives_the_same_bytes(tmp_path):
+    """What the byte-for-byte claim rests on: with the same versions and kernels (one environment), the
+    generator is deterministic, every file of a dataset the same byte for byte."""
+    kw = dict(seed=5, scenarios=["id3_switch_R190_43"], t_end=2.0, log=lambda m: None)
+    a, b = generate_dataset(tmp_path / "a", **kw), generate_dataset(tmp_path / "b", **kw)
+    names = sorted(p.name for p in a.iterdir())
+    match, mismatch, errors = filecmp.cmpfiles(a, b, names, shallow=False)
+    assert sorted(match) == names and not mismatch and not errors, (mismatch, errors)
+
+
+def test_the_numerical_kernels_follow_what_numpy_and_openblas_are_told():
+    """The manifest's kernel record changes when the kernels do: numpy's dispatch targets are what
+    NPY_DISABLE_CPU_FEATURES leaves (read in a fresh process, as numpy reads it at import), and the record
+    names OpenBLAS's core type, which OPENBLAS_CORETYPE overrides."""
+    import subprocess
+    import sys
+
+    here = numerical_kernels()
+    assert here["blas"] and all(b["architecture"] for b in here["blas"] if b["internal_api"] == "openblas")
+    found = here["numpy_simd_dispatch_found"]
+    if not found:
+        pytest.skip("this processor offers numpy no dispatch target beyond its baseline")
+    code = "import json; from campaign.generate import numerical_kernels; print(json.dumps(numerical_kernels()))"
+    env = {**__import__("os").environ, "NPY_DISABLE_CPU_FEATURES": found[-1]}
+    other = json.loads(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                                      cwd=ROOT, check=True).stdout)
+    assert found[-1] not in other["numpy_simd_dispatch_found"] and other != here
 
 
 def test_bundled_dataset_has_the_six_scenarios_with_roles_and_plausible_forces():
