@@ -291,29 +291,6 @@ def test_the_diagnosis_base_is_the_fitted_form_with_the_lower_pooled_held_out_ms
         choose_base({"maxwell": params["maxwell"]}, metrics)
 
 
-@pytest.mark.slow
-def test_a_base_that_cannot_represent_the_damper_is_reported_unexplained_not_blamed_on_an_effect(tmp_path):
-    """Two-chamber-model data (20 N noise) diagnosed on the lumped base alone: the lumped model's
-    form error stays far above the residual floor and the candidate does not explain it, so the
-    verdict is 'unexplained' with the evidence, not a cause."""
-    from campaign.synthetic import write_model_dataset
-    from damper_fmu import defaults
-
-    path = write_model_dataset(tmp_path / "data", "twochamber", defaults("twochamber"), seed=9,
-                               durations=(6.0, 6.0, 4.0), roles=("identification", "identification", "validation"),
-                               noise_n=20.0)
-    tests = load_dataset(path)
-    res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
-                   tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), base_iterations=0, base_model="lumped",
-                                                      candidates=("preload",)), log=lambda m: None)
-    assert res["cause"] == "unexplained" and not res["causes"], res["verdict"]
-    u = res["unexplained"]
-    assert u["ratio"] > 2.0 and u["floor_n"] >= u["noise_std_n"] > 0
-    # a form error is claimed on a settled fit only (the base refit is continued before the verdict)
-    assert u["fit_converged"] is True
-    assert res["verdict"].startswith("unexplained: ") and "model-form error that no catalogue" in res["verdict"]
-
-
 def _two_chamber_data(tmp_path):
     from campaign.synthetic import write_model_dataset
     from damper_fmu import defaults
@@ -325,28 +302,22 @@ def _two_chamber_data(tmp_path):
     return [t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"]
 
 
-@pytest.mark.parametrize("other", ["implausible", "plausible"])
-def test_the_diagnosis_repeats_on_the_other_base_only_when_it_can_plausibly_win(tmp_path, other):
-    """Two-chamber-model data, the lumped base first (it leaves ~70 x the floor). The other base
-    given: the true two-chamber parameters (plausible: the diagnosis is repeated on it and it wins),
-    or the same with its damping tables 8 x too strong (its bare fit validates ~70 x worse than the
-    lumped one: it cannot plausibly win, no repeat, and the result says why)."""
+def test_the_diagnosis_is_not_repeated_on_a_base_that_cannot_plausibly_win(tmp_path):
+    """Two-chamber-model data, the lumped base first (it leaves ~70 x the floor), the other base given with
+    its damping tables 8 x too strong: its bare fit validates ~70 x worse than the lumped one, so it cannot
+    plausibly win: no repeat, and the result says why. (The repeat where the other base can win, and wins,
+    is ``tests/test_forms.py``'s failing-and-resumed diagnosis: lumped first, then the two-chamber base.)"""
     from damper_fmu import defaults
 
     ident, val = _two_chamber_data(tmp_path)
     tc = defaults("twochamber")
-    if other == "implausible":
-        tc = {**tc, **{k: 8 * v for k, v in tc.items() if k.startswith("Fc_") and not k.startswith("Fc_v")}}
+    tc = {**tc, **{k: 8 * v for k, v in tc.items() if k.startswith("Fc_") and not k.startswith("Fc_v")}}
     res = diagnose(ident, val, tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), candidates=("preload",)),
                    base_params=defaults("lumped"), base_model="lumped", other_bases={"twochamber": tc},
                    log=lambda m: None)
-    if other == "plausible":
-        assert res["base_model"] == "twochamber" and res["base_choice"]["first_choice"] == "lumped", res["base_choice"]
-        assert res["cause"] == "none", res["verdict"]
-    else:
-        assert res["base_model"] == "lumped" and res["cause"] == "unexplained", res["verdict"]
-        assert "cannot plausibly win" in res["base_choice"]["not_repeated_on"]["twochamber"]
-        assert not (tmp_path / "out" / "figures" / "base_twochamber").exists()
+    assert res["base_model"] == "lumped" and res["cause"] == "unexplained", res["verdict"]
+    assert "cannot plausibly win" in res["base_choice"]["not_repeated_on"]["twochamber"]
+    assert not (tmp_path / "out" / "figures" / "base_twochamber").exists()
 
 
 def test_an_unfinished_fit_is_not_called_a_form_error_nor_a_reason_to_switch_base(tmp_path):

@@ -49,6 +49,10 @@ def test_the_job_prepares_once_writes_each_stage_and_reports_last(tmp_path, monk
     assert res.diagnosis["verdict"] == diagnosis["verdict"]
     assert "id='diagnosis'" in res.report.read_text(encoding="utf-8")
     assert res.report.stat().st_mtime >= (out / "diagnosis.json").stat().st_mtime
+    written = sorted(out.rglob("*.json"))
+    assert {"metrics.json", "diagnosis.json", "parameters.json"} <= {p.name for p in written}
+    for path in written:  # strict JSON, as jq or JavaScript read it: no Infinity, no NaN
+        json.loads(path.read_text(), parse_constant=lambda c: pytest.fail(f"{path.name} holds {c}"))
 
 
 def test_a_force_limit_on_the_command_line_reaches_the_diagnosis(tmp_path):

@@ -7,6 +7,7 @@ and the same problem with a rough term that no smooth solver can use.
 import math
 
 import numpy as np
+import pytest
 from scipy.optimize import lsq_linear
 
 from tuner.identification.polish import STEP, polish
@@ -87,3 +88,67 @@ def test_the_rough_objective_defeats_fine_differences_alone(monkeypatch):
     eng, d, x_ref, rmse_ref = rough_problem()
     z, g, evals, info = module.polish(eng, IdentityPar(d), np.full(d, 0.5), max_jacobians=60, log=lambda m: None)
     assert math.sqrt(1.0 / g) > 1.5 * rmse_ref
+
+
+def test_the_rmse_standard_error_matches_its_spread_over_many_realisations():
+    """tuner.metrics.rmse_standard_error against Monte Carlo: the spread of the RMSE of 300 independent
+    residuals, white and strongly correlated (AR(1), phi 0.9: N_eff ~ N / 19)."""
+    from tuner.metrics import rmse_standard_error
+
+    rng = np.random.default_rng(5)
+    for phi in (0.0, 0.9):
+        rmses, predicted = [], []
+        for _ in range(300):
+            e = rng.normal(size=4000)
+            r = np.empty_like(e)
+            r[0] = e[0]
+            for k in range(1, e.size):
+                r[k] = phi * r[k - 1] + e[k]
+            rmses.append(math.sqrt(float(r @ r) / r.size))
+            predicted.append(rmse_standard_error(r))
+        assert np.mean(predicted) == pytest.approx(np.std(rmses), rel=0.2), phi
+
+
+def test_a_refinement_whose_gain_the_data_cannot_show_stops_at_the_data_resolution():
+    """The rule's two conditions on a white residual of known RMSE (standard error sigma / sqrt(2 N)): a
+    fall of the RMSE over the last RESOLUTION_WINDOW Jacobians below RESOLUTION_FRACTION of it (and below
+    FTOL of the SSE) stops; a fall above either does not."""
+    from tuner.identification.polish import RESOLUTION_FRACTION, RESOLUTION_WINDOW, _at_resolution
+
+    rng = np.random.default_rng(1)
+    r = rng.normal(scale=10.0, size=20000)
+    rmse = math.sqrt(float(r @ r) / r.size)
+    se = rmse / math.sqrt(2 * r.size)
+
+    def history(fall):  # fitness N / SSE = 1 / RMSE^2, RMSE falling linearly by ``fall`` over the window
+        return [1.0, *[(rmse + fall * (1 - k / RESOLUTION_WINDOW)) ** -2 for k in range(RESOLUTION_WINDOW + 1)]]
+
+    assert _at_resolution(history(0.5 * RESOLUTION_FRACTION * se), r).startswith("converged to the data's resolution")
+    assert _at_resolution(history(2.0 * RESOLUTION_FRACTION * se), r) is None
+    assert _at_resolution(history(0.0)[-RESOLUTION_WINDOW:], r) is None  # too few Jacobians to judge
+
+
+def test_a_slow_valley_where_no_model_reaches_the_noise_ends_on_the_resolution_rule(monkeypatch):
+    """A residual dominated by a fixed, correlated model-form error that no parameter reaches, plus a narrow
+    curved valley the refinement creeps along: with the rule it ends in fewer Jacobians than without it
+    (the rule switched off), and the RMSE it leaves is within a quarter of the RMSE's standard error of what
+    the longer refinement reaches."""
+    import tuner.identification.polish as polish_module
+    from tuner.metrics import rmse_standard_error
+
+    n, d = 4000, 4
+    t = np.linspace(0.0, 40.0, n)
+    form_error = 30.0 * np.sin(2.1 * t) + 12.0 * np.sin(5.3 * t + 1.0)
+    basis = np.column_stack([np.sin((k + 1) * 0.37 * t + k) for k in range(d)])
+    target = np.array([0.3, 0.6, 0.4, 0.5])
+
+    def residual(u):  # each coordinate's optimum depends on the previous one's square: a curved valley
+        shifted = np.asarray(u) - target
+        return form_error + basis @ (3.0 * (shifted + 20.0 * np.roll(shifted, 1) ** 2))
+
+    eng, start = FakeEngine(residual, n), np.full(d, 0.95)
+    _, g, _, info = polish(eng, IdentityPar(d), start, max_jacobians=100, log=lambda m: None)
+    monkeypatch.setattr(polish_module, "RESOLUTION_FRACTION", 0.0)  # the rule never holds
+    _, g_off, _, off = polish(eng, IdentityPar(d), start, max_jacobians=100, log=lambda m: None)
+    assert info["rule"] == "data resolution" and info["jacobians"] < off["jacobians"], (info["stop"], off["stop"])
+    assert g ** -0.5 - g_off ** -0.5 <= 0.25 * rmse_standard_error(form_error), (g ** -0.5, g_off ** -0.5)

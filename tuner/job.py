@@ -23,7 +23,7 @@ from pathlib import Path
 from damper_fmu.fmu import SLAVES, build
 from damper_fmu.parameters import EFFECT_MODELS, MODEL_PARAMETERS
 from tuner.data.reading import RigTest
-from tuner.diagnosis.diagnose import DiagnosisSettings, choose_base, diagnose
+from tuner.diagnosis.diagnose import DiagnosisFailed, DiagnosisSettings, choose_base, diagnose
 from tuner.identification.fit import FitResult, FitSettings, fit, full_rate_checks
 from tuner.identification.problem import Problem
 from tuner.progress import SubStages, stage
@@ -94,8 +94,12 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
     diagnosis = None
     if diagnose_after and wants_diagnosis(settings, validation):
         kind, values, choice, others = choose_base(result.params, result.metrics)
-        diagnosis = _diagnose(identification, validation, out, diagnosis_settings(settings), values, kind, choice,
-                              others, problem, log)
+        try:
+            diagnosis = _diagnose(identification, validation, out, diagnosis_settings(settings), values, kind, choice,
+                                  others, problem, log)
+        except DiagnosisFailed:
+            make_report(out)  # the fit's report with the failure said: the fit and its FMUs are safe
+            raise
     if vehicle:
         vehicle_consequences(sorted((out / "fmu").glob("*_tuned.fmu")), out, settings.seed, log)
     stage(log, "report")
@@ -110,13 +114,13 @@ def run_diagnosis(identification: list[RigTest], validation: list[RigTest], out:
     """A diagnosis on its own into ``out`` (the base from an earlier fit, or identified here), then
     the report: the full one when ``out`` holds that fit's files, the diagnosis alone otherwise."""
     out = Path(out)
-    result = _diagnose(identification, validation, out, settings, base_params, base_model, base_choice,
-                       other_bases, None, log)
-    stage(log, "report")
-    if (out / "parameters.json").exists():
-        make_report(out)
-    else:
-        make_diagnosis_report(out)
+    try:
+        result = _diagnose(identification, validation, out, settings, base_params, base_model, base_choice,
+                           other_bases, None, log)
+    finally:  # a failed diagnosis gets its report too: what was finished, the failing stage, --resume
+        if (out / "diagnosis.json").exists():
+            stage(log, "report")
+            (make_report if (out / "parameters.json").exists() else make_diagnosis_report)(out)
     return result
 
 

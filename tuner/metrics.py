@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 __all__ = ["ErrorMetrics", "error_metrics", "pooled_mse", "fitness", "variation_percent", "compare_to_maxwell",
-           "PolyOddEven", "polyfit_odd_even"]
+           "PolyOddEven", "polyfit_odd_even", "correlation_time", "rmse_standard_error"]
 
 
 def _pair(measured, simulated, what: str = "force") -> tuple[np.ndarray, np.ndarray]:
@@ -82,6 +82,39 @@ def pooled_mse(rows) -> float:
     for m in rows:
         se, n = se + m["mse"] * m["n"], n + m["n"]
     return se / n if n else math.inf
+
+
+def _autocorrelation(r: np.ndarray, max_lag: int | None = None) -> np.ndarray:
+    """Autocorrelation of ``r`` at lags 0, 1, ... up to its first drop below 0.05 (or ``max_lag``, at
+    most a quarter of its length); [1.0] for a constant or very short ``r``."""
+    r = np.asarray(r, dtype=float) - float(np.mean(r))
+    n = r.size
+    if n < 4 or not np.any(r):
+        return np.ones(1)
+    max_lag = min(n // 4, max_lag or n // 4)
+    spec = np.fft.rfft(r, 2 * n)
+    acf = np.fft.irfft(spec * np.conj(spec))[:max_lag + 1]
+    acf = acf / acf[0]
+    below = np.nonzero(acf[1:] < 0.05)[0]
+    return acf[:(int(below[0]) if below.size else max_lag) + 1]
+
+
+def correlation_time(r: np.ndarray, max_lag: int | None = None) -> float:
+    """Integrated autocorrelation time [samples] of ``r``: 1 + 2 sum of the autocorrelation up to
+    its first drop below 0.05 (>= 1; white noise gives ~1)."""
+    return max(1.0, 1.0 + 2.0 * float(np.sum(_autocorrelation(r, max_lag)[1:])))
+
+
+def rmse_standard_error(r: np.ndarray) -> float:
+    """Standard error [N] of the RMSE of the residual ``r`` [N] as an estimate of its population value:
+    RMSE / sqrt(2 N_eff) with N_eff = N / (1 + 2 sum rho_k^2) (for a Gaussian stationary residual
+    var(MSE) = 2 sigma^4 sum_k rho_k^2 / N; rho: the autocorrelation, as ``correlation_time``). A change
+    of the RMSE well under it is no change the data can show."""
+    r = np.asarray(r, dtype=float)
+    if r.size == 0:
+        raise ValueError("rmse_standard_error: an empty residual")
+    n_eff = r.size / max(1.0, 1.0 + 2.0 * float(np.sum(_autocorrelation(r)[1:] ** 2)))
+    return math.sqrt(float(r @ r) / r.size) / math.sqrt(2.0 * n_eff)
 
 
 def fitness(measured, simulated) -> float:

@@ -1,7 +1,6 @@
 """``python -m tuner fit`` (the main job: ``tuner.job.run``) and ``python -m tuner diagnose``."""
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
@@ -14,6 +13,7 @@ from tuner.cli.log import end_job, job_log, log, progress, start_job
 from tuner.cli.options import add_fit_options, fit_settings, load_tests
 from tuner.cli.summary import end_summary, print_table3
 from tuner.diagnosis.diagnose import choose_base
+from tuner import strict_json
 
 __all__ = ["add_parsers", "cmd_fit", "cmd_diagnose", "check_engine"]
 
@@ -92,8 +92,8 @@ def _fit_job(args, models) -> Path:
 def _fitted_base(folder: Path) -> tuple:
     """(base parameters, kind, how it was chosen, the other fitted bases) for a diagnosis after the fit
     in ``folder``."""
-    kind, values, choice, others = choose_base(json.loads((folder / "parameters.json").read_text()),
-                                               json.loads((folder / "metrics.json").read_text()))
+    kind, values, choice, others = choose_base(strict_json.loads((folder / "parameters.json").read_text()),
+                                               strict_json.loads((folder / "metrics.json").read_text()))
     return values, kind, choice, others
 
 
@@ -113,10 +113,7 @@ def cmd_diagnose(args) -> int:
             base, base_kind, base_choice, others = _fitted_base(args.from_fit)
         except ValueError as err:
             raise ValueError(f"--from {args.from_fit}: {err}") from None
-    out = args.out or free_folder(DEFAULT_RESULTS / f"{name}-diagnosis")
-    if out.exists() and any(out.iterdir()):
-        raise FileExistsError(f"output folder {out} exists and is not empty: choose another --out")
-    out.mkdir(parents=True, exist_ok=True)
+    out = prepare_out(args.out or free_folder(DEFAULT_RESULTS / f"{name}-diagnosis"), args.resume, args.force)
     if base is not None and args.from_fit.resolve() != out.resolve():
         for f in ("parameters.json", "metrics.json", "simulations.npz",
                   *[f"history_{m}.json" for m in MODEL_KINDS]):

@@ -6,6 +6,7 @@ from pathlib import Path
 
 from tuner.cli.log import log
 from tuner.vehicle.compare import VEHICLE_FOLDER
+from tuner import strict_json
 
 __all__ = ["end_summary", "print_table3"]
 
@@ -13,10 +14,10 @@ __all__ = ["end_summary", "print_table3"]
 def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
     """Write ``summary.json`` and print the end-of-run summary once, after everything is written:
     verdict, causes, validation AME per test and model, quality gate, where the report and FMUs are."""
-    metrics = json.loads((out / "metrics.json").read_text()) if (out / "metrics.json").exists() else {}
-    diag = json.loads((out / "diagnosis.json").read_text()) if (out / "diagnosis.json").exists() else {}
+    metrics = strict_json.loads((out / "metrics.json").read_text()) if (out / "metrics.json").exists() else {}
+    diag = strict_json.loads((out / "diagnosis.json").read_text()) if (out / "diagnosis.json").exists() else {}
     vpath = out / VEHICLE_FOLDER / "vehicle.json"
-    vehicle = json.loads(vpath.read_text()) if vpath.exists() else {}
+    vehicle = strict_json.loads(vpath.read_text()) if vpath.exists() else {}
     ame = {}
     for name, t in (metrics.get("tests") or {}).items():
         if t.get("role") == "validation":
@@ -36,7 +37,7 @@ def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
         "total_time_s": seconds, "output_folder": str(out),
     }
     tmp = out / "summary.json.tmp"
-    tmp.write_text(json.dumps(summary, indent=1, default=str))
+    tmp.write_text(strict_json.dumps(summary, indent=1))
     tmp.replace(out / "summary.json")
     lines = ["", "=" * 72, f"done in {seconds / 60:.1f} min: {out}"]
     for m, q in summary["quality"].items():

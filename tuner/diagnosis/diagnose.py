@@ -53,9 +53,11 @@ damper.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import time
+import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -76,12 +78,13 @@ from tuner.formatting import fmt_quantity
 from tuner.identification.engine import Engine
 from tuner.identification.fit import RACE_RATIO, FitSettings, identify, initial_guess, validation_run
 from tuner.identification.parametrization import Parametrization
+from tuner import strict_json
 from tuner.identification.polish import polish
 from tuner.identification.problem import DataSettings, Problem
 from tuner.metrics import pooled_mse
 from tuner.progress import advance
 
-__all__ = ["DiagnosisSettings", "diagnose", "decide", "cross_check", "choose_base", "CANDIDATES", "BASE_MODELS",
+__all__ = ["DiagnosisSettings", "DiagnosisFailed", "diagnose", "decide", "cross_check", "choose_base", "CANDIDATES", "BASE_MODELS",
            "ExtendedParametrization"]
 
 #: the candidate causes: the effect catalogue of the design notes (parameters.CATALOGUE_EFFECTS); the forms
@@ -399,6 +402,19 @@ def decide(ranking: list[dict]) -> tuple[str, dict, list[dict]]:
     return "none", next((r for r in ranking if r["effect"] == "none"), ranking[0]), rejected
 
 
+class DiagnosisFailed(RuntimeError):
+    """A stage of the diagnosis raised. ``stage`` names it (e.g. 'forms beyond the catalogue on the lumped
+    base'); ``path`` is the ``diagnosis.json`` written with what was finished (``failed_stage``, the error,
+    the ranking so far); the original exception is chained (``__cause__``). ``--resume`` continues from
+    the last finished stage."""
+
+    def __init__(self, stage: str, path: Path, error: BaseException):
+        super().__init__(f"the diagnosis failed in its stage '{stage}': {type(error).__name__}: {error}. What it "
+                         f"had finished is in {path}; run the same command with --resume to continue from the last "
+                         f"finished stage")
+        self.stage, self.path = stage, path
+
+
 def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path,
              settings: DiagnosisSettings | None = None, *, base_params: dict | None = None,
              base_model: str | None = None, base_choice: dict | None = None,
@@ -416,30 +432,59 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     the floor (a large effect can make both bare bases fit badly, and then the wrong form may win),
     it is repeated on the other base forms that can plausibly win (bare held-out RMSE within
     ``RACE_RATIO`` x the first's; not at all when the first base's refit did not converge) and the
-    final model with the lowest held-out MSE is kept; ``base_choice['not_repeated_on']`` says why not."""
+    final model with the lowest held-out MSE is kept; ``base_choice['not_repeated_on']`` says why not.
+
+    Stages: the base identification (its Firefly state checkpointed every iteration), the diagnosis on
+    each base form (checkpointed when finished: ``checkpoints/diagnosis_<kind>.json``), the export. A
+    stage that raises leaves ``diagnosis.json`` with ``failed_stage``, the error and what was finished,
+    and raises ``DiagnosisFailed``; called again on the same folder, finished stages are taken from
+    their checkpoints (checkpoints of other data or settings are refused: ValueError)."""
     settings = settings or DiagnosisSettings()
     if not identification or not validation:
         raise ValueError("the diagnosis needs identification AND validation tests (the decision is held-out gain)")
     out = Path(out)
     (out / "checkpoints").mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
-    if problem is None:
-        problem = Problem.build(identification, validation, settings.data())
-    elif [t.name for t in problem.identification] != [t.name for t in identification] or \
-            [t.name for t in problem.validation] != [t.name for t in validation]:
-        raise ValueError("diagnose: the problem given was built from other tests")
-    elif (problem.settings.fit_rate_hz, problem.settings.warmup_s) != (settings.fit_rate_hz, settings.warmup_s):
-        raise ValueError(f"diagnose: the problem was prepared at {problem.settings.fit_rate_hz:g} Hz with "
-                         f"{problem.settings.warmup_s:g} s warm-up, the settings ask for {settings.fit_rate_hz:g} Hz "
-                         f"and {settings.warmup_s:g} s")
-    data, sig_id, sig_val = problem, problem.sig_id, problem.sig_val
+    problem = _checked_problem(problem, identification, validation, settings)
     # force noise in the fit band (``tuner.data.noise``: the cycle-to-cycle scatter of periodic tests,
     # else the quiet band of the force's spectrum; the base model's residual is no better a source: its
     # model-form error is broadband at the velocity reversals, measured 10x the noise on lumped-damper
     # data). An effect whose force is below it is not resolved; when the estimate is not credible the
     # residual is not compared with the floor (``_diagnose_on``).
     log(f"diagnosis: force measurement noise: {problem.noise.get('text') or f'{problem.noise_n:.3g} N rms'}")
+    record = {"stage": "base identification", "finished": [], "partial": None, "base_choice": base_choice}
+    try:
+        result = _diagnose_stages(problem, out, settings, base_params, base_model, base_choice, other_bases,
+                                  record, log)
+    except Exception as err:  # recorded, then raised again: a failed stage is never a result
+        path = _write_failure(out, record, err, settings, problem, time.perf_counter() - t_start)
+        log(f"diagnosis: FAILED in its stage '{record['stage']}': {type(err).__name__}: {err}")
+        raise DiagnosisFailed(record["stage"], path, err) from err
+    result["settings"] = _settings_record(settings, problem, time.perf_counter() - t_start)
+    (out / "diagnosis.json").write_text(strict_json.dumps(result, indent=2))
+    log(result["verdict"])
+    return result
 
+
+def _checked_problem(problem: Problem | None, identification, validation, settings) -> Problem:
+    """The prepared tests: ``problem`` when it was built from these tests at the settings' rate, else
+    built here (ValueError for one of other tests or rates)."""
+    if problem is None:
+        return Problem.build(identification, validation, settings.data())
+    if [t.name for t in problem.identification] != [t.name for t in identification] or \
+            [t.name for t in problem.validation] != [t.name for t in validation]:
+        raise ValueError("diagnose: the problem given was built from other tests")
+    if (problem.settings.fit_rate_hz, problem.settings.warmup_s) != (settings.fit_rate_hz, settings.warmup_s):
+        raise ValueError(f"diagnose: the problem was prepared at {problem.settings.fit_rate_hz:g} Hz with "
+                         f"{problem.settings.warmup_s:g} s warm-up, the settings ask for {settings.fit_rate_hz:g} Hz "
+                         f"and {settings.warmup_s:g} s")
+    return problem
+
+
+def _identified_bases(problem: Problem, out: Path, settings: DiagnosisSettings, base_params, base_model,
+                      base_choice, other_bases, log) -> tuple[str, dict, dict | None]:
+    """(the first base kind, {kind: (Parametrization, values)} in the order tried, how it was chosen): the
+    bases given (``base_params`` of ``base_model`` and ``other_bases``), or identified here."""
     def parametrization(kind: str, given: dict | None) -> Parametrization:
         # the local solver needs monotone tables: the 'improved' scheme whatever the fit used
         return problem.parametrization(kind, fixed_from=given, scheme="improved")
@@ -449,54 +494,55 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
         bases = {kind: (parametrization(kind, base_params), base_params)}
         bases.update({k: (parametrization(k, v), v) for k, v in (other_bases or {}).items()
                       if k != kind and k in EFFECT_MODELS})
-    else:
-        kinds = BASE_MODELS if settings.base_model == "auto" else (settings.base_model,)
-        unknown = [k for k in kinds if k not in EFFECT_MODELS]
-        if unknown:
-            raise ValueError(f"base model {unknown[0]!r}: choose 'auto' or one of {', '.join(EFFECT_MODELS)}")
-        fitted = {}
-        for kind in kinds:
-            par_k = parametrization(kind, None)
-            log(f"diagnosis: identifying the base {kind} model ...")
-            fs = FitSettings(models=(kind,), fit_rate_hz=settings.fit_rate_hz, warmup_s=settings.warmup_s,
-                             iterations=settings.base_iterations, workers=settings.workers, seed=settings.seed,
-                             engine=settings.engine, polish_jacobians=settings.base_polish_jacobians)
-            values, _ = identify(kind, sig_id, fs, par_k, out / "checkpoints" / f"diagnosis_base_{kind}.json",
-                                 problem.digest, log)
-            fitted[kind] = (par_k, values, _pooled_mse(kind, values, sig_val, settings.engine))
-        kind = min(fitted, key=lambda k: fitted[k][2])
-        bases = {k: fitted[k][:2] for k in sorted(fitted, key=lambda k: fitted[k][2])}
-        base_choice = {"chosen": kind, "by": "held-out MSE of the identified base models (Table 3 definition)",
-                       "validation_mse": {k: v[2] for k, v in fitted.items()}}
-        if len(fitted) > 1:
-            log("diagnosis: base form " + kind + " (held-out MSE " + ", ".join(
-                f"{k} {math.sqrt(v[2]):.1f} N rms" for k, v in fitted.items()) + ")")
+        return kind, bases, base_choice
+    kinds = BASE_MODELS if settings.base_model == "auto" else (settings.base_model,)
+    unknown = [k for k in kinds if k not in EFFECT_MODELS]
+    if unknown:
+        raise ValueError(f"base model {unknown[0]!r}: choose 'auto' or one of {', '.join(EFFECT_MODELS)}")
+    fitted = {}
+    for kind in kinds:
+        par_k = parametrization(kind, None)
+        log(f"diagnosis: identifying the base {kind} model ...")
+        fs = FitSettings(models=(kind,), fit_rate_hz=settings.fit_rate_hz, warmup_s=settings.warmup_s,
+                         iterations=settings.base_iterations, workers=settings.workers, seed=settings.seed,
+                         engine=settings.engine, polish_jacobians=settings.base_polish_jacobians)
+        values, _ = identify(kind, problem.sig_id, fs, par_k, out / "checkpoints" / f"diagnosis_base_{kind}.json",
+                             problem.digest, log)
+        fitted[kind] = (par_k, values, _pooled_mse(kind, values, problem.sig_val, settings.engine))
+    kind = min(fitted, key=lambda k: fitted[k][2])
+    bases = {k: fitted[k][:2] for k in sorted(fitted, key=lambda k: fitted[k][2])}
+    base_choice = {"chosen": kind, "by": "held-out MSE of the identified base models (Table 3 definition)",
+                   "validation_mse": {k: v[2] for k, v in fitted.items()}}
+    if len(fitted) > 1:
+        log("diagnosis: base form " + kind + " (held-out MSE " + ", ".join(
+            f"{k} {math.sqrt(v[2]):.1f} N rms" for k, v in fitted.items()) + ")")
+    return kind, bases, base_choice
 
-    runs = {kind: _diagnose_on(kind, *bases[kind], data, settings, out, "figures", log)}
+
+def _diagnose_stages(problem: Problem, out: Path, settings: DiagnosisSettings, base_params, base_model, base_choice,
+                     other_bases, record: dict, log) -> dict:
+    """The stages of ``diagnose`` after the inputs were checked; ``record`` follows them (the stage
+    running, the stages finished, what the running one has so far) for a failure report."""
+    kind, bases, base_choice = _identified_bases(problem, out, settings, base_params, base_model, base_choice,
+                                                 other_bases, log)
+    record["base_choice"] = base_choice
+    record["finished"].append("base identification")
+    runs = {kind: _checkpointed_run(kind, bases[kind], problem, settings, out, "figures", record, log)}
     skipped = {}
     for other in [k for k in bases if k != kind]:
-        first_run = runs[kind]
-        left = first_run["unexplained"]
+        left = runs[kind]["unexplained"]
         if left is None:
             break
-        if left.get("fit_converged") is False:
-            skipped[other] = "the first base's refit did not converge: its residual is no evidence of a wrong form"
-            log(f"diagnosis: the {kind} base leaves {left['ratio']:.1f} x the residual floor, but its refit did not "
-                f"converge: not repeated on the {other} base (an unfinished fit is no evidence of a wrong form)")
-            continue
-        # the other form can plausibly win only if its bare fit was not clearly worse (the fit's race rule)
-        rmse_first = math.sqrt(first_run["base_validation_mse"])
-        rmse_other = math.sqrt(_pooled_mse(other, bases[other][1], sig_val, settings.engine))
-        if rmse_other > RACE_RATIO * rmse_first:
-            skipped[other] = (f"its bare fit validates at {rmse_other:.3g} N rms, {rmse_other / rmse_first:.1f} x "
-                              f"the {kind} base's {rmse_first:.3g} N (more than {RACE_RATIO:g} x: it cannot "
-                              f"plausibly win)")
+        why = _why_not_repeated(kind, other, runs[kind], bases[other][1], problem, settings)
+        if why:
+            skipped[other] = why
             log(f"diagnosis: the {kind} base leaves {left['ratio']:.1f} x the residual floor; not repeated on the "
-                f"{other} base: {skipped[other]}")
+                f"{other} base: {why}")
             continue
         log(f"diagnosis: the {kind} base leaves {left['ratio']:.1f} x the residual floor: "
             f"repeated on the {other} base (the base is chosen again by the final models' held-out MSE)")
-        runs[other] = _diagnose_on(other, *bases[other], data, settings, out, f"figures/base_{other}", log)
+        runs[other] = _checkpointed_run(other, bases[other], problem, settings, out, f"figures/base_{other}", record,
+                                        log)
     if skipped:
         base_choice = {**(base_choice or {}), "not_repeated_on": skipped}
     if len(runs) > 1:
@@ -510,20 +556,93 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
             f"{k} {math.sqrt(v):.1f} N rms" for k, v in final.items()) + ")")
     run = runs[kind]
     result = {k: v for k, v in run.items() if k not in ("after_params", "final_validation_mse", "base_validation_mse")}
-    result["settings"] = {**{k: v for k, v in settings.__dict__.items() if k != "extra"},
-                          "penalty_per_parameter": PENALTY_PER_PARAMETER, "accept_score": ACCEPT_SCORE,
-                          "unexplained_ratio": UNEXPLAINED_RATIO, "min_blocks": MIN_BLOCKS,
-                          "problem": {"data_settings": problem.settings.__dict__, "force_limit_n_used": problem.force_limit_n,
-                                      "table_abscissae": problem.axes},
-                          "elapsed_s": time.perf_counter() - t_start}
     result["base_choice"] = base_choice
-    (out / "diagnosis.json").write_text(json.dumps(result, indent=2, default=_json_default))
     if run["causes"]:
+        record["stage"] = "export of the extended FMU"
         path = build(kind, out / "fmu", start_values=run["after_params"],
                      filename=f"{SLAVES[kind]}_{'_'.join(run['causes'])}_tuned.fmu")
         log(f"extended model exported: {path}")
-    log(result["verdict"])
     return result
+
+
+def _why_not_repeated(kind: str, other: str, first_run: dict, other_values: dict, problem: Problem,
+                      settings: DiagnosisSettings) -> str | None:
+    """Why the diagnosis is not repeated on the ``other`` base after the ``kind`` one left a residual
+    above the floor (None: it is repeated)."""
+    if first_run["unexplained"].get("fit_converged") is False:
+        return "the first base's refit did not converge: its residual is no evidence of a wrong form"
+    # the other form can plausibly win only if its bare fit was not clearly worse (the fit's race rule)
+    rmse_first = math.sqrt(first_run["base_validation_mse"])
+    rmse_other = math.sqrt(_pooled_mse(other, other_values, problem.sig_val, settings.engine))
+    if rmse_other > RACE_RATIO * rmse_first:
+        return (f"its bare fit validates at {rmse_other:.3g} N rms, {rmse_other / rmse_first:.1f} x "
+                f"the {kind} base's {rmse_first:.3g} N (more than {RACE_RATIO:g} x: it cannot plausibly win)")
+    return None
+
+
+def _checkpointed_run(kind: str, base: tuple, problem: Problem, settings: DiagnosisSettings, out: Path,
+                      figures_sub: str, record: dict, log) -> dict:
+    """The diagnosis on the ``kind`` base (``_diagnose_on``), or its checkpoint from an earlier call on the
+    same data, settings and base values (``checkpoints/diagnosis_<kind>.json``, written when it finishes;
+    one of other data or settings: ValueError)."""
+    path = out / "checkpoints" / f"diagnosis_{kind}.json"
+    key = _digest([problem.digest, kind, {k: v for k, v in settings.__dict__.items() if k not in ("workers", "extra")}])
+    base_key = _digest(base[1])
+    if path.exists():
+        saved = strict_json.loads(path.read_text())
+        if saved.get("key") != key:
+            raise ValueError(f"{path} was written with other data or settings; start a new output folder")
+        if saved.get("base_key") == base_key:
+            log(f"diagnosis: the {kind} base's diagnosis was finished before: taken from {path}")
+            record["finished"].append(f"diagnosis on the {kind} base")
+            return saved["run"]
+        log(f"diagnosis: {path} holds the diagnosis of other {kind} base values (a refit since): diagnosed again")
+    record["stage"] = f"diagnosis on the {kind} base"
+    record["partial"] = {"base_model": kind}
+    run = _diagnose_on(kind, *base, problem, settings, out, figures_sub, log, record)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(strict_json.dumps({"key": key, "base_key": base_key, "run": run}))
+    tmp.replace(path)
+    record["finished"].append(f"diagnosis on the {kind} base")
+    record["partial"] = None
+    return strict_json.loads(path.read_text())["run"]  # the same values as a resumed run gets
+
+
+def _digest(value) -> str:
+    """A SHA-256 of ``value``'s JSON (keys sorted): what a checkpoint was made from."""
+    return hashlib.sha256(json.dumps(value, sort_keys=True, default=_json_default).encode()).hexdigest()
+
+
+def _settings_record(settings: DiagnosisSettings, problem: Problem, elapsed_s: float) -> dict:
+    """The settings block of ``diagnosis.json``: the run's settings, the decision rules, the problem."""
+    return {**{k: v for k, v in settings.__dict__.items() if k != "extra"},
+            "penalty_per_parameter": PENALTY_PER_PARAMETER, "accept_score": ACCEPT_SCORE,
+            "unexplained_ratio": UNEXPLAINED_RATIO, "min_blocks": MIN_BLOCKS,
+            "problem": {"data_settings": problem.settings.__dict__, "force_limit_n_used": problem.force_limit_n,
+                        "table_abscissae": problem.axes},
+            "elapsed_s": elapsed_s}
+
+
+def _write_failure(out: Path, record: dict, err: BaseException, settings: DiagnosisSettings, problem: Problem,
+                   elapsed_s: float) -> Path:
+    """``diagnosis.json`` of a diagnosis that failed in ``record['stage']``: no verdict, the error and its
+    traceback, the stages finished, and what the failing stage had (the ranking so far, the causes named so
+    far); an earlier diagnosis.json is kept as ``diagnosis.previous.json`` (nothing is lost)."""
+    partial = record.get("partial") or {}
+    failure = {"failed_stage": record["stage"], "error": f"{type(err).__name__}: {err}",
+               "traceback": traceback.format_exception(err), "finished_stages": record["finished"],
+               "cause": None, "causes": list(partial.get("causes") or []),
+               "verdict": (f"no verdict: the diagnosis failed in its stage '{record['stage']}' "
+                           f"({type(err).__name__}: {err}); run the same command with --resume to continue"),
+               "base_model": partial.get("base_model"), "base_choice": record.get("base_choice"),
+               "ranking": list(partial.get("ranking") or []), "selection": list(partial.get("selection") or []),
+               "forms_tried": partial.get("forms_tried"),
+               "settings": _settings_record(settings, problem, elapsed_s)}
+    path = out / "diagnosis.json"
+    if path.exists():
+        path.replace(out / "diagnosis.previous.json")
+    path.write_text(strict_json.dumps(failure, indent=2))
+    return path
 
 
 def _score(mse: float, mse_ref: float, n_params: int) -> float:
@@ -540,10 +659,19 @@ def _rescore(rows: list[dict], mse_ref: float) -> None:
 
 
 def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Problem, settings: DiagnosisSettings,
-                 out: Path, figures_sub: str, log) -> dict:
+                 out: Path, figures_sub: str, log, record: dict | None = None) -> dict:
     """The diagnosis on one base form (steps 2-5 of the module docstring; figures into ``out /
     figures_sub``): the result fields of ``diagnosis.json`` for it, plus ``after_params`` (the final
-    model's values) and ``final_validation_mse`` [N^2] (pooled, Table 3 definition)."""
+    model's values) and ``final_validation_mse`` [N^2] (pooled, Table 3 definition). ``record`` (as
+    ``_diagnose_stages``) follows its stages: 'stage' names the one running, 'partial' holds the
+    ranking, selection steps, causes and forms tried so far (the live lists)."""
+    record = record if record is not None else {}
+    record.setdefault("partial", {})
+
+    def at(stage: str) -> None:
+        record["stage"] = f"{stage} on the {kind} base"
+
+    at("residual analysis")
     identification, prep_id, prep_val = data.identification, data.prep_id, data.prep_val
     sig_id, sig_val, peak, stroke_range, noise = data.sig_id, data.sig_val, data.peak_n, data.stroke_range_m, data.noise_n
     stroke_limits = (min(float(s.stroke[s.mask].min()) for s in sig_id),
@@ -632,6 +760,8 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
             return bool(info["converged"] or (credible and not info["budget_spent"]
                                               and reachable > UNEXPLAINED_RATIO * floor))
 
+        at("candidate refits")
+        record["partial"]["ranking"] = ranking
         jac_base = base_jacobian(eid, par, par.from_params(base))  # shared by every candidate
         # 'none' is a candidate like the others: the base model refitted from the same starts with
         # the same local effort (an unfinished base fit would otherwise be credited to any effect)
@@ -720,6 +850,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
                 + f"{none_row['identification_rmse_n']:.1f} N)")
             promote([lead["effect"]])
         advance(log, 0.8)
+        at("intervals of the candidates")
         # significance: a confidence interval of the magnitude (correlated residuals: block
         # sandwich) for every extension that earned its score with a force above the noise
         for row in ranking:
@@ -744,6 +875,8 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
         ranking.append(none_row)
         cause, best, unresolved = decide(ranking)
         causes, selection = ([cause] if cause != "none" else []), []
+        at("forward selection")
+        record["partial"].update(causes=causes, selection=selection)
         # forward selection: add the best significant effect to the causes found, refit, repeat
         while causes and len(causes) < settings.max_causes:
             step = _next_cause(eid, par, peak, refits["+".join(causes)], best, ranking, evidence, settings,
@@ -760,6 +893,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
         # its first-order test holds (or the cap, reported)
         if (credible and not causes and none_row["identification_rmse_n"] > UNEXPLAINED_RATIO * floor
                 and settings.final_jacobians > 0 and "" not in converged_fits):
+            at("base refit continued")
             z_c, g_c, n, info = polish(eid, par, z_none, max_jacobians=settings.final_jacobians, log=lambda m: None)
             converged_fits[""] = settled(info, g_c)
             log(f"  none           base refit continued before any 'unexplained': identification RMSE "
@@ -783,6 +917,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
                 and converged_fits.get(key) is not False):
             current = refits[key][0].to_params(refits[key][1]) if causes else par.to_params(z_none)
             current_row = best if causes else none_row
+            at("forms beyond the catalogue")
             form_step = _try_forms(eid, par, current, current_row, causes, peak, stroke_range, stroke_limits, floor,
                                    evidence.get("knee_velocity"), settings, share, _held_out, settled, log)
             if form_step["form"] is not None:
@@ -793,6 +928,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
                 best = form_step["row"]
                 if cause in ("none", "unexplained"):
                     cause = form_step["form"]
+        at("detection limits")
         limits = _detection(eid, ev, par, z_none, [e for e in settings.candidates if e not in causes], peak,
                             stroke_range, mse_none, noise, lengths, [s.name for s in sig_val], log)
 
@@ -810,6 +946,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
     # reported before/after figures: the validation definition of Table 3 (tuner.identification.fit.validation_run:
     # the FMU at its own steps), so that "before" is the Table 3 figure of the same base model
     after_params = refits[key][0].to_params(refits[key][1]) if causes else base
+    at("validation before and after")
     validation, base_metrics, final_metrics = _before_after(kind, base, after_params if causes else None, sig_val,
                                                             settings.engine)
     effect_parameters = _effect_parameters(best) if causes else {}

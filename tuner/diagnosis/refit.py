@@ -127,12 +127,18 @@ def refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: float
     evaluations).
 
     Line search: for each grid value, the effect parameter is set with the base fixed, then the
-    base is re-balanced (what it had absorbed of the effect) by Levenberg-Marquardt steps with the
-    base Jacobian ``jac_svd`` at z0 kept fixed (at most ``profile_steps`` batches, while the fit
+    current model is re-balanced (what it had absorbed of the effect) by Levenberg-Marquardt steps
+    with its Jacobian ``jac_svd`` at z0 kept fixed (at most ``profile_steps`` batches, while the fit
     improves by more than 1 %; none when ``jac_svd`` is None); the best point seen starts the
-    polish.
+    polish. The Jacobian covers the first coordinates of ``ext`` that the current model has: the base
+    alone, or the base and the effects already selected (a form tried on top of named causes), as
+    many as its columns.
     """
     dim = ext.base.dimension
+    if jac_svd is not None and not dim <= jac_svd[2].shape[1] <= ext.dimension:
+        raise ValueError(f"refit: a Jacobian of {jac_svd[2].shape[1]} columns for a model of {dim} base and "
+                         f"{ext.dimension - dim} effect coordinates")
+    balanced = jac_svd[2].shape[1] if jac_svd is not None else dim  # the coordinates the LM steps move
     pts = []
     for i, (lo, hi) in enumerate(ext.extra_bounds):
         if profile is not None and i not in profile:  # kept at its value in z0 during the profile
@@ -152,7 +158,7 @@ def refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: float
             trial = []
             for z, r, _, lam in active:
                 zc = z.copy()
-                zc[:dim] = np.clip(z[:dim] - vt.T @ ((sv / (sv * sv + lam)) * (u.T @ r)), 0.0, 1.0)
+                zc[:balanced] = np.clip(z[:balanced] - vt.T @ ((sv / (sv * sv + lam)) * (u.T @ r)), 0.0, 1.0)
                 trial.append(zc)
             res_t = eid.residuals_batch([ext.to_params(z) for z in trial])
             evals += len(trial)

@@ -8,8 +8,8 @@ reversal, so the textbook interval is far too narrow and would make any effect "
     Cov = (J^T J)^+ [ sum over blocks b of (J_b^T r_b)(J_b^T r_b)^T ] (J^T J)^+
 
 with contiguous blocks (within one test) several residual correlation times long: the analytic
-counterpart of a residual block bootstrap. ``correlation_time`` gives that time from the
-residual's autocorrelation.
+counterpart of a residual block bootstrap. ``correlation_time`` (``tuner.metrics``, the one definition)
+gives that time from the residual's autocorrelation.
 
 Units: J [N per scaled unit], r [N]; covariances in scaled units^2 (the caller converts).
 """
@@ -19,26 +19,12 @@ import math
 
 import numpy as np
 
+from tuner.metrics import correlation_time
+
 __all__ = ["correlation_time", "block_sandwich", "interval", "Z95"]
 
 #: two-sided 95 % normal quantile
 Z95 = 1.959963984540054
-
-
-def correlation_time(r: np.ndarray, max_lag: int | None = None) -> float:
-    """Integrated autocorrelation time [samples] of ``r``: 1 + 2 sum of the autocorrelation up to
-    its first drop below 0.05 (>= 1; white noise gives ~1)."""
-    r = np.asarray(r, dtype=float) - float(np.mean(r))
-    n = r.size
-    if n < 4 or not np.any(r):
-        return 1.0
-    max_lag = min(n // 4, max_lag or n // 4)
-    spec = np.fft.rfft(r, 2 * n)
-    acf = np.fft.irfft(spec * np.conj(spec))[:max_lag + 1]
-    acf = acf / acf[0]
-    below = np.nonzero(acf[1:] < 0.05)[0]
-    k = int(below[0]) if below.size else max_lag
-    return max(1.0, 1.0 + 2.0 * float(np.sum(acf[1:k + 1])))
 
 
 def block_sandwich(jac: np.ndarray, r: np.ndarray, lengths: list[int], block: int) -> tuple[np.ndarray, int]:

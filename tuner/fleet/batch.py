@@ -22,6 +22,7 @@ from tuner.fleet.executors import FleetExecutor
 from tuner.fleet.manifest import Row, check_setting, read_fleet_manifest
 from tuner.identification.fit import FitSettings
 from tuner.results.fleet_summary import OUTLIER_K, OUTLIER_TOLERANCE, write_atomic, write_summary
+from tuner import strict_json
 
 __all__ = ["run_row", "run_batch", "ROW_FORMAT"]
 
@@ -77,13 +78,13 @@ def _load_row_data(task: dict):
 
 def _record(task: dict, folder: Path, started: str, elapsed: float, log_lines: int) -> dict:
     """done.json content: what the fleet summary needs, read from the fit's output files."""
-    params = json.loads((folder / "parameters.json").read_text())
-    metrics = json.loads((folder / "metrics.json").read_text())
+    params = strict_json.loads((folder / "parameters.json").read_text())
+    metrics = strict_json.loads((folder / "metrics.json").read_text())
     rmse, noise = {}, None
     for m in params:
         h = folder / f"history_{m}.json"
         if h.exists():
-            hist = json.loads(h.read_text())
+            hist = strict_json.loads(h.read_text())
             rmse[m] = hist.get("identification_rmse_n")
             noise = hist.get("noise_floor_n", noise)
     validation = {}
@@ -94,7 +95,7 @@ def _record(task: dict, folder: Path, started: str, elapsed: float, log_lines: i
     diag = None
     dj = folder / "diagnosis.json"
     if task["diagnose"] and dj.exists():
-        d = json.loads(dj.read_text())
+        d = strict_json.loads(dj.read_text())
         diag = {"cause": d.get("cause"), "causes": d.get("causes", []), "verdict": d.get("verdict", "")}
     return {"format": ROW_FORMAT, "key": task["key"], "id": task["id"], "damper_id": task["damper_id"],
             "session": task["session"], "type": task["type"], "row": task["row"], "status": "done",
@@ -117,7 +118,7 @@ def run_row(task: dict) -> dict:
     folder = Path(task["folder"])
     started, t0 = _now(), time.perf_counter()
     folder.mkdir(parents=True, exist_ok=True)
-    write_atomic(folder / "row.json", json.dumps({k: v for k, v in task.items()}, indent=1, default=str))
+    write_atomic(folder / "row.json", strict_json.dumps({k: v for k, v in task.items()}, indent=1))
     logf = open(folder / "log.txt", "a", encoding="utf-8")
     n_lines = 0
 
@@ -147,7 +148,7 @@ def run_row(task: dict) -> dict:
                                  f"in 'models'")
         job.run(ident, valid, folder, settings, diagnose_after=task["diagnose"], provenance=provenance, log=log)
         rec = _record(task, folder, started, time.perf_counter() - t0, n_lines)
-        write_atomic(folder / "done.json", json.dumps(rec, indent=1, sort_keys=True))
+        write_atomic(folder / "done.json", strict_json.dumps(rec, indent=1, sort_keys=True))
         (folder / "failed.json").unlink(missing_ok=True)
         log(f"{_now()} done in {rec['elapsed_s']:.1f} s")
         return rec
@@ -166,7 +167,7 @@ def _failure(task: dict, err: BaseException, tb: str, started: str, elapsed: flo
            "error": msg, "traceback": tb, "started_at": started, "finished_at": _now(), "elapsed_s": elapsed,
            "host": socket.gethostname(), "pid": os.getpid()}
     try:
-        write_atomic(Path(task["folder"]) / "failed.json", json.dumps(rec, indent=1))
+        write_atomic(Path(task["folder"]) / "failed.json", strict_json.dumps(rec, indent=1))
     except OSError:
         pass  # the record still goes back to the batch and into its log and summary
     return rec
@@ -182,7 +183,7 @@ def _done_record(folder: Path) -> dict | None:
     if not p.exists():
         return None
     try:
-        return json.loads(p.read_text())
+        return strict_json.loads(p.read_text())
     except (json.JSONDecodeError, OSError):
         return None  # unreadable: the row is redone
 

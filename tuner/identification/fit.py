@@ -43,6 +43,7 @@ from tuner.identification.polish import polish
 from tuner.identification.problem import DataSettings, Problem, to_signals
 from tuner.metrics import error_metrics, noise_std
 from tuner.progress import advance, stage
+from tuner import strict_json
 
 __all__ = ["FitSettings", "FitResult", "fit", "initial_guess", "validation_run", "identify", "quality_gate", "QUALITY_AME_PCT",
            "RACE_RATIO", "RESTART_LADDER"]
@@ -160,7 +161,7 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
     key = _settings_hash(settings, digest, model)
     state = None
     if ckpt.exists():
-        saved = json.loads(ckpt.read_text())
+        saved = strict_json.loads(ckpt.read_text())
         if saved.get("key") != key:
             raise ValueError(f"{ckpt} was written with other settings or data; start a new output folder")
         state = firefly.FireflyState.from_dict(saved["state"])
@@ -185,7 +186,7 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
             if st.iteration == 0 and "pop" not in first_population:
                 first_population["pop"] = st.population.copy()
             tmp = ckpt.with_suffix(".tmp")
-            tmp.write_text(json.dumps({"key": key, "state": st.to_dict(),
+            tmp.write_text(strict_json.dumps({"key": key, "state": st.to_dict(),
                                        "initial_population": (first_population.get("pop", st.population)).tolist()}))
             tmp.replace(ckpt)
             el = time.perf_counter() - t_start
@@ -199,12 +200,13 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
             return False
 
         if state is not None and ckpt.exists():
-            first_population["pop"] = np.array(json.loads(ckpt.read_text()).get("initial_population"))
+            first_population["pop"] = np.array(strict_json.loads(ckpt.read_text()).get("initial_population"))
         result = firefly.run(evaluate, par.dimension, options=opts, seed=settings.seed, state=state,
                              callback=callback, initial=initial)
         z_best, g_best, polish_evals = result.x_best, result.fitness_best, 0
         last_failure = eng.last_failure
-        polish_info = {"fitness": [], "stop": "no local refinement (--polish 0)", "converged": False, "jacobians": 0}
+        polish_info = {"fitness": [], "stop": "no local refinement (--polish 0)", "converged": False, "jacobians": 0,
+                       "rule": "not started"}
         local_runs, race = [], None
         if settings.polish_jacobians > 0:
             # restarts: the Firefly population often collapses into one basin, on random dampers sometimes
@@ -230,7 +232,8 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
                 z, g, n_ev, info = polish(eng, par, z0, max_jacobians=settings.polish_jacobians, log=log)
                 polish_evals += n_ev
                 local_runs.append({"start": label, "rmse_n": 1.0 / math.sqrt(g) if g > 0 else math.inf,
-                                   "converged": info["converged"], "jacobians": info["jacobians"], "stop": info["stop"]})
+                                   "converged": info["converged"], "rule": info["rule"], "jacobians": info["jacobians"],
+                                   "stop": info["stop"]})
                 log(f"[{model}] local refinement from the {label}: RMSE {local_runs[-1]['rmse_n']:.2f} N, {info['stop']}")
                 if not local_runs[:-1] or g > g_best:  # polish never returns a point worse than its start
                     z_best, g_best, polish_info = z, g, info
@@ -258,6 +261,7 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         "firefly_best_fitness": float(result.fitness_best),
         "polish_fitness": list(map(float, polish_info["fitness"])),
         "polish_stop": polish_info["stop"],
+        "polish_rule": polish_info.get("rule", "not started"),  # tuner.identification.polish: what ended it
         "polish_jacobians": int(polish_info["jacobians"]),
         "local_refinements": local_runs,
         "race": race,  # None, or the restarts skipped as a clearly wrong form (RACE_RATIO)
@@ -365,14 +369,14 @@ class FitResult:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         for model, hist in self.histories.items():
-            (out / f"history_{model}.json").write_text(json.dumps(hist, indent=1))
-        (out / "parameters.json").write_text(json.dumps(self.params, indent=2, sort_keys=True))
+            (out / f"history_{model}.json").write_text(strict_json.dumps(hist, indent=1))
+        (out / "parameters.json").write_text(strict_json.dumps(self.params, indent=2, sort_keys=True))
         np.savez_compressed(out / "simulations.npz", **self.simulations)
         self.write_metrics(out)
 
     def write_metrics(self, out: Path) -> None:
         """metrics.json into ``out`` (again after a later stage added to ``metrics``)."""
-        (Path(out) / "metrics.json").write_text(json.dumps(self.metrics, indent=2, sort_keys=True, default=str))
+        (Path(out) / "metrics.json").write_text(strict_json.dumps(self.metrics, indent=2, sort_keys=True))
 
 
 def fit(identification: list[RigTest], validation: list[RigTest], settings: FitSettings, *,

@@ -2,12 +2,12 @@
 validation before and after, evidence) and the report of a diagnosis on its own."""
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 from tuner.formatting import effect_value, fmt_quantity
 from tuner.results.html import MODEL_LABEL, esc, table, write_page
+from tuner import strict_json
 
 
 __all__ = ["diagnosis_section_html", "make_diagnosis_report", "detection_html"]
@@ -43,7 +43,9 @@ def diagnosis_section_html(out_dir) -> str:
     path = Path(out_dir) / "diagnosis.json"
     if not path.exists():
         return ""
-    d = json.loads(path.read_text())
+    d = strict_json.loads(path.read_text())
+    if d.get("failed_stage"):
+        return _failure_html(d)
     e = html.escape
     causes = d.get("causes") or ([d["cause"]] if d["cause"] not in ("none", "unexplained") else [])
 
@@ -152,3 +154,22 @@ def diagnosis_section_html(out_dir) -> str:
         + (f"<h3>Residual evidence (base model)</h3><ul>{ev_rows}</ul>" if ev_rows else "")
         + detection_html(d.get("detection_limits") or {})
         + figs + "</section>")
+
+
+def _failure_html(d: dict) -> str:
+    """The diagnosis section of a diagnosis that failed in a stage (``diagnosis.json`` with ``failed_stage``):
+    no verdict, the stage, the error, the stages finished and the candidates refitted so far."""
+    rows = [[esc(r["effect"]), esc(", ".join(f"{n} = {effect_value(n, v, r['units'][n])}"
+                                             for n, v in r["parameters"].items()) or "-"),
+             f"{r['validation_mse_change_pct']:+.1f} %", f"{r['score']:+.3f}"] for r in d.get("ranking") or []]
+    return ("<section id='diagnosis'><h2>Diagnosis: FAILED, no verdict</h2>"
+            f"<p class='verdict'>The diagnosis failed in its stage <b>{esc(d['failed_stage'])}</b>: "
+            f"{esc(d['error'])}.</p>"
+            f"<p>Stages finished: {esc(', '.join(d.get('finished_stages') or []) or 'none')}. The same command "
+            "with <code>--resume</code> continues from the last finished stage; the error's traceback is in "
+            "<code>diagnosis.json</code>.</p>"
+            + (f"<p>Causes named before the failure (not a verdict): {esc(' + '.join(d['causes']))}.</p>"
+               if d.get("causes") else "")
+            + ("<h3>Candidates refitted before the failure (not a verdict)</h3>"
+               + table(["candidate", "fitted parameters", "validation MSE change", "score"], rows) if rows else "")
+            + "</section>")

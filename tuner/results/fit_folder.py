@@ -9,6 +9,7 @@ import numpy as np
 
 from damper_fmu.parameters import MODEL_PARAMETERS, defaults
 from tuner.results.html import MODEL_ORDER
+from tuner import strict_json
 
 
 __all__ = ["FitFolder", "read_json", "ordered_models"]
@@ -19,7 +20,7 @@ def read_json(path: Path, required: bool):
             raise ValueError(f"fit output is incomplete: {path.name} not found in {path.parent}")
         return None
     try:
-        return json.loads(path.read_text())
+        return strict_json.loads(path.read_text())
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path} is not valid JSON: {exc}") from exc
 

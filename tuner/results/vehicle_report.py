@@ -1,11 +1,11 @@
 """The report's vehicle section: the tuned FMUs as the vehicle's yaw dampers, side by side (``vehicle/vehicle.json``)."""
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from tuner.results.html import esc, figure_html, table
 from tuner.vehicle.compare import VEHICLE_FOLDER, summary_rows
+from tuner import strict_json
 
 
 __all__ = ["vehicle_section_html"]
@@ -17,7 +17,7 @@ def vehicle_section_html(out_dir) -> str:
     path = folder / "vehicle.json"
     if not path.exists():
         return ""
-    data = json.loads(path.read_text())
+    data = strict_json.loads(path.read_text())
     labels, rows = summary_rows(data)
     speeds = {lab: (r.get("critical_speed") or {}).get("critical_speed_kmh") for lab, r in data["results"].items()}
     speeds = {lab: v for lab, v in speeds.items() if v is not None}

@@ -14,7 +14,6 @@ plane), peak bogie yaw relative to the track (largest of the two bogies).
 """
 from __future__ import annotations
 
-import json
 import math
 import time
 from pathlib import Path
@@ -28,6 +27,7 @@ from campaign.track import straight
 from tuner.progress import advance, stage
 from tuner.vehicle.cosim import VehicleCosim, check_damper_fmu
 from tuner.vehicle.hunting import critical_speed_time_domain, eigen_critical_speed
+from tuner import strict_json
 
 __all__ = ["SCENARIO_NAMES", "compare_fmus", "scenario_runs", "run_figures", "summary_rows", "format_table",
            "VEHICLE_FOLDER"]
@@ -144,7 +144,7 @@ def compare_fmus(fmus, out: Path, *, scenarios=SCENARIO_NAMES, step: float = 1e-
     data = {"scenarios": {n: (runs[n].description if n in runs else "hunting critical speed, lateral kick "
                               f"{kick * 1e3:g} mm, straight ideal track") for n in scenarios},
             "step_s": step, "seed": seed, "results": results}
-    (out / "vehicle.json").write_text(json.dumps(data, indent=1))
+    (out / "vehicle.json").write_text(strict_json.dumps(data, indent=1))
     _figures(histories, out)
     return data
 
