@@ -272,6 +272,162 @@ def _unit(given, declared, default: str, what: str, column: str, source: str, op
     return given or declared or default
 
 
+def _temperature_column(raw: RawTable, use: dict, source: str, warn: list) -> str | None:
+    """The oil temperature column when none is named: the one called 'temperature' in degC or K (or in
+    no declared unit); one in another unit (a thermocouple's volts) stays a channel, with a warning."""
+    found = list(raw.frame.columns)
+    named = [c for c in found if c not in use.values() and "temperature" in (raw.names[c].lower(), c.lower())]
+    in_temperature = [c for c in named if not raw.units.get(c) or raw.units[c] in TEMPERATURE_UNITS]
+    for col in named if not in_temperature else ():
+        declared = raw.units.get(col)
+        if declared and declared not in TEMPERATURE_UNITS:  # e.g. a thermocouple's raw volts
+            warn.append(f"{source}: column {col!r} is in {declared!r}, not a temperature unit "
+                        f"({', '.join(TEMPERATURE_UNITS)}): kept as a plain channel, not as the oil "
+                        f"temperature; give --temperature-col with a column in degC or K to use one")
+    if len(in_temperature) > 1:
+        raise DataError(f"{source}: temperature column 'temperature' is ambiguous: {in_temperature}; "
+                        f"name the oil temperature with --temperature-col (the full header)")
+    return in_temperature[0] if in_temperature else None  # 'Temperature (V)' beside it is a channel
+
+
+def _pick_columns(raw: RawTable, source: str, names: dict, rate_hz, extra_cols) -> tuple:
+    """Which column is which. ``names``: role -> the ``*_col`` option (time, stroke, force, velocity,
+    temperature, test). Returns (use: role -> column, no_time, extra columns to read, whether they were
+    asked for, unused columns, warnings). Raises DataError naming the option for a missing column."""
+    found = list(raw.frame.columns)
+    warn = []
+    time_col = names["time"]
+    no_time = time_col is None or (rate_hz is not None and time_col == "time" and "time" not in found
+                                   and not any(raw.names[c].lower() == "time" for c in found))
+    use = {} if no_time else {"time": raw.find(time_col, "time", source)}
+    use["stroke"] = raw.find(names["stroke"], "stroke", source)
+    use["force"] = raw.find(names["force"], "force", source)
+    if names["velocity"] is not None:
+        use["velocity"] = raw.find(names["velocity"], "velocity", source)
+    if names["temperature"] is not None:
+        use["temperature"] = raw.find(names["temperature"], "temperature", source)
+    elif extra_cols is None or "temperature" in extra_cols:
+        col = _temperature_column(raw, use, source, warn)
+        if col is not None:
+            use["temperature"] = col
+    if names["test"] is not None:
+        use["test"] = raw.find(names["test"], "test id", source)
+    if len(set(use.values())) != len(use):
+        raise DataError(f"{source}: one column is used for two channels: {use}")
+    rest = [c for c in found if c not in use.values()]
+    if "temperature" not in use:
+        looks = [c for c in rest if re.search(r"temp|oil|°c|degc|\(c\)|\[c\]", c, flags=re.IGNORECASE)]
+        if looks:
+            warn.append(f"{source}: column(s) {looks} look like a temperature but are not used as the oil "
+                        f"temperature; give --temperature-col NAME to use one (the thermal analysis needs it)")
+    asked_extra = extra_cols is not None
+    if extra_cols is None:
+        extra_cols = rest
+    elif "temperature" in use:
+        extra_cols = [c for c in extra_cols if c not in ("temperature", use["temperature"])]
+    missing = [c for c in extra_cols if c not in found]
+    if missing:
+        raise DataError(f"{source}: missing column(s) {missing}; columns found: {found}")
+    return use, no_time, extra_cols, asked_extra, rest, warn
+
+
+def _signals(raw: RawTable, use: dict, source: str, given: dict, signs: dict, channel_units) -> tuple[dict, dict]:
+    """Stroke [m, + extension], force [N, + tension], the measured velocity [m/s] and the oil
+    temperature [degC] of the columns in ``use``, in SI with our signs. ``given``: role -> unit option
+    (None: as the file declares, else SI); ``signs``: stroke and force sign (+1/-1). Returns (columns
+    by role, the temperature as ``'ch:temperature'``; units read)."""
+    units = {w: _unit(given[w], raw.units.get(use[w]), default, w, use[w], source, f"--{w}-unit")
+             for w, default in (("stroke", "m"), ("force", "N"))}
+    cols = {"stroke": signs["stroke"] * _numeric(raw, use["stroke"], source)
+            * _unit_factor(STROKE_UNITS, units["stroke"], "stroke", source),
+            "force": signs["force"] * _numeric(raw, use["force"], source)
+            * _unit_factor(FORCE_UNITS, units["force"], "force", source)}
+    if "velocity" in use:
+        units["velocity"] = _unit(given["velocity"], raw.units.get(use["velocity"]), units["stroke"] + "/s",
+                                  "velocity", use["velocity"], source, "--velocity-unit")
+        cols["velocity"] = signs["stroke"] * _numeric(raw, use["velocity"], source) * _unit_factor(
+            VELOCITY_UNITS, units["velocity"], "velocity", source)
+    if "temperature" in use:
+        tu = _unit(given["temperature"] or (channel_units or {}).get("temperature"),
+                   raw.units.get(use["temperature"]), "degC", "temperature", use["temperature"], source,
+                   "--temperature-unit")
+        cols["ch:temperature"] = _numeric(raw, use["temperature"], source) + _unit_factor(
+            TEMPERATURE_UNITS, tu, "temperature", source)
+        units["temperature"] = tu
+    return cols, units
+
+
+def _time_base(raw: RawTable, use: dict, no_time: bool, rate_hz, time_unit, source: str) -> tuple:
+    """(time [s] of every row, what it came from, the time unit read or None)."""
+    if no_time:
+        if rate_hz is None or not float(rate_hz) > 0:
+            raise DataError(f"{source}: no time column: give the sample rate with --rate HZ")
+        return np.arange(len(raw.frame)) / float(rate_hz), f"none: samples at --rate {float(rate_hz):g} Hz", None
+    unit = _unit(time_unit, raw.units.get(use["time"]), "s", "time", use["time"], source, "--time-unit")
+    t, kind = _time_seconds(raw, use["time"], unit, source)
+    return t, kind, "timestamp" if kind == "timestamp" else unit
+
+
+def _extra_channels(raw: RawTable, extra_cols, asked_extra: bool, channel_units, source: str) -> tuple:
+    """The other columns as channels in the unit each declares (temperatures in degC). Returns
+    (``'ch:NAME'`` -> values, NAME -> unit, columns left out, warnings). A column nobody asked for that
+    cannot be read (a constant written once, an empty trailing column) is left out with a warning; one
+    asked for must be readable (DataError)."""
+    cols, ch_units, dropped, warn = {}, {}, [], []
+    given_ch = channel_units or {}
+    for c in extra_cols:
+        try:
+            v = _numeric(raw, c, source)
+            if not asked_extra:
+                check_finite(source, c, v, raw.lines)
+        except DataError as err:
+            if asked_extra:  # a channel the user asked for must be readable
+                raise
+            warn.append(f"{source}: column {c!r} not read ({str(err).removeprefix(source + ': ')}); only the "
+                        f"columns in use and complete extra ones are kept")
+            dropped.append(c)
+            continue
+        # the unit this column declares: 'Force (V)' beside 'Force (N)' is in V (by its own header, not by
+        # the name they share)
+        u = given_ch.get(c) or raw.units.get(c) or given_ch.get(raw.names[c]) or ""
+        if u in TEMPERATURE_UNITS:
+            v = v + TEMPERATURE_UNITS[u]
+            u = "degC"
+        cols[f"ch:{c}"], ch_units[c] = v, u
+    return cols, ch_units, dropped, warn
+
+
+def _segment(tg: np.ndarray, cg: dict, lines, t_start, t_end, regularised: bool) -> tuple:
+    """The samples between ``t_start`` and ``t_end`` [s from the first sample] (None: no limit)."""
+    sel = np.ones(len(tg), dtype=bool)
+    if t_start is not None:
+        sel &= tg >= t_start
+    if t_end is not None:
+        sel &= tg <= t_end
+    if sel.all():
+        return tg, cg, lines
+    lines = None if lines is None or regularised else [ln for ln, k in zip(lines, sel) if k]
+    return tg[sel], {k: v[sel] for k, v in cg.items()}, lines
+
+
+def _one_test_signals(label: str, t: np.ndarray, cols: dict, lines, dt_tol: float, t_start, t_end) -> tuple:
+    """One test's rows: NaN/inf refused (named before any resampling), the time base regularised
+    (:func:`_regularise`), the segment selected. Returns (time [s], columns, file lines, note)."""
+    for k, v in cols.items():
+        check_finite(label, k.removeprefix("ch:"), v, lines)
+    t, cols, note = _regularise(label, t, cols, dt_tol, lines)
+    t, cols, lines = _segment(t, cols, lines, t_start, t_end, note is not None)
+    return t, cols, lines, note
+
+
+def _groups(raw: RawTable, use: dict) -> list:
+    """(test id or None, row indices) of each test in the file (one per value of the test-id column)."""
+    if "test" not in use:
+        return [(None, np.arange(len(raw.frame)))]
+    ids = raw.frame[use["test"]].astype(str).to_numpy()
+    return [(g, np.flatnonzero(ids == g)) for g in dict.fromkeys(ids)]
+
+
 def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force", velocity_col=None,
                temperature_col=None, test_col=None, time_unit=None, stroke_unit=None, force_unit=None,
                velocity_unit=None, temperature_unit=None, stroke_sign=1, force_sign=1, rate_hz=None,
@@ -303,132 +459,32 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
     source = str(path)
     if role is not None and role not in ROLES:
         raise DataError(f"{source}: unknown role {role!r}; expected one of {ROLES}")
-    for opt, sign in (("stroke_sign", stroke_sign), ("force_sign", force_sign)):
+    signs = {"stroke": stroke_sign, "force": force_sign}
+    for what, sign in signs.items():
         if sign not in (1, -1):
-            raise DataError(f"{source}: {opt} must be +1 or -1, got {sign!r}")
+            raise DataError(f"{source}: {what}_sign must be +1 or -1, got {sign!r}")
     raw = read_raw(path, source)
-    found = list(raw.frame.columns)
-    warn = []
-    no_time = time_col is None or (rate_hz is not None and time_col == "time" and "time" not in found
-                                   and not any(raw.names[c].lower() == "time" for c in found))
-    use = {}
-    if not no_time:
-        use["time"] = raw.find(time_col, "time", source)
-    use["stroke"] = raw.find(stroke_col, "stroke", source)
-    use["force"] = raw.find(force_col, "force", source)
-    if velocity_col is not None:
-        use["velocity"] = raw.find(velocity_col, "velocity", source)
-    if temperature_col is not None:
-        use["temperature"] = raw.find(temperature_col, "temperature", source)
-    elif extra_cols is None or "temperature" in extra_cols:
-        named = [c for c in found if c not in use.values() and "temperature" in (raw.names[c].lower(), c.lower())]
-        in_temperature = [c for c in named if not raw.units.get(c) or raw.units[c] in TEMPERATURE_UNITS]
-        for col in named if not in_temperature else ():
-            declared = raw.units.get(col)
-            if declared and declared not in TEMPERATURE_UNITS:  # e.g. a thermocouple's raw volts
-                warn.append(f"{source}: column {col!r} is in {declared!r}, not a temperature unit "
-                            f"({', '.join(TEMPERATURE_UNITS)}): kept as a plain channel, not as the oil "
-                            f"temperature; give --temperature-col with a column in degC or K to use one")
-        if len(in_temperature) > 1:
-            raise DataError(f"{source}: temperature column 'temperature' is ambiguous: {in_temperature}; "
-                            f"name the oil temperature with --temperature-col (the full header)")
-        if in_temperature:  # the one in a temperature unit (or none declared); 'Temperature (V)' beside it is a channel
-            use["temperature"] = in_temperature[0]
-    if test_col is not None:
-        use["test"] = raw.find(test_col, "test id", source)
-    if len(set(use.values())) != len(use):
-        raise DataError(f"{source}: one column is used for two channels: {use}")
-    rest = [c for c in found if c not in use.values()]
-    if "temperature" not in use:
-        looks = [c for c in rest if re.search(r"temp|oil|°c|degc|\(c\)|\[c\]", c, flags=re.IGNORECASE)]
-        if looks:
-            warn.append(f"{source}: column(s) {looks} look like a temperature but are not used as the oil "
-                        f"temperature; give --temperature-col NAME to use one (the thermal analysis needs it)")
-    asked_extra = extra_cols is not None
-    if extra_cols is None:
-        extra_cols = rest
-    elif "temperature" in use:
-        extra_cols = [c for c in extra_cols if c not in ("temperature", use["temperature"])]
-    missing = [c for c in extra_cols if c not in found]
-    if missing:
-        raise DataError(f"{source}: missing column(s) {missing}; columns found: {found}")
-    units = {
-        "stroke": _unit(stroke_unit, raw.units.get(use["stroke"]), "m", "stroke", use["stroke"], source, "--stroke-unit"),
-        "force": _unit(force_unit, raw.units.get(use["force"]), "N", "force", use["force"], source, "--force-unit"),
-    }
-    sf = _unit_factor(STROKE_UNITS, units["stroke"], "stroke", source)
-    ff = _unit_factor(FORCE_UNITS, units["force"], "force", source)
-    if no_time:
-        if rate_hz is None or not float(rate_hz) > 0:
-            raise DataError(f"{source}: no time column: give the sample rate with --rate HZ")
-        t = np.arange(len(raw.frame)) / float(rate_hz)
-        time_kind = f"none: samples at --rate {float(rate_hz):g} Hz"
-    else:
-        units["time"] = _unit(time_unit, raw.units.get(use["time"]), "s", "time", use["time"], source, "--time-unit")
-        t, time_kind = _time_seconds(raw, use["time"], units["time"], source)
-        if time_kind == "timestamp":
-            units["time"] = "timestamp"
-    cols = {"stroke": stroke_sign * _numeric(raw, use["stroke"], source) * sf,
-            "force": force_sign * _numeric(raw, use["force"], source) * ff}
-    if "velocity" in use:
-        vdefault = units["stroke"] + "/s"
-        units["velocity"] = _unit(velocity_unit, raw.units.get(use["velocity"]), vdefault, "velocity",
-                                  use["velocity"], source, "--velocity-unit")
-        cols["velocity"] = stroke_sign * _numeric(raw, use["velocity"], source) * _unit_factor(
-            VELOCITY_UNITS, units["velocity"], "velocity", source)
-    ch_units = {}
-    given_ch = channel_units or {}
+    use, no_time, extra_cols, asked_extra, rest, warn = _pick_columns(
+        raw, source, {"time": time_col, "stroke": stroke_col, "force": force_col, "velocity": velocity_col,
+                      "temperature": temperature_col, "test": test_col}, rate_hz, extra_cols)
+    given = {"stroke": stroke_unit, "force": force_unit, "velocity": velocity_unit, "temperature": temperature_unit}
+    t, time_kind, tu = _time_base(raw, use, no_time, rate_hz, time_unit, source)
+    cols, units = _signals(raw, use, source, given, signs, channel_units)
+    if tu is not None:
+        units["time"] = tu
+    extra, ch_units, dropped, extra_warn = _extra_channels(raw, extra_cols, asked_extra, channel_units, source)
+    cols.update(extra)
     if "temperature" in use:
-        tu = _unit(temperature_unit or (channel_units or {}).get("temperature"), raw.units.get(use["temperature"]), "degC", "temperature",
-                   use["temperature"], source, "--temperature-unit")
-        cols["ch:temperature"] = _numeric(raw, use["temperature"], source) + _unit_factor(
-            TEMPERATURE_UNITS, tu, "temperature", source)
-        units["temperature"] = tu
-        ch_units["temperature"] = "degC"
-    dropped = []
-    for c in extra_cols:
-        try:
-            v = _numeric(raw, c, source)
-            if not asked_extra:
-                check_finite(source, c, v, raw.lines)
-        except DataError as err:
-            if asked_extra:  # a channel the user asked for must be readable
-                raise
-            # a column nobody asked for (a constant written once, an empty trailing column) is no
-            # reason to refuse the file
-            warn.append(f"{source}: column {c!r} not read ({str(err).removeprefix(source + ': ')}); only the "
-                        f"columns in use and complete extra ones are kept")
-            dropped.append(c)
-            continue
-        # the unit this column declares: 'Force (V)' beside 'Force (N)' is in V (by its own header, not by
-        # the name they share)
-        u = given_ch.get(c) or raw.units.get(c) or given_ch.get(raw.names[c]) or ""
-        if u in TEMPERATURE_UNITS:
-            v = v + TEMPERATURE_UNITS[u]
-            u = "degC"
-        cols[f"ch:{c}"], ch_units[c] = v, u
-    ids = raw.frame[use["test"]].astype(str).to_numpy() if "test" in use else None
+        ch_units = {"temperature": "degC", **ch_units}
+    warn += extra_warn
     stem = re.sub(r"\.(csv|tsv|txt|dat)(\.gz)?$|\.(parquet|pq)$", "", path.name, flags=re.IGNORECASE)
-    groups = [(None, np.arange(len(raw.frame)))] if ids is None else \
-        [(g, np.flatnonzero(ids == g)) for g in dict.fromkeys(ids)]
     out = []
-    for gid, rows in groups:
+    for gid, rows in _groups(raw, use):
         label = source if gid is None else f"{source} [test {gid}]"
         tg = t[rows] - t[rows][0]
         cg = {k: v[rows] for k, v in cols.items()}
         lines = None if raw.lines is None else [raw.lines[i] for i in rows]
-        for k, v in cg.items():  # NaN/inf first, so that they are named before any resampling
-            check_finite(label, k.removeprefix("ch:"), v, lines)
-        tg, cg, note = _regularise(label, tg, cg, dt_tol, lines)
-        sel = np.ones(len(tg), dtype=bool)
-        if t_start is not None:
-            sel &= tg >= t_start
-        if t_end is not None:
-            sel &= tg <= t_end
-        if not sel.all():
-            tg = tg[sel]
-            cg = {k: v[sel] for k, v in cg.items()}
-            lines = None if lines is None or note else [ln for ln, k in zip(lines, sel) if k]
+        tg, cg, lines, note = _one_test_signals(label, tg, cg, lines, dt_tol, t_start, t_end)
         channels = {k[3:]: v for k, v in cg.items() if k.startswith("ch:")}
         rate = check_signals(label, tg, cg["stroke"], cg["force"], channels, dt_tol=dt_tol, lines=lines,
                              units=units)
@@ -440,8 +496,7 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
             read_checks = plausibility(label, tg, cg["stroke"], cg["force"], cg.get("velocity"), rate, units)
             class_note = class_warning(label, read_checks, damper_class, units)
         read = {"columns": dict(use), "ignored": [c for c in rest if c not in extra_cols or c in dropped],
-                "channels": list(channels), "units": units, "time": time_kind,
-                "signs": {"stroke": stroke_sign, "force": force_sign},
+                "channels": list(channels), "units": units, "time": time_kind, "signs": dict(signs),
                 "delimiter": raw.delimiter, "decimal": raw.decimal, "regularised": note,
                 "segment_s": [t_start, t_end] if (t_start is not None or t_end is not None) else None,
                 "plausibility": read_checks}
