@@ -127,31 +127,32 @@ def plausibility(source, time, stroke, force, velocity=None, rate=None, units=No
     fig = {"stroke_range_m": srange, "velocity_peak_m_s": vpeak, "force_peak_n": fpeak,
            "apparent_damping_n_s_per_m": c_app, "force_velocity_correlation": power}
     tail = " If the values are right, run with --accept-implausible."
+    scaled = " A transducer's raw output (volts) needs its calibration: --stroke-scale, --force-scale."
     if srange > MAX_STROKE_RANGE_M or vpeak > MAX_VELOCITY_M_S:
         raise DataError(
             f"{source}: implausible stroke: range {srange:.4g} m, peak velocity {vpeak:.4g} m/s (a damper rig "
             f"moves <= {MAX_STROKE_RANGE_M:g} m at <= {MAX_VELOCITY_M_S:g} m/s) with stroke in {su!r}."
             + suggest_unit(STROKE_UNITS, su, lambda r: srange * r <= MAX_STROKE_RANGE_M and vpeak * r <= MAX_VELOCITY_M_S
-                       and srange * r >= MIN_STROKE_RANGE_M) + " Use --stroke-unit." + tail)
+                       and srange * r >= MIN_STROKE_RANGE_M) + " Use --stroke-unit." + scaled + tail)
     if srange < MIN_STROKE_RANGE_M:
         raise DataError(
             f"{source}: implausible stroke: range {srange * 1e6:.3g} um (< {MIN_STROKE_RANGE_M * 1e6:g} um, under a "
             f"rig's displacement resolution) with stroke in {su!r}."
             + suggest_unit(STROKE_UNITS, su, lambda r: MIN_STROKE_RANGE_M <= srange * r <= MAX_STROKE_RANGE_M)
-            + " Use --stroke-unit, or the stroke signal is missing." + tail)
+            + " Use --stroke-unit, or the stroke signal is missing." + scaled + tail)
     if fpeak < MIN_FORCE_PEAK_N or fpeak > MAX_FORCE_PEAK_N:
         raise DataError(
             f"{source}: implausible force: peak |force| {fpeak:.4g} N (a damper on a rig: {MIN_FORCE_PEAK_N:g} N "
             f"to {MAX_FORCE_PEAK_N:.0e} N) with force in {fu!r}."
             + suggest_unit(FORCE_UNITS, fu, lambda r: MIN_FORCE_PEAK_N <= fpeak * r <= MAX_FORCE_PEAK_N)
-            + " Use --force-unit, or the load signal is missing." + tail)
+            + " Use --force-unit, or the load signal is missing." + scaled + tail)
     if c_app is not None and c_app < MIN_DAMPING_N_S_PER_M:
         raise DataError(
             f"{source}: implausible force for its stroke: rms force {np.std(force):.4g} N at rms velocity "
             f"{vrms:.4g} m/s is an apparent damping of {c_app:.3g} N s/m, under the {MIN_DAMPING_N_S_PER_M:g} N s/m "
             f"of the lightest vehicle damper, with force in {fu!r} and stroke in {su!r}."
             + suggest_unit(FORCE_UNITS, fu, lambda r: c_app * r >= MIN_DAMPING_N_S_PER_M and fpeak * r <= MAX_FORCE_PEAK_N)
-            + " Use --force-unit/--stroke-unit." + tail)
+            + " Use --force-unit/--stroke-unit." + scaled + tail)
     if power is not None and power < MIN_FORCE_VELOCITY_CORRELATION:
         raise DataError(
             f"{source}: force and stroke velocity are anti-correlated (correlation {power:+.2f}): the damper would "
@@ -163,7 +164,7 @@ def plausibility(source, time, stroke, force, velocity=None, rate=None, units=No
             f"{vrms:.4g} m/s is an apparent damping of {c_app:.3g} N s/m, over {MAX_DAMPING_N_S_PER_M:.0e} N s/m "
             f"(100 x a yaw damper's), with stroke in {su!r} and force in {fu!r}."
             + suggest_unit(STROKE_UNITS, su, lambda r: c_app / r <= MAX_DAMPING_N_S_PER_M and srange * r <= MAX_STROKE_RANGE_M)
-            + " Use --stroke-unit/--force-unit." + tail)
+            + " Use --stroke-unit/--force-unit." + scaled + tail)
     return fig
 
 
@@ -660,7 +661,9 @@ def load_files(paths, role, **column_options) -> list[RigTest]:
 
 COLUMN_OPTIONS = ("time_col", "stroke_col", "force_col", "velocity_col", "temperature_col", "test_col",
                   "time_unit", "stroke_unit", "force_unit", "velocity_unit", "temperature_unit", "stroke_sign",
-                  "force_sign", "rate_hz", "t_start", "t_end", "check_plausible", "damper_class")
+                  "force_sign", "rate_hz", "t_start", "t_end", "check_plausible", "damper_class", "header_line",
+                  "date_order", "stroke_scale", "stroke_offset", "force_scale", "force_offset", "velocity_scale",
+                  "velocity_offset", "force_zero")
 
 
 def read_column_mapping(path) -> tuple[dict, dict]:
