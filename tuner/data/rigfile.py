@@ -42,6 +42,7 @@ __all__ = ["DataError", "RawTable", "read_raw", "normalise_unit", "split_unit", 
 TEXT_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
 _DELIMITERS = [",", ";", "\t", "|"]
 _PROBE_LINES = 200  # lines looked at to find the header and the delimiter
+_ODD_ROWS = 0.1     # the share of those lines that may have another number of fields (damaged rows)
 _UNIT_ALIASES = {
     "s": "s", "sec": "s", "second": "s", "seconds": "s", "ms": "ms", "msec": "ms",
     "m": "m", "cm": "cm", "mm": "mm", "um": "um", "µm": "um", "μm": "um", "micron": "um",
@@ -109,7 +110,10 @@ class RawTable:
             raise DataError(f"{source}: {what} column {spec!r} is ambiguous: {hits}; give the full header")
         opt = {"time": "--time-col", "stroke": "--stroke-col", "force": "--force-col", "velocity": "--velocity-col",
                "temperature": "--temperature-col", "test id": "--test-col"}.get(what, "the column options")
-        raise DataError(f"{source}: missing column {spec!r} ({what}); columns found: {cols}; "
+        where = "" if not self.header_line or self.header_line == 1 else \
+            (f" (the column names taken from line {self.header_line}; if they are on another line, give it "
+             f"with --header-line N)")
+        raise DataError(f"{source}: missing column {spec!r} ({what}); columns found: {cols}{where}; "
                         f"name the {what} column with {opt} (a header or a 1-based position)")
 
 
@@ -155,21 +159,34 @@ def _delimiter_name(delim: str | None) -> str:
     return {",": "comma", ";": "semicolon", "\t": "tab", "|": "bar"}.get(delim, "blank")
 
 
+def _numbers(cells: list[str]) -> int:
+    return sum(_is_number(c, ",") for c in cells if c.strip())
+
+
 def _heads_table(h: int, counts: list[int], rows: list[str], split) -> bool:
-    """True when row ``h`` can be the header of the rows after it: it has n >= 2 fields and every later
-    row n, or n - 1 (a trailing text column such as a logger's 'Events' left out on most rows) -- unless
-    the next row has n - 1 fields and no number (that row is the header; ``h`` a metadata line)."""
+    """True when row ``h`` of ``rows`` can be the header of the rows after it (row 0 may also be the
+    first sample of a table without a header). It has n >= 2 fields; the next row and at least
+    ``1 - _ODD_ROWS`` of the later ones have n, or n - 1 (a trailing text column such as a logger's
+    'Events' left out on most rows; the odd rows are refused later, naming their lines). It is not a
+    data row (below row 0, a header has fewer numbers than the rows under it), nor a metadata line over
+    a header of one field fewer (a next row of n - 1 fields without a number)."""
     n, rest = counts[h], counts[h + 1:]
-    if n < 2 or not rest or any(c != n and c != n - 1 for c in rest):
+    if n < 2 or not rest or rest[0] not in (n, n - 1):
         return False
-    return rest[0] == n or any(_is_number(c, ",") for c in split(rows[h + 1]))
+    if sum(c != n and c != n - 1 for c in rest) > _ODD_ROWS * len(rest):
+        return False
+    below = [_numbers(split(r)) for r in rows[h + 1:h + 4]]
+    if rest[0] == n - 1 and below[0] == 0:
+        return False
+    return h == 0 or _numbers(split(rows[h])) < max(below)
 
 
 def _find_table(kept: list[str], at: int | None) -> tuple[int, str | None]:
     """(index in ``kept`` of the header line, delimiter). The header is the first line from which the
     first ``_PROBE_LINES`` lines have a stable field count (:func:`_heads_table`); the lines before it
-    are a preamble (metadata). Delimiters are tried in the order ``, ; tab | blanks``; the one whose
-    table starts first wins. ``at``: the header's index when given (``--header-line``)."""
+    are a preamble (metadata); when no line qualifies, the first line. Delimiters are tried in the
+    order ``, ; tab | blanks``; the one whose table starts first wins. ``at``: the header's index when
+    given (``--header-line``): only the delimiter is detected."""
     lo = at or 0
     rows = kept[lo:lo + _PROBE_LINES]
     found = []
@@ -285,6 +302,10 @@ def _read_text(path: Path, source: str, header_line=None) -> RawTable:
     body, body_lines = kept[start:], lines[start:]
     if not body:
         raise DataError(f"{source}: file is empty: header {header} but no data rows")
+    twice = sorted({c for c in header if header.count(c) > 1})
+    if twice:
+        raise DataError(f"{source}: {head} names column(s) {twice} more than once: name each column once, or, if "
+                        f"the column names are on another line, give its line number with --header-line N")
     _check_fields(body, body_lines, len(header), split, delim, head, source)
     df = _frame(body, header, delim, decimal, source)
     units, names = {}, {}
