@@ -204,6 +204,23 @@ def test_a_csv_preamble_of_key_value_pairs_before_a_header_with_units(tmp_path):
                                      "agrees": True}
 
 
+def test_a_measured_velocity_in_volts_with_its_calibration_and_the_stroke_sign(tmp_path):
+    """A velocity channel written as volts (50 mm/s per V, 0.1 V at rest) and declared in V: read with
+    its scale and offset in mm/s (the header's V is the raw unit), and flipped with the stroke's sign."""
+    t, x, f = truth()
+    v_mm_s = 1e3 * np.gradient(x, t)
+    path = tmp_path / "velocity.csv"
+    pd.DataFrame({"time [s]": t, "stroke [mm]": 1e3 * x, "force [N]": f, "vel (V)": v_mm_s / 50.0 + 0.1}) \
+        .to_csv(path, index=False, float_format="%.6f")
+    cal = dict(velocity_col="vel", velocity_scale=50.0, velocity_offset=-5.0, velocity_unit="mm/s", damper_class="any")
+    g = load_test(path, **cal)
+    np.testing.assert_allclose(g.velocity, 1e-3 * v_mm_s, rtol=0, atol=1e-3 * 50 * 0.5e-6 * 1.001)
+    read = g.metadata["read"]
+    assert read["units"]["velocity"] == "mm/s" and read["calibration"]["velocity"]["raw_unit"] == "V"
+    flipped = load_test(path, **cal, stroke_sign=-1, force_sign=-1)
+    np.testing.assert_allclose(flipped.velocity, -g.velocity, rtol=0, atol=1e-15)
+
+
 # --------------------------------------------------------------------------- errors
 
 def test_the_header_line_option_overrides_a_misleading_preamble(tmp_path):
