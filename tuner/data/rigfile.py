@@ -14,9 +14,10 @@ Accepted files
   on a few rows only). Lines before it are a preamble (a data logger's ``Sampling Rate:  1000``
   ...): its ``key: value`` pairs are kept as metadata. ``--header-line N`` (the file's 1-based
   line number) names the header when the detection fails; a row with another number of fields
-  is refused naming its line, the header's line and that option. Units may be given in the header (``force [kN]``,
-  ``force (kN)``, ``force in kN``) or in a units row right under it (every cell non-numeric,
-  e.g. ``s, mm, kN`` or ``[s], [mm], [kN]``). A first line of numbers only is data, not a
+  is refused naming its line, the header's line and that option. Units may be given in the
+  header (``force [kN]``, ``force (kN)``, ``force in kN``) or in a units row right under it
+  (every cell non-numeric, e.g. ``s, mm, kN`` or ``[s], [mm], [kN]``). A first line of numbers
+  only is data, not a
   header (a rig writing no header): the columns are named ``column 1``, ``column 2``, ... and
   found by position; their units come from the options. Only column numbers ``0 1 2 ...`` or
   ``1 2 3 ...`` (what pandas writes for an unnamed table) are taken as a header.
@@ -156,10 +157,12 @@ def _splitter(delim: str | None):
 
 
 def _delimiter_name(delim: str | None) -> str:
+    """'comma', 'semicolon', 'tab', 'bar' or 'blank' (runs of blanks: None), for messages."""
     return {",": "comma", ";": "semicolon", "\t": "tab", "|": "bar"}.get(delim, "blank")
 
 
 def _numbers(cells: list[str]) -> int:
+    """How many of ``cells`` are numbers (decimal point or comma)."""
     return sum(_is_number(c, ",") for c in cells if c.strip())
 
 
@@ -224,9 +227,9 @@ def _preamble(rows: list[str], delim: str | None) -> dict:
         key, sep, value = s.partition(":")
         if not sep:
             key, sep, value = s.partition("=")
-        if not sep and delim and len(_splitter(delim)(s)) == 2:
-            key, value = _splitter(delim)(s)
-            sep = delim
+        fields = _splitter(delim)(s) if delim else []
+        if not sep and len(fields) == 2:
+            (key, value), sep = fields, delim
         if sep and key.strip():
             out[key.strip()] = value.strip()
     return out
@@ -279,6 +282,9 @@ def _frame(body: list[str], header: list[str], delim, decimal: str, source: str)
 
 
 def _read_text(path: Path, source: str, header_line=None) -> RawTable:
+    """A text file's table (module docstring): comments left out, the header found after any preamble
+    (or at ``header_line``), the delimiter and decimal mark detected, a units row read, every row's
+    field count checked."""
     kept, lines, n_lines = _text_lines(path, source)
     at = None if header_line is None else _header_index(header_line, lines, n_lines, source)
     if not kept:

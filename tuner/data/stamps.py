@@ -51,6 +51,7 @@ def is_stamp(value) -> bool:
 
 
 def _where(lines, i: int) -> str:
+    """'data row i+1 (line k)' for messages."""
     return f"data row {i + 1}" + (f" (line {lines[i]})" if lines is not None and i < len(lines) else "")
 
 
@@ -146,4 +147,5 @@ def stamp_seconds(values: pd.Series, order, source: str, column: str, lines=None
 
 
 def _seconds(ns: np.ndarray) -> np.ndarray:
+    """Seconds [s] from the first of the nanosecond stamps ``ns``."""
     return (ns - ns[0]) * 1e-9

@@ -4,7 +4,10 @@
 Per test: file, columns used and ignored, units and signs as read, time base, sample rate,
 duration, stroke/velocity/force/temperature ranges (SI and the file's units), force noise (the
 estimate ``tuner.data.noise.force_noise`` chose, its method and whether it is credible), and
-which part of the damping and elastic tables' range the data covers.
+which part of the damping and elastic tables' range the data covers. For a data logger's file also:
+the preamble before the header and the sample rate it declares against the time column, how
+date-time stamps were read (day-month order and why), the raw and scaled range of each calibrated
+channel, the force tare removed, and the text columns left out.
 """
 from __future__ import annotations
 
