@@ -44,9 +44,33 @@ def add_data_options(g) -> None:
     g.add_argument("--t-start", type=float, default=None, metavar="S",
                    help="use the test from this time [s from its first sample]")
     g.add_argument("--t-end", type=float, default=None, metavar="S", help="... up to this time [s]")
+    g.add_argument("--header-line", type=int, default=None, metavar="N",
+                   help="1-based line number of the column names (default: detected, after any preamble of "
+                        "metadata lines such as a data logger's 'Sampling Rate:  1000')")
+    g.add_argument("--date-order", default=None, choices=["mdy", "dmy"],
+                   help="day-month order of date-time stamps with the year last: mdy (05/25/2022) or dmy "
+                        "(25.05.2022); default: from the data, refused when every stamp fits both and it matters")
+    g.add_argument("--stroke-scale", type=float, default=None, metavar="K",
+                   help="calibration: stroke = K x raw + B in the unit of --stroke-unit (K > 0; 10 for a 10 mm/V "
+                        "transducer with --stroke-unit mm); the unit the column declares is then the raw one")
+    g.add_argument("--stroke-offset", type=float, default=None, metavar="B",
+                   help="calibration offset B [--stroke-unit] (default 0)")
+    g.add_argument("--force-scale", type=float, default=None, metavar="K",
+                   help="calibration: force = K x raw + B in the unit of --force-unit (K > 0; 980.665 for a "
+                        "980.665 N/V load cell with --force-unit N)")
+    g.add_argument("--force-offset", type=float, default=None, metavar="B",
+                   help="calibration offset B [--force-unit] (default 0)")
+    g.add_argument("--velocity-scale", type=float, default=None, metavar="K",
+                   help="calibration of --velocity-col: velocity = K x raw + B in the unit of --velocity-unit")
+    g.add_argument("--velocity-offset", type=float, default=None, metavar="B",
+                   help="calibration offset B [--velocity-unit] (default 0)")
+    g.add_argument("--force-zero", type=float, default=None, metavar="S",
+                   help="tare: remove the mean force over the first S seconds of each test (the damper at rest: "
+                        "refused if the stroke moves more than 5 %% of its range meanwhile)")
     g.add_argument("--columns", type=Path, default=None, metavar="FILE",
                    help="column mapping file (TOML or JSON) for campaigns with many files: the options above "
-                        "as keys (time_col, stroke_unit, force_sign ...), for every file and per file name")
+                        "as keys (time_col, stroke_unit, force_sign, header_line, force_scale ...), for every file "
+                        "and per file name")
     g.add_argument("--accept-implausible", action="store_true",
                    help="read data that fails the physical plausibility checks (units) as declared")
     g.add_argument("--damper-class", default=None, choices=["yaw", "primary", "secondary", "any"],
@@ -56,7 +80,8 @@ def add_data_options(g) -> None:
 
 DATA_OPTIONS = ("time_col", "stroke_col", "force_col", "velocity_col", "temperature_col", "test_col", "time_unit",
                  "stroke_unit", "force_unit", "velocity_unit", "temperature_unit", "stroke_sign", "force_sign",
-                 "t_start", "t_end", "damper_class")
+                 "t_start", "t_end", "damper_class", "header_line", "date_order", "stroke_scale", "stroke_offset",
+                 "force_scale", "force_offset", "velocity_scale", "velocity_offset", "force_zero")
 
 
 def column_options(args) -> tuple[dict, dict]:

@@ -21,7 +21,9 @@ from tuner.data.differentiator import Differentiator
 from damper_dataset.format import (FORCE_UNITS, MANIFEST_TEST_KEYS, ROLES, STROKE_UNITS, TEMPERATURE_UNITS,
                                    TIME_UNITS, VELOCITY_UNITS, DataError, check_finite, check_signals, read_manifest,
                                    suggest_unit)
-from tuner.data.rigfile import RawTable, read_raw
+from tuner.data.calibration import apply as calibrate, calibration, force_zero as tare_force
+from tuner.data.rigfile import RawTable, read_raw, split_unit
+from tuner.data.stamps import check_date_order, is_stamp, stamp_seconds
 
 MAX_STROKE_RANGE_M = 2.0
 MIN_STROKE_RANGE_M = 5e-6
@@ -125,31 +127,32 @@ def plausibility(source, time, stroke, force, velocity=None, rate=None, units=No
     fig = {"stroke_range_m": srange, "velocity_peak_m_s": vpeak, "force_peak_n": fpeak,
            "apparent_damping_n_s_per_m": c_app, "force_velocity_correlation": power}
     tail = " If the values are right, run with --accept-implausible."
+    scaled = " A transducer's raw output (volts) needs its calibration: --stroke-scale, --force-scale."
     if srange > MAX_STROKE_RANGE_M or vpeak > MAX_VELOCITY_M_S:
         raise DataError(
             f"{source}: implausible stroke: range {srange:.4g} m, peak velocity {vpeak:.4g} m/s (a damper rig "
             f"moves <= {MAX_STROKE_RANGE_M:g} m at <= {MAX_VELOCITY_M_S:g} m/s) with stroke in {su!r}."
             + suggest_unit(STROKE_UNITS, su, lambda r: srange * r <= MAX_STROKE_RANGE_M and vpeak * r <= MAX_VELOCITY_M_S
-                       and srange * r >= MIN_STROKE_RANGE_M) + " Use --stroke-unit." + tail)
+                       and srange * r >= MIN_STROKE_RANGE_M) + " Use --stroke-unit." + scaled + tail)
     if srange < MIN_STROKE_RANGE_M:
         raise DataError(
             f"{source}: implausible stroke: range {srange * 1e6:.3g} um (< {MIN_STROKE_RANGE_M * 1e6:g} um, under a "
             f"rig's displacement resolution) with stroke in {su!r}."
             + suggest_unit(STROKE_UNITS, su, lambda r: MIN_STROKE_RANGE_M <= srange * r <= MAX_STROKE_RANGE_M)
-            + " Use --stroke-unit, or the stroke signal is missing." + tail)
+            + " Use --stroke-unit, or the stroke signal is missing." + scaled + tail)
     if fpeak < MIN_FORCE_PEAK_N or fpeak > MAX_FORCE_PEAK_N:
         raise DataError(
             f"{source}: implausible force: peak |force| {fpeak:.4g} N (a damper on a rig: {MIN_FORCE_PEAK_N:g} N "
             f"to {MAX_FORCE_PEAK_N:.0e} N) with force in {fu!r}."
             + suggest_unit(FORCE_UNITS, fu, lambda r: MIN_FORCE_PEAK_N <= fpeak * r <= MAX_FORCE_PEAK_N)
-            + " Use --force-unit, or the load signal is missing." + tail)
+            + " Use --force-unit, or the load signal is missing." + scaled + tail)
     if c_app is not None and c_app < MIN_DAMPING_N_S_PER_M:
         raise DataError(
             f"{source}: implausible force for its stroke: rms force {np.std(force):.4g} N at rms velocity "
             f"{vrms:.4g} m/s is an apparent damping of {c_app:.3g} N s/m, under the {MIN_DAMPING_N_S_PER_M:g} N s/m "
             f"of the lightest vehicle damper, with force in {fu!r} and stroke in {su!r}."
             + suggest_unit(FORCE_UNITS, fu, lambda r: c_app * r >= MIN_DAMPING_N_S_PER_M and fpeak * r <= MAX_FORCE_PEAK_N)
-            + " Use --force-unit/--stroke-unit." + tail)
+            + " Use --force-unit/--stroke-unit." + scaled + tail)
     if power is not None and power < MIN_FORCE_VELOCITY_CORRELATION:
         raise DataError(
             f"{source}: force and stroke velocity are anti-correlated (correlation {power:+.2f}): the damper would "
@@ -161,7 +164,7 @@ def plausibility(source, time, stroke, force, velocity=None, rate=None, units=No
             f"{vrms:.4g} m/s is an apparent damping of {c_app:.3g} N s/m, over {MAX_DAMPING_N_S_PER_M:.0e} N s/m "
             f"(100 x a yaw damper's), with stroke in {su!r} and force in {fu!r}."
             + suggest_unit(STROKE_UNITS, su, lambda r: c_app / r <= MAX_DAMPING_N_S_PER_M and srange * r <= MAX_STROKE_RANGE_M)
-            + " Use --stroke-unit/--force-unit." + tail)
+            + " Use --stroke-unit/--force-unit." + scaled + tail)
     return fig
 
 
@@ -184,19 +187,24 @@ def _numeric(raw: RawTable, col: str, source: str) -> np.ndarray:
     return num.to_numpy(dtype=float)
 
 
-def _time_seconds(raw: RawTable, col: str, unit: str, source: str) -> tuple[np.ndarray, str]:
-    """Time column in seconds and its kind: ``'seconds'`` (numbers in ``unit``) or ``'timestamp'``
-    (datetime/ISO strings, seconds from the first stamp)."""
+def _time_seconds(raw: RawTable, col: str, unit: str, source: str, date_order=None) -> tuple[np.ndarray, str, dict]:
+    """Time column in seconds, its kind: ``'seconds'`` (numbers in ``unit``) or ``'timestamp'``
+    (date-time stamps, seconds from the first), and what the stamps were read as (``date_order``,
+    ``stamps``: :func:`tuner.data.stamps.stamp_seconds`; empty for numbers). ``date_order``: ``'mdy'``,
+    ``'dmy'`` or None (from the data)."""
     s = raw.frame[col]
     if s.dtype.kind in "fiu" or pd.to_numeric(s.iloc[:20], errors="coerce").notna().any():
-        return _numeric(raw, col, source) * _unit_factor(TIME_UNITS, unit, "time", source), "seconds"
+        return _numeric(raw, col, source) * _unit_factor(TIME_UNITS, unit, "time", source), "seconds", {}
+    if s.dtype.kind != "M" and is_stamp(s.iloc[0]):  # a date and a clock time, as loggers write them
+        t, how = stamp_seconds(s, date_order, source, col, raw.lines)
+        return t, "timestamp", how
     if s.dtype.kind == "M":
         stamps = pd.Series(s)
-    else:
+    else:  # ISO stamps with a time zone, month names ...
         try:
             stamps = pd.to_datetime(s, format="ISO8601", errors="raise")
         except (ValueError, TypeError):
-            stamps = pd.to_datetime(s, errors="coerce", format="mixed")
+            stamps = pd.to_datetime(s, errors="coerce", format="mixed", dayfirst=date_order == "dmy")
     bad = stamps.isna().to_numpy()
     if bad.any():
         i = int(np.argmax(bad))
@@ -206,7 +214,7 @@ def _time_seconds(raw: RawTable, col: str, unit: str, source: str) -> tuple[np.n
     if getattr(stamps.dt, "tz", None) is not None:
         stamps = stamps.dt.tz_convert("UTC")
     ns = stamps.to_numpy(dtype="datetime64[ns]").astype(np.int64)
-    return (ns - ns[0]) * 1e-9, "timestamp"
+    return (ns - ns[0]) * 1e-9, "timestamp", {}
 
 
 def _regularise(source, t: np.ndarray, cols: dict, dt_tol: float, lines, gap_limit: float = 5.0):
@@ -272,70 +280,46 @@ def _unit(given, declared, default: str, what: str, column: str, source: str, op
     return given or declared or default
 
 
-def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force", velocity_col=None,
-               temperature_col=None, test_col=None, time_unit=None, stroke_unit=None, force_unit=None,
-               velocity_unit=None, temperature_unit=None, stroke_sign=1, force_sign=1, rate_hz=None,
-               t_start=None, t_end=None, extra_cols=None, channel_units=None, name=None, role=None,
-               scenario=None, sample_rate_hz=None, metadata=None, dt_tol=0.01,
-               check_plausible=True, damper_class=DEFAULT_DAMPER_CLASS) -> list[RigTest]:
-    """Read one rig file; return its test(s) in SI units (one per value of ``test_col``).
+def _temperature_column(raw: RawTable, use: dict, source: str, warn: list) -> str | None:
+    """The oil temperature column when none is named: the one called 'temperature' in degC or K (or in
+    no declared unit); one in another unit (a thermocouple's volts) stays a channel, with a warning."""
+    found = list(raw.frame.columns)
+    named = [c for c in found if c not in use.values() and "temperature" in (raw.names[c].lower(), c.lower())]
+    in_temperature = [c for c in named if not raw.units.get(c) or raw.units[c] in TEMPERATURE_UNITS]
+    for col in named if not in_temperature else ():
+        declared = raw.units.get(col)
+        if declared and declared not in TEMPERATURE_UNITS:  # e.g. a thermocouple's raw volts
+            warn.append(f"{source}: column {col!r} is in {declared!r}, not a temperature unit "
+                        f"({', '.join(TEMPERATURE_UNITS)}): kept as a plain channel, not as the oil "
+                        f"temperature; give --temperature-col with a column in degC or K to use one")
+    if len(in_temperature) > 1:
+        raise DataError(f"{source}: temperature column 'temperature' is ambiguous: {in_temperature}; "
+                        f"name the oil temperature with --temperature-col (the full header)")
+    return in_temperature[0] if in_temperature else None  # 'Temperature (V)' beside it is a channel
 
-    Columns (``*_col``): a header, a header without its unit, or a 1-based position.
-    ``time_col=None`` (or a file without that column) with ``rate_hz`` [Hz]: samples at that
-    rate. Time may be numbers (``time_unit`` s/ms) or date/ISO timestamps. Units
-    (``*_unit``): given here or declared in the file (header ``force [kN]`` or a units row;
-    both must agree), else SI. ``velocity_col``: a measured stroke velocity (default unit:
-    stroke unit per second), used instead of differentiating the stroke.
-    ``temperature_col``: the oil temperature (degC or K), loaded as channel ``temperature``
-    (without it the column named ``temperature`` in degC or K, or in no declared unit, is that
-    channel -- ``Temperature (V)`` beside ``Temperature (degC)`` stays a channel in V -- and another
-    column that looks like a temperature gives a warning). Every other channel keeps the unit its
-    own header declares. Signs: ``stroke_sign``/``force_sign`` = -1 for rigs
-    writing compression positive. ``t_start``/``t_end`` [s from the first sample] select a
-    segment. Duplicated or irregular stamps are regularised with a warning (see
-    :func:`_regularise`). ``extra_cols``: channel columns to keep (None: every other column).
-    ``check_plausible``: refuse physically implausible strokes/forces (:func:`check_plausible`);
-    ``damper_class``: warn when the apparent damping is outside that class's range (:func:`class_warning`).
-    What was understood goes to ``metadata['read']``, warnings to ``metadata['warnings']``.
-    Raises DataError on any problem.
-    """
-    path = Path(path)
-    source = str(path)
-    if role is not None and role not in ROLES:
-        raise DataError(f"{source}: unknown role {role!r}; expected one of {ROLES}")
-    for opt, sign in (("stroke_sign", stroke_sign), ("force_sign", force_sign)):
-        if sign not in (1, -1):
-            raise DataError(f"{source}: {opt} must be +1 or -1, got {sign!r}")
-    raw = read_raw(path, source)
+
+def _pick_columns(raw: RawTable, source: str, names: dict, rate_hz, extra_cols) -> tuple:
+    """Which column is which. ``names``: role -> the ``*_col`` option (time, stroke, force, velocity,
+    temperature, test). Returns (use: role -> column, no_time, extra columns to read, whether they were
+    asked for, unused columns, warnings). Raises DataError naming the option for a missing column."""
     found = list(raw.frame.columns)
     warn = []
+    time_col = names["time"]
     no_time = time_col is None or (rate_hz is not None and time_col == "time" and "time" not in found
                                    and not any(raw.names[c].lower() == "time" for c in found))
-    use = {}
-    if not no_time:
-        use["time"] = raw.find(time_col, "time", source)
-    use["stroke"] = raw.find(stroke_col, "stroke", source)
-    use["force"] = raw.find(force_col, "force", source)
-    if velocity_col is not None:
-        use["velocity"] = raw.find(velocity_col, "velocity", source)
-    if temperature_col is not None:
-        use["temperature"] = raw.find(temperature_col, "temperature", source)
+    use = {} if no_time else {"time": raw.find(time_col, "time", source)}
+    use["stroke"] = raw.find(names["stroke"], "stroke", source)
+    use["force"] = raw.find(names["force"], "force", source)
+    if names["velocity"] is not None:
+        use["velocity"] = raw.find(names["velocity"], "velocity", source)
+    if names["temperature"] is not None:
+        use["temperature"] = raw.find(names["temperature"], "temperature", source)
     elif extra_cols is None or "temperature" in extra_cols:
-        named = [c for c in found if c not in use.values() and "temperature" in (raw.names[c].lower(), c.lower())]
-        in_temperature = [c for c in named if not raw.units.get(c) or raw.units[c] in TEMPERATURE_UNITS]
-        for col in named if not in_temperature else ():
-            declared = raw.units.get(col)
-            if declared and declared not in TEMPERATURE_UNITS:  # e.g. a thermocouple's raw volts
-                warn.append(f"{source}: column {col!r} is in {declared!r}, not a temperature unit "
-                            f"({', '.join(TEMPERATURE_UNITS)}): kept as a plain channel, not as the oil "
-                            f"temperature; give --temperature-col with a column in degC or K to use one")
-        if len(in_temperature) > 1:
-            raise DataError(f"{source}: temperature column 'temperature' is ambiguous: {in_temperature}; "
-                            f"name the oil temperature with --temperature-col (the full header)")
-        if in_temperature:  # the one in a temperature unit (or none declared); 'Temperature (V)' beside it is a channel
-            use["temperature"] = in_temperature[0]
-    if test_col is not None:
-        use["test"] = raw.find(test_col, "test id", source)
+        col = _temperature_column(raw, use, source, warn)
+        if col is not None:
+            use["temperature"] = col
+    if names["test"] is not None:
+        use["test"] = raw.find(names["test"], "test id", source)
     if len(set(use.values())) != len(use):
         raise DataError(f"{source}: one column is used for two channels: {use}")
     rest = [c for c in found if c not in use.values()]
@@ -352,41 +336,126 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
     missing = [c for c in extra_cols if c not in found]
     if missing:
         raise DataError(f"{source}: missing column(s) {missing}; columns found: {found}")
-    units = {
-        "stroke": _unit(stroke_unit, raw.units.get(use["stroke"]), "m", "stroke", use["stroke"], source, "--stroke-unit"),
-        "force": _unit(force_unit, raw.units.get(use["force"]), "N", "force", use["force"], source, "--force-unit"),
-    }
-    sf = _unit_factor(STROKE_UNITS, units["stroke"], "stroke", source)
-    ff = _unit_factor(FORCE_UNITS, units["force"], "force", source)
-    if no_time:
-        if rate_hz is None or not float(rate_hz) > 0:
-            raise DataError(f"{source}: no time column: give the sample rate with --rate HZ")
-        t = np.arange(len(raw.frame)) / float(rate_hz)
-        time_kind = f"none: samples at --rate {float(rate_hz):g} Hz"
-    else:
-        units["time"] = _unit(time_unit, raw.units.get(use["time"]), "s", "time", use["time"], source, "--time-unit")
-        t, time_kind = _time_seconds(raw, use["time"], units["time"], source)
-        if time_kind == "timestamp":
-            units["time"] = "timestamp"
-    cols = {"stroke": stroke_sign * _numeric(raw, use["stroke"], source) * sf,
-            "force": force_sign * _numeric(raw, use["force"], source) * ff}
-    if "velocity" in use:
-        vdefault = units["stroke"] + "/s"
-        units["velocity"] = _unit(velocity_unit, raw.units.get(use["velocity"]), vdefault, "velocity",
-                                  use["velocity"], source, "--velocity-unit")
-        cols["velocity"] = stroke_sign * _numeric(raw, use["velocity"], source) * _unit_factor(
-            VELOCITY_UNITS, units["velocity"], "velocity", source)
-    ch_units = {}
-    given_ch = channel_units or {}
+    return use, no_time, extra_cols, asked_extra, rest, warn
+
+
+def _signals(raw: RawTable, use: dict, source: str, given: dict, signs: dict, channel_units, cal: dict) -> tuple:
+    """Stroke [m, + extension], force [N, + tension], the measured velocity [m/s] and the oil
+    temperature [degC] of the columns in ``use``, in SI with our signs. ``given``: role -> unit option
+    (None: as the file declares, else SI); ``signs``: stroke and force sign (+1/-1); ``cal``: channel ->
+    scale and offset (:func:`tuner.data.calibration.calibration`): scale x raw + offset is in the
+    channel's unit, and with a scale the unit a column declares is the raw one (not used). Returns
+    (columns by role, the temperature as ``'ch:temperature'``, the raw values of calibrated channels
+    as ``'raw:NAME'``; units read)."""
+    cols, units, raws = {}, {}, {}
+    for what, table, default in (("stroke", STROKE_UNITS, "m"), ("force", FORCE_UNITS, "N"),
+                                 ("velocity", VELOCITY_UNITS, None)):
+        if what not in use:
+            continue
+        c = cal.get(what)
+        declared = raw.units.get(use[what]) if c is None or c["scale"] is None else None
+        units[what] = _unit(given[what], declared, default or units["stroke"] + "/s", what, use[what], source,
+                            f"--{what}-unit")
+        x = _numeric(raw, use[what], source)
+        if c is not None:
+            raws[f"raw:{what}"], x = x, calibrate(x, c)
+        sign = signs["stroke" if what == "velocity" else what]
+        cols[what] = sign * x * _unit_factor(table, units[what], what, source)
     if "temperature" in use:
-        tu = _unit(temperature_unit or (channel_units or {}).get("temperature"), raw.units.get(use["temperature"]), "degC", "temperature",
-                   use["temperature"], source, "--temperature-unit")
+        tu = _unit(given["temperature"] or (channel_units or {}).get("temperature"),
+                   raw.units.get(use["temperature"]), "degC", "temperature", use["temperature"], source,
+                   "--temperature-unit")
         cols["ch:temperature"] = _numeric(raw, use["temperature"], source) + _unit_factor(
             TEMPERATURE_UNITS, tu, "temperature", source)
         units["temperature"] = tu
-        ch_units["temperature"] = "degC"
-    dropped = []
+    return {**cols, **raws}, units
+
+
+_RATE_KEYS = {"sampling rate": "Hz", "sample rate": "Hz", "sampling frequency": "Hz", "sample frequency": "Hz",
+              "sampling interval": "s", "sample interval": "s", "sampling period": "s", "sample period": "s"}
+
+
+def _declared_rates(preamble: dict) -> list[tuple[str, float]]:
+    """(key, rate [Hz]) of each sample rate or interval a logger's preamble declares: ``Sampling Rate:
+    1000`` [Hz, or kHz when so written], ``Sampling Interval:  0.001`` [s, or ms/us when so written]."""
+    out = []
+    for key, value in preamble.items():
+        name, key_unit = split_unit(key)
+        kind = _RATE_KEYS.get(name.strip().lower())
+        m = re.match(r"\s*(\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)\s*([a-zA-Zµ]*)", value)
+        if kind is None or not m or not float(m.group(1)) > 0:
+            continue
+        x, unit = float(m.group(1)), (m.group(2) or key_unit or kind).lower()
+        if kind == "Hz":
+            out.append((key, x * (1e3 if unit == "khz" else 1.0)))
+        else:
+            out.append((key, 1.0 / (x * {"ms": 1e-3, "us": 1e-6, "µs": 1e-6}.get(unit, 1.0))))
+    return out
+
+
+def _rate_check(label: str, preamble: dict, rate: float, dt_tol: float) -> tuple[dict | None, str | None]:
+    """The time column's sample rate [Hz] against the rates the preamble declares: ({key: declared Hz,
+    'time_column_hz', 'agrees'} or None when none is declared, a warning when one differs by more than
+    ``dt_tol``)."""
+    declared = _declared_rates(preamble)
+    if not declared:
+        return None, None
+    off = [(key, hz) for key, hz in declared if abs(rate / hz - 1.0) > dt_tol]
+    check = {"declared_hz": dict(declared), "time_column_hz": rate, "agrees": not off}
+    if not off:
+        return check, None
+    key, hz = off[0]
+    return check, (f"{label}: the preamble declares '{key}: {preamble[key]}' ({hz:.6g} Hz) but the time column "
+                   f"gives {rate:.6g} Hz; check --time-col/--time-unit, or the logger's settings")
+
+
+def _time_base(raw: RawTable, use: dict, no_time: bool, rate_hz, time_unit, date_order, source: str) -> tuple:
+    """(time [s] of every row, what it came from, the time unit read or None, how stamps were read).
+    Without a time column: ``rate_hz`` [Hz], else the rate the preamble declares."""
+    if no_time:
+        declared = _declared_rates(raw.preamble)
+        if rate_hz is None and declared:
+            key, hz = declared[0]
+            return (np.arange(len(raw.frame)) / hz, f"none: samples at {hz:g} Hz, as the preamble declares "
+                                                    f"('{key}: {raw.preamble[key]}')", None, {})
+        if rate_hz is None or not float(rate_hz) > 0:
+            raise DataError(f"{source}: no time column: give the sample rate with --rate HZ")
+        return np.arange(len(raw.frame)) / float(rate_hz), f"none: samples at --rate {float(rate_hz):g} Hz", None, {}
+    unit = _unit(time_unit, raw.units.get(use["time"]), "s", "time", use["time"], source, "--time-unit")
+    t, kind, how = _time_seconds(raw, use["time"], unit, source, date_order)
+    return t, kind, "timestamp" if kind == "timestamp" else unit, how
+
+
+def _text_only(raw: RawTable, col: str) -> str | None:
+    """What a column holding only text (a logger's 'Events') holds, e.g. ``"'DAQ Start', 'DAQ Pause' on
+    2 of 48000 rows"``; None for a column with a number or with nothing in it."""
+    s = raw.frame[col]
+    if s.dtype.kind != "O":
+        return None
+    cells = s.dropna().astype(str).str.strip()
+    cells = cells[cells != ""]
+    if cells.empty or pd.to_numeric(cells, errors="coerce").notna().any():
+        return None
+    kinds = list(dict.fromkeys(cells))
+    shown = ", ".join(repr(v) for v in kinds[:3]) + (" ..." if len(kinds) > 3 else "")
+    return f"{shown} on {len(cells)} of {len(s)} rows"
+
+
+def _extra_channels(raw: RawTable, extra_cols, asked_extra: bool, channel_units, source: str,
+                    warn: list) -> tuple:
+    """The other columns as channels in the unit each declares (temperatures in degC). Returns
+    (``'ch:NAME'`` -> values, NAME -> unit, columns left out, text columns left out: NAME -> what they
+    hold); warnings are appended to ``warn``. A column nobody asked for holding only text (a logger's
+    'Events') is left out with a note; one that cannot be read (a constant written once, an empty
+    trailing column) with a warning; a column asked for must be readable (DataError)."""
+    cols, ch_units, dropped, text = {}, {}, [], {}
+    given_ch = channel_units or {}
     for c in extra_cols:
+        held = None if asked_extra else _text_only(raw, c)
+        if held is not None:
+            text[c] = held
+            dropped.append(c)
+            continue
         try:
             v = _numeric(raw, c, source)
             if not asked_extra:
@@ -394,8 +463,6 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
         except DataError as err:
             if asked_extra:  # a channel the user asked for must be readable
                 raise
-            # a column nobody asked for (a constant written once, an empty trailing column) is no
-            # reason to refuse the file
             warn.append(f"{source}: column {c!r} not read ({str(err).removeprefix(source + ': ')}); only the "
                         f"columns in use and complete extra ones are kept")
             dropped.append(c)
@@ -407,45 +474,166 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
             v = v + TEMPERATURE_UNITS[u]
             u = "degC"
         cols[f"ch:{c}"], ch_units[c] = v, u
-    ids = raw.frame[use["test"]].astype(str).to_numpy() if "test" in use else None
+    return cols, ch_units, dropped, text
+
+
+def _segment(tg: np.ndarray, cg: dict, lines, t_start, t_end, regularised: bool) -> tuple:
+    """The samples between ``t_start`` and ``t_end`` [s from the first sample] (None: no limit)."""
+    sel = np.ones(len(tg), dtype=bool)
+    if t_start is not None:
+        sel &= tg >= t_start
+    if t_end is not None:
+        sel &= tg <= t_end
+    if sel.all():
+        return tg, cg, lines
+    lines = None if lines is None or regularised else [ln for ln, k in zip(lines, sel) if k]
+    return tg[sel], {k: v[sel] for k, v in cg.items()}, lines
+
+
+def _one_test_signals(label: str, t: np.ndarray, cols: dict, rows: np.ndarray, lines, dt_tol: float, t_start,
+                      t_end, force_zero) -> tuple:
+    """One test's ``rows`` of the file's time [s] and columns (``lines``: the file line of each row, or
+    None): NaN/inf refused (named before any resampling), the time base regularised from 0
+    (:func:`_regularise`), the force tared over its first ``force_zero`` seconds (None: not;
+    :func:`tuner.data.calibration.force_zero`), the segment selected. Returns (time [s], columns, file
+    lines, regularisation note, tare)."""
+    lines = None if lines is None else [lines[i] for i in rows]
+    t, cols = t[rows] - t[rows][0], {k: v[rows] for k, v in cols.items()}
+    for k, v in cols.items():
+        check_finite(label, k.removeprefix("ch:"), v, lines)
+    t, cols, note = _regularise(label, t, cols, dt_tol, lines)
+    zero = None
+    if force_zero is not None:
+        cols["force"], zero = tare_force(label, t, cols["force"], cols["stroke"], force_zero)
+    t, cols, lines = _segment(t, cols, lines, t_start, t_end, note is not None)
+    return t, cols, lines, note, zero
+
+
+def _calibration_read(cal: dict, use: dict, raw: RawTable, units: dict, cols: dict) -> dict | None:
+    """Per calibrated channel: column, scale, offset, engineering unit, the unit the file declares (the
+    raw one), and the raw and scaled ranges of one test (``cols`` holds its ``'raw:NAME'`` values)."""
+    out = {}
+    for what, c in cal.items():
+        x = cols[f"raw:{what}"]
+        lo, hi = float(np.min(x)), float(np.max(x))
+        k, b = (1.0 if c["scale"] is None else c["scale"]), (c["offset"] or 0.0)
+        out[what] = {"column": use[what], "scale": c["scale"], "offset": c["offset"], "unit": units[what],
+                     "raw_unit": raw.units.get(use[what]) or "", "raw_range": [lo, hi],
+                     "scaled_range": [k * lo + b, k * hi + b]}
+    return out or None
+
+
+def _checked_options(source: str, role, signs: dict, date_order, velocity_col, cal_options: dict) -> dict:
+    """DataError naming the option for a bad role, sign, date order or calibration; returns the
+    calibration (:func:`tuner.data.calibration.calibration`)."""
+    if role is not None and role not in ROLES:
+        raise DataError(f"{source}: unknown role {role!r}; expected one of {ROLES}")
+    for what, sign in signs.items():
+        if sign not in (1, -1):
+            raise DataError(f"{source}: {what}_sign must be +1 or -1, got {sign!r}")
+    check_date_order(date_order, source)
+    cal = calibration(cal_options, source)
+    if "velocity" in cal and velocity_col is None:
+        raise DataError(f"{source}: --velocity-scale/--velocity-offset given without a velocity column: "
+                        f"name it with --velocity-col")
+    return cal
+
+
+def _test_checks(label: str, t, cols: dict, channels: dict, lines, units: dict, dt_tol: float, sample_rate_hz,
+                 preamble: dict, damper_class) -> tuple[float, dict, list]:
+    """The checks of one test in SI: its signals (``check_signals``), the manifest's and the preamble's
+    sample rate, and, unless ``damper_class`` is None, plausibility and the damper class. Returns (the
+    sample rate [Hz], {'declared_rate', 'plausibility'}, warnings)."""
+    rate = check_signals(label, t, cols["stroke"], cols["force"], channels, dt_tol=dt_tol, lines=lines, units=units)
+    if sample_rate_hz is not None and abs(rate / float(sample_rate_hz) - 1.0) > dt_tol:
+        raise DataError(f"{label}: time column gives {rate:.6g} Hz but the manifest "
+                        f"says sample_rate_hz = {sample_rate_hz}")
+    declared, rate_note = _rate_check(label, preamble, rate, dt_tol)
+    read_checks, class_note = None, None
+    if damper_class is not None:
+        read_checks = plausibility(label, t, cols["stroke"], cols["force"], cols.get("velocity"), rate, units)
+        class_note = class_warning(label, read_checks, damper_class, units)
+    return rate, {"declared_rate": declared, "plausibility": read_checks}, [w for w in (rate_note, class_note) if w]
+
+
+def _groups(raw: RawTable, use: dict) -> list:
+    """(test id or None, row indices) of each test in the file (one per value of the test-id column)."""
+    if "test" not in use:
+        return [(None, np.arange(len(raw.frame)))]
+    ids = raw.frame[use["test"]].astype(str).to_numpy()
+    return [(g, np.flatnonzero(ids == g)) for g in dict.fromkeys(ids)]
+
+
+def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force", velocity_col=None,
+               temperature_col=None, test_col=None, time_unit=None, stroke_unit=None, force_unit=None,
+               velocity_unit=None, temperature_unit=None, stroke_sign=1, force_sign=1, rate_hz=None,
+               t_start=None, t_end=None, extra_cols=None, channel_units=None, name=None, role=None,
+               scenario=None, sample_rate_hz=None, metadata=None, dt_tol=0.01,
+               check_plausible=True, damper_class=DEFAULT_DAMPER_CLASS, header_line=None, date_order=None,
+               stroke_scale=None, stroke_offset=None, force_scale=None, force_offset=None,
+               velocity_scale=None, velocity_offset=None, force_zero=None) -> list[RigTest]:
+    """Read one rig file; return its test(s) in SI units (one per value of ``test_col``).
+
+    Columns (``*_col``): a header, a header without its unit, or a 1-based position.
+    ``time_col=None`` (or a file without that column) with ``rate_hz`` [Hz] (else the rate a logger's
+    preamble declares): samples at that rate. Time may be numbers (``time_unit`` s/ms) or date-time
+    stamps (``date_order`` 'mdy'/'dmy' for year-last dates, None: from the data, see
+    :mod:`tuner.data.stamps`). ``header_line``: the 1-based file line of the column names (None:
+    detected after any preamble, :mod:`tuner.data.rigfile`). Units
+    (``*_unit``): given here or declared in the file (header ``force [kN]`` or a units row;
+    both must agree), else SI. ``velocity_col``: a measured stroke velocity (default unit:
+    stroke unit per second), used instead of differentiating the stroke.
+    ``temperature_col``: the oil temperature (degC or K), loaded as channel ``temperature``
+    (without it the column named ``temperature`` in degC or K, or in no declared unit, is that
+    channel -- ``Temperature (V)`` beside ``Temperature (degC)`` stays a channel in V -- and another
+    column that looks like a temperature gives a warning). Every other channel keeps the unit its
+    own header declares; a text-only column (a logger's 'Events') is left out with a note.
+    Calibration (``stroke_scale``/``stroke_offset``, ``force_*``, ``velocity_*``): engineering value =
+    scale x raw + offset in the channel's unit; ``force_zero`` [s]: the force's mean over the first
+    seconds of each test is removed (:mod:`tuner.data.calibration`). Signs: ``stroke_sign``/``force_sign``
+    = -1 for rigs writing compression positive. ``t_start``/``t_end`` [s from the first sample] select a
+    segment. Duplicated or irregular stamps are regularised with a warning (see
+    :func:`_regularise`). ``extra_cols``: channel columns to keep (None: every other column).
+    ``check_plausible``: refuse physically implausible strokes/forces (:func:`check_plausible`);
+    ``damper_class``: warn when the apparent damping is outside that class's range (:func:`class_warning`).
+    What was understood goes to ``metadata['read']``, warnings to ``metadata['warnings']``.
+    Raises DataError on any problem.
+    """
+    path = Path(path)
+    source = str(path)
+    signs = {"stroke": stroke_sign, "force": force_sign}
+    cal = _checked_options(source, role, signs, date_order, velocity_col, dict(
+        stroke_scale=stroke_scale, stroke_offset=stroke_offset, force_scale=force_scale, force_offset=force_offset,
+        velocity_scale=velocity_scale, velocity_offset=velocity_offset))
+    raw = read_raw(path, source, header_line)
+    use, no_time, extra_cols, asked_extra, rest, warn = _pick_columns(
+        raw, source, {"time": time_col, "stroke": stroke_col, "force": force_col, "velocity": velocity_col,
+                      "temperature": temperature_col, "test": test_col}, rate_hz, extra_cols)
+    given = {"stroke": stroke_unit, "force": force_unit, "velocity": velocity_unit, "temperature": temperature_unit}
+    t, time_kind, tu, stamps = _time_base(raw, use, no_time, rate_hz, time_unit, date_order, source)
+    cols, units = _signals(raw, use, source, given, signs, channel_units, cal)
+    if tu is not None:
+        units["time"] = tu
+    extra, ch_units, dropped, text_cols = _extra_channels(raw, extra_cols, asked_extra, channel_units, source, warn)
+    cols.update(extra)
+    ch_units = {"temperature": "degC", **ch_units} if "temperature" in use else ch_units
     stem = re.sub(r"\.(csv|tsv|txt|dat)(\.gz)?$|\.(parquet|pq)$", "", path.name, flags=re.IGNORECASE)
-    groups = [(None, np.arange(len(raw.frame)))] if ids is None else \
-        [(g, np.flatnonzero(ids == g)) for g in dict.fromkeys(ids)]
+    file_read = {"header_line": raw.header_line, "preamble": dict(raw.preamble), "date_order": stamps.get("date_order"),
+                 "stamps": stamps.get("stamps"), "text_columns": text_cols}
     out = []
-    for gid, rows in groups:
+    for gid, rows in _groups(raw, use):
         label = source if gid is None else f"{source} [test {gid}]"
-        tg = t[rows] - t[rows][0]
-        cg = {k: v[rows] for k, v in cols.items()}
-        lines = None if raw.lines is None else [raw.lines[i] for i in rows]
-        for k, v in cg.items():  # NaN/inf first, so that they are named before any resampling
-            check_finite(label, k.removeprefix("ch:"), v, lines)
-        tg, cg, note = _regularise(label, tg, cg, dt_tol, lines)
-        sel = np.ones(len(tg), dtype=bool)
-        if t_start is not None:
-            sel &= tg >= t_start
-        if t_end is not None:
-            sel &= tg <= t_end
-        if not sel.all():
-            tg = tg[sel]
-            cg = {k: v[sel] for k, v in cg.items()}
-            lines = None if lines is None or note else [ln for ln, k in zip(lines, sel) if k]
+        tg, cg, lines, note, zero = _one_test_signals(label, t, cols, rows, raw.lines, dt_tol, t_start, t_end,
+                                                      force_zero)
         channels = {k[3:]: v for k, v in cg.items() if k.startswith("ch:")}
-        rate = check_signals(label, tg, cg["stroke"], cg["force"], channels, dt_tol=dt_tol, lines=lines,
-                             units=units)
-        if sample_rate_hz is not None and abs(rate / float(sample_rate_hz) - 1.0) > dt_tol:
-            raise DataError(f"{label}: time column gives {rate:.6g} Hz but the manifest "
-                            f"says sample_rate_hz = {sample_rate_hz}")
-        read_checks, class_note = None, None
-        if check_plausible:
-            read_checks = plausibility(label, tg, cg["stroke"], cg["force"], cg.get("velocity"), rate, units)
-            class_note = class_warning(label, read_checks, damper_class, units)
+        rate, checks, notes = _test_checks(label, tg, cg, channels, lines, units, dt_tol, sample_rate_hz,
+                                           raw.preamble, damper_class if check_plausible else None)
         read = {"columns": dict(use), "ignored": [c for c in rest if c not in extra_cols or c in dropped],
-                "channels": list(channels), "units": units, "time": time_kind,
-                "signs": {"stroke": stroke_sign, "force": force_sign},
+                "channels": list(channels), "units": units, "time": time_kind, "signs": dict(signs),
                 "delimiter": raw.delimiter, "decimal": raw.decimal, "regularised": note,
                 "segment_s": [t_start, t_end] if (t_start is not None or t_end is not None) else None,
-                "plausibility": read_checks}
-        warns = list(warn) + ([f"{label}: {note}"] if note else []) + ([class_note] if class_note else [])
+                **checks, **file_read, "calibration": _calibration_read(cal, use, raw, units, cg), "force_zero": zero}
+        warns = list(warn) + ([f"{label}: {note}"] if note else []) + notes
         out.append(RigTest(
             name=(name or stem) + ("" if gid is None else f"-{gid}"), role=role,
             scenario="" if scenario is None else str(scenario), time=tg, stroke=cg["stroke"],
@@ -473,7 +661,9 @@ def load_files(paths, role, **column_options) -> list[RigTest]:
 
 COLUMN_OPTIONS = ("time_col", "stroke_col", "force_col", "velocity_col", "temperature_col", "test_col",
                   "time_unit", "stroke_unit", "force_unit", "velocity_unit", "temperature_unit", "stroke_sign",
-                  "force_sign", "rate_hz", "t_start", "t_end", "check_plausible", "damper_class")
+                  "force_sign", "rate_hz", "t_start", "t_end", "check_plausible", "damper_class", "header_line",
+                  "date_order", "stroke_scale", "stroke_offset", "force_scale", "force_offset", "velocity_scale",
+                  "velocity_offset", "force_zero")
 
 
 def read_column_mapping(path) -> tuple[dict, dict]:

@@ -9,9 +9,15 @@ Accepted files
 * Text: ``.csv``, ``.tsv``, ``.txt``, ``.dat`` (each also ``.gz``), UTF-8. The delimiter is
   detected among ``,`` ``;`` tab ``|`` and runs of blanks. With ``;`` or tab as delimiter a
   decimal comma (``1,25``) is accepted. Lines starting with ``#`` or ``%`` are comments.
-  The first other line is the header. Units may be given in the header (``force [kN]``,
-  ``force (kN)``, ``force in kN``) or in a units row right under it (every cell non-numeric,
-  e.g. ``s, mm, kN`` or ``[s], [mm], [kN]``). A first line of numbers only is data, not a
+  The header is the first other line from which the rows have a stable number of fields: its
+  own, or one fewer on rows that leave out a trailing text column (a logger's ``Events``, written
+  on a few rows only). Lines before it are a preamble (a data logger's ``Sampling Rate:  1000``
+  ...): its ``key: value`` pairs are kept as metadata. ``--header-line N`` (the file's 1-based
+  line number) names the header when the detection fails; a row with another number of fields
+  is refused naming its line, the header's line and that option. Units may be given in the
+  header (``force [kN]``, ``force (kN)``, ``force in kN``) or in a units row right under it
+  (every cell non-numeric, e.g. ``s, mm, kN`` or ``[s], [mm], [kN]``). A first line of numbers
+  only is data, not a
   header (a rig writing no header): the columns are named ``column 1``, ``column 2``, ... and
   found by position; their units come from the options. Only column numbers ``0 1 2 ...`` or
   ``1 2 3 ...`` (what pandas writes for an unnamed table) are taken as a header.
@@ -25,7 +31,7 @@ import csv
 import gzip
 import io
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import pandas as pd
@@ -36,6 +42,8 @@ __all__ = ["DataError", "RawTable", "read_raw", "normalise_unit", "split_unit", 
 
 TEXT_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
 _DELIMITERS = [",", ";", "\t", "|"]
+_PROBE_LINES = 200  # lines looked at to find the header and the delimiter
+_ODD_ROWS = 0.1     # the share of those lines that may have another number of fields (damaged rows)
 _UNIT_ALIASES = {
     "s": "s", "sec": "s", "second": "s", "seconds": "s", "ms": "ms", "msec": "ms",
     "m": "m", "cm": "cm", "mm": "mm", "um": "um", "µm": "um", "μm": "um", "micron": "um",
@@ -69,7 +77,9 @@ class RawTable:
     """A file's columns as written. ``frame``: raw columns (header text stripped); ``lines``: the
     file line of each data row (None for Parquet); ``units``: column -> unit declared in the file
     (header or units row); ``names``: column -> name without the unit; ``delimiter``: as detected
-    (None for Parquet); ``decimal``: decimal mark."""
+    (None for Parquet); ``decimal``: decimal mark; ``header_line``: the file line of the column names
+    (None: no header, or Parquet); ``preamble``: the ``key: value`` pairs of the metadata lines before
+    the header, as written."""
 
     frame: pd.DataFrame
     lines: list[int] | None
@@ -77,6 +87,8 @@ class RawTable:
     names: dict
     delimiter: str | None
     decimal: str = "."
+    header_line: int | None = None
+    preamble: dict = field(default_factory=dict)
 
     def find(self, spec, what: str, source: str) -> str:
         """The column ``spec`` names: a 1-based position (``3`` or ``'3'``), the exact header, or
@@ -99,7 +111,10 @@ class RawTable:
             raise DataError(f"{source}: {what} column {spec!r} is ambiguous: {hits}; give the full header")
         opt = {"time": "--time-col", "stroke": "--stroke-col", "force": "--force-col", "velocity": "--velocity-col",
                "temperature": "--temperature-col", "test id": "--test-col"}.get(what, "the column options")
-        raise DataError(f"{source}: missing column {spec!r} ({what}); columns found: {cols}; "
+        where = "" if not self.header_line or self.header_line == 1 else \
+            (f" (the column names taken from line {self.header_line}; if they are on another line, give it "
+             f"with --header-line N)")
+        raise DataError(f"{source}: missing column {spec!r} ({what}); columns found: {cols}{where}; "
                         f"name the {what} column with {opt} (a header or a 1-based position)")
 
 
@@ -136,7 +151,105 @@ def _detect_delimiter(header: str, sample: list[str]) -> str | None:
     return ","
 
 
-def _read_text(path: Path, source: str) -> RawTable:
+def _splitter(delim: str | None):
+    """A function splitting one line into its fields (``delim`` None: runs of blanks)."""
+    return (lambda s: next(csv.reader([s], delimiter=delim), [])) if delim else str.split
+
+
+def _delimiter_name(delim: str | None) -> str:
+    """'comma', 'semicolon', 'tab', 'bar' or 'blank' (runs of blanks: None), for messages."""
+    return {",": "comma", ";": "semicolon", "\t": "tab", "|": "bar"}.get(delim, "blank")
+
+
+def _numbers(cells: list[str]) -> int:
+    """How many of ``cells`` are numbers (decimal point or comma)."""
+    return sum(_is_number(c, ",") for c in cells if c.strip())
+
+
+def _heads_table(h: int, counts: list[int], rows: list[str], split) -> bool:
+    """True when row ``h`` of ``rows`` can be the header of the rows after it (row 0 may also be the
+    first sample of a table without a header). It has n >= 2 fields; the next row and at least
+    ``1 - _ODD_ROWS`` of the later ones have n, or n - 1 (a trailing text column such as a logger's
+    'Events' left out on most rows; the odd rows are refused later, naming their lines). It is not a
+    data row (below row 0, a header has fewer numbers than the rows under it), nor a metadata line over
+    a header of one field fewer (a next row of n - 1 fields without a number)."""
+    n, rest = counts[h], counts[h + 1:]
+    if n < 2 or not rest or rest[0] not in (n, n - 1):
+        return False
+    if sum(c != n and c != n - 1 for c in rest) > _ODD_ROWS * len(rest):
+        return False
+    below = [_numbers(split(r)) for r in rows[h + 1:h + 4]]
+    if rest[0] == n - 1 and below[0] == 0:
+        return False
+    return h == 0 or _numbers(split(rows[h])) < max(below)
+
+
+def _find_table(kept: list[str], at: int | None) -> tuple[int, str | None]:
+    """(index in ``kept`` of the header line, delimiter). The header is the first line from which the
+    first ``_PROBE_LINES`` lines have a stable field count (:func:`_heads_table`); the lines before it
+    are a preamble (metadata); when no line qualifies, the first line. Delimiters are tried in the
+    order ``, ; tab | blanks``; the one whose table starts first wins. ``at``: the header's index when
+    given (``--header-line``): only the delimiter is detected."""
+    lo = at or 0
+    rows = kept[lo:lo + _PROBE_LINES]
+    found = []
+    for k, delim in enumerate(_DELIMITERS + [None]):
+        split = _splitter(delim)
+        counts = [len(split(s)) for s in rows]
+        starts = range(len(rows) - 1) if at is None else range(min(1, len(rows) - 1))
+        h = next((h for h in starts if _heads_table(h, counts, rows, split)), None)
+        if h is not None:
+            found.append((lo + h, k, delim))
+    if found:
+        h, _, delim = min(found)
+        return h, delim
+    return lo, _detect_delimiter(kept[lo], kept[lo + 1:lo + 6])
+
+
+def _header_index(header_line, lines: list[int], n_lines: int, source: str) -> int:
+    """The index among the kept (non-comment, non-empty) lines of file line ``header_line`` (1-based,
+    ``--header-line``). DataError naming the option for a bad value."""
+    if isinstance(header_line, bool) or not isinstance(header_line, int) or header_line < 1:
+        raise DataError(f"{source}: --header-line (header_line) must be a line number from 1, got {header_line!r}")
+    if header_line > n_lines:
+        raise DataError(f"{source}: --header-line {header_line} is beyond the file's last line ({n_lines})")
+    if header_line not in lines:
+        raise DataError(f"{source}: --header-line {header_line}: that line is empty or a comment ('#' or '%'), "
+                        f"not a header; give the line number of the column names")
+    return lines.index(header_line)
+
+
+def _preamble(rows: list[str], delim: str | None) -> dict:
+    """The ``key: value`` (also ``key = value``, or two fields ``key<delimiter>value``) pairs of the
+    metadata lines before the header, both as written (stripped); other lines are left out."""
+    out = {}
+    for s in rows:
+        key, sep, value = s.partition(":")
+        if not sep:
+            key, sep, value = s.partition("=")
+        fields = _splitter(delim)(s) if delim else []
+        if not sep and len(fields) == 2:
+            (key, value), sep = fields, delim
+        if sep and key.strip():
+            out[key.strip()] = value.strip()
+    return out
+
+
+def _check_fields(body: list[str], body_lines: list[int], n: int, split, delim, head: str, source: str) -> None:
+    """Every row has the header's ``n`` fields, or one fewer (a trailing text column left out). DataError
+    naming the first other line, the header's line and ``--header-line``."""
+    for s, k in zip(body, body_lines):
+        m = len(split(s))
+        if m != n and m != n - 1:
+            raise DataError(
+                f"{source}: line {k} has {m} field(s) but {head} has {n} ({_delimiter_name(delim)}-separated): "
+                f"not a row of that table (a row may only leave out a trailing text column such as 'Events'). "
+                f"If the column names are on another line (metadata lines before them), give its line "
+                f"number with --header-line N; otherwise line {k} is damaged")
+
+
+def _text_lines(path: Path, source: str) -> tuple[list[str], list[int], int]:
+    """(the non-empty lines that are not comments, their 1-based line numbers, the file's line count)."""
     opener = gzip.open if path.name.lower().endswith(".gz") else open
     try:
         with opener(path, "rt", encoding="utf-8-sig", newline="") as fh:
@@ -149,30 +262,12 @@ def _read_text(path: Path, source: str) -> RawTable:
         if s and not s.startswith(("#", "%")):
             kept.append(line)
             lines.append(k)
-    if not kept:
-        raise DataError(f"{source}: file is empty (no header line and no data)")
-    if len(kept) == 1:
-        raise DataError(f"{source}: file is empty: header {kept[0]!r} but no data rows")
-    delim = _detect_delimiter(kept[0], kept[1:6])
-    split = (lambda s: next(csv.reader([s], delimiter=delim))) if delim else str.split
-    header = [c.strip() for c in split(kept[0])]
-    first = [c.strip() for c in split(kept[1])]
-    decimal = "."
-    probe = [c.strip() for row in kept[1:4] for c in split(row)]
-    if delim in (";", "\t", None) and any(re.fullmatch(r"[-+]?\d+,\d+(?:[eE][-+]?\d+)?", c) for c in probe):
-        decimal = ","
-    units_row = None
-    if _is_header_less(header, decimal):  # no header: the first line is the first sample
-        header = [f"column {k + 1}" for k in range(len(header))]
-        body, body_lines = kept, lines
-    else:
-        if len(kept) > 2 and first and not any(_is_number(c, decimal) for c in first if c) and \
-                any(_is_number(c, decimal) for c in split(kept[2])):
-            units_row = first
-        body = kept[2:] if units_row else kept[1:]
-        body_lines = lines[2:] if units_row else lines[1:]
-    if not body:
-        raise DataError(f"{source}: file is empty: header {header} but no data rows")
+    return kept, lines, len(raw)
+
+
+def _frame(body: list[str], header: list[str], delim, decimal: str, source: str) -> pd.DataFrame:
+    """The rows as a table of stripped strings (a decimal comma turned into a point); a row without its
+    trailing field gets NaN there."""
     try:
         df = pd.read_csv(io.StringIO("\n".join(body)), header=None, names=header,
                          sep=delim if delim else r"\s+", decimal=decimal, skipinitialspace=True,
@@ -183,16 +278,54 @@ def _read_text(path: Path, source: str) -> RawTable:
     if decimal == ",":
         df = df.apply(lambda s: s.str.replace(",", ".", regex=False))
     df.columns = header
+    return df
+
+
+def _read_text(path: Path, source: str, header_line=None) -> RawTable:
+    """A text file's table (module docstring): comments left out, the header found after any preamble
+    (or at ``header_line``), the delimiter and decimal mark detected, a units row read, every row's
+    field count checked."""
+    kept, lines, n_lines = _text_lines(path, source)
+    at = None if header_line is None else _header_index(header_line, lines, n_lines, source)
+    if not kept:
+        raise DataError(f"{source}: file is empty (no header line and no data)")
+    if len(kept) == (at or 0) + 1:
+        raise DataError(f"{source}: file is empty: header {kept[-1]!r} but no data rows")
+    h, delim = _find_table(kept, at)
+    split = _splitter(delim)
+    header = [c.strip() for c in split(kept[h])]
+    decimal = "."
+    probe = [c.strip() for row in kept[h + 1:h + 4] for c in split(row)]
+    if delim in (";", "\t", None) and any(re.fullmatch(r"[-+]?\d+,\d+(?:[eE][-+]?\d+)?", c) for c in probe):
+        decimal = ","
+    units_row, start, head = None, h + 1, f"the header (line {lines[h]})"
+    if at is None and _is_header_less(header, decimal):  # no header: the first line is the first sample
+        header = [f"column {k + 1}" for k in range(len(header))]
+        start, head = h, f"the first row (line {lines[h]})"
+    elif len(kept) > h + 2 and not any(_is_number(c, decimal) for c in split(kept[h + 1]) if c.strip()) \
+            and any(_is_number(c, decimal) for c in split(kept[h + 2])):
+        units_row, start = [c.strip() for c in split(kept[h + 1])], h + 2
+    body, body_lines = kept[start:], lines[start:]
+    if not body:
+        raise DataError(f"{source}: file is empty: header {header} but no data rows")
+    twice = sorted({c for c in header if header.count(c) > 1})
+    if twice:
+        raise DataError(f"{source}: {head} names column(s) {twice} more than once: name each column once, or, if "
+                        f"the column names are on another line, give its line number with --header-line N")
+    _check_fields(body, body_lines, len(header), split, delim, head, source)
+    df = _frame(body, header, delim, decimal, source)
     units, names = {}, {}
     for i, col in enumerate(header):
         names[col], units[col] = split_unit(col)
         if units_row is not None and i < len(units_row) and units_row[i]:
             units[col] = normalise_unit(units_row[i])
-    return RawTable(df, body_lines, units, names, delim, decimal)
+    return RawTable(df, body_lines, units, names, delim, decimal, header_line=lines[h] if start > h else None,
+                    preamble=_preamble(kept[:h], delim))
 
 
-def read_raw(path, source: str | None = None) -> RawTable:
-    """Read one rig file (see module docstring); ValueError naming the file on any problem."""
+def read_raw(path, source: str | None = None, header_line: int | None = None) -> RawTable:
+    """Read one rig file (see module docstring); ValueError naming the file on any problem.
+    ``header_line``: the 1-based file line of the column names (text files; None: detected)."""
     path = Path(path)
     source = source or str(path)
     if not path.exists():
@@ -215,7 +348,7 @@ def read_raw(path, source: str | None = None) -> RawTable:
             names[c], units[c] = split_unit(c)
         return RawTable(df, None, units, names, None)
     if name.endswith(TEXT_SUFFIXES) or name.endswith(tuple(s + ".gz" for s in TEXT_SUFFIXES)):
-        return _read_text(path, source)
+        return _read_text(path, source, header_line)
     if name.endswith((".xlsx", ".xls", ".ods")):
         raise DataError(f"{source}: unsupported file type (spreadsheet): save the sheet as CSV")
     raise DataError(f"{source}: unsupported file type; use .csv/.tsv/.txt/.dat (optionally .gz) or .parquet")

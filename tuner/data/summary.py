@@ -4,7 +4,10 @@
 Per test: file, columns used and ignored, units and signs as read, time base, sample rate,
 duration, stroke/velocity/force/temperature ranges (SI and the file's units), force noise (the
 estimate ``tuner.data.noise.force_noise`` chose, its method and whether it is credible), and
-which part of the damping and elastic tables' range the data covers.
+which part of the damping and elastic tables' range the data covers. For a data logger's file also:
+the preamble before the header and the sample rate it declares against the time column, how
+date-time stamps were read (day-month order and why), the raw and scaled range of each calibrated
+channel, the force tare removed, and the text columns left out.
 """
 from __future__ import annotations
 
@@ -37,6 +40,10 @@ def summarize(test: RigTest, fit_rate_hz: float, diff_band_hz: float | None = No
         "columns": read.get("columns", {}), "ignored_columns": read.get("ignored", []),
         "units_read": read.get("units", {}), "signs": read.get("signs", {"stroke": 1, "force": 1}),
         "time_base": read.get("time", "seconds"), "regularised": read.get("regularised"),
+        "header_line": read.get("header_line"), "preamble": read.get("preamble", {}),
+        "date_order": read.get("date_order"), "stamps": read.get("stamps"), "declared_rate": read.get("declared_rate"),
+        "calibration": read.get("calibration"), "force_zero": read.get("force_zero"),
+        "text_columns": read.get("text_columns", {}),
         "sample_rate_hz": float(test.sample_rate), "duration_s": test.duration, "samples": int(len(test.time)),
         "stroke_m": [float(test.stroke.min()), float(test.stroke.max())],
         "velocity_m_s": [float(v.min()), float(v.max())], "velocity_source": vsrc,
@@ -72,6 +79,34 @@ def _range(lo: float, hi: float, scale: float, unit: str, digits: int = 4) -> st
     return f"{lo * scale:.{digits}g} .. {hi * scale:.{digits}g} {unit}"
 
 
+def _logger_lines(s: dict) -> list[str]:
+    """The summary's lines on what a data logger's file needed: the preamble before the header, the
+    declared sample rate, the calibration of each channel (raw and scaled ranges), the force tare and
+    the text columns left out; none for a plain table."""
+    out = []
+    if s["preamble"]:
+        pairs = ", ".join(f"{k}: {v}" for k, v in s["preamble"].items())
+        out.append(f"  file: column names on line {s['header_line']}, after a preamble ({pairs})")
+    d = s["declared_rate"]
+    if d:
+        declared = ", ".join(f"{k} {hz:.6g} Hz" for k, hz in d["declared_hz"].items())
+        out.append(f"  declared sample rate: {declared}; the time column gives {d['time_column_hz']:.6g} Hz"
+                   + ("" if d["agrees"] else " (DIFFERS, see the warning)"))
+    for what, c in (s["calibration"] or {}).items():
+        scale = "" if c["scale"] is None else f"{c['scale']:g} x "
+        offset = "" if c["offset"] is None else f" {'-' if c['offset'] < 0 else '+'} {abs(c['offset']):g}"
+        raw = f"{c['raw_range'][0]:.4g} .. {c['raw_range'][1]:.4g}" + (f" {c['raw_unit']}" if c["raw_unit"] else "")
+        out.append(f"  {what} = {scale}{c['column']!r}{offset} [{c['unit']}]: raw {raw} -> "
+                   f"{_range(*c['scaled_range'], 1, c['unit'])}")
+    z = s["force_zero"]
+    if z:
+        out.append(f"  force zero: {z['removed_n']:.4g} N removed (the mean over the first {z['seconds']:g} s, "
+                   f"{z['samples']} samples; the stroke moved {z['stroke_motion_m'] * 1e3:.3g} mm meanwhile)")
+    for col, held in s["text_columns"].items():
+        out.append(f"  text column {col!r} left out (not a signal): {held}")
+    return out
+
+
 def format_summary(test: RigTest, fit_rate_hz: float, diff_band_hz: float | None = None) -> str:
     """Plain-text summary of :func:`summarize` (a few lines per test)."""
     s = summarize(test, fit_rate_hz, diff_band_hz)
@@ -83,11 +118,12 @@ def format_summary(test: RigTest, fit_rate_hz: float, diff_band_hz: float | None
                       f"(to extension and tension positive)")
     lines = [f"{s['name']}" + (f" ({s['role']})" if s["role"] else "") + f": {s['file']}",
              f"  columns: {cols}" + (f"; ignored: {s['ignored_columns']}" if s["ignored_columns"] else ""),
-             f"  read: {units or 'SI'}; signs {sign_text}; time: {s['time_base']}",
+             f"  read: {units or 'SI'}; signs {sign_text}; time: {s['time_base']}"
+             + (f", {s['stamps']}" if s["stamps"] else ""),
              f"  {s['samples']} samples at {s['sample_rate_hz']:.6g} Hz, {s['duration_s']:.4g} s",
              f"  stroke {_range(*s['stroke_m'], 1e3, 'mm')}; velocity {_range(*s['velocity_m_s'], 1e3, 'mm/s')} "
              f"({s['velocity_source']}); force {_range(*s['force_n'], 1e-3, 'kN')}"
-             + _noise_text(s["force_noise"])]
+             + _noise_text(s["force_noise"])] + _logger_lines(s)
     for k, (lo, hi, u) in s["channels"].items():
         lines.append(f"  channel {k}: {lo:.4g} .. {hi:.4g} {u}".rstrip())
     c = s["coverage"]
