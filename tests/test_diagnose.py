@@ -376,3 +376,45 @@ def test_a_residual_is_not_judged_against_a_floor_that_is_not_credible(tmp_path)
     assert "x the residual floor" not in res["verdict"] and "noise estimate not credible" in res["verdict"]
     saved = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
     assert saved["noise"]["tests"]["lumped_ide1"]["all"]["quiet_band"]["credible"] is False
+
+
+def test_typical_effect_sizes_scale_with_the_damper():
+    """tuner.diagnosis.effect_sizes: forces and the equivalent mass with the peak force, lengths with the
+    stroke range (never above the catalogue's), times unchanged; the reference damper keeps the catalogue."""
+    from damper_fmu.parameters import EFFECT_TYPICAL
+    from tuner.diagnosis.effect_sizes import REFERENCE, DamperSize, meaningful_floor, typical_range
+
+    assert typical_range("friction_force", REFERENCE) == EFFECT_TYPICAL["friction_force"]
+    small = DamperSize(peak_force_n=REFERENCE.peak_force_n / 30, stroke_range_m=REFERENCE.stroke_range_m / 4)
+    assert typical_range("friction_force", small) == pytest.approx((50 / 30, 300 / 30))
+    assert typical_range("inertia_mass", small) == pytest.approx((20 / 30, 200 / 30))
+    assert typical_range("free_play", small) == pytest.approx((1e-4 / 4, 1e-3 / 4))
+    assert typical_range("valve_tau", small) == EFFECT_TYPICAL["valve_tau"]
+    big = DamperSize(peak_force_n=REFERENCE.peak_force_n, stroke_range_m=10 * REFERENCE.stroke_range_m)
+    assert typical_range("free_play", big) == EFFECT_TYPICAL["free_play"]  # a clearance does not grow with the stroke
+    assert meaningful_floor("inertia_mass", small) == pytest.approx(0.5 * 20 / 30)
+
+
+def test_a_cause_on_a_damper_30_times_smaller_is_named_at_its_own_scale(tmp_path):
+    """The preset lumped damper with its damping characteristic scaled by 1/30 (peaks of ~0.8 kN; the
+    series chain, inside the model's bounds, stays as stiff), 0.3 N of noise and a 6 N friction hidden: on
+    the catalogue's railway sizes a 6 N friction is below the 25 N 'meaningful' floor and would be refused;
+    scaled to the damper (floor ~1 N) it is named, near the truth."""
+    from campaign.synthetic import write_model_dataset
+    from damper_fmu import defaults
+
+    small = {k: (v / 30 if k.startswith("Fc_") and not k.startswith("Fc_v") else v)
+             for k, v in defaults("lumped").items()}
+    path = write_model_dataset(tmp_path / "data", "lumped", {**small, "friction_force": 6.0}, seed=4,
+                               durations=(6.0, 6.0, 4.0), roles=("identification", "identification", "validation"),
+                               noise_n=0.3)
+    tests = load_dataset(path, check_plausible=False)
+    res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
+                   tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), base_iterations=0, base_model="lumped",
+                                                      candidates=("friction",)),
+                   base_params=small, base_model="lumped", log=lambda m: None)
+    assert res["causes"] == ["friction"], res["verdict"]
+    p = res["effect_parameters"]["friction_force"]
+    assert p["value"] == pytest.approx(6.0, rel=0.2)
+    lo, hi = p["plausible_range"]  # the catalogue's 50-300 N at this damper's peak force (~0.8 kN of 20 kN)
+    assert 0.5 < lo < 3.0 and 8.0 < hi < 20.0 and p["plausible"], p

@@ -113,7 +113,7 @@ def test_a_refinement_whose_gain_the_data_cannot_show_stops_at_the_data_resoluti
     """The rule's two conditions on a white residual of known RMSE (standard error sigma / sqrt(2 N)): a
     fall of the RMSE over the last RESOLUTION_WINDOW Jacobians below RESOLUTION_FRACTION of it (and below
     FTOL of the SSE) stops; a fall above either does not."""
-    from tuner.identification.polish import RESOLUTION_FRACTION, RESOLUTION_WINDOW, _at_resolution
+    from tuner.identification.polish import RESOLUTION_FRACTION, RESOLUTION_WINDOW, resolution_stop
 
     rng = np.random.default_rng(1)
     r = rng.normal(scale=10.0, size=20000)
@@ -123,9 +123,9 @@ def test_a_refinement_whose_gain_the_data_cannot_show_stops_at_the_data_resoluti
     def history(fall):  # fitness N / SSE = 1 / RMSE^2, RMSE falling linearly by ``fall`` over the window
         return [1.0, *[(rmse + fall * (1 - k / RESOLUTION_WINDOW)) ** -2 for k in range(RESOLUTION_WINDOW + 1)]]
 
-    assert _at_resolution(history(0.5 * RESOLUTION_FRACTION * se), r).startswith("converged to the data's resolution")
-    assert _at_resolution(history(2.0 * RESOLUTION_FRACTION * se), r) is None
-    assert _at_resolution(history(0.0)[-RESOLUTION_WINDOW:], r) is None  # too few Jacobians to judge
+    assert resolution_stop(history(0.5 * RESOLUTION_FRACTION * se), r).startswith("converged to the data's resolution")
+    assert resolution_stop(history(2.0 * RESOLUTION_FRACTION * se), r) is None
+    assert resolution_stop(history(0.0)[-RESOLUTION_WINDOW:], r) is None  # too few Jacobians to judge
 
 
 def test_a_slow_valley_where_no_model_reaches_the_noise_ends_on_the_resolution_rule(monkeypatch):

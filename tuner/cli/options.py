@@ -67,6 +67,11 @@ def add_data_options(g) -> None:
     g.add_argument("--force-zero", type=float, default=None, metavar="S",
                    help="tare: remove the mean force over the first S seconds of each test (the damper at rest: "
                         "refused if the stroke moves more than 5 %% of its range meanwhile)")
+    g.add_argument("--prefilter", default=None, metavar="SPEC",
+                   help="the filter the lab applied to its channels before writing the file, applied to the "
+                        "simulated force before every comparison: 'moving-average:T' (T in s, causal), "
+                        "'butterworth:N:FC' (order, cut-off in Hz, causal), either with ':zero-phase', or 'none' "
+                        "(default); per file in a --columns file (key prefilter)")
     g.add_argument("--columns", type=Path, default=None, metavar="FILE",
                    help="column mapping file (TOML or JSON) for campaigns with many files: the options above "
                         "as keys (time_col, stroke_unit, force_sign, header_line, force_scale ...), for every file "
@@ -81,7 +86,7 @@ def add_data_options(g) -> None:
 DATA_OPTIONS = ("time_col", "stroke_col", "force_col", "velocity_col", "temperature_col", "test_col", "time_unit",
                  "stroke_unit", "force_unit", "velocity_unit", "temperature_unit", "stroke_sign", "force_sign",
                  "t_start", "t_end", "damper_class", "header_line", "date_order", "stroke_scale", "stroke_offset",
-                 "force_scale", "force_offset", "velocity_scale", "velocity_offset", "force_zero")
+                 "force_scale", "force_offset", "velocity_scale", "velocity_offset", "force_zero", "prefilter")
 
 
 def column_options(args) -> tuple[dict, dict]:

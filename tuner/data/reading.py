@@ -22,6 +22,7 @@ from damper_dataset.format import (FORCE_UNITS, MANIFEST_TEST_KEYS, ROLES, STROK
                                    TIME_UNITS, VELOCITY_UNITS, DataError, check_finite, check_signals, read_manifest,
                                    suggest_unit)
 from tuner.data.calibration import apply as calibrate, calibration, force_zero as tare_force
+from tuner.data.prefilter import parse_prefilter
 from tuner.data.rigfile import RawTable, read_raw, split_unit
 from tuner.data.stamps import check_date_order, is_stamp, stamp_seconds
 
@@ -571,7 +572,7 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
                scenario=None, sample_rate_hz=None, metadata=None, dt_tol=0.01,
                check_plausible=True, damper_class=DEFAULT_DAMPER_CLASS, header_line=None, date_order=None,
                stroke_scale=None, stroke_offset=None, force_scale=None, force_offset=None,
-               velocity_scale=None, velocity_offset=None, force_zero=None) -> list[RigTest]:
+               velocity_scale=None, velocity_offset=None, force_zero=None, prefilter=None) -> list[RigTest]:
     """Read one rig file; return its test(s) in SI units (one per value of ``test_col``).
 
     Columns (``*_col``): a header, a header without its unit, or a 1-based position.
@@ -590,7 +591,10 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
     own header declares; a text-only column (a logger's 'Events') is left out with a note.
     Calibration (``stroke_scale``/``stroke_offset``, ``force_*``, ``velocity_*``): engineering value =
     scale x raw + offset in the channel's unit; ``force_zero`` [s]: the force's mean over the first
-    seconds of each test is removed (:mod:`tuner.data.calibration`). Signs: ``stroke_sign``/``force_sign``
+    seconds of each test is removed (:mod:`tuner.data.calibration`). ``prefilter``: the filter the lab
+    applied to the channels before writing them (:mod:`tuner.data.prefilter`, e.g. 'moving-average:0.02'),
+    recorded in ``metadata['read']['prefilter']``: the simulated force passes it before every comparison.
+    Signs: ``stroke_sign``/``force_sign``
     = -1 for rigs writing compression positive. ``t_start``/``t_end`` [s from the first sample] select a
     segment. Duplicated or irregular stamps are regularised with a warning (see
     :func:`_regularise`). ``extra_cols``: channel columns to keep (None: every other column).
@@ -605,6 +609,7 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
     cal = _checked_options(source, role, signs, date_order, velocity_col, dict(
         stroke_scale=stroke_scale, stroke_offset=stroke_offset, force_scale=force_scale, force_offset=force_offset,
         velocity_scale=velocity_scale, velocity_offset=velocity_offset))
+    lab_filter = parse_prefilter(prefilter, f"{source}: prefilter")
     raw = read_raw(path, source, header_line)
     use, no_time, extra_cols, asked_extra, rest, warn = _pick_columns(
         raw, source, {"time": time_col, "stroke": stroke_col, "force": force_col, "velocity": velocity_col,
@@ -632,7 +637,8 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
                 "channels": list(channels), "units": units, "time": time_kind, "signs": dict(signs),
                 "delimiter": raw.delimiter, "decimal": raw.decimal, "regularised": note,
                 "segment_s": [t_start, t_end] if (t_start is not None or t_end is not None) else None,
-                **checks, **file_read, "calibration": _calibration_read(cal, use, raw, units, cg), "force_zero": zero}
+                **checks, **file_read, "calibration": _calibration_read(cal, use, raw, units, cg), "force_zero": zero,
+                "prefilter": lab_filter.to_dict() if lab_filter else None}
         warns = list(warn) + ([f"{label}: {note}"] if note else []) + notes
         out.append(RigTest(
             name=(name or stem) + ("" if gid is None else f"-{gid}"), role=role,
@@ -663,7 +669,7 @@ COLUMN_OPTIONS = ("time_col", "stroke_col", "force_col", "velocity_col", "temper
                   "time_unit", "stroke_unit", "force_unit", "velocity_unit", "temperature_unit", "stroke_sign",
                   "force_sign", "rate_hz", "t_start", "t_end", "check_plausible", "damper_class", "header_line",
                   "date_order", "stroke_scale", "stroke_offset", "force_scale", "force_offset", "velocity_scale",
-                  "velocity_offset", "force_zero")
+                  "velocity_offset", "force_zero", "prefilter")
 
 
 def read_column_mapping(path) -> tuple[dict, dict]:

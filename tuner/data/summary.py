@@ -15,7 +15,7 @@ from damper_fmu.parameters import FC_ABSCISSAE
 
 from tuner.data.reading import RigTest
 from tuner.data.differentiator import Differentiator
-from tuner.data.noise import force_noise
+from tuner.data.noise import FLATNESS, force_noise
 from tuner.data.preprocess import stroke_band_hz
 
 __all__ = ["summarize", "format_summary"]
@@ -43,7 +43,8 @@ def summarize(test: RigTest, fit_rate_hz: float, diff_band_hz: float | None = No
         "header_line": read.get("header_line"), "preamble": read.get("preamble", {}),
         "date_order": read.get("date_order"), "stamps": read.get("stamps"), "declared_rate": read.get("declared_rate"),
         "calibration": read.get("calibration"), "force_zero": read.get("force_zero"),
-        "text_columns": read.get("text_columns", {}),
+        "text_columns": read.get("text_columns", {}), "prefilter": read.get("prefilter"),
+        "looks_filtered": _looks_filtered(noise),
         "sample_rate_hz": float(test.sample_rate), "duration_s": test.duration, "samples": int(len(test.time)),
         "stroke_m": [float(test.stroke.min()), float(test.stroke.max())],
         "velocity_m_s": [float(v.min()), float(v.max())], "velocity_source": vsrc,
@@ -63,6 +64,29 @@ def summarize(test: RigTest, fit_rate_hz: float, diff_band_hz: float | None = No
         "beyond_damping_table": vmax > table_v,
     }
     return out
+
+
+#: the quiet band's white-equivalent noise this many times below the scatter between repeated cycles or
+#: segments: the band above the stroke's content was removed (a raw load cell's noise is white)
+FILTERED_RATIO = 10.0
+
+
+def _looks_filtered(noise: dict) -> str | None:
+    """Why the force looks low-pass filtered or smoothed, from its noise estimates (``tuner.data.noise.
+    force_noise``): the quiet band's white-equivalent level far below what does not repeat between cycles
+    or segments, or a level that falls across the quiet band; None when neither holds."""
+    est = noise.get("all") or {}
+    band = est.get("quiet_band") or {}
+    spread = next((e for e in (est.get("cycle_scatter"), est.get("repeats")) if e and e.get("credible")), None)
+    if band.get("value_n") and spread and spread["value_n"] > FILTERED_RATIO * band["value_n"]:
+        return (f"the force's upper band holds {band['value_n']:.3g} N rms (white-equivalent), "
+                f"{spread['value_n'] / band['value_n']:.3g} x less than its {spread['method'].replace('_', ' ')} "
+                f"({spread['value_n']:.3g} N)")
+    levels = band.get("levels_n") or []
+    if levels and min(levels) > 0 and levels[0] > FLATNESS * levels[-1]:
+        lo, hi = band["bands_hz"][0][0], band["bands_hz"][-1][1]
+        return f"the force's quiet-band level falls {levels[0] / levels[-1]:.3g} x from {lo:.4g} to {hi:.4g} Hz"
+    return None
 
 
 def _noise_text(n: dict) -> str:
@@ -104,6 +128,14 @@ def _logger_lines(s: dict) -> list[str]:
                    f"{z['samples']} samples; the stroke moved {z['stroke_motion_m'] * 1e3:.3g} mm meanwhile)")
     for col, held in s["text_columns"].items():
         out.append(f"  text column {col!r} left out (not a signal): {held}")
+    if s["prefilter"]:
+        pf = s["prefilter"]
+        ends = "first" if pf["force_only"] and not pf["zero_phase"] else "first and last"
+        out.append(f"  lab filter declared: {pf['text']} (" + ("" if pf["force_only"] else "the stroke is undone, ")
+                   + f"the simulated force is compared through it; the {ends} {pf['settling_s']:.3g} s do not count)")
+    elif s["looks_filtered"]:
+        out.append(f"  looks filtered: {s['looks_filtered']}; if the lab low-passed or smoothed its channels, declare "
+                   "the filter with --prefilter (a model compared with filtered data meets an error the filter made)")
     return out
 
 

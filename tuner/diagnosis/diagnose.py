@@ -26,8 +26,8 @@ Procedure (``diagnose``):
    Score = -ln(MSE_ext / MSE_none) - 0.02 x (extra parameters), pooled over the validation
    tests, against 'none' (the base refitted alike). A cause is named (``decide``) when it scores
    above 0.05 (~7 % held-out MSE reduction for one parameter), its force is above the measured
-   noise, its magnitude is physically meaningful (>= half the low end of its typical range), a
-   fitted delay agrees with the residual's, and the 95 % interval of its magnitude excludes zero
+   noise, its magnitude is physically meaningful (>= half the low end of its typical range, scaled to
+   the damper: ``tuner.diagnosis.effect_sizes``), a fitted delay agrees with the residual's, and the 95 % interval of its magnitude excludes zero
    (``effect_intervals``: block sandwich, ``tuner.diagnosis.significance``).
 4. Forward selection (``_next_cause``): further causes are added one at a time on the same rules
    against the model of the causes found so far.
@@ -70,6 +70,7 @@ from damper_fmu.parameters import (CATALOGUE_EFFECTS, EFFECT_IDENTIFIED, EFFECT_
 from tuner.data.noise import channel_noise
 from tuner.data.reading import RigTest
 from tuner.diagnosis.detection import detection_limits
+from tuner.diagnosis.effect_sizes import DamperSize, meaningful_floor, typical_range
 from tuner.diagnosis.forms import FORM_LABELS, screen, settings_text, shape_grid
 from tuner.diagnosis.refit import (MIN_BLOCKS, ExtendedParametrization, base_jacobian, effect_intervals, refit,
                                    search_bounds)
@@ -84,8 +85,8 @@ from tuner.identification.problem import DataSettings, Problem
 from tuner.metrics import pooled_mse
 from tuner.progress import advance
 
-__all__ = ["DiagnosisSettings", "DiagnosisFailed", "diagnose", "decide", "cross_check", "choose_base", "CANDIDATES", "BASE_MODELS",
-           "ExtendedParametrization"]
+__all__ = ["DiagnosisSettings", "DiagnosisFailed", "diagnose", "decide", "cross_check", "choose_base", "CANDIDATES",
+           "BASE_MODELS", "ExtendedParametrization"]
 
 #: the candidate causes: the effect catalogue of the design notes (parameters.CATALOGUE_EFFECTS); the forms
 #: beyond it (parameters.FORM_EFFECTS) are tried after them, when a residual above the floor remains
@@ -95,10 +96,6 @@ CANDIDATES = CATALOGUE_EFFECTS
 BASE_MODELS = EFFECT_MODELS
 PENALTY_PER_PARAMETER = 0.02
 ACCEPT_SCORE = 0.05
-#: a magnitude below this fraction of the low end of the catalogue's typical range is no physical cause
-#: (a 0.2 ms valve lag or a 0.04 mm play fitted where the typical ranges start at 1 ms and 0.1 mm is the
-#: refit compensating something else)
-MEANINGFUL_FRACTION = 0.5
 #: identification RMSE above this multiple of the measured noise: a structured residual remains
 UNEXPLAINED_RATIO = 2.0
 #: a form beyond the catalogue is named only when it removes at least this share of the held-out residual
@@ -111,8 +108,6 @@ FORM_EXCESS_SHARE = 0.5
 #: the residual shows less than the whole delay (down to a third on lumped data, 2.20 ms fitted for
 #: 0.71 ms seen), never much more
 DELAY_AGREEMENT = (1 / 3, 5.0)
-#: typical magnitudes (the catalogue, damper_fmu.parameters.EFFECT_TYPICAL), reported next to the fitted values
-PLAUSIBLE = EFFECT_TYPICAL
 UNITS = {p.name: p.unit for p in EFFECT_PARAMETERS}
 NOTES = {"time_delay": "a skew between the force and stroke channels (DAQ, filters): fix the acquisition; "
                        "the exported co-simulation model should not contain it",
@@ -389,7 +384,8 @@ def decide(ranking: list[dict]) -> tuple[str, dict, list[dict]]:
     A cause is the best-scoring extension that (1) scores above ACCEPT_SCORE against the base
     refitted alike (held-out gain), (2) is resolved: its force contribution is at or above the
     measurement noise (and a fitted delay agrees with the residual's, ``cross_check``), and
-    (3) is physically meaningful (``MEANINGFUL_FRACTION``) and (4) significant: the 95 % confidence
+    (3) is physically meaningful (``tuner.diagnosis.effect_sizes.meaningful_floor``: its typical range
+    scaled to the damper) and (4) significant: the 95 % confidence
     interval of its magnitude excludes zero (``effect_intervals``; a row without an interval is
     not significant). Otherwise 'none' (with
     the 'none' row of the ranking)."""
@@ -674,6 +670,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
     at("residual analysis")
     identification, prep_id, prep_val = data.identification, data.prep_id, data.prep_val
     sig_id, sig_val, peak, stroke_range, noise = data.sig_id, data.sig_val, data.peak_n, data.stroke_range_m, data.noise_n
+    size = DamperSize(peak, stroke_range)  # the typical effect sizes scale with it (tuner.diagnosis.effect_sizes)
     stroke_limits = (min(float(s.stroke[s.mask].min()) for s in sig_id),
                      max(float(s.stroke[s.mask].max()) for s in sig_id))  # [m]
 
@@ -745,7 +742,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
                     "identification_rmse_n": 1 / math.sqrt(g) if g > 0 else math.inf,
                     "parameters": values, "units": {n: UNITS[n] for n in values},
                     "effect_rms_n": contribution, "resolved": bool(contribution >= noise) if new else True,
-                    "meaningful": all(abs(params[n]) >= MEANINGFUL_FRACTION * PLAUSIBLE[n][0] for n in new),
+                    "meaningful": all(abs(params[n]) >= meaningful_floor(n, size) for n in new),
                     "validation": {s.name: {"mse": m, "ame": a} for s, (m, a) in zip(sig_val, per_test)},
                     "evaluations": int(evals)}
 
@@ -949,7 +946,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
     at("validation before and after")
     validation, base_metrics, final_metrics = _before_after(kind, base, after_params if causes else None, sig_val,
                                                             settings.engine)
-    effect_parameters = _effect_parameters(best) if causes else {}
+    effect_parameters = _effect_parameters(best, size) if causes else {}
 
     verdict = _verdict(causes, best, none_row, unresolved, unexplained, noise, limits, form_step)
     if not credible:
@@ -975,9 +972,10 @@ def _detection(eid: Engine, ev: Engine, par: Parametrization, z: np.ndarray, can
     """``tuner.diagnosis.detection.detection_limits`` of ``candidates`` at the base refit ``z`` with the
     diagnosis's rules (acceptance score, penalty, search bounds, physical range); logged, units added."""
     names = {e: EFFECT_IDENTIFIED[e][0] for e in candidates}
-    limits = detection_limits(eid, ev, par, z, names, {n: EFFECT_TYPICAL[n][0] for n in names.values()},
+    size = DamperSize(peak, stroke_range)
+    limits = detection_limits(eid, ev, par, z, names, {n: typical_range(n, size)[0] for n in names.values()},
                               {n: search_bounds(n, peak, stroke_range) for n in names.values()},
-                              {n: MEANINGFUL_FRACTION * PLAUSIBLE[n][0] for n in names.values()}, mse_ref, noise,
+                              {n: meaningful_floor(n, size) for n in names.values()}, mse_ref, noise,
                               ACCEPT_SCORE, PENALTY_PER_PARAMETER, lengths, tests)
     for r in limits.values():
         r["unit"] = UNITS[r["parameter"]]
@@ -1020,13 +1018,14 @@ def _before_after(kind: str, base: dict, after: dict | None, signals: list, engi
     return validation, base_metrics, final_metrics
 
 
-def _effect_parameters(best: dict) -> dict:
-    """The named causes' fitted magnitudes with units, 95 % intervals and their typical ranges."""
+def _effect_parameters(best: dict, size: DamperSize) -> dict:
+    """The named causes' fitted magnitudes with units, 95 % intervals and their typical ranges on a damper
+    of ``size`` (``tuner.diagnosis.effect_sizes``)."""
     out = {}
     for n, v in best["parameters"].items():
         out[n] = {"value": v, "unit": UNITS[n], "interval_95": best["interval"][n]}
-        if n in PLAUSIBLE:  # a form's shape (a groove's centre and length) has no typical size
-            lo, hi = PLAUSIBLE[n]
+        if n in EFFECT_TYPICAL:  # a form's shape (a groove's centre and length) has no typical size
+            lo, hi = typical_range(n, size)
             out[n].update({"plausible_range": [lo, hi], "plausible": bool(lo <= abs(v) <= hi)})
     return out
 

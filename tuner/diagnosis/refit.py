@@ -15,6 +15,7 @@ import numpy as np
 
 from damper_fmu.parameters import EFFECT_IDENTIFIED, EFFECT_PARAMETERS, EFFECT_TYPICAL
 
+from tuner.diagnosis.effect_sizes import REFERENCE, DamperSize, meaningful_floor
 from tuner.diagnosis.significance import block_sandwich, correlation_time, interval
 from tuner.identification.engine import Engine
 from tuner.identification.parametrization import Parametrization
@@ -69,6 +70,9 @@ class ExtendedParametrization:
         self.effects = effect.split("+")
         self.extra = [n for e in self.effects for n in EFFECT_IDENTIFIED[e]]
         self.extra_bounds = [search_bounds(n, peak_force, stroke_range_m, stroke_limits) for n in self.extra]
+        size = DamperSize(peak_force, stroke_range_m or REFERENCE.stroke_range_m)
+        #: the smallest magnitude of each extra parameter that is a cause on this damper (None: a shape)
+        self.floors = [meaningful_floor(n, size) if n in EFFECT_TYPICAL else None for n in self.extra]
         self.dimension = base.dimension + len(self.extra)
         self.names = base.names + self.extra
 
@@ -96,10 +100,14 @@ class ExtendedParametrization:
         return f"{self.base.describe()}; plus {', '.join(self.extra)} (linear within the search bounds)"
 
 
-def grid(lo: float, hi: float, n: int) -> list[float]:
-    """Candidate values for the line search: both signs when the range straddles zero."""
+def grid(lo: float, hi: float, n: int, floor: float | None = None) -> list[float]:
+    """Candidate values for the line search: both signs when the range straddles zero; else geometric from
+    2 % of the range, or from ``floor`` (the smallest magnitude that would be a cause on this damper,
+    ``tuner.diagnosis.effect_sizes.meaningful_floor``) when that lies lower (a small damper's causes)."""
     if lo < 0.0 < hi:
         return list(np.linspace(lo, hi, 2 * (n // 2) + 1))
+    if lo == 0.0 and floor is not None and 0.0 < floor < 0.02 * hi:
+        return list(np.geomspace(floor, hi, n))
     return [lo + (hi - lo) * f for f in np.geomspace(0.02, 1.0, n)]
 
 
@@ -143,7 +151,7 @@ def refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: float
     for i, (lo, hi) in enumerate(ext.extra_bounds):
         if profile is not None and i not in profile:  # kept at its value in z0 during the profile
             continue
-        for val in grid(lo, hi, settings.grid_points):
+        for val in grid(lo, hi, settings.grid_points, ext.floors[i]):
             z = z0.copy()
             z[dim + i] = (val - lo) / (hi - lo)
             pts.append(z)

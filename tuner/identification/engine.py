@@ -39,6 +39,7 @@ from damper_fmu import native, simulate
 from damper_fmu.fmu import ensure_fmu
 from damper_fmu.integrator import DEFAULT_MAX_STEP, DEFAULT_TOLERANCE
 from damper_fmu.models import ConvergenceError
+from tuner.data.prefilter import Prefilter
 from tuner.data.preprocess import Resampler
 from tuner.identification.runner import FmuRunner, SimulationError
 
@@ -76,6 +77,9 @@ class Signals:
     #: the model runs on a grid this many times finer and its force is low-passed back to these
     #: samples (module docstring); 1: simulated at these samples
     oversample: int = 1
+    #: the filter the lab applied to the measured channels (``tuner.data.prefilter``), applied to the
+    #: simulated force on the fine grid before the low-pass; None: none declared
+    prefilter: Prefilter | None = None
 
     @cached_property
     def fine(self) -> tuple:
@@ -95,9 +99,15 @@ class Signals:
         return Resampler.design(rate * self.oversample, rate)
 
     def band_limit(self, fine_force: np.ndarray) -> np.ndarray:
-        """Force [N] at these samples from the force on the fine grid: low-passed where the
+        """Force [N] at these samples from the force on the fine grid, as the measured force was made:
+        through the lab's declared ``prefilter`` (on the fine grid), then low-passed where the
         filter's support lies inside the test (``band_limited_span``), plain samples elsewhere
-        (those are outside the mask)."""
+        (those are outside the mask). The one place where a simulated force is made comparable."""
+        if self.prefilter is not None:
+            rate = (len(self.time) - 1) / (self.time[-1] - self.time[0]) * self.oversample
+            fine_force = self.prefilter.apply(fine_force, rate)
+        if self.oversample == 1:
+            return np.asarray(fine_force, dtype=float)
         out = np.array(fine_force[::self.oversample], dtype=float)
         k0, n = self.band_limited_span()
         out[k0:k0 + n] = self.low_pass.apply(fine_force)
@@ -145,7 +155,7 @@ class _Simulator:
     def force(self, params: dict, s: Signals) -> np.ndarray:
         """Simulated force [N] at the samples of ``s`` (band-limited when oversampled)."""
         if s.oversample == 1:
-            return self._run(params, s.time, s.stroke, s.stroke_velocity, s.temperature)
+            return s.band_limit(self._run(params, s.time, s.stroke, s.stroke_velocity, s.temperature))
         return s.band_limit(self._run(params, *s.fine))
 
     def _run(self, params: dict, t, x, v, temperature) -> np.ndarray:

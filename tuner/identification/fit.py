@@ -39,7 +39,7 @@ from tuner.identification import firefly
 from tuner.identification.engine import IDENTIFICATION_STEP, Engine, Signals, simulate_signals
 from tuner.identification.full_rate import MIN_RATE_RATIO, comparison_rate, full_rate_check
 from tuner.identification.parametrization import Parametrization
-from tuner.identification.polish import polish
+from tuner.identification.polish import polish, resolution_stop, small_progress
 from tuner.identification.problem import DataSettings, Problem, to_signals
 from tuner.metrics import error_metrics, noise_std
 from tuner.progress import advance, stage
@@ -178,9 +178,22 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
     evals_start = state.evaluations if state else 0
     first_population = {}
 
+    search_stop = {}
     with Engine(model, signals, engine=settings.engine, workers=settings.workers, fmu_path=engine_path) as eng:
         def evaluate(Z):
             return eng.fitness_batch([par.to_params(z) for z in Z])
+
+        def at_resolution(st: firefly.FireflyState) -> bool:
+            """The search's best has moved less than the data resolve over the last stop_window iterations
+            (``tuner.identification.polish.resolution_stop``): the basin is found, the refinement finishes."""
+            if st.iteration < opts.stop_start or not small_progress(st.history_best, opts.stop_window):
+                return False
+            r = eng.residuals_batch([par.to_params(st.best_x)])[0]
+            text = resolution_stop(st.history_best, r, opts.stop_window, "iterations") if r is not None else None
+            if text:
+                search_stop["text"] = "search " + text
+                log(f"[{model}] Firefly {search_stop['text']}: the local refinement takes over")
+            return bool(text)
 
         def callback(st: firefly.FireflyState):
             if st.iteration == 0 and "pop" not in first_population:
@@ -197,7 +210,7 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
             log(f"[{model}] iter {st.iteration:3d}/{settings.iterations}  best G {best:.4e} (RMSE {rmse:7.1f} N)"
                 f"  mean G {st.history_mean[-1]:.4e}  {rate:5.1f} eval/s  search ~{left / 60:4.1f} min left at most")
             advance(log, 0.85 * st.iteration / max(settings.iterations, 1))
-            return False
+            return at_resolution(st)
 
         if state is not None and ckpt.exists():
             first_population["pop"] = np.array(strict_json.loads(ckpt.read_text()).get("initial_population"))
@@ -255,7 +268,8 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         "evaluations": list(map(int, st.history_evaluations)),
         "initial_population": [par.to_params(z) for z in first_population.get("pop", st.population)],
         "final_population": [par.to_params(z) for z in st.population],
-        "stop_reason": result.stop_reason,
+        "stop_reason": "data resolution" if search_stop else result.stop_reason,
+        "search_stop": search_stop.get("text"),
         "iterations": int(result.iterations),
         "firefly_evaluations": int(result.evaluations),
         "firefly_best_fitness": float(result.fitness_best),
@@ -272,7 +286,7 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         "elapsed_s": elapsed,
         "parametrization": par.describe(),
     }
-    log(f"[{model}] done: Firefly {result.stop_reason} after {result.iterations} iterations "
+    log(f"[{model}] done: Firefly {history['stop_reason']} after {result.iterations} iterations "
         f"(RMSE {rmse(result.fitness_best):.1f} N), {result.evaluations + polish_evals} evaluations, "
         f"{elapsed:.0f} s; identification RMSE {rmse(g_best):.1f} N")
     return best, history

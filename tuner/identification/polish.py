@@ -50,7 +50,8 @@ import numpy as np
 from tuner.metrics import rmse_standard_error
 from tuner.progress import advance
 
-__all__ = ["polish", "RTOL", "STALL_RTOL", "STEP", "COARSE_STEP", "FTOL", "RESOLUTION_WINDOW", "RESOLUTION_FRACTION"]
+__all__ = ["polish", "resolution_stop", "small_progress", "RTOL", "STALL_RTOL", "STEP", "COARSE_STEP", "FTOL",
+           "RESOLUTION_WINDOW", "RESOLUTION_FRACTION"]
 
 #: Converged when the Gauss-Newton step predicts less than this share of the SSE.
 RTOL = 1e-4
@@ -76,9 +77,9 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print):
     (or the diagnosis' extension of one), refined in the coordinates of its ``local_space()``.
     info: {"fitness": G = N / SSE at the start and after every accepted step, "stop": why it
     stopped, "converged": bool (module docstring), "rule": what ended it ('first-order', 'data
-    resolution', 'stationary': no damped step helps, 'budget', 'not started'), "jacobians": int, "predicted": the share of the
-    SSE the last Gauss-Newton step predicted it would remove (the locally reachable gain; 1.0 before
-    any Jacobian), "budget_spent": bool (stopped by ``max_jacobians`` while still improving)}.
+    resolution', 'stationary': no damped step helps, 'budget', 'not started'), "jacobians": int,
+    "predicted": the share of the SSE the last Gauss-Newton step predicted it would remove (the locally
+    reachable gain; 1.0 before any Jacobian), "budget_spent": bool (stopped by ``max_jacobians`` while still improving)}.
     """
     space = par.local_space()
     n = engine.n_samples
@@ -147,7 +148,7 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print):
         cost, lam, u, r = accepted
         lam = max(lam / 5.0, 1e-9)
         fitness.append(n / cost)
-        resolved = _at_resolution(fitness, r)
+        resolved = resolution_stop(fitness, r)
         if resolved:
             stop, converged, rule = resolved, True, "data resolution"
             break
@@ -158,17 +159,29 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print):
                                         "budget_spent": stop.startswith("budget")}
 
 
-def _at_resolution(fitness: list[float], r: np.ndarray) -> str | None:
-    """The stop text when the refinement has converged to the data's resolution (module docstring), else
-    None. fitness: G = N / SSE [1/N^2] at the start and after every accepted step; r: the residual [N] now."""
-    if len(fitness) <= RESOLUTION_WINDOW:
+def small_progress(fitness: list[float], window: int = RESOLUTION_WINDOW) -> bool:
+    """Whether the SSE fell by less than ``FTOL`` of itself over the last ``window`` steps of ``fitness``
+    (G = N / SSE [1/N^2]); the cheap half of ``resolution_stop``, which needs a residual."""
+    if len(fitness) <= window or not all(g > 0 for g in fitness[-1 - window:]):
+        return False
+    return fitness[-1] / fitness[-1 - window] - 1.0 < FTOL
+
+
+def resolution_stop(fitness: list[float], r: np.ndarray, window: int = RESOLUTION_WINDOW,
+                    steps: str = "Jacobians") -> str | None:
+    """The stop text when an iterative stage has converged to the data's resolution (module docstring),
+    else None: over the last ``window`` ``steps`` of ``fitness`` (G = N / SSE [1/N^2], one value per step,
+    the start first) the SSE fell by less than FTOL and the RMSE by less than RESOLUTION_FRACTION of its
+    standard error, taken from ``r``, the residual [N] now. Serves the refinement (Jacobians) and the
+    Firefly search (iterations, ``tuner.identification.fit``)."""
+    if not small_progress(fitness, window):
         return None
-    rmse_then, rmse_now = fitness[-1 - RESOLUTION_WINDOW] ** -0.5, fitness[-1] ** -0.5
+    rmse_then, rmse_now = fitness[-1 - window] ** -0.5, fitness[-1] ** -0.5
     share = (rmse_then ** 2 - rmse_now ** 2) / rmse_now ** 2
     se = rmse_standard_error(r)
-    if share >= FTOL or rmse_then - rmse_now >= RESOLUTION_FRACTION * se:
+    if rmse_then - rmse_now >= RESOLUTION_FRACTION * se:
         return None
-    return (f"converged to the data's resolution: the last {RESOLUTION_WINDOW} Jacobians took the RMSE from "
+    return (f"converged to the data's resolution: the last {window} {steps} took the RMSE from "
             f"{rmse_then:.4g} to {rmse_now:.4g} N ({100 * share:.2g} % of the SSE), less than "
             f"{RESOLUTION_FRACTION:g} x its standard error of {se:.3g} N")
 

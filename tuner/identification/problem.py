@@ -18,6 +18,7 @@ import numpy as np
 from damper_fmu.parameters import FC_ABSCISSAE, FK_ABSCISSAE, FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS, densify_abscissae
 
 from tuner.data.noise import pooled_noise
+from tuner.data.prefilter import parse_prefilter
 from tuner.data.preprocess import prepare
 from tuner.data.reading import RigTest
 from tuner.identification.engine import Signals, oversampling
@@ -54,6 +55,9 @@ class DataSettings:
 def to_signals(p, warmup_s: float, oversample: int | None = None) -> Signals:
     """Engine input from a PreparedTest; samples before time[0] + warmup_s do not count.
 
+    A filter the lab declared (``metadata['read']['prefilter']``, ``tuner.data.prefilter``) goes with the
+    signals, and the samples within its settling time do not count either.
+
     oversample: factor of the band-limited comparison (``tuner.identification.engine``); by default the one that
     puts the simulation grid at the identification step when the data was low-passed to the fit
     rate, else 1 (data at its own rate, not filtered). Samples the low-pass does not fully cover
@@ -61,10 +65,17 @@ def to_signals(p, warmup_s: float, oversample: int | None = None) -> Signals:
     """
     if oversample is None:
         oversample = oversampling(p.sample_rate) if p.resampler is not None else 1
-    mask = (p.time - p.time[0]) >= warmup_s
+    lab_filter = parse_prefilter((p.metadata.get("read", {}).get("prefilter") or {}).get("spec"))
+    since = p.time - p.time[0]
+    mask = since >= max(warmup_s, lab_filter.settling_s if lab_filter else 0.0)
+    stroke, velocity = p.stroke, p.stroke_velocity
+    if lab_filter is not None and (lab_filter.zero_phase or not lab_filter.force_only):
+        mask &= since <= since[-1] - lab_filter.settling_s  # settling (or the undone filter's edge) at the end too
+    if lab_filter is not None and not lab_filter.force_only:  # the model is driven by the stroke before the filter
+        stroke, velocity = (lab_filter.unapply(a, p.sample_rate) for a in (p.stroke, p.stroke_velocity))
     temp = p.channels.get("temperature")
-    s = Signals(p.name, p.time, p.stroke, p.stroke_velocity, p.force, mask,
-                None if temp is None else np.asarray(temp, dtype=float), int(oversample))
+    s = Signals(p.name, p.time, stroke, velocity, p.force, mask,
+                None if temp is None else np.asarray(temp, dtype=float), int(oversample), lab_filter)
     k0, n = s.band_limited_span()
     mask[:k0] = False
     mask[k0 + n:] = False
@@ -144,6 +155,9 @@ def data_digest(tests: list[RigTest]) -> str:
         h.update(t.name.encode())
         for a in (t.time, t.stroke, t.force):
             h.update(np.ascontiguousarray(a).tobytes())
+        lab_filter = (t.metadata.get("read") or {}).get("prefilter")
+        if lab_filter:  # compared through it
+            h.update(lab_filter["spec"].encode())
     return h.hexdigest()
 
 
