@@ -49,6 +49,7 @@ from damper_fmu.fmu import SLAVES
 from damper_fmu.parameters import MODEL_KINDS
 from tuner.data.reading import RAILWAY_DAMPER_CLASSES
 from tuner.diagnosis.diagnose import ACCEPT_SCORE, ACQUISITION_CAUSES, NOTES
+from tuner.formatting import eng
 from tuner.identification.fit import QUALITY_AME_PCT, quality_gate
 from tuner.metrics import pooled_mse
 from tuner.results.html import esc
@@ -98,12 +99,15 @@ class Candidate:
         return name + (f" with {' + '.join(self.causes)}" if self.causes else "")
 
     def gate_text(self) -> str:
-        """'worst held-out AME 3.1 % of peak force (val2; gate 10 %)', or that it was not evaluated."""
+        """'worst held-out AME 3.1 % of peak force on val2 (gate 10 %)', or that it was not evaluated."""
         if self.worst_ame_pct is None:
             return "quality gate not evaluated"
         kind = "held-out" if self.held_out else "identification"
-        return (f"worst {kind} AME {self.worst_ame_pct:.2g} % of peak force ({self.worst_test}; "
-                f"gate {self.gate_pct:g} %)")
+        return f"worst {kind} AME {self.worst_ame_pct:.3g} % of peak force on {self.worst_test} (gate {self.gate_pct:g} %)"
+
+    def error_text(self) -> str:
+        """'14.4 N rms', '1.04 kN rms'."""
+        return f"{eng(self.rmse_n, 'N')} rms"
 
     def to_dict(self) -> dict:
         return {"model": self.model, "causes": list(self.causes), "label": self.label, "fmu": self.fmu,
@@ -240,12 +244,13 @@ def _source_text(best: Candidate, dc: Candidate | None, acquisition: tuple) -> s
         return (f"the diagnosis's base form, without the {' + '.join(acquisition)} it named, which belongs to the "
                 "acquisition, not the damper")
     if best.from_diagnosis:
-        return "the diagnosis's base form; no cause named"
+        return "the diagnosis's base form, no cause named"
     if dc is None:
         return "the fitted model with the lowest held-out error among those that pass the quality gate; no diagnosis ran"
     if dc.passes is False:
-        return f"the diagnosis's {dc.label} does NOT pass the quality gate ({dc.gate_text()})"
-    return f"it validates better than the diagnosis's {dc.label} ({dc.rmse_n:.3g} N rms)"
+        return (f"the diagnosis's {dc.label} does NOT pass the quality gate (worst held-out AME "
+                f"{dc.worst_ame_pct:.3g} % of peak force on {dc.worst_test})")
+    return f"it validates better than the diagnosis's {dc.label} ({dc.error_text()})"
 
 
 def _maxwell_text(best: Candidate, candidates: list[Candidate]) -> tuple[str, bool | None]:
@@ -256,24 +261,23 @@ def _maxwell_text(best: Candidate, candidates: list[Candidate]) -> tuple[str, bo
         if not others:
             return ("No nonlinear model passes the gate.", True) if len(candidates) > 1 else ("", None)
         nl = min(others, key=lambda c: c.mse_n2)
-        return (f"The {nl.label} passes the gate too but does not validate better ({nl.rmse_n:.3g} against "
-                f"{best.rmse_n:.3g} N rms): the linear Maxwell element is as good for this damper."), True
+        return (f"The {nl.label} passes the gate too but does not validate better ({nl.error_text()} against "
+                f"{best.error_text()}): the linear Maxwell element is as good for this damper."), True
     mx = next((c for c in candidates if c.model == LINEAR_MODEL), None)
     if mx is None or not mx.passes:
         return "", (None if mx is None else False)
     if math.log(mx.mse_n2 / best.mse_n2) <= ACCEPT_SCORE:
-        return (f"The linear Maxwell model passes the gate too and validates as well ({mx.rmse_n:.3g} against "
-                f"{best.rmse_n:.3g} N rms): where a simulation takes only a linear element, {mx.fmu} is as good."), True
-    return (f"The linear Maxwell model passes the gate too but validates worse ({mx.rmse_n:.3g} against "
-            f"{best.rmse_n:.3g} N rms)."), False
+        return (f"The linear Maxwell model passes the gate too and validates as well ({mx.error_text()} against "
+                f"{best.error_text()}): where a simulation takes only a linear element, {mx.fmu} is as good."), True
+    return (f"The linear Maxwell model passes the gate too but validates worse ({mx.error_text()} against "
+            f"{best.error_text()})."), False
 
 
 def _acquisition_text(diag: dict, acquisition: tuple) -> str:
     """What to do when the diagnosis named a cause of the acquisition (its notes), and where the damper's own
     named causes are."""
-    notes = "; ".join(f"{c}: {NOTES[c]}" if c in NOTES else c for c in acquisition)
-    text = (f"The diagnosis names {' + '.join(acquisition)}, which the exported co-simulation model should not "
-            f"contain ({notes}): fix the acquisition and fit again.")
+    text = " ".join(f"The diagnosis names {c}, {NOTES.get(c, 'which belongs to the acquisition')}."
+                    for c in acquisition) + " Then fit again."
     damper = [c for c in diag.get("causes") or () if c not in ACQUISITION_CAUSES]
     if damper:
         full = _tuned_fmu(diag.get("base_model") or "lumped", tuple(diag["causes"]))
@@ -288,7 +292,7 @@ def _residual_text(diag: dict, railway: bool, usable: bool) -> tuple[str, bool |
     left = diag.get("unexplained")
     if not left:
         return "", None
-    size = (f"the remaining residual, {left['identification_rmse_n']:.3g} N rms, is {left['ratio']:.1f} x the "
+    size = (f"the remaining residual, {eng(left['identification_rmse_n'], 'N')} rms, is {left['ratio']:.1f} x the "
             f"residual floor")
     base = MODEL_NAME.get(diag.get("base_model"), "base model")
     if left.get("fit_converged") is False:
@@ -328,7 +332,7 @@ def _nothing_passes(candidates: list[Candidate], gate: float, action: str, facts
     """No model passes the quality gate: say so and name the closest (lowest worst AME), not recommended."""
     closest = min(candidates, key=lambda c: c.worst_ame_pct)
     reason = (f"No model describes this data: none passes the quality gate (worst held-out AME at most {gate:g} % "
-              f"of peak force). The closest is the {closest.label} ({closest.gate_text()}; {closest.fmu}): its "
+              f"of peak force). The closest is the {closest.label} ({closest.fmu}), {closest.gate_text()}: its "
               "parameters are not a characterisation of this damper.")
     action = (action + " " if action else "") + ("Check the data (units, signs, the force channel) and the fit "
                                                  "(the report's force and residual figures) before using any model.")
@@ -370,8 +374,8 @@ def recommend(out_dir) -> Recommendation:
                                facts)
     maxwell, facts["maxwell_as_good"] = _maxwell_text(best, candidates)
     kind = "held-out" if best.held_out else "identification (no held-out test)"
-    reason = (f"The {best.label} describes this data best ({_source_text(best, dc, acquisition)}): {kind} error "
-              f"{best.rmse_n:.3g} N rms, {best.gate_text()}." + (f" {maxwell}" if maxwell else ""))
+    reason = (f"The {best.label} is the model to use: {_source_text(best, dc, acquisition)}; {kind} error "
+              f"{best.error_text()}, {best.gate_text()}." + (f" {maxwell}" if maxwell else ""))
     return Recommendation("recommended", best.model, best.causes, best.fmu, reason, action, facts)
 
 
