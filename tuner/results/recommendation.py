@@ -62,6 +62,8 @@ LINEAR_MODEL = "maxwell"
 #: how the recommendation names a model in a sentence
 MODEL_NAME = {"lumped": "lumped model", "maxwell": "linear Maxwell model",
               "maxwell_table": "Maxwell model with a table dashpot", "twochamber": "two-chamber model"}
+#: recommended: a model passes the gate; nothing_passes: none does (the closest named); diagnosis_failed: no
+#: verdict (--resume); no_results: neither metrics.json nor diagnosis.json
 STATUSES = ("recommended", "nothing_passes", "diagnosis_failed", "no_results")
 
 
@@ -110,6 +112,7 @@ class Candidate:
         return f"{eng(self.rmse_n, 'N')} rms"
 
     def to_dict(self) -> dict:
+        """The candidate in ``summary.json``'s ``recommendation.facts.candidates`` (error in N rms, AME in %)."""
         return {"model": self.model, "causes": list(self.causes), "label": self.label, "fmu": self.fmu,
                 "error_rms_n": self.rmse_n, "held_out": self.held_out, "worst_ame_pct_of_peak": self.worst_ame_pct,
                 "worst_test": self.worst_test, "gate_pct": self.gate_pct, "passes_gate": self.passes,
@@ -131,6 +134,10 @@ class Recommendation:
     action: str
     facts: dict
     closest: Candidate | None = None
+
+    def __post_init__(self):
+        if self.status not in STATUSES:
+            raise ValueError(f"recommendation status {self.status!r}: choose from {', '.join(STATUSES)}")
 
     def headline(self) -> str:
         """One line: 'use the two-chamber model with friction: fmu/DamperTwoChamber_friction_tuned.fmu'."""
@@ -154,6 +161,7 @@ class Recommendation:
 
 
 def _label(model: str, causes) -> str:
+    """'two-chamber model with friction' (as ``Candidate.label``)."""
     return MODEL_NAME.get(model, f"{model} model") + (f" with {' + '.join(causes)}" if causes else "")
 
 
