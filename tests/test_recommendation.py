@@ -331,3 +331,23 @@ def test_the_damper_class_is_recorded_as_read_and_unknown_counts_as_railway(tmp_
     assert railway_damper(None) is True
     assert math.isfinite(recommend(tmp_path).facts["gate_pct"])  # a folder with nothing: no_results
     assert recommend(tmp_path).status == "no_results"
+
+
+def test_a_failed_diagnosis_still_ends_with_the_summary_and_keeps_its_checkpoints(tmp_path, capsys):
+    """The command's end after a failed diagnosis (``tuner.cli.fit``): summary.json and the printed summary
+    say there is no recommendation, the checkpoints stay for --resume, and the failure is raised on (exit 1)."""
+    from argparse import Namespace
+
+    from tuner.cli.fit import _end
+    from tuner.diagnosis.diagnose import DiagnosisFailed
+
+    out = tmp_path / "run"
+    write_run(out, {"lumped": 2.0, "maxwell": 8.0}, diagnosis=failed_diagnosis)
+    (out / "checkpoints").mkdir()
+    (out / "checkpoints" / "diagnosis_lumped.json").write_text("{}")
+    failed = DiagnosisFailed("forms beyond the catalogue on the lumped base", out / "diagnosis.json", RuntimeError("boom"))
+    with pytest.raises(DiagnosisFailed):
+        _end(out, Namespace(keep_checkpoints=False), 0.0, failed)
+    assert (out / "checkpoints" / "diagnosis_lumped.json").exists()
+    assert json.loads((out / "summary.json").read_text())["recommendation"]["status"] == "diagnosis_failed"
+    assert "recommendation: none: the diagnosis failed" in capsys.readouterr().out
