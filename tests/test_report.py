@@ -172,8 +172,12 @@ def test_summary_numbers_equal_metrics_json(full_report):
         pct = 100 * lp["ame"] / lp["peak_measured"]
         assert ame[name][0] == pytest.approx(pct, rel=1e-12)
         assert ame[name][1] == f"{pct:.1f} %"
-    # Lumped error 150 N against Maxwell's 20 % gain error: lumped better everywhere, AME ~1 % of peak.
-    assert "use it in place of the linear Maxwell element" in summary
+    # Lumped error 150 N against Maxwell's 20 % gain error: lumped better everywhere, AME ~1 % of peak. The
+    # paper's comparison is information; what to use is the one recommendation (no diagnosis: the best
+    # held-out model that passes the gate)
+    assert "The lumped model beats the Maxwell model on every validation run" in summary
+    assert "data-model='lumped' data-fmu='fmu/DamperLumped_tuned.fmu'" in summary
+    assert "use it in place of" not in summary
 
 
 def test_identification_tests_marked_and_bound_flags(full_report):

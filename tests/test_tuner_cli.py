@@ -228,6 +228,12 @@ def test_end_summary_and_summary_json(maxwell_data, tmp_path, capsys):
     assert summary["validation_ame"]["maxwell_val3"]["maxwell"]["ame_n"] == val["ame"]
     assert summary["quality"]["maxwell"]["describes_data"] == metrics["quality"]["maxwell"]["describes_data"]
     assert Path(summary["report"]).exists() and all(Path(f).exists() for f in summary["fmus"])
+    # one recommendation, printed and in summary.json alike; a model is recommended only when it passes the gate
+    rec = summary["recommendation"]
+    assert f"  recommendation: {rec['headline']}\n" in tail
+    passes = summary["quality"]["maxwell"]["describes_data"]
+    assert (rec["status"], rec["model"]) == (("recommended", "maxwell") if passes else ("nothing_passes", None))
+    assert not passes or (rec["fmu_exists"] and rec["fmu"] in summary["fmus"])
 
 
 def test_quiet_prints_only_the_summary(maxwell_data, tmp_path, capsys):

@@ -12,7 +12,7 @@ from tuner.cli.folders import DEFAULT_DATASET, DEFAULT_RESULTS, free_folder, pre
 from tuner.cli.log import end_job, job_log, log, progress, start_job
 from tuner.cli.options import add_fit_options, fit_settings, load_tests
 from tuner.cli.summary import end_summary, print_table3
-from tuner.diagnosis.diagnose import choose_base
+from tuner.diagnosis.diagnose import DiagnosisFailed, choose_base
 from tuner import strict_json
 
 __all__ = ["add_parsers", "cmd_fit", "cmd_diagnose", "check_engine"]
@@ -62,12 +62,24 @@ def cmd_fit(args) -> int:
     if not args.no_diagnose and any(m in EFFECT_MODELS for m in models):
         weights["diagnosis"] = 70.0
     start_job(args, weights)
+    failed = None
     try:
         out = _fit_job(args, models)
+    except DiagnosisFailed as err:  # the fit and its FMUs are written: the summary says there is no verdict
+        failed, out = err, err.path.parent
     finally:
         end_job()
-    tidy_checkpoints(out, args.keep_checkpoints)
+    return _end(out, args, t0, failed)
+
+
+def _end(out: Path, args, t0: float, failed: DiagnosisFailed | None) -> int:
+    """The end of a command: checkpoints tidied (kept after a failed diagnosis, for --resume), the end summary
+    (also after a failed diagnosis: no recommendation, how to continue), the failure raised on."""
+    if failed is None:
+        tidy_checkpoints(out, args.keep_checkpoints)
     end_summary(out, time.perf_counter() - t0)
+    if failed is not None:
+        raise failed
     return 0
 
 
@@ -122,11 +134,12 @@ def cmd_diagnose(args) -> int:
     log(f"output folder: {out}")
     t0 = time.perf_counter()
     start_job(args, {"diagnosis": 70.0 if base is not None else 130.0, "report": 5.0})
+    failed = None
     try:  # the diagnosis states the verdict once
         job.run_diagnosis(ident, valid, out, job.diagnosis_settings(fit_settings(args)), base_params=base,
                           base_model=base_kind, base_choice=base_choice, other_bases=others, log=job_log())
+    except DiagnosisFailed as err:
+        failed = err
     finally:
         end_job()
-    tidy_checkpoints(out, args.keep_checkpoints)
-    end_summary(out, time.perf_counter() - t0)
-    return 0
+    return _end(out, args, t0, failed)

@@ -5,6 +5,7 @@ import json
 from pathlib import Path
 
 from tuner.cli.log import log
+from tuner.results.recommendation import recommend
 from tuner.vehicle.compare import VEHICLE_FOLDER
 from tuner import strict_json
 
@@ -12,8 +13,10 @@ __all__ = ["end_summary", "print_table3"]
 
 
 def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
-    """Write ``summary.json`` and print the end-of-run summary once, after everything is written:
-    verdict, causes, validation AME per test and model, quality gate, where the report and FMUs are."""
+    """Write ``summary.json`` and print the end-of-run summary once, after everything is written: the
+    recommendation (``tuner.results.recommendation``: the model and FMU to use and why, the same as the
+    report's box), verdict, causes, validation AME per test and model, quality gate, where the report and
+    FMUs are. ``seconds``: the run's time [s]."""
     metrics = strict_json.loads((out / "metrics.json").read_text()) if (out / "metrics.json").exists() else {}
     diag = strict_json.loads((out / "diagnosis.json").read_text()) if (out / "diagnosis.json").exists() else {}
     vpath = out / VEHICLE_FOLDER / "vehicle.json"
@@ -23,7 +26,9 @@ def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
         if t.get("role") == "validation":
             ame[name] = {m: {"ame_n": r["ame"], "ame_pct_of_peak": 100 * r["ame"] / r["peak_measured"]}
                          for m, r in t["models"].items()}
+    rec = recommend(out)
     summary = {
+        "recommendation": rec.to_dict(out),
         "verdict": diag.get("verdict"), "cause": diag.get("cause"), "causes": diag.get("causes"),
         "form": diag.get("form"),  # a form beyond the catalogue named (also among the causes), or None
         "effect_parameters": diag.get("effect_parameters"),
@@ -39,7 +44,8 @@ def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
     tmp = out / "summary.json.tmp"
     tmp.write_text(strict_json.dumps(summary, indent=1))
     tmp.replace(out / "summary.json")
-    lines = ["", "=" * 72, f"done in {seconds / 60:.1f} min: {out}"]
+    lines = ["", "=" * 72, f"done in {seconds / 60:.1f} min: {out}", f"  recommendation: {rec.headline()}",
+             *(f"    {text}" for text in (rec.reason, rec.action) if text)]
     for m, q in summary["quality"].items():
         lines.append(f"  {m}: {'describes the data' if q['describes_data'] else 'does NOT describe the data'} "
                      f"(worst held-out AME {q['worst_ame_pct_of_peak']:.3g} % of peak, gate {q['gate_pct']:g} %)")

@@ -41,6 +41,9 @@ MAX_DAMPING_N_S_PER_M = 1e8
 DAMPER_CLASSES = {"yaw": (3e4, 3e6), "primary": (3e3, 3e5), "secondary": (3e3, 3e5),
                   "any": (MIN_DAMPING_N_S_PER_M, MAX_DAMPING_N_S_PER_M)}
 DEFAULT_DAMPER_CLASS = "yaw"
+#: the railway damper classes: data declared as another class ('any') is not read as a railway damper's
+#: (the report then leaves out the railway wording: curving, stability)
+RAILWAY_DAMPER_CLASSES = ("yaw", "primary", "secondary")
 MIN_FORCE_VELOCITY_CORRELATION = -0.05
 
 
@@ -600,8 +603,8 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
     :func:`_regularise`). ``extra_cols``: channel columns to keep (None: every other column).
     ``check_plausible``: refuse physically implausible strokes/forces (:func:`check_plausible`);
     ``damper_class``: warn when the apparent damping is outside that class's range (:func:`class_warning`).
-    What was understood goes to ``metadata['read']``, warnings to ``metadata['warnings']``.
-    Raises DataError on any problem.
+    What was understood goes to ``metadata['read']`` (with the damper class declared, checked or not),
+    warnings to ``metadata['warnings']``. Raises DataError on any problem.
     """
     path = Path(path)
     source = str(path)
@@ -638,7 +641,7 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
                 "delimiter": raw.delimiter, "decimal": raw.decimal, "regularised": note,
                 "segment_s": [t_start, t_end] if (t_start is not None or t_end is not None) else None,
                 **checks, **file_read, "calibration": _calibration_read(cal, use, raw, units, cg), "force_zero": zero,
-                "prefilter": lab_filter.to_dict() if lab_filter else None}
+                "prefilter": lab_filter.to_dict() if lab_filter else None, "damper_class": damper_class}
         warns = list(warn) + ([f"{label}: {note}"] if note else []) + notes
         out.append(RigTest(
             name=(name or stem) + ("" if gid is None else f"-{gid}"), role=role,

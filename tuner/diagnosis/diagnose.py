@@ -86,7 +86,7 @@ from tuner.metrics import pooled_mse
 from tuner.progress import advance
 
 __all__ = ["DiagnosisSettings", "DiagnosisFailed", "diagnose", "decide", "cross_check", "choose_base", "CANDIDATES",
-           "BASE_MODELS", "ExtendedParametrization"]
+           "BASE_MODELS", "ExtendedParametrization", "ACQUISITION_CAUSES", "NOTES", "ACCEPT_SCORE"]
 
 #: the candidate causes: the effect catalogue of the design notes (parameters.CATALOGUE_EFFECTS); the forms
 #: beyond it (parameters.FORM_EFFECTS) are tried after them, when a residual above the floor remains
@@ -112,6 +112,9 @@ UNITS = {p.name: p.unit for p in EFFECT_PARAMETERS}
 NOTES = {"time_delay": "a skew between the force and stroke channels (DAQ, filters): fix the acquisition; "
                        "the exported co-simulation model should not contain it",
          "preload": "an un-tared gas force or load-cell offset: check the rig's zero before the test"}
+#: named causes that belong to the acquisition (the rig's channels and zero), not to the damper (NOTES): the
+#: model to use in a co-simulation is the base without them (``tuner.results.recommendation``)
+ACQUISITION_CAUSES = ("time_delay", "preload")
 
 
 @dataclass

@@ -461,7 +461,10 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
         for model in settings.models:
             arrays[f"{t.name}__{model}"], models_m[model] = validation_run(model, params[model]["values"], s)
         tests_out[t.name] = {"role": t.role, "scenario": t.scenario, "models": models_m,
-                             "sample_rate_hz": p.sample_rate, "source_rate_hz": t.sample_rate}
+                             "sample_rate_hz": p.sample_rate, "source_rate_hz": t.sample_rate,
+                             # the damper class the data was read as (None: not read from a file): the
+                             # report's railway wording depends on it
+                             "damper_class": (t.metadata.get("read") or {}).get("damper_class")}
 
     table3 = {}
     if "lumped" in settings.models and "maxwell" in settings.models:

@@ -7,18 +7,20 @@ from pathlib import Path
 
 from tuner.formatting import effect_value, fmt_quantity
 from tuner.results.html import MODEL_LABEL, esc, table, write_page
+from tuner.results.recommendation import recommend, recommendation_html
 from tuner import strict_json
 
 
 __all__ = ["diagnosis_section_html", "make_diagnosis_report", "detection_html"]
 
 def make_diagnosis_report(out_dir) -> Path:
-    """``out_dir/report.html`` for a diagnosis run on its own (no fit in the folder): the
-    diagnosis section of the full report. Returns its path."""
+    """``out_dir/report.html`` for a diagnosis run on its own (no fit in the folder): the recommendation
+    (``tuner.results.recommendation``) and the diagnosis section of the full report. Returns its path."""
 
     out = Path(out_dir)
     title = "Damper diagnosis report"
-    return write_page(out, title, [f"<h1>{title}</h1>", diagnosis_section_html(out)])
+    return write_page(out, title, [f"<h1>{title}</h1>", recommendation_html(recommend(out)),
+                                   diagnosis_section_html(out)])
 
 
 def detection_html(limits: dict) -> str:

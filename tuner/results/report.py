@@ -8,7 +8,8 @@
     history_<model>.json  mean/best fitness per generation, initial and final populations (optional)
     simulations.npz       <test>__time [s], __stroke [m], __force [N], __<model> [N] (optional)
 
-and writes PNG figures to ``out_dir/figures/`` and ``out_dir/report.html``: summary and verdict,
+and writes PNG figures to ``out_dir/figures/`` and ``out_dir/report.html``: the summary with the one
+recommendation of what to use (``tuner.results.recommendation``, also in the end summary and summary.json),
 the paper's Table 3 with further indices, Figs. 9-10 (forces, differences, a zoom on the largest
 error), force-stroke and force-velocity loops, Fig. 6 (fitness), Fig. 7 (constant parameters),
 Fig. 8 (tables of the populations), Fig. 11 with eqs. 9-10 (5th-order fit, odd/even parts), the
@@ -38,6 +39,7 @@ from tuner.results.diagnosis_report import diagnosis_section_html
 from tuner.results.fit_figures import bound_position, bounds_of, fig_constants, fig_fitness, fig_forces, fig_loops, fig_polyfit, fig_populations, is_log, polyfits
 from tuner.results.fit_folder import FitFolder
 from tuner.results.html import MODEL_LABEL, esc, figure_html, model_label, num, table, write_page
+from tuner.results.recommendation import railway_damper, recommend, recommendation_html
 from tuner.results.vehicle_report import vehicle_section_html
 
 
@@ -77,13 +79,20 @@ def _range(lo: float, hi: float, decimals: int) -> str:
     return f"{a} %" if a == b else f"{a}-{b} %"
 
 
-def _summary(run: FitFolder) -> str:
+def _named(test: str, scenario: str) -> str:
+    """'<b>test</b> (scenario)', or the test alone when it has no scenario description (HTML)."""
+    return f"<b>{esc(test)}</b>" + (f" ({esc(scenario)})" if scenario else "")
+
+
+def _paper_comparison(run: FitFolder) -> tuple[list[str], str]:
+    """The paper's lumped-vs-Maxwell comparison on the validation tests: (one HTML list item per test, one
+    sentence over them). Information only: what to use is the recommendation's."""
     items, var, ame_pct, worse = [], [], [], []
     for test in run.validation:
         row, lp = _table3_row(run, test), _m(run, test, "lumped")
         scen = run.tests[test].get("scenario", "")
         if row is None or lp is None:
-            items.append(f"<li><b>{esc(test)}</b> ({esc(scen)}): lumped or Maxwell metrics missing.</li>")
+            items.append(f"<li>{_named(test, scen)}: lumped or Maxwell metrics missing.</li>")
             continue
         pct = 100 * lp["ame"] / lp["peak_measured"] if lp.get("peak_measured") else math.nan
         v = row["mse_variation_pct"]
@@ -93,57 +102,57 @@ def _summary(run: FitFolder) -> str:
             worse.append(test)
         word = f"a {abs(v):.1f} % reduction" if v < 0 else f"an INCREASE of {v:.1f} %"
         items.append(
-            f'<li data-test="{esc(test)}"><b>{esc(test)}</b> ({esc(scen)}): MSE of the lumped model vs Maxwell '
+            f'<li data-test="{esc(test)}">{_named(test, scen)}: MSE of the lumped model vs Maxwell '
             f'<span class="mse-var">{num(v, eng(v, "%"))}</span>, {word} '
             f'({eng(row["mse_maxwell"], "N^2")} &rarr; {eng(row["mse_lumped"], "N^2")}); '
             f'lumped AME {eng(lp["ame"], "N")} = <span class="ame-pct">{num(pct, eng(pct, "%"))}</span> '
             f'of the {eng(lp["peak_measured"], "N")} peak force.</li>')
     if not var:
-        verdict = "No validation test has both lumped and Maxwell metrics: no verdict."
-    elif worse:
-        verdict = (f"The lumped model does not beat the Maxwell model on {', '.join(worse)}: do not use it in "
-                   "place of the Maxwell element before revisiting the identification (data, bounds, iterations).")
-    else:
-        lo, hi = -max(var), -min(var)
-        span = _range(lo, hi, 1)
-        worst = max(ame_pct)
-        if worst <= 5:
-            verdict = (f"The lumped model follows the measured damper force within {worst:.1f} % of peak force "
-                       f"(mean absolute error) on all {len(var)} validation runs and removes {span} of the "
-                       "Maxwell model's squared error: use it in place of the linear Maxwell element in "
-                       "vehicle-dynamics (curving and stability) simulations.")
-        elif worst <= 10:
-            verdict = (f"The lumped model beats Maxwell on every validation run ({span} less squared error) but "
-                       f"its mean error reaches {worst:.1f} % of peak force: fine for comparative studies; "
-                       "check the diagnosis before using it for stability margins.")
-        else:
-            verdict = (f"The lumped model beats Maxwell ({span} less squared error) but its mean error reaches "
-                       f"{worst:.1f} % of peak force: it does not yet represent this damper.")
+        return items, ""
+    if worse:
+        return items, f"The lumped model does not beat the Maxwell model on {', '.join(worse)}."
+    return items, (f"The lumped model beats the Maxwell model on every validation run ({_range(-max(var), -min(var), 1)} "
+                   f"less squared error); its mean error reaches {max(ame_pct):.1f} % of peak force.")
+
+
+def _amplitude(run: FitFolder, railway: bool) -> str:
+    """Force amplitude of the lumped and Maxwell models against the measured one (HTML paragraph, '' when
+    there is no simulation); the paper's curving consequence only for a railway damper's data."""
     amp = []
     for m in ("lumped", "maxwell"):
         r = [x for x in (_rms_ratio(run, t, m) for t in run.validation) if x is not None]
         if r:
             amp.append((m, min(r), max(r)))
-    amp_txt = ""
-    if amp:
-        amp_txt = ("<p>Force amplitude on the validation runs (RMS of simulated / RMS of measured force, "
-                   "after warm-up): " + "; ".join(f"{esc(MODEL_LABEL.get(m, m))} {_range(a, b, 0)}" for m, a, b in amp)
-                   + ".")
-        mx = [a for a in amp if a[0] == "maxwell"]
-        if mx and mx[0][2] < 95:
-            amp_txt += (" The Maxwell element gives lower forces than the damper, which in curves "
-                        "over-estimates the curving performance of the vehicle (paper, section 3.2).")
-        elif mx and mx[0][1] > 105:
-            amp_txt += " The Maxwell element gives higher forces than the damper."
-        amp_txt += "</p>"
+    if not amp:
+        return ""
+    text = ("<p>Force amplitude on the validation runs (RMS of simulated / RMS of measured force, after warm-up): "
+            + "; ".join(f"{esc(MODEL_LABEL.get(m, m))} {_range(a, b, 0)}" for m, a, b in amp) + ".")
+    mx = [a for a in amp if a[0] == "maxwell"]
+    if mx and mx[0][2] < 95:
+        text += " The Maxwell element gives lower forces than the damper" + (
+            ", which in curves over-estimates the curving performance of the vehicle (paper, section 3.2)."
+            if railway else ".")
+    elif mx and mx[0][1] > 105:
+        text += " The Maxwell element gives higher forces than the damper."
+    return text + "</p>"
+
+
+def _summary(run: FitFolder) -> str:
+    """The summary section: the recommendation box (``tuner.results.recommendation``, the one place that
+    decides what to use), then what it rests on: the quality gate, the paper's lumped-vs-Maxwell comparison
+    per validation test and the force amplitudes."""
+    items, comparison = _paper_comparison(run)
     full_rate = run.metrics.get("full_rate") or {}
     gate = "".join(f"<li>{esc(MODEL_LABEL.get(m, m))}: {esc(q['text'])}"
                    + (f"; {esc(full_rate[m]['text'])}" if m in full_rate else "") + "</li>"
                    for m, q in (run.metrics.get("quality") or {}).items())
     gate = f"<p>Quality gate:</p><ul class='summary'>{gate}</ul>" if gate else ""
-    return (f'<section id="summary"><h2>1. Summary</h2><p>Validation tests (not used in the fit):</p>'
-            f'<ul class="summary">{"".join(items)}</ul>{amp_txt}{gate}'
-            f'<p class="verdict"><b>Verdict:</b> {esc(verdict)}</p></section>')
+    paper = ""
+    if items:
+        paper = ("<p>The paper's comparison, lumped against Maxwell, on the validation tests (not used in the fit):</p>"
+                 f"<ul class='summary'>{''.join(items)}</ul>" + (f"<p>{esc(comparison)}</p>" if comparison else ""))
+    return (f'<section id="summary"><h2>1. Summary</h2>{recommendation_html(recommend(run.out))}{gate}{paper}'
+            f'{_amplitude(run, railway_damper(run.metrics))}</section>')
 
 
 def _metrics_section(run: FitFolder) -> str:
@@ -200,7 +209,7 @@ def _timeseries_section(run: FitFolder, fdir: Path, dpi: int) -> str:
         for test in names:
             scen = run.tests[test].get("scenario", "")
             src, zoom = fig_forces(run, test, fdir, dpi, prefix)
-            cap = f"<b>{esc(test)}</b> ({esc(scen)}): forces, differences and zoom."
+            cap = f"{_named(test, scen)}: forces, differences and zoom."
             if zoom:
                 cap += (f" Largest {esc(MODEL_LABEL.get(zoom['model'], zoom['model']))} error "
                         f"{eng(zoom['error'], 'N')} at {zoom['t']:.2f} s.")
@@ -409,10 +418,13 @@ def make_report(out_dir, *, dpi: int = 110) -> Path:
     fdir.mkdir(exist_ok=True)
     title = "Damper model identification report"
     ds = run.settings.get("dataset")
-    toc = "".join(f"<li><a href='#{a}'>{t}</a></li>" for a, t in (
-        ("summary", "Summary"), ("diagnosis", "Diagnosis"), ("vehicle", "In the vehicle"), ("metrics", "Accuracy tables"), ("time", "Force time histories and loops"),
-        ("fitness", "Fitness evolution"), ("constants", "Constant parameters"), ("tables", "Oil characteristics"),
-        ("poly", "Polynomial fits"), ("params", "Identified parameters"), ("provenance", "Provenance")))
+    diagnosis, vehicle = diagnosis_section_html(out), vehicle_section_html(out)  # '' when that stage did not run
+    toc = "".join(f"<li><a href='#{a}'>{t}</a></li>" for a, t, shown in (
+        ("summary", "Summary", True), ("diagnosis", "Diagnosis", diagnosis), ("vehicle", "In the vehicle", vehicle),
+        ("metrics", "Accuracy tables", True), ("time", "Force time histories and loops", True),
+        ("fitness", "Fitness evolution", True), ("constants", "Constant parameters", True),
+        ("tables", "Oil characteristics", True), ("poly", "Polynomial fits", True),
+        ("params", "Identified parameters", True), ("provenance", "Provenance", True)) if shown)
     intro = (f"<p>Identification of a hydraulic damper model (lumped nonlinear model of Isacchi, Ripamonti "
              f"and Corsi 2023) against rig measurements{', dataset <code>' + esc(ds) + '</code>' if ds else ''}; "
              f"models: {', '.join(model_label(m) for m in run.models)}; "
@@ -421,7 +433,7 @@ def make_report(out_dir, *, dpi: int = 110) -> Path:
              "force positive in tension. SI units with engineering prefixes.</p>")
 
     body = [f"<h1>{title}</h1>", intro, f"<ol class='toc'>{toc}</ol>", _summary(run),
-            diagnosis_section_html(out), vehicle_section_html(out), _metrics_section(run),
+            diagnosis, vehicle, _metrics_section(run),
             _timeseries_section(run, fdir, dpi), _fitness_section(run, fdir, dpi),
             _population_sections(run, fdir, dpi), _poly_section(run, fdir, dpi), _params_section(run),
             _provenance_section(run)]
