@@ -140,7 +140,8 @@ def add_fit_options(ap: argparse.ArgumentParser) -> None:
     g.add_argument("--elastic-abscissae", type=float_list, default=None, metavar="X1,...,X10",
                    help="the 10 elongations [mm] of the Fk,O table, increasing (default: Table 2's, stretched when "
                         "the peak force would elongate the reference spring beyond 3 mm)")
-    g.add_argument("--no-stop", action="store_true", help="disable the paper's stagnation stopping rule")
+    g.add_argument("--no-stop", action="store_true", help="disable the search's stopping rules (the paper's stagnation test and the data-resolution "
+                        "stop): the whole --iterations budget")
     g.add_argument("--no-diagnose", action="store_true",
                    help="skip the diagnosis that follows the fit (it needs validation tests)")
     g.add_argument("--vehicle", action="store_true",

@@ -186,8 +186,9 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         def at_resolution(st: firefly.FireflyState) -> bool:
             """The search's best has moved less than the data resolve over the last stop_window iterations
             (``tuner.identification.polish.resolution_stop``): the basin is found, the refinement finishes."""
-            if st.iteration < opts.stop_start or not small_progress(st.history_best, opts.stop_window):
-                return False
+            if opts.stop_tol is None or st.iteration < opts.stop_start or \
+                    not small_progress(st.history_best, opts.stop_window):
+                return False  # --no-stop: the whole budget, as the paper's stagnation test
             r = eng.residuals_batch([par.to_params(st.best_x)])[0]
             text = resolution_stop(st.history_best, r, opts.stop_window, "iterations") if r is not None else None
             if text:
