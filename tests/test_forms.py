@@ -137,10 +137,10 @@ def test_blind_rebound_bypass_groove_of_the_twin_tube_rig_is_named_where_it_is(t
 
 
 def _diagnose_with(tmp_path, model: str, extra: dict, candidates: tuple, base: str = "lumped", other_bases=None,
-                   seed: int = 3):
+                   seed: int = 3, durations=(6.0, 6.0, 6.0, 6.0)):
     """``_diagnose`` with the catalogue candidates and the base form chosen (forms on top of causes)."""
     data = write_model_dataset(tmp_path / "data", model, {**defaults(model), **extra}, seed=seed,
-                               durations=(6.0, 6.0, 6.0, 6.0), noise_n=10.0)
+                               durations=durations, noise_n=10.0)
     tests = load_dataset(data)
     return diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
                     tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), base_iterations=0, candidates=candidates),
@@ -169,7 +169,8 @@ def test_a_form_on_top_of_a_named_cause_on_the_two_chamber_base(tmp_path):
     """The same on the two-chamber base with one cause: friction and a pre-yield hysteresis in two-chamber-model
     data; friction is named, then the hysteresis on top of it, both near the truth."""
     res = _diagnose_with(tmp_path, "twochamber", {"friction_force": 150.0, "hysteresis_force": 300.0,
-                                                  "hysteresis_displacement": 0.6e-3}, ("friction",), base="twochamber")
+                                                  "hysteresis_displacement": 0.6e-3}, ("friction",), base="twochamber",
+                         durations=(4.0, 4.0, 4.0, 4.0))
     assert res["causes"] == ["friction", "hysteresis"] and res["form"] == "hysteresis", res["verdict"]
     assert all(r["effect"].startswith("friction+") for r in res["forms_tried"])
     p = res["effect_parameters"]
@@ -193,7 +194,7 @@ def test_a_late_stage_that_fails_leaves_its_record_and_report_and_the_run_resume
     from tuner.job import run_diagnosis
 
     data = write_model_dataset(tmp_path / "data", "twochamber", {**defaults("twochamber"), "friction_force": 200.0},
-                               seed=3, durations=(6.0, 6.0, 6.0, 6.0), noise_n=10.0)
+                               seed=3, durations=(4.0, 4.0, 4.0, 4.0), noise_n=10.0)
     tests = load_dataset(data)
     ident, val = ([t for t in tests if t.role == r] for r in ("identification", "validation"))
     out, lines = tmp_path / "out", []
