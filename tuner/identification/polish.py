@@ -120,21 +120,7 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print):
             stop, converged, rule = f"converged: the Gauss-Newton step predicts {predicted:.1e} of the SSE", True, \
                 "first-order"
             break
-        JtJ, gf = Jf.T @ Jf, g[free]
-        scale = np.diag(np.maximum(np.diag(JtJ), 1e-30))
-        accepted = None
-        for _ in range(10):
-            trials = []
-            for damping in (lam, 10.0 * lam):
-                un = u.copy()
-                un[free] = np.clip(u[free] + np.linalg.solve(JtJ + damping * scale, -gf), 0.0, 1.0)
-                trials.append((damping, un))
-            for (damping, un), rn in zip(trials, residuals([t[1] for t in trials])):
-                if rn is not None and float(rn @ rn) < cost and (accepted is None or float(rn @ rn) < accepted[0]):
-                    accepted = (float(rn @ rn), damping, un, rn)
-            if accepted:
-                break
-            lam *= 100.0
+        accepted = _damped_step(residuals, u, free, Jf, g[free], cost, lam)
         if accepted is None and step < COARSE_STEP:
             log(f"    polish: no damped step lowers the SSE with finite differences of {step:g}; "
                 f"differences of {COARSE_STEP:g} from here (the objective is rough on the fine scale)")
@@ -157,6 +143,30 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print):
                                         "rule": rule,
                                         "jacobians": jacobians, "predicted": predicted,
                                         "budget_spent": stop.startswith("budget")}
+
+
+def _damped_step(residuals, u: np.ndarray, free: np.ndarray, Jf: np.ndarray, gf: np.ndarray, cost: float,
+                 lam: float):
+    """The Levenberg-Marquardt step of ``polish`` from ``u`` (local coordinates) on its ``free`` variables:
+    two damping values per batch (lam and 10 lam, lam raised 100x after a batch that lowers nothing, at
+    most 10 batches), steps projected into the box. Returns (SSE [N^2], damping, point, residual) of the
+    best trial that lowers ``cost``, or None."""
+    JtJ = Jf.T @ Jf
+    scale = np.diag(np.maximum(np.diag(JtJ), 1e-30))
+    accepted = None
+    for _ in range(10):
+        trials = []
+        for damping in (lam, 10.0 * lam):
+            un = u.copy()
+            un[free] = np.clip(u[free] + np.linalg.solve(JtJ + damping * scale, -gf), 0.0, 1.0)
+            trials.append((damping, un))
+        for (damping, un), rn in zip(trials, residuals([t[1] for t in trials])):
+            if rn is not None and float(rn @ rn) < cost and (accepted is None or float(rn @ rn) < accepted[0]):
+                accepted = (float(rn @ rn), damping, un, rn)
+        if accepted:
+            return accepted
+        lam *= 100.0
+    return None
 
 
 def small_progress(fitness: list[float], window: int = RESOLUTION_WINDOW) -> bool:
