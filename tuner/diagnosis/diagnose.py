@@ -74,6 +74,7 @@ from tuner.diagnosis.effect_sizes import DamperSize, meaningful_floor, typical_r
 from tuner.diagnosis.forms import FORM_LABELS, screen, settings_text, shape_grid
 from tuner.diagnosis.refit import (MIN_BLOCKS, ExtendedParametrization, base_jacobian, effect_intervals, refit,
                                    search_bounds)
+from tuner.diagnosis.screen import SCREEN_SHARE, profile_screen
 from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidence, residual_figures
 from tuner.formatting import fmt_quantity
 from tuner.identification.engine import Engine
@@ -294,9 +295,18 @@ def _try_forms(eid: Engine, par: Parametrization, current: dict, current_row: di
         if jac is None:  # the current model's Jacobian (its causes included), shared by the forms
             jac = base_jacobian(eid, ext, z_off, dims=ext.dimension - len(EFFECT_IDENTIFIED[form]))
         shapes = screen(eid, ext, form, current, jac, knee_m_s=knee)
+        for cand in shapes:
+            cand["predicted_share"] = cand["gain_n2"] / sse_cur if sse_cur > 0 else 0.0
         best_z, g, evals = None, -math.inf, len(shape_grid(form, dict(zip(ext.extra, ext.extra_bounds)), knee)) + 1
         at = [ext.extra.index(magnitude)]
-        for cand in shapes:  # the shape's settings (a groove's direction, its fade speed) are fixed in its model
+        to_refit = [c for c in shapes if c["predicted_share"] >= SCREEN_SHARE]
+        if shapes and not to_refit:
+            # the screen predicts no shape could win SCREEN_SHARE of the SSE: ranked at its best screened point
+            ext = ExtendedParametrization(par, ext.effect, peak, stroke_range, stroke_limits,
+                                          fixed={k: v for k, v in shapes[0]["shape"].items() if k not in ext.extra})
+            best_z = ext.from_params({**current, **shapes[0]["shape"], magnitude: shapes[0]["magnitude"]})
+            g = eid.n_samples / float(eid.sse_batch([ext.to_params(best_z)])[0])
+        for cand in to_refit:  # the shape's settings (a groove's direction, its fade speed) are fixed in its model
             ext_c = ExtendedParametrization(par, ext.effect, peak, stroke_range, stroke_limits,
                                             fixed={k: v for k, v in cand["shape"].items() if k not in ext.extra})
             z0 = ext_c.from_params({**current, **cand["shape"], magnitude: 0.0})
@@ -311,7 +321,7 @@ def _try_forms(eid: Engine, par: Parametrization, current: dict, current_row: di
         row = held_out(ext.effect, ext.to_params(best_z), ext.extra, g, evals, current_row["validation_mse"],
                        new=[magnitude], n_params=len(names))
         row["added"], row["form"], row["settings"] = form, FORM_LABELS[form], dict(ext.fixed)
-        row["screen"] = shapes
+        row["screen"], row["refitted"] = shapes, bool(to_refit)
         row["excess_explained"] = _excess_explained(row, current_row, floor)
         fits[form] = (ext, best_z, evals)
         rows.append(row)
@@ -779,24 +789,45 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
         log(f"  {'none':14s} (base refitted alike)  identification RMSE {none_row['identification_rmse_n']:.1f} N, "
             f"validation MSE {100 * (mse_none / mse_base - 1):+6.1f} % vs the base fit")
         advance(log, 0.2)
+        # the screen (``tuner.diagnosis.screen``): one batch predicts what each candidate's refit could win;
+        # only those that could earn a cause are refitted, the others are ranked at their screened point
+        exts = {e: ExtendedParametrization(par, e, peak, stroke_range) for e in settings.candidates}
+        at_none = {**base, **par.to_params(z_none)}
+        screened = {}  # the better of two screens: at the base refitted alike, and at the base the refits start from
+        for at_point, jac in ((at_none, base_jacobian(eid, par, z_none)), (base, jac_base)):
+            for e, r in profile_screen(eid, exts, at_point, jac, settings.grid_points).items():
+                if e not in screened or r.share > screened[e].share:
+                    screened[e] = r
+        log("  screen (identification SSE a refit could win, base re-balanced linearly): " + ", ".join(
+            f"{e} {100 * r.share:.1f} %" for e, r in screened.items()) + f"; refitted: at least "
+            f"{100 * SCREEN_SHARE:g} %")
         for k_cand, effect in enumerate(settings.candidates):
             advance(log, 0.2 + 0.5 * k_cand / len(settings.candidates))
-            ext = ExtendedParametrization(par, effect, peak, stroke_range)
-            # the fitted base may have absorbed part of the effect into its tables: a profile line
-            # search re-balances it (``refit``); a second start from the data-driven initial guess,
-            # which has not absorbed it, is kept when its refit fits the identification data better
-            best_z, g, evals = None, -math.inf, 0
-            for start, sse_start, svd in starts:
-                z, g_s, n = refit(eid, ext, ext.from_params(start), sse_start, svd, settings, share)
-                evals += n
-                if g_s > g:
-                    best_z, g = z, g_s
-            row = _held_out(effect, ext.to_params(best_z), ext.extra, g, evals, mse_none)
-            refits[effect] = (ext, best_z, evals)
+            ext, scr = exts[effect], screened.get(effect)
+            row = None
+            if scr is not None and not scr.passes:
+                row = _held_out(effect, {**at_none, **scr.values}, ext.extra, eid.n_samples / scr.sse_n2, 1, mse_none)
+                row["identification_rmse_effect_off_n"] = none_row["identification_rmse_n"]
+                refits[effect] = (ext, ext.from_params({**at_none, **scr.values}), 1)
+            if row is None or (row["score"] > ACCEPT_SCORE and row["resolved"]):
+                # the fitted base may have absorbed part of the effect into its tables: a profile line
+                # search re-balances it (``refit``); a second start from the data-driven initial guess,
+                # which has not absorbed it, is kept when its refit fits the identification data better
+                best_z, g, evals = None, -math.inf, 0
+                for start, sse_start, svd in starts:
+                    z, g_s, n = refit(eid, ext, ext.from_params(start), sse_start, svd, settings, share)
+                    evals += n
+                    if g_s > g:
+                        best_z, g = z, g_s
+                row = _held_out(effect, ext.to_params(best_z), ext.extra, g, evals, mse_none)
+                refits[effect] = (ext, best_z, evals)
+            row["refitted"] = refits[effect][2] > 1
+            row["screen"] = scr.to_dict() if scr is not None else None
             ranking.append(row)
             log(f"  {effect:14s} " + ", ".join(f"{n} = {v:.4g} {UNITS[n]}" for n, v in row["parameters"].items())
                 + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
-                + f"  effect {row['effect_rms_n']:.3g} N rms{'' if row['resolved'] else ' (below the noise)'}")
+                + f"  effect {row['effect_rms_n']:.3g} N rms{'' if row['resolved'] else ' (below the noise)'}"
+                + ("" if row["refitted"] else "  (screened: not refitted)"))
         advance(log, 0.7)
 
         def promote(effects) -> None:
@@ -826,7 +857,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
             log(f"  none           the {effect} refit with its effect off fits better than the base refit: it is "
                 f"the base now (identification RMSE {none_row['identification_rmse_n']:.1f} N); scores taken again")
 
-        promote(list(refits))
+        promote([r["effect"] for r in ranking if r["refitted"]])
         # the leading candidate's refit is continued to convergence (absorbed effects converge slowly),
         # and so is the base refit, so that the continuation is not credited to the effect
         lead = max(ranking, key=lambda r: r["score"] if r["resolved"] else -math.inf, default=None)

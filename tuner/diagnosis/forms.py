@@ -22,6 +22,7 @@ import numpy as np
 from damper_fmu.parameters import EFFECT_IDENTIFIED
 
 from tuner.diagnosis.refit import ExtendedParametrization
+from tuner.diagnosis.screen import off_span
 from tuner.identification.engine import Engine
 
 __all__ = ["FORM_LABELS", "shape_grid", "screen", "settings_text", "PROBE_FRACTION"]
@@ -86,14 +87,7 @@ def screen(eid: Engine, ext: ExtendedParametrization, form: str, current: dict, 
     r0 = runs[0]
     if r0 is None:
         return []
-    basis = None
-    if jac_svd is not None:
-        u, sv, _ = jac_svd
-        basis = u[:, sv > 1e-9 * sv[0]]
-
-    def off_basis(v):
-        return v - basis @ (basis.T @ v) if basis is not None else v
-
+    off_basis = off_span(jac_svd)
     r_p = off_basis(r0)
     rows = []
     for s, r in zip(shapes, runs[1:]):
