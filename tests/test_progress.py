@@ -82,3 +82,24 @@ def test_sub_stages_advance_the_jobs_stage_without_adding_stages():
     sub("a line")  # lines reach the job's log
     p.finish()
     assert "a line" in out.getvalue()
+
+
+def test_a_plan_keeps_time_for_parts_that_may_still_run_and_counts_skipped_ones_as_done():
+    """The diagnosis's plan: identification of two base forms, the diagnosis on the first and a possible
+    repeat on the second. A part that finished does not make its stage read 100 % while another may
+    follow; the time left covers the repeat until it is known not to run."""
+    from tuner.progress import Plan
+
+    clock, out = Clock(), io.StringIO()
+    p = JobProgress({"diagnosis": 100.0}, stream=out, tty=False, clock=clock)
+    stage(p, "diagnosis")
+    plan = Plan(p, {"identify a": 1.0, "identify b": 1.0, "diagnose a": 1.0, "diagnose b": 1.0})
+    for name in ("identify a", "identify b", "diagnose a"):
+        advance(plan.part(name), 1.0)
+    clock.t = 75.0
+    assert p.fraction == pytest.approx(0.75)  # the repeat on b may still run
+    assert p.remaining_s() == pytest.approx(25.0)
+    plan.skip("diagnose b")  # it will not: the stage is done
+    assert p.fraction == pytest.approx(1.0)
+    with pytest.raises(KeyError):
+        plan.part("vehicle")

@@ -19,7 +19,7 @@ from __future__ import annotations
 import sys
 import time
 
-__all__ = ["JobProgress", "SubStages", "stage", "advance"]
+__all__ = ["JobProgress", "SubStages", "Plan", "stage", "advance"]
 
 
 def stage(log, name: str) -> None:
@@ -52,6 +52,50 @@ class SubStages:
 
     def advance(self, fraction: float) -> None:
         advance(self.log, (max(self.k, 1) - 1 + min(max(float(fraction), 0.0), 1.0)) / self.n)
+
+
+class Plan:
+    """A ``log`` for a function whose parts are known in advance with their expected costs (``weights``:
+    name -> relative cost), some of which may turn out not to run (``skip``). ``part(name)`` is the log of
+    one part: its progress advances the job's current stage by the part's share of the planned total. A
+    part that will not run counts as done only when skipped, so the time left covers every part that may
+    still run (a repeat on another base form), and no stage reads 100 % while parts remain."""
+
+    def __init__(self, log, weights: dict[str, float]):
+        if not weights or any(w <= 0 for w in weights.values()):
+            raise ValueError("weights must be a non-empty dict of positive expected costs")
+        self.log, self.weights = log, dict(weights)
+        self.fractions = {name: 0.0 for name in weights}
+
+    def __call__(self, msg: str) -> None:
+        self.log(msg)
+
+    def part(self, name: str) -> "_PlanPart":
+        if name not in self.weights:
+            raise KeyError(f"{name!r} is not a part of the plan ({', '.join(self.weights)})")
+        return _PlanPart(self, name)
+
+    def skip(self, name: str) -> None:
+        """The part ``name`` will not run (or was taken from a checkpoint): count it as done."""
+        self.set(name, 1.0)
+
+    def set(self, name: str, fraction: float) -> None:
+        self.fractions[name] = min(max(float(fraction), self.fractions[name]), 1.0)
+        total = sum(self.weights.values())
+        advance(self.log, sum(self.weights[k] * f for k, f in self.fractions.items()) / total)
+
+
+class _PlanPart:
+    """The log of one part of a :class:`Plan` (messages to the plan's log, progress to the part)."""
+
+    def __init__(self, plan: Plan, name: str):
+        self.plan, self.name = plan, name
+
+    def __call__(self, msg: str) -> None:
+        self.plan.log(msg)
+
+    def advance(self, fraction: float) -> None:
+        self.plan.set(self.name, fraction)
 
 
 class JobProgress:
