@@ -194,7 +194,8 @@ def _capped(x, v, vmax: float):
 
 
 def class_tests(model: str, seed: int, *, durations=None, noise_n: float | None = None,
-                kinds=None, sample_rate: float = SAMPLE_RATE_HZ, sensors: dict | None = None) -> tuple[list[dict], dict]:
+                kinds=None, sample_rate: float = SAMPLE_RATE_HZ, sensors: dict | None = None,
+                hidden: dict | None = None) -> tuple[list[dict], dict]:
     """(tests for ``damper_dataset.writer.write_dataset``, truth) of a random damper of ``model``'s class.
 
     Six tests (four identification, two validation) of 12-16 s unless ``durations`` gives them
@@ -202,13 +203,17 @@ def class_tests(model: str, seed: int, *, durations=None, noise_n: float | None 
     ``STROKE_KINDS``); the force simulated at ``OVERSAMPLING`` x ``sample_rate`` with the model's
     reference integrator, then through the rig's sensor chain (noise ``noise_n`` [N rms], default
     drawn log-uniform in ``NOISE_RANGE_N``); ``sensors``: other ``campaign.sensors.SensorChain`` settings
-    (default: the rig's stroke channel, 2 um noise and a 16-bit ADC over +-0.1 m). ``truth``: {"parameters", "noise_n", "kinds", ...}.
+    (default: the rig's stroke channel, 2 um noise and a 16-bit ADC over +-0.1 m); ``hidden``: effect or form
+    parameters of the model set on the random damper (SI, e.g. ``{"free_play": 0.35e-3}``: a blind test of the
+    diagnosis; the damper drawn is the same with or without them). ``truth``: {"parameters", "noise_n",
+    "kinds", ...}.
     """
-
-
-
     rng = np.random.default_rng([seed, 7919, CLASS_MODELS.index(model)])
     params = random_damper(model, seed)
+    unknown = sorted(set(hidden or {}) - set(params))
+    if unknown:
+        raise ValueError(f"hidden: the {model} model has no parameter {', '.join(unknown)}")
+    params.update(hidden or {})
     if durations is None:
         durations = [float(rng.uniform(12.0, 16.0)) for _ in range(6)]
     n_id = max(1, (2 * len(durations)) // 3)

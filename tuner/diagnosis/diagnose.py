@@ -70,7 +70,7 @@ from damper_fmu.parameters import (CATALOGUE_EFFECTS, EFFECT_IDENTIFIED, EFFECT_
 from tuner.data.noise import channel_noise
 from tuner.data.reading import RigTest
 from tuner.diagnosis.detection import detection_limits
-from tuner.diagnosis.effect_sizes import DamperSize, meaningful_floor, typical_range
+from tuner.diagnosis.effect_sizes import REFERENCE, DamperSize, meaningful_floor, typical_range
 from tuner.diagnosis.forms import FORM_LABELS, screen, settings_text, shape_grid
 from tuner.diagnosis.refit import (MIN_BLOCKS, ExtendedParametrization, base_jacobian, effect_intervals, refit,
                                    search_bounds)
@@ -84,7 +84,7 @@ from tuner import strict_json
 from tuner.identification.polish import polish
 from tuner.identification.problem import DataSettings, Problem
 from tuner.metrics import pooled_mse
-from tuner.progress import advance
+from tuner.progress import Plan, advance
 
 __all__ = ["DiagnosisSettings", "DiagnosisFailed", "diagnose", "decide", "cross_check", "choose_base", "CANDIDATES",
            "BASE_MODELS", "ExtendedParametrization", "ACQUISITION_CAUSES", "NOTES", "ACCEPT_SCORE"]
@@ -104,6 +104,8 @@ UNEXPLAINED_RATIO = 2.0
 #: took 34 % of a lumped base's error on two-chamber-model data, leaving 119 x the floor) is not the
 #: missing element
 FORM_EXCESS_SHARE = 0.5
+#: a magnitude within this share of its search bound is at the bound (``_within_bounds``)
+AT_BOUND = 0.02
 #: a fitted delay agrees with the base residual's delay when fitted / residual lies in this range. It is
 #: asymmetric: the base refit absorbs part of a real delay (its series compliance is itself a lag), so
 #: the residual shows less than the whole delay (down to a third on lumped data, 2.20 ms fitted for
@@ -258,10 +260,7 @@ def _next_cause(eid: Engine, par: Parametrization, peak: float, current: tuple, 
     for row in rows:
         if row["score"] > ACCEPT_SCORE and row["resolved"]:
             ext, z, _ = fits[row["effect"]]
-            ci = effect_intervals(eid, ext, z)
-            row["interval"] = {n: [ci[n]["low"], ci[n]["high"]] for n in ext.extra}
-            row["significant"] = all(ci[n]["excludes_zero"] for n in EFFECT_IDENTIFIED[row["added"]])
-            row["interval_blocks"] = ci["_blocks"]
+            _attach_interval(row, effect_intervals(eid, ext, z), ext, EFFECT_IDENTIFIED[row["added"]])
     named = [r for r in sorted(rows, key=lambda r: -r["score"]) if r["score"] > ACCEPT_SCORE and _earned(r)]
     if not named:
         log(f"  no further cause on top of {cur_ext.effect}")
@@ -346,10 +345,7 @@ def _try_forms(eid: Engine, par: Parametrization, current: dict, current_row: di
             row.update({k: lead[k] for k in ("added", "form", "settings", "screen")})
             row["excess_explained"] = _excess_explained(row, current_row, floor)
             rows[rows.index(lead)] = lead = row
-        ci = effect_intervals(eid, ext, z)
-        lead["interval"] = {k: [ci[k]["low"], ci[k]["high"]] for k in ext.extra}
-        lead["significant"] = bool(ci[EFFECT_IDENTIFIED[form][0]]["excludes_zero"])
-        lead["interval_blocks"] = ci["_blocks"]
+        _attach_interval(lead, effect_intervals(eid, ext, z), ext, EFFECT_IDENTIFIED[form][:1])
     if lead["score"] > ACCEPT_SCORE and _earned(lead) and lead["excess_explained"] >= FORM_EXCESS_SHARE:
         log(f"  form named: {FORM_LABELS[form]} (" + _interval_text(lead, EFFECT_IDENTIFIED[form])
             + f"), validation MSE {lead['validation_mse_change_pct']:+.0f} %, score {lead['score']:+.3f}")
@@ -387,8 +383,35 @@ def cross_check(ranking: list[dict], evidence: dict) -> list[dict]:
 
 
 def _earned(row: dict) -> bool:
-    """Resolved (force above the noise, evidence agrees), physically meaningful and significant."""
-    return bool(row["resolved"] and row.get("meaningful", True) and row.get("significant", False))
+    """Resolved (force above the noise, evidence agrees), physically meaningful, within its search bounds,
+    plausible and significant."""
+    return bool(row["resolved"] and row.get("meaningful", True) and row.get("within_bounds", True)
+                and row.get("plausible", True) and row.get("significant", False))
+
+
+def _attach_interval(row: dict, ci: dict, ext: ExtendedParametrization, new) -> None:
+    """The row's 95 % intervals of ``ext.extra`` from ``effect_intervals``' ``ci``; significant when the
+    interval of every ``new`` magnitude excludes zero; plausible when none of them lies wholly above the
+    top of its effect's typical range on this damper (``effect_sizes.typical_range``): a magnitude no damper
+    of this size has patches another error (a form gap), it is not that effect."""
+    size = DamperSize(ext.peak_force, ext.stroke_range_m or REFERENCE.stroke_range_m)
+    row["interval"] = {n: [ci[n]["low"], ci[n]["high"]] for n in ext.extra}
+    row["significant"] = all(ci[n]["excludes_zero"] for n in new)
+    row["interval_blocks"] = ci["_blocks"]
+    nearest = {n: 0.0 if ci[n]["low"] <= 0.0 <= ci[n]["high"] else min(abs(ci[n]["low"]), abs(ci[n]["high"]))
+               for n in new if n in EFFECT_TYPICAL}
+    row["plausible"] = all(v <= typical_range(n, size)[1] for n, v in nearest.items())
+
+
+def _within_bounds(values: dict, bounds: dict) -> bool:
+    """No magnitude at its search bound (within AT_BOUND of it) [SI]: a refit that ends there was stopped by
+    the bound, not by the data (``values``: name -> fitted value; ``bounds``: name -> (low, high))."""
+    for n, v in values.items():
+        lo, hi = bounds[n]
+        edge = hi if v >= 0.0 else lo
+        if edge != 0.0 and abs(v) >= (1.0 - AT_BOUND) * abs(edge):
+            return False
+    return True
 
 
 def decide(ranking: list[dict]) -> tuple[str, dict, list[dict]]:
@@ -504,19 +527,15 @@ def _identified_bases(problem: Problem, out: Path, settings: DiagnosisSettings, 
         bases.update({k: (parametrization(k, v), v) for k, v in (other_bases or {}).items()
                       if k != kind and k in EFFECT_MODELS})
         return kind, bases, base_choice
-    kinds = BASE_MODELS if settings.base_model == "auto" else (settings.base_model,)
-    unknown = [k for k in kinds if k not in EFFECT_MODELS]
-    if unknown:
-        raise ValueError(f"base model {unknown[0]!r}: choose 'auto' or one of {', '.join(EFFECT_MODELS)}")
     fitted = {}
-    for kind in kinds:
+    for kind in _base_kinds(settings, None, None, given=False):
         par_k = parametrization(kind, None)
         log(f"diagnosis: identifying the base {kind} model ...")
         fs = FitSettings(models=(kind,), fit_rate_hz=settings.fit_rate_hz, warmup_s=settings.warmup_s,
                          iterations=settings.base_iterations, workers=settings.workers, seed=settings.seed,
                          engine=settings.engine, polish_jacobians=settings.base_polish_jacobians)
         values, _ = identify(kind, problem.sig_id, fs, par_k, out / "checkpoints" / f"diagnosis_base_{kind}.json",
-                             problem.digest, log)
+                             problem.digest, log.part(f"identification of the {kind} base"))
         fitted[kind] = (par_k, values, _pooled_mse(kind, values, problem.sig_val, settings.engine))
     kind = min(fitted, key=lambda k: fitted[k][2])
     bases = {k: fitted[k][:2] for k in sorted(fitted, key=lambda k: fitted[k][2])}
@@ -528,21 +547,51 @@ def _identified_bases(problem: Problem, out: Path, settings: DiagnosisSettings, 
     return kind, bases, base_choice
 
 
+def _base_kinds(settings: DiagnosisSettings, base_model, other_bases, given: bool) -> list[str]:
+    """The base forms the diagnosis may run on: the one given and the other fitted ones, or those it identifies
+    (``settings.base_model``: 'auto' for every one of BASE_MODELS); ValueError for a form without effects."""
+    if given:
+        first = base_model or "lumped"
+        return [first, *(k for k in (other_bases or {}) if k != first and k in EFFECT_MODELS)]
+    kinds = list(BASE_MODELS) if settings.base_model == "auto" else [settings.base_model]
+    unknown = [k for k in kinds if k not in EFFECT_MODELS]
+    if unknown:
+        raise ValueError(f"base model {unknown[0]!r}: choose 'auto' or one of {', '.join(EFFECT_MODELS)}")
+    return kinds
+
+
+#: expected relative costs of the diagnosis's parts (the progress display's plan)
+PLAN_WEIGHTS = {"identification": 1.0, "diagnosis": 1.5}
+
+
+def _plan(log, settings: DiagnosisSettings, base_model, other_bases, given: bool) -> Plan:
+    """The progress plan: the identification of each base form (unless given), the diagnosis on each one (the
+    first, and a repeat on each other that may follow: skipped when it does not)."""
+    kinds = _base_kinds(settings, base_model, other_bases, given)
+    weights = {} if given else {f"identification of the {k} base": PLAN_WEIGHTS["identification"] for k in kinds}
+    weights.update({f"diagnosis on the {k} base": PLAN_WEIGHTS["diagnosis"] for k in kinds})
+    return Plan(log, weights)
+
+
 def _diagnose_stages(problem: Problem, out: Path, settings: DiagnosisSettings, base_params, base_model, base_choice,
                      other_bases, record: dict, log) -> dict:
     """The stages of ``diagnose`` after the inputs were checked; ``record`` follows them (the stage
     running, the stages finished, what the running one has so far) for a failure report."""
+    plan = _plan(log, settings, base_model, other_bases, base_params is not None)
     kind, bases, base_choice = _identified_bases(problem, out, settings, base_params, base_model, base_choice,
-                                                 other_bases, log)
+                                                 other_bases, plan)
     record["base_choice"] = base_choice
     record["finished"].append("base identification")
-    runs = {kind: _checkpointed_run(kind, bases[kind], problem, settings, out, "figures", record, log)}
+    runs = {kind: _checkpointed_run(kind, bases[kind], problem, settings, out, "figures", record,
+                                    plan.part(f"diagnosis on the {kind} base"))}
     skipped = {}
     for other in [k for k in bases if k != kind]:
         left = runs[kind]["unexplained"]
+        why = "" if left is None else _why_not_repeated(kind, other, runs[kind], bases[other][1], problem, settings)
+        if why is not None:
+            plan.skip(f"diagnosis on the {other} base")
         if left is None:
-            break
-        why = _why_not_repeated(kind, other, runs[kind], bases[other][1], problem, settings)
+            continue
         if why:
             skipped[other] = why
             log(f"diagnosis: the {kind} base leaves {left['ratio']:.1f} x the residual floor; not repeated on the "
@@ -551,7 +600,7 @@ def _diagnose_stages(problem: Problem, out: Path, settings: DiagnosisSettings, b
         log(f"diagnosis: the {kind} base leaves {left['ratio']:.1f} x the residual floor: "
             f"repeated on the {other} base (the base is chosen again by the final models' held-out MSE)")
         runs[other] = _checkpointed_run(other, bases[other], problem, settings, out, f"figures/base_{other}", record,
-                                        log)
+                                        plan.part(f"diagnosis on the {other} base"))
     if skipped:
         base_choice = {**(base_choice or {}), "not_repeated_on": skipped}
     if len(runs) > 1:
@@ -604,6 +653,7 @@ def _checkpointed_run(kind: str, base: tuple, problem: Problem, settings: Diagno
         if saved.get("base_key") == base_key:
             log(f"diagnosis: the {kind} base's diagnosis was finished before: taken from {path}")
             record["finished"].append(f"diagnosis on the {kind} base")
+            advance(log, 1.0)
             return saved["run"]
         log(f"diagnosis: {path} holds the diagnosis of other {kind} base values (a refit since): diagnosed again")
     record["stage"] = f"diagnosis on the {kind} base"
@@ -614,6 +664,7 @@ def _checkpointed_run(kind: str, base: tuple, problem: Problem, settings: Diagno
     tmp.replace(path)
     record["finished"].append(f"diagnosis on the {kind} base")
     record["partial"] = None
+    advance(log, 1.0)
     return strict_json.loads(path.read_text())["run"]  # the same values as a resumed run gets
 
 
@@ -756,6 +807,8 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
                     "parameters": values, "units": {n: UNITS[n] for n in values},
                     "effect_rms_n": contribution, "resolved": bool(contribution >= noise) if new else True,
                     "meaningful": all(abs(params[n]) >= meaningful_floor(n, size) for n in new),
+                    "within_bounds": _within_bounds({n: params[n] for n in new}, {
+                        n: search_bounds(n, peak, stroke_range, stroke_limits) for n in new}),
                     "validation": {s.name: {"mse": m, "ame": a} for s, (m, a) in zip(sig_val, per_test)},
                     "evaluations": int(evals)}
 
@@ -888,9 +941,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
             if row["score"] > ACCEPT_SCORE and row["resolved"]:
                 ext, z, _ = refits[row["effect"]]
                 ci = effect_intervals(eid, ext, z)
-                row["interval"] = {n: [ci[n]["low"], ci[n]["high"]] for n in ext.extra}
-                row["significant"] = all(ci[n]["excludes_zero"] for n in ext.extra)
-                row["interval_blocks"] = ci["_blocks"]
+                _attach_interval(row, ci, ext, ext.extra)
                 log(f"  {row['effect']:14s} 95 % interval " + ", ".join(
                     f"{n} {fmt_quantity(ci[n]['low'], UNITS[n])} .. {fmt_quantity(ci[n]['high'], UNITS[n])}"
                     for n in ext.extra) + f" ({ci['_blocks']} residual blocks of "
@@ -907,6 +958,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
         cause, best, unresolved = decide(ranking)
         causes, selection = ([cause] if cause != "none" else []), []
         at("forward selection")
+        advance(log, 0.85)
         record["partial"].update(causes=causes, selection=selection)
         # forward selection: add the best significant effect to the causes found, refit, repeat
         while causes and len(causes) < settings.max_causes:
@@ -949,6 +1001,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
             current = refits[key][0].to_params(refits[key][1]) if causes else par.to_params(z_none)
             current_row = best if causes else none_row
             at("forms beyond the catalogue")
+            advance(log, 0.9)
             form_step = _try_forms(eid, par, current, current_row, causes, peak, stroke_range, stroke_limits, floor,
                                    evidence.get("knee_velocity"), settings, share, _held_out, settled, log)
             if form_step["form"] is not None:
@@ -960,6 +1013,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
                 if cause in ("none", "unexplained"):
                     cause = form_step["form"]
         at("detection limits")
+        advance(log, 0.95)
         limits = _detection(eid, ev, par, z_none, [e for e in settings.candidates if e not in causes], peak,
                             stroke_range, mse_none, noise, lengths, [s.name for s in sig_val], log)
 
@@ -978,6 +1032,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
     # the FMU at its own steps), so that "before" is the Table 3 figure of the same base model
     after_params = refits[key][0].to_params(refits[key][1]) if causes else base
     at("validation before and after")
+    advance(log, 0.98)
     validation, base_metrics, final_metrics = _before_after(kind, base, after_params if causes else None, sig_val,
                                                             settings.engine)
     effect_parameters = _effect_parameters(best, size) if causes else {}
@@ -1153,6 +1208,12 @@ def _why_not(row: dict, noise: float) -> str:
         return (f"it removes only {100 * row['excess_explained']:.0f} % of the held-out residual above the floor "
                 f"(a form must remove {100 * FORM_EXCESS_SHARE:.0f} %: one that patches part of another error is not "
                 "the missing element)")
+    if not row.get("within_bounds", True):
+        return ("its magnitude (" + ", ".join(f"{fmt_quantity(v, UNITS[n])}" for n, v in row["parameters"].items())
+                + ") is at its search bound: stopped by the bound, not by the data, it patches another error")
+    if not row.get("plausible", True):
+        return ("its 95 % interval lies above the effect's plausible range on this damper: it patches another "
+                "error (a form gap)")
     if not row.get("meaningful", True):
         return ("its magnitude (" + ", ".join(f"{fmt_quantity(v, UNITS[n])}" for n, v in row["parameters"].items())
                 + ") is below the physical range of the effect")
