@@ -30,6 +30,7 @@ __all__ = [
     "EFFECT_PARAMETERS",
     "EFFECT_IDENTIFIED",
     "EFFECT_TYPICAL",
+    "EFFECT_KIND",
     "FORM_EFFECTS",
     "CATALOGUE_EFFECTS",
     "FK_ABSCISSAE",
@@ -199,6 +200,19 @@ EFFECT_TYPICAL: dict[str, tuple[float, float]] = {
     "thermal_beta": (2e-3, 2e-2), "valve_tau": (1e-3, 1e-2), "time_delay": (1e-3, 1e-2),
     "inertia_mass": (20.0, 200.0),
     "hysteresis_force": (50.0, 1000.0), "hysteresis_displacement": (5e-5, 2e-3), "bypass_ratio": (0.1, 0.8),
+}
+
+#: what each catalogue effect's element stands for, as the diagnosis's detection limits state it: a limit
+#: holds for that kind of effect only (a friction inside the valve law is part of the damping table)
+EFFECT_KIND: dict[str, str] = {
+    "friction": "in parallel with the damper (rod seal, guides); a friction inside the valve is part of the "
+                "damping characteristic",
+    "preload": "a constant force in parallel (un-tared gas force, load-cell offset)",
+    "free_play": "a dead band in series at the actuator end (mounts, joints)",
+    "thermal_drift": "damping that changes with the oil temperature between tests",
+    "valve_lag": "a first-order lag of the valve opening beyond the blow-off knee",
+    "time_delay": "a skew between the force and stroke channels (acquisition)",
+    "inertia": "a mass moving with the rod, seen by the load cell",
 }
 
 #: effect name -> its identified parameters (the others of the effect stay at their defaults); the first

@@ -64,7 +64,7 @@ from pathlib import Path
 import numpy as np
 
 from damper_fmu.fmu import SLAVES, build, ensure_fmu
-from damper_fmu.parameters import (CATALOGUE_EFFECTS, EFFECT_IDENTIFIED, EFFECT_MODELS, EFFECT_PARAMETERS,
+from damper_fmu.parameters import (CATALOGUE_EFFECTS, EFFECT_IDENTIFIED, EFFECT_KIND, EFFECT_MODELS, EFFECT_PARAMETERS,
                                    EFFECT_TYPICAL, FK_REFERENCE_STIFFNESS, FORM_EFFECTS, defaults)
 
 from tuner.data.noise import channel_noise
@@ -233,7 +233,8 @@ def _next_cause(eid: Engine, par: Parametrization, peak: float, current: tuple, 
     sse_cur = float(eid.sse_batch([params_cur])[0])
     rows, fits, jac = [], {}, None
     for e in others:
-        ext = ExtendedParametrization(par, f"{cur_ext.effect}+{e}", peak, cur_ext.stroke_range_m)
+        ext = ExtendedParametrization(par, f"{cur_ext.effect}+{e}", peak, cur_ext.stroke_range_m,
+                                      cur_ext.stroke_limits, fixed=cur_ext.fixed)
         z0 = ext.from_params({**params_cur, **{n: 0.0 for n in EFFECT_IDENTIFIED[e]}})
         if jac is None:  # the new effect is off at z0: the current model's Jacobian, shared
             jac = base_jacobian(eid, ext, z0, dims=par.dimension)
@@ -956,6 +957,23 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
         ranking.sort(key=lambda r: -r["score"])
         ranking.append(none_row)
         cause, best, unresolved = decide(ranking)
+        # forms weighed with the causes: where the base leaves a residual above the floor, a catalogue cause
+        # may only patch a form gap; the forms are fitted on the base refitted alike, and a form named on
+        # its own rules that scores above the catalogue's cause is the first cause (the catalogue effects
+        # then have to earn their place on top of it in the forward selection)
+        weighed = None
+        if (cause != "none" and credible and settings.forms
+                and none_row["identification_rmse_n"] > UNEXPLAINED_RATIO * floor):
+            at("forms weighed with the causes")
+            weighed = _try_forms(eid, par, par.to_params(z_none), none_row, [], peak, stroke_range, stroke_limits,
+                                 floor, evidence.get("knee_velocity"), settings, share, _held_out, settled, log)
+            if weighed["form"] is not None and weighed["row"]["score"] > best["score"]:
+                log(f"  the form {weighed['form']} scores above {cause} on the base ({weighed['row']['score']:+.3f} "
+                    f"against {best['score']:+.3f}): it is the first cause")
+                cause, best = weighed["form"], weighed["row"]
+                refits[cause] = weighed.pop("refit")
+                converged_fits[cause] = weighed.pop("settled")
+                weighed["first"] = True
         causes, selection = ([cause] if cause != "none" else []), []
         at("forward selection")
         advance(log, 0.85)
@@ -995,8 +1013,8 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
         # settled fit (an unfinished one is no evidence of a missing element)
         key = "+".join(causes)
         rmse_now = best["identification_rmse_n"] if causes else none_row["identification_rmse_n"]
-        form_step = None
-        if (credible and settings.forms and rmse_now > UNEXPLAINED_RATIO * floor
+        form_step = weighed if weighed is not None and weighed.get("first") else None
+        if (form_step is None and credible and settings.forms and rmse_now > UNEXPLAINED_RATIO * floor
                 and converged_fits.get(key) is not False):
             current = refits[key][0].to_params(refits[key][1]) if causes else par.to_params(z_none)
             current_row = best if causes else none_row
@@ -1045,6 +1063,7 @@ def _diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Probl
             "detection_limits": limits,
             "form": form_step["form"] if form_step else None,
             "forms_tried": form_step["tried"] if form_step else None,
+            "forms_weighed": weighed["tried"] if weighed else None,
             "unexplained": unexplained, "ranking": ranking, "effect_parameters": effect_parameters,
             "validation": validation, "evidence": evidence, "figures": figures,
             "note": " ".join(NOTES[c] for c in causes if c in NOTES), "noise_std_n": noise,
@@ -1066,8 +1085,8 @@ def _detection(eid: Engine, ev: Engine, par: Parametrization, z: np.ndarray, can
                               {n: search_bounds(n, peak, stroke_range) for n in names.values()},
                               {n: meaningful_floor(n, size) for n in names.values()}, mse_ref, noise,
                               ACCEPT_SCORE, PENALTY_PER_PARAMETER, lengths, tests)
-    for r in limits.values():
-        r["unit"] = UNITS[r["parameter"]]
+    for e, r in limits.items():
+        r["unit"], r["covers"] = UNITS[r["parameter"]], EFFECT_KIND[e]
     if limits:
         log("diagnosis: detection limits on these tests (the smallest magnitude that would have been named): "
             + ", ".join(f"{e} {_limit_text(r)}" for e, r in limits.items()))
@@ -1142,11 +1161,14 @@ def _verdict(causes: list[str], best: dict, none_row: dict, rejected: list[dict]
     found = [c for c in causes if c != form]
     if form:
         change = 100 * (best["validation_mse"] / none_row["validation_mse"] - 1)
-        step = best["validation_mse_change_pct"]  # against the model it was added to
-        how = settings_text(best.get("settings") or {})
+        # against the model it was added to: the causes found before it, or the base when it came first
+        first = bool(form_step.get("first"))
+        step = (form_step["row"] if first else best)["validation_mse_change_pct"]
+        how = settings_text(form_step["row"].get("settings") or {})
         text = (f"form beyond the catalogue: {FORM_LABELS[form]} ({_interval_text(best, EFFECT_IDENTIFIED[form])}"
                 + (f"; {how}" if how else "") + "): "
-                f"held-out MSE {step:+.0f} %" + (f" on top of {' + '.join(found)}" if found else "")
+                f"held-out MSE {step:+.0f} %" + (f" on top of {' + '.join(found)}" if found and not first else "")
+                + (" on the base, weighed against the catalogue's causes and scoring above them" if first else "")
                 + f"; {change:+.0f} % against the base refitted alike")
         if found:
             text = (f"cause{'s' if len(found) > 1 else ''}: {' + '.join(found)} ("
@@ -1160,7 +1182,9 @@ def _verdict(causes: list[str], best: dict, none_row: dict, rejected: list[dict]
                       + ("; " + ", ".join(f"{r['effect']} scored {r['score']:+.3f} but " + _why_not(r, noise)
                                           for r in rejected) if rejected else ""))
         limits_text = ("; these tests would have named: "
-                       + ", ".join(f"{e} {_limit_text(r)}" for e, r in limits.items()) if limits else "")
+                       + ", ".join(f"{e} {_limit_text(r)}" for e, r in limits.items())
+                       + (f" (friction: {limits['friction']['covers']})" if "friction" in limits else "")
+                       if limits else "")
         text = f"cause: none ({none_inner}){limits_text}"
     if unexplained:
         where = (f"; most of it in the {unexplained['dominant_band']} band" if unexplained["dominant_band"] else "")

@@ -27,7 +27,8 @@ def detection_html(limits: dict) -> str:
     """The detection limits of a diagnosis (``tuner.diagnosis.detection``) as a table ('' without any)."""
     if not limits:
         return ""
-    rows = [[esc(effect), esc(fmt_quantity(r["limit"], r["unit"]) if r["reachable"] else "not within its search range"),
+    rows = [[esc(effect), esc(r.get("covers") or "-"),
+             esc(fmt_quantity(r["limit"], r["unit"]) if r["reachable"] else "not within its search range"),
              esc(r["best_test"] or "-"),
              {"score": "held-out score", "noise": "force above the noise", "range": "physical range"}[r["limited_by"]]]
             for effect, r in limits.items()]
@@ -35,7 +36,7 @@ def detection_html(limits: dict) -> str:
             "diagnosis would have named on these tests (linearised at the base refit: the part of the effect's "
             "force the base refit cannot absorb, against the acceptance score and the noise), and the held-out "
             "test that shows it best. A verdict 'none' means nothing above these sizes.</p>"
-            + table(["effect", "detectable from", "best test", "limited by"], rows))
+            + table(["effect", "the kind it covers", "detectable from", "best test", "limited by"], rows))
 
 
 def diagnosis_section_html(out_dir) -> str:
