@@ -1,5 +1,5 @@
 """Timings that hold: wall time of the README's main job (`python -m tuner`) and of the test suite,
-with the date, the machine and its load noted, as the README states them.
+with the date, the machine and its load noted, as docs/measurements.md states them.
 
     python benchmarks/bench_main_job.py [--tests] [--tests-args "-m 'not slow'"]
 

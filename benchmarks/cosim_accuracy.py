@@ -1,4 +1,5 @@
-"""Force error of the native lumped FMU at co-simulation step sizes (the README's table).
+"""Force error of the native lumped FMU at co-simulation step sizes (docs/fmus.md; the
+table, dated, in docs/measurements.md).
 
     python benchmarks/cosim_accuracy.py [--duration 1.0] [--tolerance 1e-4]
 

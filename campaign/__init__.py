@@ -1,1 +1,19 @@
-"""Virtual test campaign: vehicle manoeuvres -> damper strokes -> virtual rig -> measured force files."""
+"""Virtual test campaign: vehicle manoeuvres -> damper strokes -> virtual rig -> measured force files.
+
+It never imports the tuner; the tuner uses its vehicle (``tuner.vehicle``) and its generator.
+
+- ``track``: design track geometry (straights, clothoids, constant curves, the S-curve switch);
+- ``irregularity``: lateral track irregularity from the ERRI B176 PSD;
+- ``vehicle``: the linear lateral/yaw model of one high-speed car with Maxwell yaw dampers;
+- ``scenarios``: the six manoeuvres of the paper's Table 1 and the front-right yaw damper's stroke [m];
+- ``rig``: the virtual damper test rig (stroke imposed, force and stroke recorded);
+- ``rig_damper``: the rig's physically based twin-tube damper (the "real" damper);
+- ``effects``: the switchable hidden effects and forms of the rig damper;
+- ``sensors``: the sensor chain (noise, anti-alias filter, decimation, ADC);
+- ``synthetic``: datasets written by one of the damper models itself, with known parameters;
+- ``damper_class``: random dampers of each model's class, for the convergence benchmark;
+- ``plots``: the overview figure of a dataset folder;
+- ``generate``: the campaign end to end, scenarios -> strokes -> rig -> dataset folder;
+- ``cli``: its command line (``python -m campaign generate``, also ``python -m tuner generate``);
+- ``__main__``: ``python -m campaign``.
+"""

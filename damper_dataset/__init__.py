@@ -1,3 +1,6 @@
-"""Rig datasets (``damper-rig-dataset/1``): the format and its checks (``format``), the writer
-(``writer``). The virtual test campaign writes with it and the tuner reads with it, so neither
-package depends on the other for data."""
+"""Rig datasets (``damper-rig-dataset/1``). The virtual test campaign writes with it and the tuner
+reads with it, so neither package depends on the other for data.
+
+- ``format``: the format's definition, constants and checks (``check_signals``, ``read_manifest``, ``DataError``);
+- ``writer``: the writer of a dataset folder (CSV files and ``manifest.json``).
+"""

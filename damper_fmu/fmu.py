@@ -282,8 +282,8 @@ def _build_native(kind: str, target: Path, start_values: dict, settings: dict, f
         (docs / "index.html").write_text(
             f"<html><body><h1>{identifier}</h1><p>Railway hydraulic damper ({kind} model), FMI {fmi_version}.0 "
             f"co-simulation. Inputs stroke [m] (extension +) and stroke_velocity [m/s]; output force [N] "
-            f"(tension +). See the project README, section 'The FMUs', for safe communication step "
-            f"sizes.</p></body></html>\n")
+            f"(tension +). See the project's docs/fmus.md, 'Which communication steps are safe', for safe "
+            f"communication step sizes.</p></body></html>\n")
         part = target.with_suffix(".fmu.part")
         with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
             for f in sorted(tmp.rglob("*")):

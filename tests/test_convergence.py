@@ -1,7 +1,7 @@
 """Identification converges on random dampers of the model's class, not only near the preset.
 
-The CI-sized version of ``benchmarks/convergence.py`` (README, "Convergence over the model's
-class"), through the same per-damper routine: random dampers from the class priors of
+The CI-sized version of ``benchmarks/convergence.py`` (docs/identification.md, "Convergence
+over the model's class"), through the same per-damper routine: random dampers from the class priors of
 ``campaign.damper_class`` (the first seeds, not chosen), short rig-like tests (four of 6 s at
 500 Hz), fitted blind with the default settings. The reference is the RMSE that the TRUE
 parameters score through the same objective (the reachable floor: load-cell noise plus what the

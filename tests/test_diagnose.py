@@ -11,7 +11,7 @@ and the physical twin-tube damper, which no model here generated: the diagnosis 
 two-chamber base form (the lumped model keeps ~3 % of the peak force of form error there) and name
 the effect on it. Friction (twin-tube), clean data (both) and two effects together (lumped) run in
 CI; every other single effect is marked ``full`` and runs with DAMPER_FULL_TESTS=1, and benchmarks/confusion_matrix.py
-measures the rates over many seeds (README).
+measures the rates over many seeds (docs/diagnosis.md, "What it can and cannot see").
 Every manoeuvre runs at its own oil temperature (a climatic-chamber campaign, the same design for
 every test, clean data included), so temperature dependence is observable.
 """
@@ -111,7 +111,7 @@ def test_free_play_in_the_twin_tube_damper_is_named_after_the_base_is_chosen_aga
 #: on its blow-off valves, which open only in the switch manoeuvre, an identification test; the
 #: held-out tests, on which every verdict rests, see 0.1-3.3 N rms of it against 10 N of noise
 #: (benchmarks/confusion_matrix.py prints that force), so no verdict can be earned for it with this
-#: campaign (README, "What it can and cannot see").
+#: campaign (docs/diagnosis.md, "What it can and cannot see").
 TWIN_TUBE_FULL = ("preload", "thermal_drift", "time_delay", "inertia")
 #: relative magnitude tolerance: inertia's force on railway strokes is of the order of the noise on
 #: this damper (10-19 N against 10 N), and its fitted mass scatters by up to 67 % in the benchmark

@@ -1,13 +1,30 @@
-"""The FMUs through fmpy: validity, identity with the in-process engine, state, errors, co-simulation."""
+"""The FMUs through fmpy: validity, identity with the in-process engine, state, errors, co-simulation
+(``examples/mass_spring_cosim.py``, loaded from its file: the examples are no package)."""
+import importlib.util
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 from fmpy import read_model_description
 
 from damper_fmu import EXTRAPOLATE, MODEL_PARAMETERS, REPLAY, defaults, simulate
 from damper_fmu.fmu import build, validate
-from tuner.cosim import mass_spring_cosimulation
 from tuner.identification.runner import FmuRunner, SimulationError
 from stroke_cases import two_sines
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "mass_spring_cosim.py"
+
+
+def _load_example():
+    spec = importlib.util.spec_from_file_location("mass_spring_cosim", EXAMPLE)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+mass_spring_cosimulation = _load_example().mass_spring_cosimulation
 
 KINDS = ["lumped", "maxwell", "maxwell_table", "twochamber"]
 #: the form elements (damper_fmu.effects) both on: hysteresis, and a bypass groove the stroke crosses
@@ -191,6 +208,13 @@ def test_cosimulation_with_the_lumped_damper_dissipates_and_comes_to_rest(fmu_pa
     # the largest energy in each successive 0.25 s window decreases
     envelope = energy[: 3000].reshape(12, 250).max(axis=1)
     assert np.all(np.diff(envelope) < 0.0)
+
+
+def test_the_cosimulation_example_runs_as_a_script(fmu_paths):
+    out = subprocess.run([sys.executable, str(EXAMPLE), str(fmu_paths["lumped"]), "--t-end", "0.2"],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert "peak damper force" in out.stdout
 
 
 @pytest.mark.parametrize("effect,value", [("friction_force", 150.0), ("free_play", 4e-4), ("time_delay", 4e-3),

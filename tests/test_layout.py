@@ -1,5 +1,6 @@
 """The layering issue 27 asks for: the damper package (models, kernel, FMU building) stands alone,
-and the modules on the walk from the command line to the FMU import our own modules at the top."""
+and the modules on the walk from the command line to the FMU import our own modules at the top; and
+the map of the code: every package's docstring describes each of its modules in one line."""
 import ast
 import subprocess
 import sys
@@ -45,13 +46,34 @@ def test_own_modules_are_imported_at_module_top(path):
     assert not hidden, f"{path.name} imports our own modules inside functions: {hidden}"
 
 
-def test_the_readme_layout_table_names_every_module():
-    """The README's "What is in here" table is the map of the code: every module of the packages is named."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    start = text.index("## What is in here")
-    table = text[start:text.index("\n## ", start + 5)]
-    missing = [str(f.relative_to(ROOT)) for pkg in ("tuner", "damper_fmu", "damper_dataset", "campaign")
-               for f in sorted((ROOT / pkg).rglob("*.py"))
-               if f.name not in ("__init__.py", "__main__.py") and f"`{f.name}`" not in table
-               and f"`{f.relative_to(ROOT / pkg).as_posix()}`" not in table]
-    assert not missing, f"README layout table does not name: {missing}"
+#: every package of ours: its ``__init__.py`` docstring is the map of its modules and sub-packages
+PACKAGES = sorted(p.parent for root in ("damper_fmu", "damper_dataset", "tuner", "campaign")
+                  for p in (ROOT / root).rglob("__init__.py"))
+#: packages whose docstring is being rewritten with their code on another branch: only these of their
+#: modules may lack their line for now (a module added there is still caught); ``screen`` is the
+#: diagnosis's new candidate screen on main
+NOT_YET_DESCRIBED = {"tuner/diagnosis": {"residuals", "significance", "refit", "effect_sizes", "diagnose", "forms",
+                                         "detection", "screen"}}
+
+
+def package_children(pkg: Path) -> list[str]:
+    """The modules (``__main__`` included) and sub-packages of the package folder ``pkg``."""
+    modules = [p.stem for p in pkg.glob("*.py") if p.stem != "__init__"]
+    packages = [p.name for p in pkg.iterdir() if (p / "__init__.py").is_file()]
+    return sorted(modules + packages)
+
+
+def described(doc: str, name: str) -> bool:
+    """A docstring line of the form ``- ``name``: what it holds``."""
+    return any(line.strip().startswith(f"- ``{name}``:") for line in doc.splitlines())
+
+
+@pytest.mark.parametrize("pkg", PACKAGES, ids=lambda p: p.relative_to(ROOT).as_posix())
+def test_the_package_docstring_describes_every_module(pkg):
+    """The package docstrings are the map of the code: one line per module and sub-package."""
+    doc = ast.get_docstring(ast.parse((pkg / "__init__.py").read_text(encoding="utf-8")))
+    assert doc, f"{pkg.relative_to(ROOT)}/__init__.py has no docstring"
+    missing = [m for m in package_children(pkg) if not described(doc, m)]
+    pending = NOT_YET_DESCRIBED.get(pkg.relative_to(ROOT).as_posix(), set())
+    assert set(missing) <= pending, (f"{pkg.relative_to(ROOT)}/__init__.py has no line '- ``<module>``: what it "
+                                     f"holds' for {sorted(set(missing) - pending)}")

@@ -1,5 +1,13 @@
-"""The command line, one module per sub-command over the library (``tuner.job`` and the stages):
-``fit`` (fit and diagnose), ``inspect``, ``batch``, ``vehicle``; shared: the options and their mapping
-to settings (``options``), the log and progress display (``log``), folders (``folders``), the end
-summary (``summary``), exit handling (``run``). ``tuner.__main__`` assembles the parser.
+"""The command line, one module per sub-command over the library (``tuner.job`` and the stages);
+``tuner.__main__`` assembles the parser.
+
+- ``fit``: ``fit`` and ``diagnose``;
+- ``inspect``: ``inspect``, what the reader understands of rig files;
+- ``batch``: ``batch``, a fleet from a manifest;
+- ``vehicle``: ``vehicle``, damper FMUs in the campaign's vehicle;
+- ``options``: the shared options and their one mapping to settings;
+- ``log``: the log and the progress display;
+- ``folders``: output folders (``results/default-N``, ``--force``, ``--resume``);
+- ``summary``: the end summary (printed and ``summary.json``);
+- ``run``: exit handling (status 0, 1, 2, 130 and the hint to continue).
 """

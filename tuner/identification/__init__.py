@@ -1,5 +1,12 @@
-"""The identification problem: design variables (``parametrization``), simulation engines through
-the FMU or the C kernel (``runner``, ``engine``), the converged reference (``reference``), the
-Firefly algorithm (``firefly``), the local solver (``polish``), the pipeline (``fit``) and the
-full-rate check of a decimated fit (``full_rate``).
+"""The identification: from the prepared tests to the identified parameters (SI units).
+
+- ``problem``: the tests prepared once for every stage (``Problem``, ``DataSettings``);
+- ``parametrization``: the design variables of each model;
+- ``runner``: the FMU through fmpy, with its C stepping loop (``c/fmi2_stepper.c``);
+- ``engine``: simulation engines (FMU, C kernel, Python) and the worker pool;
+- ``reference``: the converged Radau reference;
+- ``firefly``: the Firefly algorithm;
+- ``polish``: the local solver (projected Levenberg-Marquardt);
+- ``fit``: identification and validation (``fit`` returns a ``FitResult``);
+- ``full_rate``: the full-rate check of a decimated fit.
 """

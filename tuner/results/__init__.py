@@ -1,2 +1,11 @@
-"""Results for people: the HTML report of one fit (``report``) and of a fleet (``fleet_summary``).
+"""Results for people: the reports and the one recommendation.
+
+- ``recommendation``: which model and FMU to use, and why (one decision, read from the output folder);
+- ``report``: the HTML report of a fit output folder;
+- ``fit_folder``: what the report reads (``FitFolder``);
+- ``fit_figures``: the fit report's figures (the paper's Figs. 6-11 and the loops);
+- ``diagnosis_report``: the diagnosis section, and the report of a diagnosis on its own;
+- ``vehicle_report``: the vehicle section (the tuned FMUs in the vehicle, side by side);
+- ``html``: HTML building blocks (tables, figures, numbers, the page);
+- ``fleet_summary``: the fleet summary of a batch (table, outliers, characteristics).
 """
