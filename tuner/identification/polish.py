@@ -3,7 +3,7 @@
 The paper's Firefly algorithm finds a region, not the optimum (with rho = 0.9^(k-1) and a brightest
 firefly that never moves it stalls in narrow valleys). The objective is a sum of squares, so a
 Gauss-Newton method finishes the job. Why this one (measured on random dampers of the lumped and
-two-chamber classes, ``benchmarks/convergence.py``, README "Convergence over the model's class"):
+two-chamber classes, ``benchmarks/convergence.py``, docs/identification.md, "Convergence over the model's class"):
 
 * scipy's bounded solvers crawl: ``least_squares`` with method 'trf' (which this module used until
   2026-11-24) or 'dogbox' from the same Firefly best took 0.3-2 N per Jacobian and stopped at a
