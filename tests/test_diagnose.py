@@ -226,7 +226,7 @@ def test_a_magnitude_at_its_search_bound_or_beyond_its_plausible_range_is_never_
     search bound (twice the top of its typical range), held-out MSE -8.7 %, interval 31-769 kg. A refit
     stopped by its bound patches another error; so does one whose interval lies wholly above what a damper
     of this size has. Both rules act on the fitted values (``_within_bounds``, ``_attach_interval``)."""
-    from tuner.diagnosis.diagnose import _within_bounds
+    from tuner.diagnosis.rules import within_bounds as _within_bounds
 
     bounds = {"inertia_mass": (0.0, 400.0), "preload_force": (-2e3, 2e3)}
     assert not _within_bounds({"inertia_mass": 400.0}, bounds)

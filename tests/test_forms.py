@@ -194,7 +194,7 @@ def test_a_late_stage_that_fails_leaves_its_record_and_report_and_the_run_resume
     diagnosis comes from its checkpoint and the second finishes: friction on the two-chamber base."""
     import json
 
-    import tuner.diagnosis.diagnose as diagnose_module
+    import tuner.diagnosis.search as search_module
     from tuner.cli.run import run_handler
     from tuner.diagnosis.diagnose import DiagnosisFailed
     from tuner.job import run_diagnosis
@@ -207,7 +207,7 @@ def test_a_late_stage_that_fails_leaves_its_record_and_report_and_the_run_resume
     kw = dict(base_params=defaults("lumped"), base_model="lumped", other_bases={"twochamber": defaults("twochamber")},
               log=lines.append)
     settings = DiagnosisSettings(engine=fastest_engine(), base_iterations=0, candidates=("friction",))
-    real_detection, runs = diagnose_module._detection, []
+    real_detection, runs = search_module.detection, []
 
     def failing_on_the_second_base(*args, **kwargs):
         if runs.count("detection") == 1:
@@ -215,7 +215,7 @@ def test_a_late_stage_that_fails_leaves_its_record_and_report_and_the_run_resume
         runs.append("detection")
         return real_detection(*args, **kwargs)
 
-    monkeypatch.setattr(diagnose_module, "_detection", failing_on_the_second_base)
+    monkeypatch.setattr(search_module, "detection", failing_on_the_second_base)
     with pytest.raises(DiagnosisFailed, match="detection limits on the twochamber base") as failed:
         run_diagnosis(ident, val, out, settings, **kw)
     assert any("trying the forms beyond the catalogue" in m for m in lines)
@@ -227,7 +227,7 @@ def test_a_late_stage_that_fails_leaves_its_record_and_report_and_the_run_resume
     assert "FAILED, no verdict" in page and "detection limits on the twochamber base" in page
     assert run_handler(lambda a: (_ for _ in ()).throw(failed.value), None, "") == 1
 
-    monkeypatch.setattr(diagnose_module, "_detection", real_detection)
+    monkeypatch.setattr(search_module, "detection", real_detection)
     lines.clear()
     res = run_diagnosis(ident, val, out, settings, **kw)
     assert any("lumped base's diagnosis was finished before" in m for m in lines)

@@ -1,6 +1,11 @@
 """What the fitted model gets wrong and why (SI units; forces in N).
 
-- ``diagnose``: the procedure (base form, candidates, forward selection, forms, verdict; ``diagnose``);
+- ``diagnose``: the procedure's entry (``diagnose``): stages, checkpoints, the failure record, the export;
+- ``settings``: the settings of a diagnosis run (``DiagnosisSettings``) and its candidate causes;
+- ``bases``: the base forms: which, their identification, the choice by held-out MSE, the repeat rule;
+- ``search``: the diagnosis on one base form (``CandidateSearch``: one method per step of the procedure);
+- ``rules``: the decision rules, pure functions of ranking rows (score, decide, cross-check, bounds);
+- ``verdict``: the verdict's words and the records of causes and of what stays unexplained;
 - ``residuals``: the base model's residual as evidence (signatures, loops, spectra) and its figures;
 - ``screen``: one batch that predicts what each candidate's refit could win (its profile over the magnitude);
 - ``refit``: refits of a base model extended by effect elements, and their intervals;

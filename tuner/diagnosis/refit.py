@@ -26,6 +26,11 @@ __all__ = ["search_bounds", "ExtendedParametrization", "grid", "base_jacobian", 
 
 #: fewest independent residual blocks for a confidence interval to be trusted
 MIN_BLOCKS = 10
+#: the least share of the SSE the profile line search (the base re-balanced) must win for the joint polish
+#: to follow (as ``tuner.diagnosis.screen.SCREEN_SHARE``: a cause needs about 7 % of the held-out MSE)
+PROFILE_SHARE = 0.02
+#: Jacobians of the joint polish that must win PROFILE_SHARE when the profile did not, for the rest to follow
+PROBE_JACOBIANS = 2
 DEFAULTS = {p.name: p.default for p in EFFECT_PARAMETERS}
 
 
@@ -140,7 +145,9 @@ def refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: float
     improves by more than 1 %; none when ``jac_svd`` is None); the best point seen starts the
     polish. The Jacobian covers the first coordinates of ``ext`` that the current model has: the base
     alone, or the base and the effects already selected (a form tried on top of named causes), as
-    many as its columns.
+    many as its columns. From a start of known SSE, when the profile does not win ``PROFILE_SHARE`` of it,
+    the joint polish stops after ``PROBE_JACOBIANS`` unless they win it (most refits of effects the data
+    do not carry end there, at a quarter of the cost).
     """
     dim = ext.base.dimension
     if jac_svd is not None and not dim <= jac_svd[2].shape[1] <= ext.dimension:
@@ -187,6 +194,15 @@ def refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: float
     sse = [float(r @ r) if r is not None else math.inf for r in res]
     k = int(np.argmin(sse))
     z_start = pts[k] if sse[k] < sse0 else z0
+    if jac_svd is not None and math.isfinite(sse0) and not sse[k] < (1.0 - PROFILE_SHARE) * sse0:
+        # the profile, the base re-balanced, did not win PROFILE_SHARE of the SSE: the joint polish (most of
+        # the refit's cost) goes on only if its first PROBE_JACOBIANS win it (a joint move the profile's
+        # fixed Jacobian cannot make, e.g. a preload between two grid values with the tables shifted back)
+        z, g, n, _ = polish(eid, ext, z_start, max_jacobians=min(PROBE_JACOBIANS, jacobians), log=lambda m: None)
+        evals += n
+        if jacobians <= PROBE_JACOBIANS or not eid.n_samples / g < (1.0 - PROFILE_SHARE) * sse0:
+            return z, g, evals
+        z_start, jacobians = z, jacobians - PROBE_JACOBIANS
     z, g, n, _ = polish(eid, ext, z_start, max_jacobians=jacobians, log=lambda m: None)
     return z, g, evals + n
 

@@ -123,7 +123,7 @@ def profile_screen(eid: Engine, exts: dict[str, ExtendedParametrization], curren
         return {}
     project = off_span(jac_svd)
     r_p = project(r0)
-    sse0, sse_p = float(r0 @ r0), float(r_p @ r_p)
+    sse0 = float(r0 @ r0)
     rows: dict[str, ScreenRow] = {}
     for (effect, name, m), r in zip(owners, runs[1:]):
         if r is None:

@@ -1,0 +1,120 @@
+"""The base form of a diagnosis: which forms it may run on, their identification, the choice by held-out
+MSE, whether a repeat on another form can plausibly win, and the progress plan over them.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from damper_fmu.parameters import EFFECT_MODELS
+
+from tuner.identification.fit import RACE_RATIO, FitSettings, identify, validation_run
+from tuner.identification.parametrization import Parametrization
+from tuner.identification.problem import Problem
+from tuner.diagnosis.settings import DiagnosisSettings
+from tuner.metrics import pooled_mse
+from tuner.progress import Plan
+
+__all__ = ["BASE_MODELS", "pooled_validation_mse", "choose_base", "base_kinds", "PLAN_WEIGHTS", "progress_plan",
+           "identified_bases", "why_not_repeated"]
+
+#: base forms the diagnosis chooses from (the models that carry the effect catalogue): the lumped
+#: model of the paper, and the two-chamber form of a twin-tube damper
+BASE_MODELS = EFFECT_MODELS
+
+
+def pooled_validation_mse(kind: str, params: dict, signals: list, engine: str) -> float:
+    """Validation MSE [N^2] pooled over the tests (``validation_run``, the Table 3 definition)."""
+    return pooled_mse([validation_run(kind, params, s, engine)[1] for s in signals])
+
+
+def choose_base(parameters: dict, metrics: dict) -> tuple[str, dict, dict, dict]:
+    """The base form for a diagnosis after a fit: among the fitted models that carry the effect
+    catalogue (BASE_MODELS), the one with the lowest held-out MSE pooled over the validation tests
+    (``metrics.json`` of ``tuner.identification.fit.fit``). Returns (kind, its parameter values,
+    the comparison, {kind: values} of the other fitted base forms: the diagnosis's fallbacks).
+    ValueError when no such model was fitted."""
+    kinds = [k for k in BASE_MODELS if k in parameters]
+    if not kinds:
+        raise ValueError(f"the diagnosis needs one of {', '.join(BASE_MODELS)} among the fitted models")
+    mse = {k: pooled_mse([t["models"][k] for t in metrics["tests"].values() if t["role"] == "validation"])
+           for k in kinds}
+    kind = min(kinds, key=lambda k: mse[k])
+    others = {k: parameters[k]["values"] for k in sorted(kinds, key=lambda k: mse[k]) if k != kind}
+    return kind, parameters[kind]["values"], {"chosen": kind, "by": "held-out MSE of the fitted models "
+                                              "(Table 3 definition)", "validation_mse": mse}, others
+
+
+def base_kinds(settings: DiagnosisSettings, base_model, other_bases, given: bool) -> list[str]:
+    """The base forms the diagnosis may run on: the one given and the other fitted ones, or those it identifies
+    (``settings.base_model``: 'auto' for every one of BASE_MODELS); ValueError for a form without effects."""
+    if given:
+        first = base_model or "lumped"
+        return [first, *(k for k in (other_bases or {}) if k != first and k in EFFECT_MODELS)]
+    kinds = list(BASE_MODELS) if settings.base_model == "auto" else [settings.base_model]
+    unknown = [k for k in kinds if k not in EFFECT_MODELS]
+    if unknown:
+        raise ValueError(f"base model {unknown[0]!r}: choose 'auto' or one of {', '.join(EFFECT_MODELS)}")
+    return kinds
+
+
+#: expected relative costs of the diagnosis's parts (the progress display's plan)
+PLAN_WEIGHTS = {"identification": 1.0, "diagnosis": 1.5}
+
+
+def progress_plan(log, settings: DiagnosisSettings, base_model, other_bases, given: bool) -> Plan:
+    """The progress plan: the identification of each base form (unless given), the diagnosis on each one (the
+    first, and a repeat on each other that may follow: skipped when it does not)."""
+    kinds = base_kinds(settings, base_model, other_bases, given)
+    weights = {} if given else {f"identification of the {k} base": PLAN_WEIGHTS["identification"] for k in kinds}
+    weights.update({f"diagnosis on the {k} base": PLAN_WEIGHTS["diagnosis"] for k in kinds})
+    return Plan(log, weights)
+
+
+def identified_bases(problem: Problem, out: Path, settings: DiagnosisSettings, base_params, base_model,
+                      base_choice, other_bases, log) -> tuple[str, dict, dict | None]:
+    """(the first base kind, {kind: (Parametrization, values)} in the order tried, how it was chosen): the
+    bases given (``base_params`` of ``base_model`` and ``other_bases``), or identified here."""
+    def parametrization(kind: str, given: dict | None) -> Parametrization:
+        # the local solver needs monotone tables: the 'improved' scheme whatever the fit used
+        return problem.parametrization(kind, fixed_from=given, scheme="improved")
+
+    if base_params is not None:
+        kind = base_model or "lumped"
+        bases = {kind: (parametrization(kind, base_params), base_params)}
+        bases.update({k: (parametrization(k, v), v) for k, v in (other_bases or {}).items()
+                      if k != kind and k in EFFECT_MODELS})
+        return kind, bases, base_choice
+    fitted = {}
+    for kind in base_kinds(settings, None, None, given=False):
+        par_k = parametrization(kind, None)
+        log(f"diagnosis: identifying the base {kind} model ...")
+        fs = FitSettings(models=(kind,), fit_rate_hz=settings.fit_rate_hz, warmup_s=settings.warmup_s,
+                         iterations=settings.base_iterations, workers=settings.workers, seed=settings.seed,
+                         engine=settings.engine, polish_jacobians=settings.base_polish_jacobians)
+        values, _ = identify(kind, problem.sig_id, fs, par_k, out / "checkpoints" / f"diagnosis_base_{kind}.json",
+                             problem.digest, log.part(f"identification of the {kind} base"))
+        fitted[kind] = (par_k, values, pooled_validation_mse(kind, values, problem.sig_val, settings.engine))
+    kind = min(fitted, key=lambda k: fitted[k][2])
+    bases = {k: fitted[k][:2] for k in sorted(fitted, key=lambda k: fitted[k][2])}
+    base_choice = {"chosen": kind, "by": "held-out MSE of the identified base models (Table 3 definition)",
+                   "validation_mse": {k: v[2] for k, v in fitted.items()}}
+    if len(fitted) > 1:
+        log("diagnosis: base form " + kind + " (held-out MSE " + ", ".join(
+            f"{k} {math.sqrt(v[2]):.1f} N rms" for k, v in fitted.items()) + ")")
+    return kind, bases, base_choice
+
+
+def why_not_repeated(kind: str, other: str, first_run: dict, other_values: dict, problem: Problem,
+                      settings: DiagnosisSettings) -> str | None:
+    """Why the diagnosis is not repeated on the ``other`` base after the ``kind`` one left a residual
+    above the floor (None: it is repeated)."""
+    if first_run["unexplained"].get("fit_converged") is False:
+        return "the first base's refit did not converge: its residual is no evidence of a wrong form"
+    # the other form can plausibly win only if its bare fit was not clearly worse (the fit's race rule)
+    rmse_first = math.sqrt(first_run["base_validation_mse"])
+    rmse_other = math.sqrt(pooled_validation_mse(other, other_values, problem.sig_val, settings.engine))
+    if rmse_other > RACE_RATIO * rmse_first:
+        return (f"its bare fit validates at {rmse_other:.3g} N rms, {rmse_other / rmse_first:.1f} x "
+                f"the {kind} base's {rmse_first:.3g} N (more than {RACE_RATIO:g} x: it cannot plausibly win)")
+    return None

@@ -1,0 +1,701 @@
+"""The diagnosis on one base form: residual evidence, the candidates' screen and refits, promotion,
+continuation, intervals, forward selection, the forms and the detection limits (SI units; forces in N).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from damper_fmu.fmu import ensure_fmu
+from damper_fmu.parameters import EFFECT_IDENTIFIED, EFFECT_KIND, EFFECT_PARAMETERS, EFFECT_TYPICAL, defaults
+
+from tuner.data.noise import channel_noise
+from tuner.data.reading import RigTest
+from tuner.diagnosis.detection import detection_limits
+from tuner.diagnosis.effect_sizes import REFERENCE, DamperSize, meaningful_floor, typical_range
+from tuner.diagnosis.forms import FORM_LABELS, screen, settings_text, shape_grid
+from tuner.diagnosis.refit import ExtendedParametrization, base_jacobian, effect_intervals, refit, search_bounds
+from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidence, residual_figures
+from tuner.diagnosis.rules import (ACCEPT_SCORE, FORM_EXCESS_SHARE, PENALTY_PER_PARAMETER, UNEXPLAINED_RATIO,
+                                   cross_check, decide, earned, excess_explained, rescore, score, within_bounds)
+from tuner.diagnosis.screen import SCREEN_SHARE, profile_screen
+from tuner.diagnosis.settings import DiagnosisSettings
+from tuner.diagnosis.verdict import (NOTES, UNITS, effect_parameters, interval_text, limit_text,
+                                     unexplained_record, verdict_text)
+from tuner.formatting import fmt_quantity
+from tuner.identification.engine import Engine
+from tuner.identification.fit import initial_guess, validation_run
+from tuner.identification.parametrization import Parametrization
+from tuner.identification.polish import polish
+from tuner.identification.problem import Problem
+from tuner.metrics import pooled_mse
+from tuner.progress import advance
+
+__all__ = ["CandidateSearch", "Fit", "diagnose_on"]
+
+
+def stroke_noise_force(kind: str, params: dict, tests: list[RigTest], signals: list, settings) -> float:
+    """Force [N rms, fit band] that the stroke channel's noise makes in the simulation: the model
+    driven by the measured stroke plus white noise at the stroke's own noise level in the fit band
+    (``tuner.data.noise.channel_noise``), minus the same without it; pooled over the tests, seed 0.
+    The velocity input is left as measured: the differentiator's band (20 Hz and up) keeps the
+    stroke noise's share in it small, and the series stiffness acts on the stroke."""
+    rng = np.random.default_rng(0)
+    se = n = 0.0
+    for t, s in zip(tests, signals):
+        sigma = channel_noise(t, settings.fit_rate_hz, "stroke")
+        noisy = dataclasses.replace(s, stroke=s.stroke + rng.normal(0.0, sigma, s.stroke.size))
+        d = (validation_run(kind, params, noisy, settings.engine)[0] - validation_run(kind, params, s, settings.engine)[0])
+        se, n = se + float(np.sum(d[s.mask] ** 2)), n + int(s.mask.sum())
+    return math.sqrt(se / n) if n else 0.0
+
+
+def split_mse(residual: np.ndarray | None, lengths: list[int]) -> list[tuple[float, float]]:
+    """(MSE [N^2], AME [N]) per test from a concatenated residual vector."""
+    if residual is None:
+        return [(math.inf, math.inf)] * len(lengths)
+    out, k = [], 0
+    for n in lengths:
+        r = residual[k:k + n]
+        out.append((float(r @ r) / n, float(np.mean(np.abs(r)))))
+        k += n
+    return out
+
+
+def attach_interval(row: dict, ci: dict, ext: ExtendedParametrization, new) -> None:
+    """The row's 95 % intervals of ``ext.extra`` from ``effect_intervals``' ``ci``; significant when the
+    interval of every ``new`` magnitude excludes zero; plausible when none of them lies wholly above the
+    top of its effect's typical range on this damper (``effect_sizes.typical_range``): a magnitude no damper
+    of this size has patches another error (a form gap), it is not that effect."""
+    size = DamperSize(ext.peak_force, ext.stroke_range_m or REFERENCE.stroke_range_m)
+    row["interval"] = {n: [ci[n]["low"], ci[n]["high"]] for n in ext.extra}
+    row["significant"] = all(ci[n]["excludes_zero"] for n in new)
+    row["interval_blocks"] = ci["_blocks"]
+    nearest = {n: 0.0 if ci[n]["low"] <= 0.0 <= ci[n]["high"] else min(abs(ci[n]["low"]), abs(ci[n]["high"]))
+               for n in new if n in EFFECT_TYPICAL}
+    row["plausible"] = all(v <= typical_range(n, size)[1] for n, v in nearest.items())
+
+
+@dataclass
+class Fit:
+    """One refitted model: its parametrization (the base extended by its effects), scaled coordinates ``z``
+    and the evaluations its refit took."""
+
+    ext: object
+    z: np.ndarray
+    evaluations: int
+
+    def params(self) -> dict:
+        return self.ext.to_params(self.z)
+
+
+class CandidateSearch:
+    """The diagnosis on one base form (steps 2-5 of ``tuner.diagnosis.diagnose``): it owns the engines, the
+    parametrization, the residual floor, the refits and the ranking, with one method per step. ``run()``
+    returns the result fields of ``diagnosis.json`` for this base, plus ``after_params`` (the final model's
+    values) and ``final_validation_mse`` [N^2] (pooled, Table 3 definition). ``record`` (as
+    ``tuner.diagnosis.diagnose``) follows its stages: 'stage' names the one running, 'partial' holds the
+    ranking, selection steps, causes and forms tried so far (the live lists). Units SI; forces in N."""
+
+    def __init__(self, kind: str, par: Parametrization, base_params: dict, data: Problem,
+                 settings: DiagnosisSettings, out: Path, figures_sub: str, log, record: dict | None = None):
+        self.kind, self.par, self.data, self.settings, self.log = kind, par, data, settings, log
+        self.out, self.figures_sub = out, figures_sub
+        self.record = record if record is not None else {}
+        self.record.setdefault("partial", {})
+        self.peak, self.stroke_range, self.noise = data.peak_n, data.stroke_range_m, data.noise_n
+        self.size = DamperSize(self.peak, self.stroke_range)  # typical effect sizes scale with it
+        self.stroke_limits = (min(float(s.stroke[s.mask].min()) for s in data.sig_id),
+                              max(float(s.stroke[s.mask].max()) for s in data.sig_id))  # [m]
+        self.base = defaults(kind)
+        self.base.update({k: v for k, v in base_params.items() if k in self.base})
+        self.guess = {**defaults(kind), **initial_guess(kind, data.sig_id, par)}
+        for p in EFFECT_PARAMETERS:  # the base model has every effect off
+            self.base[p.name] = self.guess[p.name] = p.default
+        self.lengths = [int(s.mask.sum()) for s in data.sig_val]
+        self.ranking: list[dict] = []
+        self.refits: dict[str, Fit] = {}
+        #: {causes key ('' for none): whether its last refit settled (``settled``)}
+        self.converged: dict[str, bool] = {}
+        self.eid = self.ev = None
+
+    # -- bookkeeping --------------------------------------------------------------------------------------
+    def at(self, stage: str, fraction: float | None = None) -> None:
+        self.record["stage"] = f"{stage} on the {self.kind} base"
+        if fraction is not None:
+            advance(self.log, fraction)
+
+    def residual_floor(self) -> None:
+        """The floor of 'explained' [N rms]: the force noise and what the stroke channel's noise makes through
+        the model's series stiffness (no model of the damper can remove it). A floor from a noise estimate
+        that is not credible (filtered data, too few samples) decides nothing: no "N x the floor", no
+        'unexplained' and no "settled" from a ratio against it."""
+        self.stroke_noise_n = stroke_noise_force(self.kind, self.base, self.data.identification, self.data.sig_id,
+                                                 self.settings)
+        self.floor = math.hypot(self.noise, self.stroke_noise_n)
+        self.credible = bool(self.data.noise.get("credible", True))
+        self.not_credible = None if self.credible else self.data.noise.get("text", "noise estimate not credible")
+        self.log(f"diagnosis: stroke noise through the base model {self.stroke_noise_n:.1f} N rms; residual floor "
+                 f"{self.floor:.1f} N" + ("" if self.credible else f" - not used to judge the residual: "
+                                                                     f"{self.not_credible}"))
+
+    def residual_evidence(self) -> None:
+        """Residual analysis of the base model: evidence numbers, the joint screen and the figures."""
+        d, kind = self.data, self.kind
+        tr = [TestResidual(p.name, p.role or "", p.time, p.stroke, p.stroke_velocity, p.force,
+                           validation_run(kind, self.base, s, self.settings.engine)[0], s.mask, s.temperature)
+              for p, s in zip([*d.prep_id, *d.prep_val], [*d.sig_id, *d.sig_val])]
+        self.evidence = residual_evidence(tr, noise_n=self.noise)
+        self.figures = [str(Path(f).relative_to(self.out)) for f in residual_figures(tr, self.out / self.figures_sub)]
+        scr = self.evidence["joint_screen"]
+        self.log("diagnosis: joint screen of the residual on all catalogue signatures: "
+                 + (" + ".join(f"{e} ({scr['terms'][e]['contribution_n']:.3g} N)" for e in scr["kept"]) or "nothing")
+                 + f" above the noise, explaining {100 * scr['r2_kept']:.0f} % of the base residual; all seven "
+                   f"signatures together {100 * scr['r2_all']:.0f} %")
+
+    def held_out(self, effect: str, params: dict, extra, g: float, evals: int, mse_ref: float, new=None,
+                 n_params=None) -> dict:
+        """Ranking entry of a refitted model: validation MSE/AME, score against the validation MSE ``mse_ref``
+        [N^2] of the reference (the base refitted alike, or the model of the causes already selected), and
+        the force contribution [N rms] of the ``new`` effect parameters (default all of ``extra``) on the
+        identification tests (the fitted model minus the same with them off); ``g``: its identification
+        fitness N / SSE; n_params: the parameters the score is penalised for (default as many as ``new``: a
+        form is switched off by its magnitude but has more)."""
+        new = list(extra) if new is None else list(new)
+        r_val = self.ev.residuals_batch([params])[0]
+        per_test = split_mse(r_val, self.lengths)
+        mse = math.inf if r_val is None else float(r_val @ r_val) / sum(self.lengths)
+        contribution = 0.0
+        if new:
+            r_on, r_off = self.eid.residuals_batch([params, {**params, **{n: 0.0 for n in new}}])
+            if r_on is not None and r_off is not None:
+                contribution = float(np.sqrt(np.mean((r_off - r_on) ** 2)))
+        values = {n: params[n] for n in extra}
+        return {"effect": effect, "score": score(mse, mse_ref, len(new) if n_params is None else n_params),
+                "validation_mse": mse, "validation_mse_change_pct": 100 * (mse / mse_ref - 1),
+                "identification_rmse_n": 1 / math.sqrt(g) if g > 0 else math.inf,
+                "parameters": values, "units": {n: UNITS[n] for n in values},
+                "effect_rms_n": contribution, "resolved": bool(contribution >= self.noise) if new else True,
+                "meaningful": all(abs(params[n]) >= meaningful_floor(n, self.size) for n in new),
+                "within_bounds": within_bounds({n: params[n] for n in new}, {
+                    n: search_bounds(n, self.peak, self.stroke_range, self.stroke_limits) for n in new}),
+                "validation": {s.name: {"mse": m, "ame": a} for s, (m, a) in zip(self.data.sig_val, per_test)},
+                "evaluations": int(evals)}
+
+    def settled(self, info: dict, g: float) -> bool:
+        """A refit settled: it met its first-order test, or stalled (no damped step helps) where the gain its
+        Gauss-Newton step still predicts cannot bring it within UNEXPLAINED_RATIO x the floor; a spent
+        budget never settles (``info`` of ``polish``, ``g`` its fitness N / SSE)."""
+        reachable = math.sqrt(max(0.0, 1.0 - info["predicted"]) / g) if g > 0 else math.inf
+        return bool(info["converged"] or (self.credible and not info["budget_spent"]
+                                          and reachable > UNEXPLAINED_RATIO * self.floor))
+
+    def set_none(self, z: np.ndarray, g: float, evaluations: int, rescore_ranking: bool = True) -> None:
+        """The base refitted alike ('none', the reference of every score) is now at ``z`` (fitness ``g``):
+        its held-out MSE and ranking row; the ranking's scores are taken again against it (unless
+        ``rescore_ranking`` is False: the lead's continuation, scored against it alone)."""
+        self.z_none, self.g_none = z, g
+        r = self.ev.residuals_batch([self.par.to_params(z)])[0]
+        if r is not None:
+            self.mse_none = float(r @ r) / sum(self.lengths)
+        self.none_row = self.held_out("none", self.par.to_params(z), [], g, evaluations, self.mse_none)
+        if rescore_ranking:
+            rescore([r for r in self.ranking if r["effect"] != "none"], self.mse_none)
+        self.ranking[:] = [self.none_row if r["effect"] == "none" else r for r in self.ranking]
+
+    def polish_quietly(self, par, z: np.ndarray, jacobians: int):
+        return polish(self.eid, par, z, max_jacobians=jacobians, log=lambda m: None)
+
+    # -- the steps ----------------------------------------------------------------------------------------
+    def refit_none(self) -> None:
+        """'none' is a candidate like the others: the base model refitted from the same starts (the fitted
+        base and, with ``guess_start`` where the fitted base is not settled, the data-driven guess) with the
+        same local effort, so that an unfinished base fit is never credited to an effect."""
+        sse_base = self.eid.sse_batch([self.base])[0]
+        r_val = self.ev.residuals_batch([self.base])[0]
+        self.mse_base = self.mse_none = float(r_val @ r_val) / sum(self.lengths)
+        self.log(f"diagnosis: base model RMSE identification {math.sqrt(sse_base / self.eid.n_samples):.1f} N, "
+                 f"validation {math.sqrt(self.mse_base):.1f} N")
+        self.jac_base = base_jacobian(self.eid, self.par, self.par.from_params(self.base))  # shared
+        self.starts = [(self.base, sse_base, self.jac_base)]
+        self.share = max(1, self.settings.polish_jacobians // 2)  # the Jacobian budget, split between two starts
+        z_none, g_none, evals, info = self.polish_quietly(self.par, self.par.from_params(self.base), self.share)
+        # the data-driven guess has absorbed no effect into the tables; it is a second start only where the
+        # fitted base is not settled (its refit spent the budget still improving): from a settled base the
+        # profile line search re-balances what the tables absorbed
+        self.one_start = bool(info["converged"]) or not self.settings.guess_start
+        if info["converged"]:  # the base refit met its rule: an 'unexplained' can rest on it
+            self.converged[""] = self.settled(info, g_none)
+        if not self.one_start:
+            self.starts.append((self.guess, math.inf, None))
+            z, g, n, _ = self.polish_quietly(self.par, self.par.from_params(self.guess), self.share)
+            evals += n
+            if g > g_none:
+                z_none, g_none = z, g
+        self.set_none(z_none, g_none, evals)
+        self.log(f"  {'none':14s} (base refitted alike)  identification RMSE "
+                 f"{self.none_row['identification_rmse_n']:.1f} N, validation MSE "
+                 f"{100 * (self.mse_none / self.mse_base - 1):+6.1f} % vs the base fit"
+                 + ("; the fitted base is settled: one start for every refit" if self.one_start else ""))
+
+    def screen(self, exts: dict) -> dict:
+        """The better of two screens (``tuner.diagnosis.screen``) per candidate: at the base refitted alike
+        (its own Jacobian) and at the fitted base the refits start from."""
+        at_none = {**self.base, **self.par.to_params(self.z_none)}
+        screened = {}
+        for at_point, jac in ((at_none, base_jacobian(self.eid, self.par, self.z_none)), (self.base, self.jac_base)):
+            for e, r in profile_screen(self.eid, exts, at_point, jac, self.settings.grid_points).items():
+                if e not in screened or r.share > screened[e].share:
+                    screened[e] = r
+        self.log("  screen (identification SSE a refit could win, base re-balanced linearly): " + ", ".join(
+            f"{e} {100 * r.share:.1f} %" for e, r in screened.items()) + f"; refitted: at least "
+            f"{100 * SCREEN_SHARE:g} %")
+        return screened
+
+    def refit_candidate(self, effect: str, ext: ExtendedParametrization) -> dict:
+        """The candidate's full refit: from each start, a profile line search of the effect with the base
+        re-balanced (the fitted base may have absorbed part of the effect into its tables) and a joint
+        polish; the better identification fit wins. Returns its ranking row."""
+        best_z, g, evals = None, -math.inf, 0
+        for start, sse_start, svd in self.starts:
+            z, g_s, n = refit(self.eid, ext, ext.from_params(start), sse_start, svd, self.settings, self.share)
+            evals += n
+            if g_s > g:
+                best_z, g = z, g_s
+        self.refits[effect] = Fit(ext, best_z, evals)
+        return self.held_out(effect, ext.to_params(best_z), ext.extra, g, evals, self.mse_none)
+
+    def candidates(self) -> None:
+        """Every catalogue candidate screened; those predicted to win SCREEN_SHARE of the identification SSE
+        are refitted, the others ranked at their screened point (refitted after all if that scores)."""
+        exts = {e: ExtendedParametrization(self.par, e, self.peak, self.stroke_range)
+                for e in self.settings.candidates}
+        screened = self.screen(exts)
+        at_none = {**self.base, **self.par.to_params(self.z_none)}
+        for k, effect in enumerate(self.settings.candidates):
+            advance(self.log, 0.2 + 0.5 * k / len(self.settings.candidates))
+            ext, scr = exts[effect], screened.get(effect)
+            row = None
+            if scr is not None and not scr.passes:
+                point = {**at_none, **scr.values}
+                row = self.held_out(effect, point, ext.extra, self.eid.n_samples / scr.sse_n2, 1, self.mse_none)
+                row["identification_rmse_effect_off_n"] = self.none_row["identification_rmse_n"]
+                self.refits[effect] = Fit(ext, ext.from_params(point), 1)
+            refitted = row is None or (row["score"] > ACCEPT_SCORE and row["resolved"])
+            if refitted:
+                row = self.refit_candidate(effect, ext)
+            row["refitted"], row["screen"] = refitted, scr.to_dict() if scr is not None else None
+            self.ranking.append(row)
+            self.log(f"  {effect:14s} " + ", ".join(f"{n} = {v:.4g} {UNITS[n]}" for n, v in row["parameters"].items())
+                     + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
+                     + f"  effect {row['effect_rms_n']:.3g} N rms{'' if row['resolved'] else ' (below the noise)'}"
+                     + ("" if refitted else "  (screened: not refitted)"))
+
+    def promote(self, effects) -> None:
+        """One best model: when a refit of one of ``effects`` fits the identification data better with its
+        effect switched off than the base refit does, that point is the base ('none') and every score is
+        taken against it again, so 'none' never loses to an effect of size zero."""
+        offs = [(e, {**self.refits[e].params(), **{n: 0.0 for n in self.refits[e].ext.extra}}) for e in effects]
+        if not offs:
+            return
+        sse = self.eid.sse_batch([p for _, p in offs])
+        for (effect, _), sse_e in zip(offs, sse):
+            row = next(r for r in self.ranking if r["effect"] == effect)
+            row["identification_rmse_effect_off_n"] = math.sqrt(sse_e / self.eid.n_samples)
+        k = int(np.argmin(sse))
+        if not (np.isfinite(sse[k]) and self.eid.n_samples / sse[k] > self.g_none):
+            return
+        effect, params = offs[k]
+        self.set_none(self.par.from_params(params), self.eid.n_samples / float(sse[k]),
+                      self.none_row["evaluations"] + len(offs))
+        self.none_row["from_refit_of"] = effect
+        self.log(f"  none           the {effect} refit with its effect off fits better than the base refit: it is "
+                 f"the base now (identification RMSE {self.none_row['identification_rmse_n']:.1f} N); scores "
+                 f"taken again")
+
+    def continue_lead(self) -> None:
+        """The leading candidate's refit is continued to convergence (absorbed effects converge slowly), and
+        so is the base refit, so that the continuation is not credited to the effect."""
+        lead = max(self.ranking, key=lambda r: r["score"] if r["resolved"] else -math.inf, default=None)
+        if not (lead and lead["score"] > ACCEPT_SCORE and lead["resolved"] and self.settings.final_jacobians > 0):
+            return
+        z, g, n, info = self.polish_quietly(self.par, self.z_none, self.settings.final_jacobians)
+        self.converged[""] = self.settled(info, g)
+        self.set_none(z, g, self.none_row["evaluations"] + n, rescore_ranking=False)
+        fit = self.refits[lead["effect"]]
+        z, g, n, info = self.polish_quietly(fit.ext, fit.z, self.settings.final_jacobians)
+        fit = self.refits[lead["effect"]] = Fit(fit.ext, z, fit.evaluations + n)
+        self.converged[lead["effect"]] = self.settled(info, g)
+        row = self.held_out(lead["effect"], fit.params(), fit.ext.extra, g, fit.evaluations, self.mse_none)
+        row.update({k: lead[k] for k in ("refitted", "screen") if k in lead})
+        self.ranking[self.ranking.index(lead)] = row
+        self.log(f"  {lead['effect']:14s} refined (base refit continued alike): " + ", ".join(
+            f"{k} = {v:.4g} {UNITS[k]}" for k, v in row["parameters"].items())
+            + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
+            + f"  identification RMSE {row['identification_rmse_n']:.1f} N (none: "
+            + f"{self.none_row['identification_rmse_n']:.1f} N)")
+        self.promote([lead["effect"]])
+
+    def intervals(self) -> None:
+        """Significance: a 95 % interval of the magnitude (correlated residuals: block sandwich) for every
+        extension that earned its score with a force above the noise; then the cross-check of a fitted
+        delay with the one the base residual shows (the refit alone can trade a delay for table changes)."""
+        for row in self.ranking:
+            if row["effect"] != "none" and row["score"] > ACCEPT_SCORE and row["resolved"]:
+                fit = self.refits[row["effect"]]
+                ci = effect_intervals(self.eid, fit.ext, fit.z)
+                attach_interval(row, ci, fit.ext, fit.ext.extra)
+                self.log(f"  {row['effect']:14s} 95 % interval " + ", ".join(
+                    f"{n} {fmt_quantity(ci[n]['low'], UNITS[n])} .. {fmt_quantity(ci[n]['high'], UNITS[n])}"
+                    for n in fit.ext.extra) + f" ({ci['_blocks']} residual blocks of "
+                    f"{3 * ci['_correlation_time_s']:.2g} s): " + ("excludes zero" if row["significant"]
+                                                                    else "NOT distinct from zero"))
+        for r in cross_check(self.ranking, self.evidence):
+            self.log(f"  time_delay {1e3 * r['parameters']['time_delay']:.3g} ms disagrees with the residual's "
+                     f"delay: not a cause")
+
+    def above_floor(self, rmse: float) -> bool:
+        """An identification RMSE [N] above UNEXPLAINED_RATIO x a credible floor: a structured residual."""
+        return self.credible and rmse > UNEXPLAINED_RATIO * self.floor
+
+    def fit_form(self, form: str, ext: ExtendedParametrization, jac, current: dict, sse_cur: float):
+        """One form on top of the model ``current`` (its values; identification SSE ``sse_cur`` [N^2]): the
+        shape screen picks two shapes, those predicted to win SCREEN_SHARE of the SSE are refitted (profile
+        of the magnitude with the model re-balanced, joint polish), the better kept; with none predicted to,
+        the form is ranked at its best screened point. Returns (Fit or None, fitness, screen rows)."""
+        magnitude = EFFECT_IDENTIFIED[form][0]
+        knee = self.evidence.get("knee_velocity")
+        shapes = screen(self.eid, ext, form, current, jac, knee_m_s=knee)
+        for cand in shapes:
+            cand["predicted_share"] = cand["gain_n2"] / sse_cur if sse_cur > 0 else 0.0
+        best, g = None, -math.inf
+        evals = len(shape_grid(form, dict(zip(ext.extra, ext.extra_bounds)), knee)) + 1
+        to_refit = [c for c in shapes if c["predicted_share"] >= SCREEN_SHARE]
+        for cand in to_refit or shapes[:1]:  # the shape's settings (direction, fade speed) are fixed in its model
+            ext_c = ExtendedParametrization(self.par, ext.effect, self.peak, self.stroke_range, self.stroke_limits,
+                                            fixed={k: v for k, v in cand["shape"].items() if k not in ext.extra})
+            if not to_refit:  # ranked at its best screened point
+                z = ext_c.from_params({**current, **cand["shape"], magnitude: cand["magnitude"]})
+                best, g = Fit(ext_c, z, evals), self.eid.n_samples / float(self.eid.sse_batch([ext_c.to_params(z)])[0])
+                break
+            z0 = ext_c.from_params({**current, **cand["shape"], magnitude: 0.0})
+            z, g_s, n = refit(self.eid, ext_c, z0, sse_cur, jac, self.settings, self.share,
+                              profile=[ext.extra.index(magnitude)])
+            evals += n
+            if g_s > g:
+                best, g = Fit(ext_c, z, 0), g_s
+        if best is not None:
+            best.evaluations = evals
+        return best, g, shapes, bool(to_refit)
+
+    def forms(self, current: dict, current_row: dict, causes: list[str]) -> dict:
+        """The forms beyond the catalogue (``settings.forms``, ``tuner.diagnosis.forms``) on top of the current
+        model (values ``current``, ranking row ``current_row``: the base refit, or the model of the causes
+        named). The best form is continued to convergence (``final_jacobians``) and given its interval; it
+        is named on the rules of a cause (``earned``) against the current model, its magnitude standing for
+        it and the score penalised for all its parameters, and when it removes at least FORM_EXCESS_SHARE of
+        the held-out residual power above the floor. Returns {"form": name or None, "tried": rows, and for a
+        named form "row", "refit" (a Fit) and "settled"}."""
+        t0 = time.perf_counter()
+        self.log(f"diagnosis: {' + '.join(causes) or 'the base'} leaves a residual above the floor: trying the forms "
+                 f"beyond the catalogue ({', '.join(self.settings.forms)})")
+        sse_cur = float(self.eid.sse_batch([current])[0])
+        rows, fits, jac = [], {}, None
+        for form in self.settings.forms:
+            ext = ExtendedParametrization(self.par, "+".join([*causes, form]), self.peak, self.stroke_range,
+                                          self.stroke_limits)
+            if jac is None:  # the current model's Jacobian (its causes included), shared by the forms
+                z_off = ext.from_params({**current, EFFECT_IDENTIFIED[form][0]: 0.0})
+                jac = base_jacobian(self.eid, ext, z_off, dims=ext.dimension - len(EFFECT_IDENTIFIED[form]))
+            fit, g, shapes, refitted = self.fit_form(form, ext, jac, current, sse_cur)
+            if fit is None:
+                self.log(f"  form {form:10s} cannot be simulated on these tests")
+                continue
+            row = self.form_row(form, fit, g, current_row)
+            row["screen"], row["refitted"], row["elapsed_s"] = shapes, refitted, time.perf_counter() - t0
+            fits[form] = fit
+            rows.append(row)
+            names = EFFECT_IDENTIFIED[form]
+            self.log(f"  form {form:10s} " + ", ".join(f"{n} = {fmt_quantity(row['parameters'][n], UNITS[n])}"
+                                                       for n in names)
+                     + (f" ({settings_text(fit.ext.fixed)})" if fit.ext.fixed else "")
+                     + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
+                     + f"  effect {row['effect_rms_n']:.3g} N rms{'' if row['resolved'] else ' (below the noise)'}"
+                     + f"  [{row['elapsed_s']:.0f} s]")
+        if not rows:
+            return {"form": None, "tried": rows}
+        return self.name_form(rows, fits, current_row)
+
+    def form_row(self, form: str, fit: Fit, g: float, current_row: dict) -> dict:
+        """The ranking row of a form's refit against the current model's row (its magnitude is what is new;
+        the score is penalised for all its parameters)."""
+        row = self.held_out(fit.ext.effect, fit.params(), fit.ext.extra, g, fit.evaluations,
+                            current_row["validation_mse"], new=EFFECT_IDENTIFIED[form][:1],
+                            n_params=len(EFFECT_IDENTIFIED[form]))
+        row["added"], row["form"], row["settings"] = form, FORM_LABELS[form], dict(fit.ext.fixed)
+        row["excess_explained"] = excess_explained(row, current_row, self.floor)
+        return row
+
+    def name_form(self, rows: list[dict], fits: dict, current_row: dict) -> dict:
+        """The best form of ``rows`` continued, given its interval and named when it earns it (``forms``)."""
+        lead = max(rows, key=lambda r: r["score"] if r["resolved"] else -math.inf)
+        form = lead["added"]
+        fit = fits[form]
+        info = {"converged": False, "budget_spent": True, "predicted": 0.0}
+        if lead["score"] > ACCEPT_SCORE and lead["resolved"]:
+            if self.settings.final_jacobians > 0:
+                z, g, n, info = self.polish_quietly(fit.ext, fit.z, self.settings.final_jacobians)
+                fit = fits[form] = Fit(fit.ext, z, fit.evaluations + n)
+                row = self.form_row(form, fit, g, current_row)
+                row.update({k: lead[k] for k in ("screen", "refitted", "elapsed_s")})
+                rows[rows.index(lead)] = lead = row
+            attach_interval(lead, effect_intervals(self.eid, fit.ext, fit.z), fit.ext, EFFECT_IDENTIFIED[form][:1])
+        if lead["score"] > ACCEPT_SCORE and earned(lead) and lead["excess_explained"] >= FORM_EXCESS_SHARE:
+            self.log(f"  form named: {FORM_LABELS[form]} (" + interval_text(lead, EFFECT_IDENTIFIED[form])
+                     + f"), validation MSE {lead['validation_mse_change_pct']:+.0f} %, score {lead['score']:+.3f}")
+            return {"form": form, "tried": rows, "row": lead, "refit": fit,
+                    "settled": self.settled(info, lead["identification_rmse_n"] ** -2)}
+        self.log("  no form beyond the catalogue earns its parameters" + (
+            f" (the best, {form}, removes {100 * lead['excess_explained']:.0f} % of the held-out residual above the "
+            f"floor)" if lead["score"] > ACCEPT_SCORE and earned(lead) else ""))
+        return {"form": None, "tried": rows}
+
+    def next_cause(self, current: Fit, current_row: dict) -> dict:
+        """One forward-selection step from the current model (``current``: the Fit of the causes selected so
+        far, ``current_row`` its ranking row). Every catalogue effect not selected yet that earned its score
+        alone with a resolved force (an effect hidden beside another one does) is added to the current model
+        and refitted as in the first round; the best is continued to convergence. It is named when, against
+        the current model, it earns a cause's rules. Returns {"cause": effect or 'none', "tried": rows, and
+        for a named cause "row" and "refit"}."""
+        others = [r["effect"] for r in self.ranking if r["effect"] not in current.ext.effects and r["effect"] != "none"
+                  and "+" not in r["effect"] and r["score"] > ACCEPT_SCORE and r["resolved"]]
+        if not others:
+            return {"cause": "none", "tried": []}
+        params_cur = current.params()
+        sse_cur = float(self.eid.sse_batch([params_cur])[0])
+        rows, fits, jac = [], {}, None
+        for e in others:
+            ext = ExtendedParametrization(self.par, f"{current.ext.effect}+{e}", self.peak, current.ext.stroke_range_m,
+                                          current.ext.stroke_limits, fixed=current.ext.fixed)
+            z0 = ext.from_params({**params_cur, **{n: 0.0 for n in EFFECT_IDENTIFIED[e]}})
+            if jac is None:  # the new effect is off at z0: the current model's Jacobian, shared
+                jac = base_jacobian(self.eid, ext, z0, dims=self.par.dimension)
+            z, g, n = refit(self.eid, ext, z0, sse_cur, jac, self.settings, self.share,
+                            profile=range(len(current.ext.extra), len(ext.extra)))
+            fits[ext.effect] = Fit(ext, z, n)
+            row = self.held_out(ext.effect, ext.to_params(z), ext.extra, g, n, current_row["validation_mse"],
+                                new=EFFECT_IDENTIFIED[e])
+            row["added"] = e
+            rows.append(row)
+            self.log(f"  + {e:12s} on {current.ext.effect}: " + ", ".join(
+                f"{k} = {row['parameters'][k]:.4g} {UNITS[k]}" for k in EFFECT_IDENTIFIED[e])
+                + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
+                + f"  effect {row['effect_rms_n']:.3g} N rms{'' if row['resolved'] else ' (below the noise)'}")
+        return self.name_next(rows, fits, current_row)
+
+    def name_next(self, rows: list[dict], fits: dict, current_row: dict) -> dict:
+        """The best of a forward-selection step's rows continued, given intervals, and named if earned."""
+        lead = max(rows, key=lambda r: r["score"] if r["resolved"] else -math.inf)
+        if lead["score"] > ACCEPT_SCORE and lead["resolved"] and self.settings.final_jacobians > 0:
+            fit = fits[lead["effect"]]
+            z, g, n, _ = self.polish_quietly(fit.ext, fit.z, self.settings.final_jacobians)
+            fit = fits[lead["effect"]] = Fit(fit.ext, z, fit.evaluations + n)
+            row = self.held_out(fit.ext.effect, fit.params(), fit.ext.extra, g, fit.evaluations,
+                                current_row["validation_mse"], new=EFFECT_IDENTIFIED[lead["added"]])
+            row["added"] = lead["added"]
+            rows[rows.index(lead)] = row
+        cross_check(rows, self.evidence)
+        for row in rows:
+            if row["score"] > ACCEPT_SCORE and row["resolved"]:
+                fit = fits[row["effect"]]
+                attach_interval(row, effect_intervals(self.eid, fit.ext, fit.z), fit.ext,
+                                EFFECT_IDENTIFIED[row["added"]])
+        named = [r for r in sorted(rows, key=lambda r: -r["score"]) if r["score"] > ACCEPT_SCORE and earned(r)]
+        if not named:
+            self.log(f"  no further cause on top of {current_row['effect']}")
+            return {"cause": "none", "tried": rows}
+        self.log(f"  further cause: {named[0]['added']} (" + interval_text(named[0])
+                 + f"), score {named[0]['score']:+.3f}")
+        return {"cause": named[0]["added"], "tried": rows, "row": named[0], "refit": fits[named[0]["effect"]]}
+
+    def weigh_forms(self, cause: str, best: dict):
+        """Forms weighed with the causes: where the base leaves a residual above the floor, the catalogue's
+        cause may only patch a form gap; the forms are fitted on the base refitted alike, and a form named on
+        its own rules that scores above the cause is the first cause (the catalogue effects then have to earn
+        their place on top of it). Returns (cause, its row, the forms' step or None)."""
+        if not (cause != "none" and self.settings.forms and self.above_floor(self.none_row["identification_rmse_n"])):
+            return cause, best, None
+        self.at("forms weighed with the causes")
+        weighed = self.forms(self.par.to_params(self.z_none), self.none_row, [])
+        if weighed["form"] is not None and weighed["row"]["score"] > best["score"]:
+            self.log(f"  the form {weighed['form']} scores above {cause} on the base ({weighed['row']['score']:+.3f} "
+                     f"against {best['score']:+.3f}): it is the first cause")
+            cause, best = weighed["form"], weighed["row"]
+            self.refits[cause] = weighed.pop("refit")
+            self.converged[cause] = weighed.pop("settled")
+            weighed["first"] = True
+        return cause, best, weighed
+
+    def select(self, causes: list[str], best: dict, selection: list) -> dict:
+        """Forward selection: add the best significant effect to the causes found, refit, repeat (up to
+        ``max_causes``); returns the final model's row (``causes`` and ``selection`` grow in place)."""
+        while causes and len(causes) < self.settings.max_causes:
+            step = self.next_cause(self.refits["+".join(causes)], best)
+            selection.append(step)
+            if step["cause"] == "none":
+                break
+            causes.append(step["cause"])
+            self.refits["+".join(causes)] = step.pop("refit")
+            best = step.pop("row")
+        return best
+
+    def continue_base(self) -> None:
+        """An 'unexplained' verdict (a model-form error) must rest on a converged fit: with nothing named and
+        the residual above the floor, the base refit is continued until its first-order test holds (or the
+        cap, reported)."""
+        if not (self.above_floor(self.none_row["identification_rmse_n"]) and self.settings.final_jacobians > 0
+                and "" not in self.converged):
+            return
+        self.at("base refit continued")
+        z, g, n, info = self.polish_quietly(self.par, self.z_none, self.settings.final_jacobians)
+        self.converged[""] = self.settled(info, g)
+        self.log(f"  none           base refit continued before any 'unexplained': identification RMSE "
+                 f"{self.none_row['identification_rmse_n']:.1f} -> {1 / math.sqrt(g):.1f} N, {info['stop']}")
+        if g > self.g_none:
+            self.set_none(z, g, self.none_row["evaluations"] + n)
+
+    def forms_on_top(self, cause: str, causes: list[str], best: dict):
+        """The forms beyond the catalogue on top of what the catalogue found, when that leaves a residual above
+        the floor on a settled fit (an unfinished one is no evidence of a missing element). Returns (cause,
+        the final row, the forms' step or None); a form named joins ``causes``."""
+        key = "+".join(causes)
+        rmse_now = best["identification_rmse_n"] if causes else self.none_row["identification_rmse_n"]
+        if not (self.settings.forms and self.above_floor(rmse_now) and self.converged.get(key) is not False):
+            return cause, best, None
+        current = self.refits[key].params() if causes else self.par.to_params(self.z_none)
+        self.at("forms beyond the catalogue", 0.9)
+        step = self.forms(current, best if causes else self.none_row, causes)
+        if step["form"] is not None:
+            causes.append(step["form"])
+            key = "+".join(causes)
+            self.refits[key] = step.pop("refit")
+            self.converged[key] = step.pop("settled")
+            best = step["row"]
+            if cause in ("none", "unexplained"):
+                cause = step["form"]
+        return cause, best, step
+
+    def run(self) -> dict:
+        """The steps in order (class docstring); the result fields for this base."""
+        self.at("residual analysis")
+        self.residual_floor()
+        self.residual_evidence()
+        kw = dict(engine=self.settings.engine, workers=self.settings.workers,
+                  fmu_path=ensure_fmu(self.kind) if self.settings.engine == "fmu" else None)
+        with Engine(self.kind, self.data.sig_id, **kw) as self.eid, Engine(self.kind, self.data.sig_val, **kw) as self.ev:
+            self.at("candidate refits")
+            self.record["partial"]["ranking"] = self.ranking
+            self.refit_none()
+            advance(self.log, 0.2)
+            self.candidates()
+            advance(self.log, 0.7)
+            self.promote([r["effect"] for r in self.ranking if r["refitted"]])
+            self.continue_lead()
+            self.at("intervals of the candidates", 0.8)
+            self.intervals()
+            self.ranking.sort(key=lambda r: -r["score"])
+            self.ranking.append(self.none_row)
+            cause, best, unresolved = decide(self.ranking)
+            cause, best, weighed = self.weigh_forms(cause, best)
+            causes, selection = ([cause] if cause != "none" else []), []
+            self.at("forward selection", 0.85)
+            self.record["partial"].update(causes=causes, selection=selection)
+            best = self.select(causes, best, selection)
+            if not causes:
+                self.continue_base()
+            form_step = weighed if weighed is not None and weighed.get("first") else None
+            if form_step is None:
+                cause, best, form_step = self.forms_on_top(cause, causes, best)
+            self.at("detection limits", 0.95)
+            limits = detection(self.eid, self.ev, self.par, self.z_none,
+                               [e for e in self.settings.candidates if e not in causes], self.peak, self.stroke_range,
+                               self.mse_none, self.noise, self.lengths, [s.name for s in self.data.sig_val], self.log)
+        return self.result(cause, causes, best, unresolved, selection, limits, form_step, weighed)
+
+    def result(self, cause, causes, best, unresolved, selection, limits, form_step, weighed) -> dict:
+        """What the final model leaves (at the floor, or 'unexplained'), the validation before and after in the
+        Table 3 definition (the FMU at its own steps, so that "before" is the Table 3 figure of the same base
+        model), the verdict, and the result fields."""
+        final_rmse = best["identification_rmse_n"] if causes else self.none_row["identification_rmse_n"]
+        unexplained = None
+        if self.above_floor(final_rmse):
+            unexplained = unexplained_record(final_rmse, self.noise, self.floor, self.stroke_noise_n, self.evidence,
+                                             self.converged.get("+".join(causes)))
+            if not causes:
+                cause = "unexplained"
+        after_params = self.refits["+".join(causes)].params() if causes else self.base
+        self.at("validation before and after", 0.98)
+        validation, base_metrics, final_metrics = before_after(self.kind, self.base, after_params if causes else None,
+                                                               self.data.sig_val, self.settings.engine)
+        verdict = verdict_text(causes, best, self.none_row, unresolved, unexplained, self.noise, limits, form_step)
+        if not self.credible:
+            verdict += (f". The remaining residual, {final_rmse:.3g} N rms, is not compared with the residual floor: "
+                        f"{self.not_credible}")
+        return {"cause": cause, "causes": causes, "verdict": verdict, "selection": selection,
+                "detection_limits": limits, "form": form_step["form"] if form_step else None,
+                "forms_tried": form_step["tried"] if form_step else None,
+                "forms_weighed": weighed["tried"] if weighed else None,
+                "unexplained": unexplained, "ranking": self.ranking,
+                "effect_parameters": effect_parameters(best, self.size) if causes else {},
+                "validation": validation, "evidence": self.evidence, "figures": self.figures,
+                "note": " ".join(NOTES[c] for c in causes if c in NOTES), "noise_std_n": self.noise,
+                "noise": self.data.noise,  # how the noise was estimated (tuner.data.noise.pooled_noise)
+                "residual_floor_credible": self.credible,
+                "stroke_noise_force_n": self.stroke_noise_n, "residual_floor_n": self.floor,
+                "base_model": self.kind, "base_parameters": {k: self.base[k] for k in self.par.names},
+                "after_params": after_params, "final_validation_mse": pooled_mse(final_metrics),
+                "base_validation_mse": pooled_mse(base_metrics)}
+
+
+def diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Problem, settings: DiagnosisSettings,
+                out: Path, figures_sub: str, log, record: dict | None = None) -> dict:
+    """The diagnosis on one base form: ``CandidateSearch(...).run()``."""
+    return CandidateSearch(kind, par, base_params, data, settings, out, figures_sub, log, record).run()
+
+
+def detection(eid: Engine, ev: Engine, par: Parametrization, z: np.ndarray, candidates: list[str], peak: float,
+               stroke_range: float, mse_ref: float, noise: float, lengths: list[int], tests: list[str], log) -> dict:
+    """``tuner.diagnosis.detection.detection_limits`` of ``candidates`` at the base refit ``z`` with the
+    diagnosis's rules (acceptance score, penalty, search bounds, physical range); logged, units added."""
+    names = {e: EFFECT_IDENTIFIED[e][0] for e in candidates}
+    size = DamperSize(peak, stroke_range)
+    limits = detection_limits(eid, ev, par, z, names, {n: typical_range(n, size)[0] for n in names.values()},
+                              {n: search_bounds(n, peak, stroke_range) for n in names.values()},
+                              {n: meaningful_floor(n, size) for n in names.values()}, mse_ref, noise,
+                              ACCEPT_SCORE, PENALTY_PER_PARAMETER, lengths, tests)
+    for e, r in limits.items():
+        r["unit"], r["covers"] = UNITS[r["parameter"]], EFFECT_KIND[e]
+    if limits:
+        log("diagnosis: detection limits on these tests (the smallest magnitude that would have been named): "
+            + ", ".join(f"{e} {limit_text(r)}" for e, r in limits.items()))
+    return limits
+
+
+def before_after(kind: str, base: dict, after: dict | None, signals: list, engine: str):
+    """(per test {mse/ame before and after, change}, base metrics, final metrics) in the Table 3
+    definition (``validation_run``: the FMU at its own steps), so that "before" is the Table 3 figure
+    of the same base model; ``after`` None: nothing was added (after = before)."""
+    validation, base_metrics, final_metrics = {}, [], []
+    for s in signals:
+        mb = validation_run(kind, base, s, engine)[1]
+        base_metrics.append(mb)
+        ma = validation_run(kind, after, s, engine)[1] if after is not None else mb
+        final_metrics.append(ma)
+        validation[s.name] = {"mse_before": mb["mse"], "ame_before": mb["ame"], "mse_after": ma["mse"],
+                              "ame_after": ma["ame"], "mse_change_pct": 100 * (ma["mse"] / mb["mse"] - 1)}
+    return validation, base_metrics, final_metrics

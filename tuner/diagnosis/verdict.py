@@ -1,0 +1,164 @@
+"""The diagnosis's words: the verdict paragraph, why a candidate was not named, the record of what stays
+unexplained and the named causes' magnitudes with their ranges (SI units, stated with each number).
+"""
+from __future__ import annotations
+
+from damper_fmu.parameters import EFFECT_IDENTIFIED, EFFECT_PARAMETERS, EFFECT_TYPICAL
+
+from tuner.diagnosis.effect_sizes import DamperSize, typical_range
+from tuner.diagnosis.forms import FORM_LABELS, settings_text
+from tuner.diagnosis.rules import ACCEPT_SCORE, FORM_EXCESS_SHARE, earned
+from tuner.formatting import fmt_quantity
+
+__all__ = ["UNITS", "NOTES", "ACQUISITION_CAUSES", "unexplained_record", "effect_parameters", "interval_text",
+           "limit_text", "verdict_text", "why_not"]
+
+UNITS = {p.name: p.unit for p in EFFECT_PARAMETERS}
+
+
+NOTES = {"time_delay": "a skew between the force and stroke channels (DAQ, filters): fix the acquisition; "
+                       "the exported co-simulation model should not contain it",
+         "preload": "an un-tared gas force or load-cell offset: check the rig's zero before the test"}
+
+
+#: named causes that belong to the acquisition (the rig's channels and zero), not to the damper (NOTES): the
+#: model to use in a co-simulation is the base without them (``tuner.results.recommendation``)
+ACQUISITION_CAUSES = ("time_delay", "preload")
+
+
+def unexplained_record(final_rmse: float, noise: float, floor: float, stroke_noise_n: float, evidence: dict,
+                 fit_converged: bool | None) -> dict:
+    """The record of a residual left above the floor [N]: where it lies (band, loop, linear share) and how
+    much of it the closest catalogue signature and all of them together explain (``evidence``)."""
+    pooled = (evidence.get("general") or {}).get("pooled") or {}
+    bands = pooled.get("band_fraction") or {}
+    r2 = {e: d.get("r2") or 0.0 for e, d in (evidence.get("effects") or {}).items()}
+    return {"identification_rmse_n": final_rmse, "noise_std_n": noise, "floor_n": floor,
+            "stroke_noise_force_n": stroke_noise_n, "ratio": final_rmse / floor,
+            "dominant_band": max(bands, key=bands.get) if bands else None,
+            "band_fraction": bands, "best_signature": max(r2, key=r2.get) if r2 else None,
+            "best_signature_r2": max(r2.values()) if r2 else None,
+            "linear_share": pooled.get("linear_share"), "band_linear_share": pooled.get("band_linear_share"),
+            "loop": pooled.get("loop"),
+            "catalogue_r2_all": (evidence.get("joint_screen") or {}).get("r2_all"),
+            "fit_converged": fit_converged}
+
+
+def effect_parameters(best: dict, size: DamperSize) -> dict:
+    """The named causes' fitted magnitudes with units, 95 % intervals and their typical ranges on a damper
+    of ``size`` (``tuner.diagnosis.effect_sizes``)."""
+    out = {}
+    for n, v in best["parameters"].items():
+        out[n] = {"value": v, "unit": UNITS[n], "interval_95": best["interval"][n]}
+        if n in EFFECT_TYPICAL:  # a form's shape (a groove's centre and length) has no typical size
+            lo, hi = typical_range(n, size)
+            out[n].update({"plausible_range": [lo, hi], "plausible": bool(lo <= abs(v) <= hi)})
+    return out
+
+
+def interval_text(row: dict, names=None) -> str:
+    """'name = value (95 % interval low .. high)' of the row's parameters (``names``: only these)."""
+    return ", ".join(f"{n} = {fmt_quantity(v, UNITS[n])} (95 % interval {fmt_quantity(row['interval'][n][0], UNITS[n])}"
+                     f" .. {fmt_quantity(row['interval'][n][1], UNITS[n])})" for n, v in row["parameters"].items()
+                     if names is None or n in names)
+
+
+def limit_text(row: dict) -> str:
+    """'above 400 N (val2_curve)' of a detection limit, or 'not detectable within the search range'."""
+    if not row["reachable"]:
+        return "not detectable within its search range"
+    return f"above {fmt_quantity(row['limit'], UNITS[row['parameter']])} ({row['best_test']})"
+
+
+def verdict_text(causes: list[str], best: dict, none_row: dict, rejected: list[dict], unexplained: dict | None,
+             noise: float, limits: dict | None = None, form_step: dict | None = None) -> str:
+    """One-paragraph verdict: the causes with magnitudes and intervals and their held-out gain, or
+    none with what these tests could have detected (``limits``), a form beyond the catalogue named
+    with its gain (``form_step``: what ``try_forms`` tried), and what stays unexplained."""
+    form = form_step["form"] if form_step else None
+    found = [c for c in causes if c != form]
+    if form:
+        change = 100 * (best["validation_mse"] / none_row["validation_mse"] - 1)
+        # against the model it was added to: the causes found before it, or the base when it came first
+        first = bool(form_step.get("first"))
+        step = (form_step["row"] if first else best)["validation_mse_change_pct"]
+        how = settings_text(form_step["row"].get("settings") or {})
+        text = (f"form beyond the catalogue: {FORM_LABELS[form]} ({interval_text(best, EFFECT_IDENTIFIED[form])}"
+                + (f"; {how}" if how else "") + "): "
+                f"held-out MSE {step:+.0f} %" + (f" on top of {' + '.join(found)}" if found and not first else "")
+                + (" on the base, weighed against the catalogue's causes and scoring above them" if first else "")
+                + f"; {change:+.0f} % against the base refitted alike")
+        if found:
+            text = (f"cause{'s' if len(found) > 1 else ''}: {' + '.join(found)} ("
+                    + interval_text(best, [n for c in found for n in EFFECT_IDENTIFIED[c]]) + "); " + text)
+    elif causes:
+        change = 100 * (best["validation_mse"] / none_row["validation_mse"] - 1)
+        text = (f"cause{'s' if len(causes) > 1 else ''}: {' + '.join(causes)} ({interval_text(best)}); "
+                f"validation MSE {change:+.0f} % against the base refitted alike")
+    else:
+        none_inner = ("no extension earns its parameters on held-out data"
+                      + ("; " + ", ".join(f"{r['effect']} scored {r['score']:+.3f} but " + why_not(r, noise)
+                                          for r in rejected) if rejected else ""))
+        limits_text = ("; these tests would have named: "
+                       + ", ".join(f"{e} {limit_text(r)}" for e, r in limits.items())
+                       + (f" (friction: {limits['friction']['covers']})" if "friction" in limits else "")
+                       if limits else "")
+        text = f"cause: none ({none_inner}){limits_text}"
+    if unexplained:
+        where = (f"; most of it in the {unexplained['dominant_band']} band" if unexplained["dominant_band"] else "")
+        sig = (f"; the closest catalogue signature ({unexplained['best_signature']}) explains "
+               f"{100 * unexplained['best_signature_r2']:.0f} % of the base model's residual"
+               if unexplained["best_signature"] else "")
+        if unexplained.get("catalogue_r2_all") is not None:
+            sig += (f", all seven signatures together {100 * unexplained['catalogue_r2_all']:.0f} % "
+                    "(joint least squares)")
+        lin = unexplained.get("linear_share")
+        if lin is not None:
+            sig += (f"; {100 * lin:.0f} % of its power is linear in the stroke (coherence) "
+                    + ("- a missing linear element (spring, Maxwell branch, delay) fits that" if lin >= 0.7 else
+                       "- so no added linear element (spring, Maxwell branch, delay) can remove most of it: "
+                       "the error is nonlinear or time-varying"))
+        if form_step and not form:
+            sig += "; forms beyond the catalogue tried, none earns its parameters: " + ", ".join(
+                f"{r['form']} {r['validation_mse_change_pct']:+.0f} % held-out MSE (score {r['score']:+.3f}"
+                + (", " + why_not(r, noise) if r["score"] > ACCEPT_SCORE and "interval" in r else "") + ")"
+                for r in form_step["tried"])
+        loop = unexplained.get("loop") or {}
+        if loop:
+            low = sum(v["power_share"] for k, v in loop.items() if k.startswith("below"))
+            low_t = sum(v["time_share"] for k, v in loop.items() if k.startswith("below"))
+            sig += (f"; {100 * low:.0f} % of it at speeds below the blow-off knee ({100 * low_t:.0f} % of the time), "
+                    f"{100 * (1 - low):.0f} % beyond")
+        what = ("a model-form error that no catalogue effect explains" if unexplained.get("fit_converged") is not False
+                else "but the refit did not converge within its Jacobian cap, so this may be an unfinished fit: "
+                     "it is NOT shown to be a model-form error")
+        text = ("unexplained: " if not causes else text + ". Not explained: ") + (
+            f"the remaining residual, {unexplained['identification_rmse_n']:.3g} N rms, is "
+            f"{unexplained['ratio']:.1f} x the residual floor ({unexplained['floor_n']:.2g} N: force noise "
+            f"{noise:.2g} N, stroke noise through the model {unexplained['stroke_noise_force_n']:.2g} N): "
+            f"{what}{where}{sig}") + ("" if causes else f"; no named cause: {none_inner}{limits_text}")
+    return text
+
+
+def why_not(row: dict, noise: float) -> str:
+    """Why a row that scored enough was not named (for the verdict)."""
+    if row.get("evidence_agrees") is False:
+        return "its delay disagrees with the residual's"
+    if not row["resolved"]:
+        return f"its force, {row['effect_rms_n']:.2g} N rms, is below the measurement noise ({noise:.2g} N)"
+    if row.get("excess_explained") is not None and row["excess_explained"] < FORM_EXCESS_SHARE and earned(row):
+        return (f"it removes only {100 * row['excess_explained']:.0f} % of the held-out residual above the floor "
+                f"(a form must remove {100 * FORM_EXCESS_SHARE:.0f} %: one that patches part of another error is not "
+                "the missing element)")
+    if not row.get("within_bounds", True):
+        return ("its magnitude (" + ", ".join(f"{fmt_quantity(v, UNITS[n])}" for n, v in row["parameters"].items())
+                + ") is at its search bound: stopped by the bound, not by the data, it patches another error")
+    if not row.get("plausible", True):
+        return ("its 95 % interval lies above the effect's plausible range on this damper: it patches another "
+                "error (a form gap)")
+    if not row.get("meaningful", True):
+        return ("its magnitude (" + ", ".join(f"{fmt_quantity(v, UNITS[n])}" for n, v in row["parameters"].items())
+                + ") is below the physical range of the effect")
+    ci = "; ".join(f"{n} {fmt_quantity(lo, UNITS[n])} .. {fmt_quantity(hi, UNITS[n])}"
+                   for n, (lo, hi) in row.get("interval", {}).items())
+    return f"its 95 % interval includes zero ({ci or 'not computed'})"
