@@ -138,3 +138,42 @@ def test_results_round_trip_through_strict_json():
     assert [p.flags for p in back.parameters] == [p.flags for p in iv.parameters]
     assert all(isinstance(p, ParameterInterval) for p in back.parameters)
     assert back.descriptions() == iv.descriptions()
+
+
+def test_fit_writes_the_intervals_and_the_report_shows_them(small_lumped, tmp_path):
+    """fit() computes the intervals of every fitted model; parameters.json holds them as strict JSON; the
+    report has their table (a row per identified parameter) and the characteristics figure; summary.json's
+    part names the same flags."""
+    import json
+    import re
+
+    from damper_fmu.parameters import tunable_names
+    from tuner.cli.summary import interval_summary
+    from tuner.identification.engine import fastest_engine
+    from tuner.identification.fit import FitSettings, fit
+    from tuner.results.report import make_report
+
+    ident, valid = small_lumped
+    out = tmp_path / "fit"
+    fit(ident, valid, FitSettings(models=("lumped", "maxwell"), population=4, iterations=1, workers=0,
+                                  engine=fastest_engine(), polish_jacobians=2), log=lambda m: None).write(out)
+    text = (out / "parameters.json").read_text()
+    params = json.loads(text, parse_constant=lambda c: pytest.fail(f"parameters.json holds {c}"))
+    for model in ("lumped", "maxwell"):
+        iv = ModelIntervals.from_dict(model, params[model]["intervals"])
+        assert [p.name for p in iv.parameters] == tunable_names(model)
+        assert all(p.status in ("determined", "at a bound", "not determined") for p in iv.parameters)
+        assert all(p.low is None or p.bounds[0] <= p.low <= p.value <= p.high <= p.bounds[1] for p in iv.parameters)
+    lumped = ModelIntervals.from_dict("lumped", params["lumped"]["intervals"])
+    # M_C acts through the far silent block's deflection only: no stroke on a rig determines it
+    assert lumped.get("M_C").status == "not determined"
+    html = make_report(out).read_text(encoding="utf-8")
+    section = html[html.index("id='intervals'"):]
+    section = section[:section.index("</section>")]
+    shown = dict(re.findall(r'<span class="flag" data-interval="([^"]+)">([^<]*)</span>', section))
+    assert set(tunable_names("lumped")) | set(tunable_names("maxwell")) <= set(shown)
+    assert "not determined" in shown["M_C"]
+    assert (out / "figures" / "intervals_characteristics.png").is_file()
+    summary = interval_summary(params)
+    assert "M_C" in summary["lumped"]["not_determined"]
+    assert summary["lumped"]["determined"] == lumped.names_with("determined")

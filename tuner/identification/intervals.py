@@ -9,8 +9,9 @@ At the fitted point of a model (``parameter_intervals``):
 * the covariance of u by the block sandwich (``tuner.metrics.block_sandwich``, as the diagnosis's
   effect intervals): blocks of ``BLOCK_CORRELATION_TIMES`` residual correlation times, so that the
   correlated residual (the fit band's low-pass, model-form error) is not counted as independent
-  samples; with fewer than ``MIN_BLOCKS_PER_PARAMETER`` blocks per parameter the sandwich's middle is
-  too poorly estimated, and the textbook covariance scaled by the correlation time is used (and said);
+  samples; with fewer than ``MIN_BLOCKS_PER_PARAMETER`` blocks per parameter (or ``MIN_BLOCKS``) the
+  sandwich's middle is too poorly estimated, and the textbook covariance scaled by the correlation time is
+  used (and said);
 * the covariance of the physical parameters by the delta method, Cov_theta = G Cov_u G^T with
   G = d theta / d u (the mapping is linear in the table ordinates: exact there);
 * 95 % intervals value +- Z95 std; for log-scaled parameters (``Parameter.log_scale``) symmetric in
@@ -52,7 +53,7 @@ from tuner.metrics import Z95, block_sandwich, correlation_time
 
 __all__ = ["ParameterInterval", "ReachedRange", "ModelIntervals", "parameter_intervals", "model_intervals",
            "reached_ranges", "classify", "STEP", "DETERMINED_WIDTH", "BOUND_FRACTION", "TIE_CORRELATION",
-           "NULL_RCOND", "BLOCK_CORRELATION_TIMES", "MIN_BLOCKS_PER_PARAMETER", "CONFIDENCE"]
+           "NULL_RCOND", "BLOCK_CORRELATION_TIMES", "MIN_BLOCKS_PER_PARAMETER", "MIN_BLOCKS", "CONFIDENCE"]
 
 #: forward-difference step in the local coordinates (each spans its parameter's bounds): the diagnosis's
 #: effect intervals' step; the polish's fine step (1e-5) sees the two-chamber model's rough objective
@@ -68,8 +69,10 @@ TIE_CORRELATION = 0.95
 NULL_RCOND = 1e-6
 #: residual blocks of this many correlation times (``tuner.diagnosis.refit.effect_intervals``'s choice)
 BLOCK_CORRELATION_TIMES = 3.0
-#: fewer blocks per resolved parameter than this: the textbook covariance x correlation time instead
+#: fewer blocks per resolved parameter than this, or fewer than MIN_BLOCKS: the textbook covariance x
+#: correlation time instead (the sandwich's middle is a sum of one outer product per block)
 MIN_BLOCKS_PER_PARAMETER = 2
+MIN_BLOCKS = 10
 CONFIDENCE = 0.95
 
 _TABLE_ABSCISSA = {"Fc_": "Fc_v", "Fk_": "Fk_x"}
@@ -227,13 +230,15 @@ class ModelIntervals:
                 "samples": self.samples, "residual_rms_n": self.residual_rms_n,
                 "determined_width": DETERMINED_WIDTH, "tie_correlation": TIE_CORRELATION,
                 "reached": {r.table: r.to_dict() for r in self.reached},
+                "order": [p.name for p in self.parameters],  # the JSON object's keys may be sorted
                 "parameters": {p.name: p.to_dict() for p in self.parameters},
                 "covariance": {"names": list(self.covariance_names), "matrix": np.asarray(self.covariance).tolist()},
                 "summary": self.summary_text()}
 
     @classmethod
     def from_dict(cls, model: str, d: dict) -> "ModelIntervals":
-        return cls(model=model, parameters=[ParameterInterval.from_dict(n, p) for n, p in d["parameters"].items()],
+        order = d.get("order") or list(d["parameters"])
+        return cls(model=model, parameters=[ParameterInterval.from_dict(n, d["parameters"][n]) for n in order],
                    covariance_names=list(d["covariance"]["names"]),
                    covariance=np.asarray(d["covariance"]["matrix"], dtype=float).reshape(
                        len(d["covariance"]["names"]), len(d["covariance"]["names"])),
@@ -294,7 +299,7 @@ def _covariance_u(J: np.ndarray, r: np.ndarray, lengths: list[int], keep: list[i
     Jn = J[:, keep] / norms
     unscale = np.outer(1.0 / norms, 1.0 / norms)
     cov, blocks = block_sandwich(Jn, r, lengths, block)
-    if blocks >= MIN_BLOCKS_PER_PARAMETER * len(keep):
+    if blocks >= max(MIN_BLOCKS, MIN_BLOCKS_PER_PARAMETER * len(keep)):
         return cov * unscale, "block sandwich", blocks, block, tau
     # too few blocks for the sandwich's middle: the residual as noise of variance s^2 whose correlation
     # time tau makes every sample worth 1 / tau of an independent one
@@ -304,17 +309,18 @@ def _covariance_u(J: np.ndarray, r: np.ndarray, lengths: list[int], keep: list[i
 
 
 def classify(name: str, unit: str, value: float, std: float | None, bounds: tuple[float, float],
-             log_scale: bool) -> ParameterInterval:
+             log_scale: bool, why_none: str | None = None) -> ParameterInterval:
     """The interval and status of one parameter from its value and standard error [unit] (module
-    docstring); tied_to, extrapolated and abscissa are filled by the caller."""
+    docstring); tied_to, extrapolated and abscissa are filled by the caller. why_none: the reason when std
+    is None (default: the tests do not move the force along it)."""
     lo_b, hi_b = bounds
     position = _position(value, lo_b, hi_b, log_scale)
     at_bound = position <= BOUND_FRACTION or position >= 1.0 - BOUND_FRACTION
     if std is None or not math.isfinite(std):
         return ParameterInterval(name, unit, value, None, None, None, True, bounds, log_scale, 1.0,
-                                 "not determined", at_bound, reason="the identification tests do not move the "
-                                 "force along this parameter (no finite variance): any value within the bounds "
-                                 "fits as well")
+                                 "not determined", at_bound, reason=why_none or (
+                                     "the identification tests do not move the force along this parameter (no "
+                                     "finite variance): any value within the bounds fits as well"))
     if log_scale and value > 0:
         low, high = value * math.exp(-Z95 * std / value), value * math.exp(Z95 * std / value)
     else:
@@ -361,8 +367,10 @@ def parameter_intervals(engine, par: Parametrization, params: dict, *, reached: 
     cov_u, method, blocks, block, tau = _covariance_u(J, r, lengths, keep)
     # a parameter moved by a coordinate without finite variance has none either
     scale = np.maximum(np.abs(G).max(axis=1, keepdims=True), 1e-300)
-    infinite = [bool(np.any(np.abs(G[i, sorted(dropped)]) > 1e-9 * scale[i, 0])) if dropped else False
-                for i in range(len(names))]
+    def moved_by(cols, i):
+        return bool(cols) and bool(np.any(np.abs(G[i, sorted(cols)]) > 1e-9 * scale[i, 0]))
+
+    infinite = [moved_by(dropped, i) for i in range(len(names))]
     finite = [i for i in range(len(names)) if not infinite[i]]
     Gk = G[np.ix_(finite, keep)]
     cov = Gk @ cov_u @ Gk.T
@@ -371,8 +379,10 @@ def parameter_intervals(engine, par: Parametrization, params: dict, *, reached: 
     std = {names[i]: math.sqrt(max(cov[k, k], 0.0)) for k, i in enumerate(finite)}
     out = []
     for i, n in enumerate(names):
+        why = ("the model could not be simulated next to the fit along this parameter: no interval"
+               if moved_by(failed, i) else None)
         iv = classify(n, par.units.get(n, ""), float(params[n]), std.get(n), tuple(par.bounds[n]),
-                      bool(spec[n].log_scale))
+                      bool(spec[n].log_scale), why)
         out.append(_with_context(iv, n, finite, names, cov, params, reached or []))
     return ModelIntervals(model=par.model, parameters=out, covariance_names=[names[i] for i in finite],
                           covariance=cov, method=method, blocks=blocks, block_length_s=block / rate,
