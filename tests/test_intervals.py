@@ -15,6 +15,8 @@ What physics and statistics say, not numbers of our own output:
     width, 4 x the test length half the width.
 """
 import math
+import zipfile
+from xml.etree import ElementTree
 
 import numpy as np
 import pytest
@@ -151,12 +153,14 @@ def test_fit_writes_the_intervals_and_the_report_shows_them(small_lumped, tmp_pa
     from tuner.cli.summary import interval_summary
     from tuner.identification.engine import fastest_engine
     from tuner.identification.fit import FitSettings, fit
+    from tuner.job import export_fmus
     from tuner.results.report import make_report
 
     ident, valid = small_lumped
     out = tmp_path / "fit"
-    fit(ident, valid, FitSettings(models=("lumped", "maxwell"), population=4, iterations=1, workers=0,
-                                  engine=fastest_engine(), polish_jacobians=2), log=lambda m: None).write(out)
+    result = fit(ident, valid, FitSettings(models=("lumped", "maxwell"), population=4, iterations=1, workers=0,
+                                           engine=fastest_engine(), polish_jacobians=2), log=lambda m: None)
+    result.write(out)
     text = (out / "parameters.json").read_text()
     params = json.loads(text, parse_constant=lambda c: pytest.fail(f"parameters.json holds {c}"))
     for model in ("lumped", "maxwell"):
@@ -177,3 +181,41 @@ def test_fit_writes_the_intervals_and_the_report_shows_them(small_lumped, tmp_pa
     summary = interval_summary(params)
     assert "M_C" in summary["lumped"]["not_determined"]
     assert summary["lumped"]["determined"] == lumped.names_with("determined")
+    # the tuned FMU says in each identified parameter's description what the tests determine
+    tuned = {p.name: p for p in export_fmus(result, out)}
+    described = descriptions(tuned["DamperLumped_tuned.fmu"])
+    for p in lumped.parameters:
+        assert p.range_text() in described[p.name], (p.name, described[p.name])
+    assert "NOT determined" in described["M_C"]
+
+
+def descriptions(fmu) -> dict:
+    """name -> description of the variables of the FMU's modelDescription.xml (parsed: valid XML)."""
+    with zipfile.ZipFile(fmu) as z:
+        root = ElementTree.fromstring(z.read("modelDescription.xml"))
+    found = {v.get("name"): v.get("description") for v in root.iter("ScalarVariable")}
+    found.update({v.get("name"): v.get("description") for v in root.find("ModelVariables")
+                  if v.tag != "ScalarVariable"})
+    return found
+
+
+@pytest.mark.parametrize("flavour,version", [("native", 2), ("native", 3), ("python", 2)])
+def test_every_model_description_states_the_determined_ranges(tmp_path, flavour, version):
+    """FMI 2.0 and 3.0, native and pythonfmu: the description of each identified parameter ends with its
+    determined range; the others are unchanged; the FMU stays valid."""
+    from damper_fmu.fmu import build, native_reason, validate
+
+    if flavour == "native" and native_reason():
+        pytest.skip(native_reason())
+    known = truth()
+    _, _, est, iv, _ = fitted(known, rig_tests(known, "slow", 7, (10.0,), noise_n=25.0, slow_amp=0.004), jacobians=0)
+    path = build("lumped", tmp_path, start_values={k: est[k] for k in iv.descriptions()}, flavour=flavour,
+                 fmi_version=version, parameter_notes=iv.descriptions())
+    described = descriptions(path)
+    for name, text in iv.descriptions().items():
+        assert described[name].endswith("; " + text), (name, described[name])
+    assert "determined" not in described["Fc_v01"] and "determined" not in described["stroke"]
+    if version == 2:
+        assert validate(path) == []
+    with pytest.raises(ValueError, match="unknown parameter"):
+        build("lumped", tmp_path, flavour=flavour, fmi_version=version, parameter_notes={"M_X": "?"})
