@@ -61,16 +61,17 @@ def stroke(kind: str, seed: int, duration: float, slow_amp: float = 0.015):
 
 
 def rig_tests(params: dict, kind: str, seed: int, durations=(10.0,), noise_n: float = 25.0,
-              slow_amp: float = 0.015, truth_steps: str = "fine") -> list[RigTest]:
+              slow_amp: float = 0.015, truth_steps: str = "fine", measured_velocity: bool = False) -> list[RigTest]:
     """Identification tests: the model's force (integrated as ``TRUTH_STEPS[truth_steps]``) under strokes
-    of ``kind`` plus ``noise_n`` rms [N]."""
+    of ``kind`` plus ``noise_n`` rms [N]; with ``measured_velocity`` the exact stroke velocity as the rig's
+    velocity channel (else the tuner differentiates the stroke)."""
     rng = np.random.default_rng(seed + 10_000)
     tests = []
     for i, duration in enumerate(durations):
         t, x, v = stroke(kind, 100 * seed + i, duration, slow_amp)
         f = simulate("lumped", t, x, v, params=params, **TRUTH_STEPS[truth_steps]) + rng.normal(0.0, noise_n, t.size)
         tests.append(RigTest(name=f"{kind}{i + 1}", role="identification", scenario=f"{kind} stroke", time=t,
-                             stroke=x, force=f, sample_rate=FS))
+                             stroke=x, force=f, sample_rate=FS, velocity=v if measured_velocity else None))
     return tests
 
 

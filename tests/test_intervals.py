@@ -99,6 +99,23 @@ def test_c_damping_abscissae_beyond_the_reached_rate_are_extrapolated():
             assert p.low is None and p.status == "not determined", p
 
 
+def test_the_offset_points_from_a_displaced_fit_back_to_the_truth():
+    """Intervals taken at a point displaced from the truth along one damping ordinate (no refinement): the
+    force is linear in the ordinates, so the Gauss-Newton offset recovers the displacement (the standard
+    error grows too: the sandwich counts the misfit the displacement leaves), and the reason says so when it
+    exceeds one standard error."""
+    known = truth()
+    tests = rig_tests(known, "multisine", 3, (10.0,), noise_n=25.0)
+    displaced = {**known, "Fc_10": known["Fc_10"] + 150.0}
+    _, _, _, iv, _ = fitted(displaced, tests, jacobians=0)
+    p = iv.get("Fc_10")
+    assert p.offset == pytest.approx(-150.0, abs=0.2 * 150.0), p.offset
+    assert ("standard errors from the local optimum" in p.reason) == (abs(p.offset) > p.std)
+    # at the truth itself the offsets stay within the noise
+    _, _, _, at_truth, _ = fitted(known, tests, jacobians=0)
+    assert abs(at_truth.get("Fc_10").offset) < 3 * at_truth.get("Fc_10").std
+
+
 def widths(iv, names):
     return np.array([iv.get(n).high - iv.get(n).low for n in names])
 

@@ -111,7 +111,9 @@ class ParameterInterval:
     at_bound: the value lies at a bound (also with status 'not determined'); tied_to: ((name,
     correlation), ...) with |correlation| > TIE_CORRELATION; extrapolated: a table point beyond what the
     tests reach; abscissa: the table point's abscissa [m/s or m] (None for other parameters); reason: one
-    sentence on why."""
+    sentence on why; offset: the Gauss-Newton step [unit] from the fit towards the local optimum that the
+    Jacobian predicts (coordinates at a bound held; None without finite variance): well under ``std`` when
+    the refinement ended at the optimum, and the interval is centred on the fit, not on the optimum."""
 
     name: str
     unit: str
@@ -129,6 +131,7 @@ class ParameterInterval:
     extrapolated: bool = False
     abscissa: float | None = None
     reason: str = ""
+    offset: float | None = None
 
     @property
     def flags(self) -> list[str]:
@@ -165,7 +168,7 @@ class ParameterInterval:
                 "width_fraction": self.width_fraction, "status": self.status, "at_bound": self.at_bound,
                 "tied_to": [{"name": n, "correlation": c} for n, c in self.tied_to],
                 "extrapolated": self.extrapolated, "abscissa": self.abscissa, "flags": self.flags,
-                "reason": self.reason, "text": self.range_text()}
+                "reason": self.reason, "offset": self.offset, "text": self.range_text()}
 
     @classmethod
     def from_dict(cls, name: str, d: dict) -> "ParameterInterval":
@@ -173,7 +176,8 @@ class ParameterInterval:
                    beyond_bounds=d["beyond_bounds"], bounds=tuple(d["bounds"]), log_scale=d["log_scale"],
                    width_fraction=d["width_fraction"], status=d["status"], at_bound=d["at_bound"],
                    tied_to=tuple((t["name"], t["correlation"]) for t in d["tied_to"]),
-                   extrapolated=d["extrapolated"], abscissa=d["abscissa"], reason=d["reason"])
+                   extrapolated=d["extrapolated"], abscissa=d["abscissa"], reason=d["reason"],
+                   offset=d.get("offset"))
 
 
 @dataclass
@@ -365,8 +369,10 @@ def parameter_intervals(engine, par: Parametrization, params: dict, *, reached: 
     dropped = _unresolved(J, set(failed))
     keep = [i for i in range(J.shape[1]) if i not in dropped]
     cov_u, method, blocks, block, tau = _covariance_u(J, r, lengths, keep)
+    offset = _gauss_newton_offset(J, r, G, u, keep)
     # a parameter moved by a coordinate without finite variance has none either
     scale = np.maximum(np.abs(G).max(axis=1, keepdims=True), 1e-300)
+
     def moved_by(cols, i):
         return bool(cols) and bool(np.any(np.abs(G[i, sorted(cols)]) > 1e-9 * scale[i, 0]))
 
@@ -383,11 +389,33 @@ def parameter_intervals(engine, par: Parametrization, params: dict, *, reached: 
                if moved_by(failed, i) else None)
         iv = classify(n, par.units.get(n, ""), float(params[n]), std.get(n), tuple(par.bounds[n]),
                       bool(spec[n].log_scale), why)
-        out.append(_with_context(iv, n, finite, names, cov, params, reached or []))
+        iv = _with_context(iv, n, finite, names, cov, params, reached or [])
+        out.append(_with_offset(iv, None if infinite[i] else float(offset[i])))
     return ModelIntervals(model=par.model, parameters=out, covariance_names=[names[i] for i in finite],
                           covariance=cov, method=method, blocks=blocks, block_length_s=block / rate,
                           correlation_time_s=tau / rate, samples=int(r.size),
                           residual_rms_n=math.sqrt(float(r @ r) / r.size), reached=list(reached or []))
+
+
+def _gauss_newton_offset(J: np.ndarray, r: np.ndarray, G: np.ndarray, u: np.ndarray, keep: list[int]) -> np.ndarray:
+    """The Gauss-Newton step of the parameters [their units] from u towards the optimum the Jacobian
+    predicts, on the coordinates ``keep`` that are not at a bound (those at a bound are held there, as the
+    refinement holds them)."""
+    free = [i for i in keep if 1e-9 < u[i] < 1.0 - 1e-9]
+    if not free:
+        return np.zeros(G.shape[0])
+    norms = np.linalg.norm(J[:, free], axis=0)
+    step = np.linalg.lstsq(J[:, free] / norms, -r, rcond=NULL_RCOND)[0] / norms
+    return G[:, free] @ step
+
+
+def _with_offset(iv: ParameterInterval, offset: float | None) -> ParameterInterval:
+    """``iv`` with its Gauss-Newton offset, said in the reason when it exceeds one standard error."""
+    reason = iv.reason
+    if offset is not None and iv.std and abs(offset) > iv.std:
+        reason += (f"; the refinement ended {abs(offset) / iv.std:.2g} standard errors from the local optimum "
+                   f"along it (the interval is centred on the fitted value)")
+    return replace(iv, offset=offset, reason=reason)
 
 
 def _with_context(iv: ParameterInterval, name: str, finite: list[int], names: list[str], cov: np.ndarray,
