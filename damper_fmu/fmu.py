@@ -42,7 +42,7 @@ from pathlib import Path
 from . import model_description, native
 from .integrator import DEFAULT_MAX_STEP, DEFAULT_TOLERANCE
 from .model_description import NATIVE_SETTINGS
-from .parameters import check_values
+from .parameters import MODEL_PARAMETERS, check_values
 
 __all__ = ["SLAVES", "PY_SLAVES", "FMI_SUFFIX", "default_dir", "native_reason", "fast_path_note", "build",
            "ensure_fmu", "validate", "source_hash"]
@@ -133,14 +133,16 @@ def _resolve_flavour(kind: str, flavour: str) -> str:
 
 def build(kind: str, out: str | Path | None = None, *, start_values: dict | None = None,
           settings: dict | None = None, filename: str | None = None, flavour: str = "auto",
-          fmi_version: int = 2) -> Path:
+          fmi_version: int = 2, parameter_notes: dict | None = None) -> Path:
     """Build the FMU of ``kind`` in ``flavour`` ('native', 'python', or 'auto': native where a C
     compiler is found) and return its path. ``fmi_version``: 2 (default) or 3 (native only; file
     ``<model identifier>3.fmu``).
 
     ``start_values``: parameter name -> SI value used as start values (e.g. identified
     parameters); ``settings``: optional ``max_internal_step`` [s], ``internal_tolerance`` [-] and
-    ``input_interpolation`` (0 or 1). The file is written atomically.
+    ``input_interpolation`` (0 or 1); ``parameter_notes``: parameter name -> text appended to its
+    description in the model description (a tuned FMU's determined range of each identified value; any
+    text, XML-escaped when written). The file is written atomically.
     """
     flavour = _resolve_flavour(kind, flavour)
     _check_fmi_version(fmi_version, flavour)
@@ -149,11 +151,15 @@ def build(kind: str, out: str | Path | None = None, *, start_values: dict | None
         raise ValueError(f"unknown {flavour} FMU kind '{kind}', expected one of {sorted(names)}")
     if kind != "empty" and start_values:
         check_values(kind, start_values)
+    notes = {str(k): str(v) for k, v in (parameter_notes or {}).items()}
+    unknown = sorted(set(notes) - {p.name for p in MODEL_PARAMETERS.get(kind, ())})
+    if unknown:
+        raise ValueError(f"parameter_notes for unknown parameter(s) of '{kind}': {', '.join(unknown)}")
     out = Path(out) if out is not None else default_dir()
     out.mkdir(parents=True, exist_ok=True)
     target = out / (filename or f"{names[kind]}{FMI_SUFFIX[fmi_version]}.fmu")
     if flavour == "native":
-        _build_native(kind, target, start_values or {}, settings or {}, fmi_version)
+        _build_native(kind, target, start_values or {}, settings or {}, fmi_version, notes)
         return target
     if not (SRC / f"{PY_SLAVES[kind]}.py").is_file():
         raise FileNotFoundError(f"cannot build {target.name}: the pythonfmu slave classes are not at {SRC} "
@@ -162,7 +168,7 @@ def build(kind: str, out: str | Path | None = None, *, start_values: dict | None
     # pythonfmu imports the slave script, which must not meet a slave module an FMU already
     # loaded in the caller: build in a fresh Python process, which imports this package from here
     spec = json.dumps({"kind": kind, "target": str(target), "start_values": start_values or {},
-                       "settings": settings or {}})
+                       "settings": settings or {}, "notes": notes})
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
     proc = subprocess.run([sys.executable, "-c", "import sys; from damper_fmu.fmu import _build_python; "
                            "_build_python(sys.argv[1])", spec], capture_output=True, text=True, env=env)
@@ -179,15 +185,17 @@ def _build_python(spec: str) -> None:
 
     spec = json.loads(spec)
     kind, target, start_values, settings = spec["kind"], Path(spec["target"]), spec["start_values"], spec["settings"]
+    notes = spec.get("notes") or {}
     with tempfile.TemporaryDirectory(prefix="damper_fmu_build_") as tmp:
         tmp = Path(tmp)
         project = []
         if kind != "empty":
             project = [PACKAGE, SRC / "damper_fmi.py"]
-            if start_values or settings:
+            if start_values or settings or notes:
                 staged = tmp / "start_values.json"
                 data = {k: float(v) for k, v in start_values.items()}
                 data["_settings"] = dict(settings)
+                data["_notes"] = dict(notes)
                 staged.write_text(json.dumps(data, indent=1, sort_keys=True))
                 project.append(staged)
         sys.path.insert(0, str(SRC))
@@ -223,14 +231,16 @@ def _fmi_headers(fmi_version: int = 2) -> list[Path]:
     return [FMI2_HEADERS / n for n in ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")]
 
 
-def _build_native(kind: str, target: Path, start_values: dict, settings: dict, fmi_version: int = 2) -> None:
+def _build_native(kind: str, target: Path, start_values: dict, settings: dict, fmi_version: int = 2,
+                  notes: dict | None = None) -> None:
     cc = native.compiler()
     if cc is None:
         raise RuntimeError(f"cannot build the native {SLAVES[kind]} FMU: {native_reason()}; "
                            f"use flavour='python' (pythonfmu) instead")
     identifier = SLAVES[kind]
     payload = json.dumps([kind, sorted(start_values.items()), sorted(settings.items()),
-                          source_hash("native")] + ([3] if fmi_version == 3 else [])).encode()
+                          source_hash("native")] + ([3] if fmi_version == 3 else [])
+                         + ([sorted(notes.items())] if notes else [])).encode()
     guid = "{" + str(uuid.UUID(hashlib.md5(payload).hexdigest())) + "}"
     header = native.parameter_header({kind: start_values})
     config = "\n".join([
@@ -274,8 +284,8 @@ def _build_native(kind: str, target: Path, start_values: dict, settings: dict, f
         proc = subprocess.run(cmd, capture_output=True, text=True)
         if proc.returncode != 0:
             raise RuntimeError(f"compiling {identifier} failed ({' '.join(cmd)}):\n{proc.stderr.strip()}")
-        xml = (model_description.fmi3(kind, identifier, guid, start_values, settings) if fmi_version == 3 else
-               model_description.fmi2(kind, identifier, guid, start_values, settings, wrapper))
+        xml = (model_description.fmi3(kind, identifier, guid, start_values, settings, notes) if fmi_version == 3 else
+               model_description.fmi2(kind, identifier, guid, start_values, settings, wrapper, notes))
         (tmp / "modelDescription.xml").write_bytes(xml)
         docs = tmp / "documentation"
         docs.mkdir()

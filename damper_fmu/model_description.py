@@ -45,11 +45,14 @@ _DESCRIPTION = ("Railway hydraulic damper, {kind} model (native C; SI units, str
 _GENERATION_TOOL = "yaw-damper-toolchain damper_fmu.fmu"
 
 
-def variables(kind: str, start_values: dict, settings: dict) -> list[dict]:
-    """The native FMU's variables, the one list both model descriptions (FMI 2.0, 3.0) are written
-    from, in FMI 2.0 order: name, vr (FMI 2.0), vr3 (FMI 3.0), type ('Real' or 'Integer'),
-    causality, variability, initial, unit, start, description, and 'known': True for the inputs
-    and model parameters the initial outputs depend on (value references: fmi2_damper.c)."""
+def variables(kind: str, start_values: dict, settings: dict, notes: dict | None = None) -> list[dict]:
+    """The native FMU's variables, the one list both model descriptions (FMI 2.0, 3.0) and the pythonfmu
+    slaves are written from, in FMI 2.0 order: name, vr (FMI 2.0), vr3 (FMI 3.0), type ('Real' or
+    'Integer'), causality, variability, initial, unit, start, description, and 'known': True for the
+    inputs and model parameters the initial outputs depend on (value references: fmi2_damper.c).
+
+    notes: parameter name -> text appended to that parameter's description (a tuned FMU states there how
+    well the identification tests determine each identified value: its 95 % range and flags)."""
     out = []
 
     def var(name, vr, causality, variability, unit, description, start=None, initial=None, kind_="Real",
@@ -72,6 +75,8 @@ def variables(kind: str, start_values: dict, settings: dict) -> list[dict]:
         text = (f"{p.description} [{p.unit}]; identification bounds [{p.low:g}, {p.high:g}]" if p.tunable else
                 f"Effect '{p.effect}' (off at 0): {p.description} [{p.unit}], range [{p.low:g}, {p.high:g}]"
                 if p.effect else f"{p.description} [{p.unit}]")
+        if notes and notes.get(p.name):
+            text = f"{text}; {notes[p.name]}"
         var(p.name, 100 + i, "parameter", "tunable" if tunable else "fixed", p.unit, text,
             start_values.get(p.name, p.default), initial="exact", known=True)
     for name, (value, unit, text) in NATIVE_SETTINGS.items():
@@ -126,9 +131,10 @@ def fmi2_model_structure(outputs: list[int], knowns: list[int]) -> Element:
     return ms
 
 
-def fmi2(kind: str, identifier: str, guid: str, start_values: dict, settings: dict, source_file: str) -> bytes:
+def fmi2(kind: str, identifier: str, guid: str, start_values: dict, settings: dict, source_file: str,
+         notes: dict | None = None) -> bytes:
     """modelDescription.xml of the native FMI 2.0 FMU of ``kind``; ``source_file``: the one
-    translation unit of ``sources/`` (value references: fmi2_damper.c)."""
+    translation unit of ``sources/`` (value references: fmi2_damper.c); ``notes``: as ``variables``."""
     root = Element("fmiModelDescription", {
         "fmiVersion": "2.0", "modelName": identifier, "guid": guid,
         "description": _DESCRIPTION.format(kind=kind),
@@ -145,7 +151,7 @@ def fmi2(kind: str, identifier: str, guid: str, start_values: dict, settings: di
     _common(root, kind)
     mv = SubElement(root, "ModelVariables")
     outputs, knowns = [], []
-    for v in variables(kind, start_values, settings):
+    for v in variables(kind, start_values, settings, notes):
         attrs = {"name": v["name"], "valueReference": str(v["vr"]), "description": v["description"],
                  "causality": v["causality"], "variability": v["variability"]}
         if v["initial"]:
@@ -165,11 +171,13 @@ def fmi2(kind: str, identifier: str, guid: str, start_values: dict, settings: di
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + tostring(root, encoding="utf-8")
 
 
-def fmi3(kind: str, identifier: str, token: str, start_values: dict, settings: dict) -> bytes:
+def fmi3(kind: str, identifier: str, token: str, start_values: dict, settings: dict,
+         notes: dict | None = None) -> bytes:
     """modelDescription.xml of the native FMI 3.0 FMU of ``kind``: the variables of the FMI 2.0 one
     (``variables``; Real as Float64, Integer as Int32, value references FMI3_VR where FMI 2.0's
-    cannot be kept) plus the independent variable 'time' (value references: fmi3_damper.c)."""
-    vs = variables(kind, start_values, settings)
+    cannot be kept) plus the independent variable 'time' (value references: fmi3_damper.c);
+    ``notes``: as ``variables``."""
+    vs = variables(kind, start_values, settings, notes)
     root = Element("fmiModelDescription", {
         "fmiVersion": "3.0", "modelName": identifier, "instantiationToken": token,
         "description": _DESCRIPTION.format(kind=kind),

@@ -114,11 +114,13 @@ class DamperSlave(Fmi2Slave):
         self.stroke_limit = NATIVE_SETTINGS["stroke_limit"][0]
         self.velocity_limit = NATIVE_SETTINGS["velocity_limit"][0]
         self.input_interpolation = EXTRAPOLATE
+        notes = {}
         start = os.path.join(self.resources or "", START_VALUES_FILE)
         if self.resources and os.path.exists(start):
             with open(start) as fh:
                 saved = json.load(fh)
             settings = saved.pop("_settings", {})
+            notes = saved.pop("_notes", {})  # text for the parameters' descriptions (a tuned FMU's ranges)
             self._p.update({k: float(v) for k, v in saved.items()})
             for name in ("max_internal_step", "internal_tolerance", "stroke_limit", "velocity_limit"):
                 setattr(self, name, float(settings.get(name, getattr(self, name))))
@@ -133,7 +135,7 @@ class DamperSlave(Fmi2Slave):
         self._init_error: Exception | None = None
         self._initializing = False
 
-        self._native = native_variables(kind, self._p, {})
+        self._native = native_variables(kind, self._p, {}, notes)
         self._native_vr = {(v["type"], v["name"]): v["vr"] for v in self._native}
         params = {p.name for p in MODEL_PARAMETERS[kind]}
         for v in self._native:

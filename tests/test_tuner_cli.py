@@ -227,6 +227,9 @@ def test_end_summary_and_summary_json(maxwell_data, tmp_path, capsys):
     val = metrics["tests"]["maxwell_val3"]["models"]["maxwell"]
     assert summary["validation_ame"]["maxwell_val3"]["maxwell"]["ame_n"] == val["ame"]
     assert summary["quality"]["maxwell"]["describes_data"] == metrics["quality"]["maxwell"]["describes_data"]
+    # how well the tests determine each parameter: every identified parameter has its 95 % range or its reason
+    assert set(summary["parameter_intervals"]["maxwell"]["ranges"]) == {"k_s", "c"}
+    assert "maxwell parameters: " in tail
     assert Path(summary["report"]).exists() and all(Path(f).exists() for f in summary["fmus"])
     # one recommendation, printed and in summary.json alike; a model is recommended only when it passes the gate
     rec = summary["recommendation"]

@@ -25,6 +25,7 @@ from damper_fmu.parameters import EFFECT_MODELS, MODEL_PARAMETERS
 from tuner.data.reading import RigTest
 from tuner.diagnosis.diagnose import DiagnosisFailed, DiagnosisSettings, choose_base, diagnose
 from tuner.identification.fit import FitResult, FitSettings, fit, full_rate_checks
+from tuner.identification.intervals import ModelIntervals
 from tuner.identification.problem import Problem
 from tuner.progress import SubStages, stage
 from tuner.results.diagnosis_report import make_diagnosis_report
@@ -65,12 +66,16 @@ def wants_diagnosis(settings: FitSettings, validation: list[RigTest]) -> bool:
 
 
 def export_fmus(result: FitResult, out: Path) -> list[Path]:
-    """``out/fmu/<Model>_tuned.fmu`` for every fitted model: the identified values as start values."""
+    """``out/fmu/<Model>_tuned.fmu`` for every fitted model: the identified values as start values, and in
+    each identified parameter's description how well the identification tests determine it (its 95 %
+    range and flags, ``tuner.identification.intervals``)."""
     paths = []
     for model, p in result.params.items():
         names = {q.name for q in MODEL_PARAMETERS[model]}
+        notes = ModelIntervals.from_dict(model, p["intervals"]).descriptions() if p.get("intervals") else {
+            n: f"determined range unknown ({p.get('intervals_note', 'no intervals')})" for n in p["bounds"]}
         paths.append(build(model, Path(out) / "fmu", start_values={k: v for k, v in p["values"].items() if k in names},
-                           filename=f"{SLAVES[model]}_tuned.fmu"))
+                           filename=f"{SLAVES[model]}_tuned.fmu", parameter_notes=notes))
     return paths
 
 

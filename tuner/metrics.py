@@ -6,6 +6,10 @@ RMSE [N], NRMSE = RMSE / (max F_exp - min F_exp) [-], R^2 = 1 - SSE / SST [-],
 maximum absolute error [N], peak measured force max |F_exp| [N]. Fitness (eq. 5):
 G = N / SSE [1/N^2] over all samples of all identification tests, concatenated.
 "Variation vs Maxwell" (Table 3): (X_model - X_maxwell) / X_maxwell * 100 [%].
+
+The residual's statistics live here too (one definition for every stage): its correlation time, the
+RMSE's standard error, and the block-sandwich covariance of fitted parameters (``block_sandwich``) with
+the 95 % interval (``interval``, ``Z95``).
 """
 from __future__ import annotations
 
@@ -15,7 +19,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 __all__ = ["ErrorMetrics", "error_metrics", "pooled_mse", "fitness", "variation_percent", "compare_to_maxwell",
-           "PolyOddEven", "polyfit_odd_even", "correlation_time", "rmse_standard_error"]
+           "PolyOddEven", "polyfit_odd_even", "correlation_time", "rmse_standard_error", "block_sandwich",
+           "interval", "Z95"]
 
 
 def _pair(measured, simulated, what: str = "force") -> tuple[np.ndarray, np.ndarray]:
@@ -115,6 +120,59 @@ def rmse_standard_error(r: np.ndarray) -> float:
         raise ValueError("rmse_standard_error: an empty residual")
     n_eff = r.size / max(1.0, 1.0 + 2.0 * float(np.sum(_autocorrelation(r)[1:] ** 2)))
     return math.sqrt(float(r @ r) / r.size) / math.sqrt(2.0 * n_eff)
+
+
+# -- intervals of fitted parameters when the residuals are correlated ---------------------------------
+# A least-squares fit's textbook covariance sigma^2 (J^T J)^-1 assumes white residuals. The residual of a
+# damper fit is not white: model-form error is smooth in time and repeats at every velocity reversal, and
+# the fit band's low-pass correlates even white noise, so the textbook interval is far too narrow.
+# ``block_sandwich`` uses the sandwich (heteroscedasticity and autocorrelation consistent) estimate
+#
+#     Cov = (J^T J)^+ [ sum over blocks b of (J_b^T r_b)(J_b^T r_b)^T ] (J^T J)^+
+#
+# with contiguous blocks (within one test) several residual correlation times long: the analytic
+# counterpart of a residual block bootstrap. Units: J [N per coordinate unit], r [N]; covariances in
+# coordinate units^2 (the caller converts). The diagnosis's effect intervals
+# (``tuner.diagnosis.refit.effect_intervals``) and the identified parameters' intervals
+# (``tuner.identification.intervals``) share it.
+
+#: two-sided 95 % normal quantile
+Z95 = 1.959963984540054
+
+
+def block_sandwich(jac: np.ndarray, r: np.ndarray, lengths: list[int], block: int) -> tuple[np.ndarray, int]:
+    """(covariance of the parameters [scaled^2], number of blocks) from the residual Jacobian
+    ``jac`` (n x p), the residual ``r`` (n) and per-test ``lengths`` (the blocks never straddle
+    two tests; a test's last partial block joins the one before it)."""
+    jac = np.asarray(jac, dtype=float)
+    r = np.asarray(r, dtype=float)
+    if jac.shape[0] != r.size or sum(lengths) != r.size:
+        raise ValueError(f"Jacobian rows {jac.shape[0]}, residual {r.size} and test lengths "
+                         f"{sum(lengths)} must agree")
+    block = max(1, int(block))
+    scores, start = [], 0
+    for n in lengths:
+        edges = list(range(start, start + n, block))
+        if len(edges) > 1 and start + n - edges[-1] < block:
+            edges.pop()  # the short tail joins the previous block
+        for a, b in zip(edges, edges[1:] + [start + n]):
+            scores.append(jac[a:b].T @ r[a:b])
+        start += n
+    s = np.array(scores)
+    bread = np.linalg.pinv(jac.T @ jac, rcond=1e-12, hermitian=True)
+    meat = s.T @ s
+    nb, p = len(scores), jac.shape[1]
+    if nb > p:
+        meat *= nb / (nb - p)  # small-sample correction of the block scores' spread
+    return bread @ meat @ bread, nb
+
+
+def interval(value: float, std: float, low_bound: float | None = None) -> tuple[float, float]:
+    """Two-sided 95 % interval value +- Z95 std, clipped at ``low_bound`` (a physical lower bound)."""
+    lo, hi = value - Z95 * std, value + Z95 * std
+    if low_bound is not None:
+        lo = max(lo, low_bound)
+    return lo, hi if math.isfinite(hi) else math.inf
 
 
 def fitness(measured, simulated) -> float:

@@ -5,22 +5,46 @@ import json
 from pathlib import Path
 
 from tuner.cli.log import log
+from tuner.identification.intervals import ModelIntervals
 from tuner.results.recommendation import recommend
 from tuner.vehicle.compare import VEHICLE_FOLDER
 from tuner import strict_json
 
-__all__ = ["end_summary", "print_table3"]
+__all__ = ["end_summary", "print_table3", "interval_summary"]
+
+
+def interval_summary(parameters: dict) -> dict:
+    """summary.json's ``parameter_intervals`` from parameters.json: per model the one-line summary, the
+    names per flag ('determined', 'at_bound', 'not_determined', 'extrapolated'), the ties {name: [names]}
+    and each parameter's 95 % range {name: {"low", "high", "status", "unit"}} (SI; low and high null with
+    the status 'not determined' when the tests do not move the force along it); {"note": why} for a model
+    without intervals."""
+    out = {}
+    for model, entry in parameters.items():
+        if not isinstance(entry, dict) or not entry.get("intervals"):
+            out[model] = {"note": (entry or {}).get("intervals_note", "no intervals in parameters.json")}
+            continue
+        iv = ModelIntervals.from_dict(model, entry["intervals"])
+        flags = (("determined", "determined"), ("at_bound", "at a bound"), ("not_determined", "not determined"),
+                 ("extrapolated", "extrapolated"))
+        out[model] = {"summary": iv.summary_text(), **{key: iv.names_with(flag) for key, flag in flags},
+                      "tied": {p.name: [n for n, _ in p.tied_to] for p in iv.parameters if p.tied_to},
+                      "ranges": {p.name: {"low": p.low, "high": p.high, "status": p.status, "unit": p.unit}
+                                 for p in iv.parameters}}
+    return out
 
 
 def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
     """Write ``summary.json`` and print the end-of-run summary once, after everything is written: the
     recommendation (``tuner.results.recommendation``: the model and FMU to use and why, the same as the
-    report's box), verdict, causes, validation AME per test and model, quality gate, where the report and
-    FMUs are. ``seconds``: the run's time [s]."""
+    report's box), verdict, causes, validation AME per test and model, quality gate, how well the tests
+    determine each model's parameters (``interval_summary``), where the report and FMUs are. ``seconds``:
+    the run's time [s]."""
     metrics = strict_json.loads((out / "metrics.json").read_text()) if (out / "metrics.json").exists() else {}
     diag = strict_json.loads((out / "diagnosis.json").read_text()) if (out / "diagnosis.json").exists() else {}
     vpath = out / VEHICLE_FOLDER / "vehicle.json"
     vehicle = strict_json.loads(vpath.read_text()) if vpath.exists() else {}
+    params = strict_json.loads((out / "parameters.json").read_text()) if (out / "parameters.json").exists() else {}
     ame = {}
     for name, t in (metrics.get("tests") or {}).items():
         if t.get("role") == "validation":
@@ -35,6 +59,7 @@ def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
         "quality": {m: {k: q[k] for k in ("describes_data", "worst_ame_pct_of_peak", "worst_test", "gate_pct")}
                     for m, q in (metrics.get("quality") or {}).items()},
         "validation_ame": ame,
+        "parameter_intervals": interval_summary(params),
         "critical_speed_kmh": {k: (r.get("critical_speed") or {}).get("critical_speed_kmh")
                                for k, r in vehicle.get("results", {}).items()},
         "report": str(out / "report.html") if (out / "report.html").exists() else None,
@@ -53,6 +78,8 @@ def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
         models = sorted({m for r in ame.values() for m in r})
         lines.append("  validation AME [% of peak]: " + "; ".join(
             f"{n}: " + ", ".join(f"{m} {r[m]['ame_pct_of_peak']:.3g}" for m in models if m in r) for n, r in ame.items()))
+    for m, iv in summary["parameter_intervals"].items():
+        lines.append(f"  {m} parameters: {iv.get('summary') or iv['note']}")
     if summary["verdict"]:
         lines.append(f"  diagnosis: {summary['verdict']}")
     if summary["critical_speed_kmh"]:

@@ -12,51 +12,12 @@ counterpart of a residual block bootstrap. ``correlation_time`` (``tuner.metrics
 gives that time from the residual's autocorrelation.
 
 Units: J [N per scaled unit], r [N]; covariances in scaled units^2 (the caller converts).
+
+The functions live in ``tuner.metrics`` (the one definition, shared with the identified parameters'
+intervals of ``tuner.identification.intervals``); they are re-exported here under their names.
 """
 from __future__ import annotations
 
-import math
-
-import numpy as np
-
-from tuner.metrics import correlation_time
+from tuner.metrics import Z95, block_sandwich, correlation_time, interval
 
 __all__ = ["correlation_time", "block_sandwich", "interval", "Z95"]
-
-#: two-sided 95 % normal quantile
-Z95 = 1.959963984540054
-
-
-def block_sandwich(jac: np.ndarray, r: np.ndarray, lengths: list[int], block: int) -> tuple[np.ndarray, int]:
-    """(covariance of the parameters [scaled^2], number of blocks) from the residual Jacobian
-    ``jac`` (n x p), the residual ``r`` (n) and per-test ``lengths`` (the blocks never straddle
-    two tests; a test's last partial block joins the one before it)."""
-    jac = np.asarray(jac, dtype=float)
-    r = np.asarray(r, dtype=float)
-    if jac.shape[0] != r.size or sum(lengths) != r.size:
-        raise ValueError(f"Jacobian rows {jac.shape[0]}, residual {r.size} and test lengths "
-                         f"{sum(lengths)} must agree")
-    block = max(1, int(block))
-    scores, start = [], 0
-    for n in lengths:
-        edges = list(range(start, start + n, block))
-        if len(edges) > 1 and start + n - edges[-1] < block:
-            edges.pop()  # the short tail joins the previous block
-        for a, b in zip(edges, edges[1:] + [start + n]):
-            scores.append(jac[a:b].T @ r[a:b])
-        start += n
-    s = np.array(scores)
-    bread = np.linalg.pinv(jac.T @ jac, rcond=1e-12, hermitian=True)
-    meat = s.T @ s
-    nb, p = len(scores), jac.shape[1]
-    if nb > p:
-        meat *= nb / (nb - p)  # small-sample correction of the block scores' spread
-    return bread @ meat @ bread, nb
-
-
-def interval(value: float, std: float, low_bound: float | None = None) -> tuple[float, float]:
-    """Two-sided 95 % interval value +- Z95 std, clipped at ``low_bound`` (a physical lower bound)."""
-    lo, hi = value - Z95 * std, value + Z95 * std
-    if low_bound is not None:
-        lo = max(lo, low_bound)
-    return lo, hi if math.isfinite(hi) else math.inf

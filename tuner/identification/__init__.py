@@ -7,6 +7,7 @@
 - ``reference``: the converged Radau reference;
 - ``firefly``: the Firefly algorithm;
 - ``polish``: the local solver (projected Levenberg-Marquardt);
+- ``intervals``: 95 % intervals and identifiability flags of every identified parameter at the fit;
 - ``fit``: identification and validation (``fit`` returns a ``FitResult``);
 - ``full_rate``: the full-rate check of a decimated fit.
 """

@@ -2,7 +2,10 @@
 through the FMU the user gets. ``fit`` returns a ``FitResult``; ``FitResult.write`` stores it (SI units
 everywhere); ``tuner.job`` runs the whole job (FMUs, diagnosis, report):
 
-    parameters.json        identified values, units, bounds, parametrization per model
+    parameters.json        identified values, units, bounds, parametrization per model, and the 95 %
+                           intervals with identifiability flags of every identified parameter
+                           (``intervals``: ``tuner.identification.intervals.ModelIntervals.to_dict``;
+                           null with ``intervals_note`` saying why when they could not be computed)
     metrics.json           settings/provenance, metrics per test and model, the paper's Table 3,
                            quality gate (the job adds the full-rate check, tuner.identification.full_rate)
     history_<model>.json   mean/best fitness per generation, initial and final populations
@@ -31,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from damper_fmu.fmu import ensure_fmu
+from damper_fmu.models import ConvergenceError
 from damper_fmu.parameters import EFFECT_MODELS, FK_REFERENCE_STIFFNESS, defaults
 
 from tuner.data.preprocess import prepare
@@ -38,9 +42,11 @@ from tuner.data.reading import RigTest
 from tuner.identification import firefly
 from tuner.identification.engine import IDENTIFICATION_STEP, Engine, Signals, simulate_signals
 from tuner.identification.full_rate import MIN_RATE_RATIO, comparison_rate, full_rate_check
+from tuner.identification.intervals import model_intervals
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.polish import polish, resolution_stop, small_progress
 from tuner.identification.problem import DataSettings, Problem, to_signals
+from tuner.identification.runner import SimulationError
 from tuner.metrics import error_metrics, noise_std
 from tuner.progress import advance, stage
 from tuner import strict_json
@@ -363,7 +369,8 @@ class FitResult:
     """What :func:`fit` found, in memory (SI units). ``write(out)`` stores it as the output folder's
     data files (module docstring); ``tuner.job`` adds the FMUs, the diagnosis and the report.
 
-    params: {model: {"values", "units", "bounds", "parametrization"}}; histories: {model: Firefly and
+    params: {model: {"values", "units", "bounds", "parametrization", "intervals" (and "intervals_note" when
+    they are None)}}; histories: {model: Firefly and
     refinement history}; metrics: {"settings", "tests": {name: {role, scenario, models: {model:
     metrics}}}, "table3", "quality"} (``full_rate`` added by the job); simulations: name -> array of
     simulations.npz (``<test>__time`` [s], ``__stroke`` [m], ``__force`` [N], ``__<model>`` [N]);
@@ -392,6 +399,19 @@ class FitResult:
     def write_metrics(self, out: Path) -> None:
         """metrics.json into ``out`` (again after a later stage added to ``metrics``)."""
         (Path(out) / "metrics.json").write_text(strict_json.dumps(self.metrics, indent=2, sort_keys=True))
+
+
+def _intervals(model: str, signals: list[Signals], par: Parametrization, best: dict, engine: str, log) -> dict:
+    """{"intervals": the ``tuner.identification.intervals.ModelIntervals`` of the fitted model as a dict}, or
+    {"intervals": None, "intervals_note": why} when the fitted model cannot be simulated around its point
+    (the fit itself is kept). Logs the one-line summary."""
+    try:
+        iv = model_intervals(model, signals, par, best, engine=engine)
+    except (SimulationError, ConvergenceError, ValueError) as err:
+        log(f"[{model}] parameter intervals not computed: {err}")
+        return {"intervals": None, "intervals_note": f"not computed: {err}"}
+    log(f"[{model}] {iv.summary_text()}")
+    return {"intervals": iv.to_dict()}
 
 
 def fit(identification: list[RigTest], validation: list[RigTest], settings: FitSettings, *,
@@ -437,7 +457,8 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
                                   if model in EFFECT_MODELS and fitted_bases else None)
             params[model] = {"values": best, "units": dict(par.units),
                              "bounds": {n: list(par.bounds[n]) for n in par.names},
-                             "parametrization": settings.parametrization}
+                             "parametrization": settings.parametrization,
+                             **_intervals(model, signals, par, best, settings.engine, log)}
             rmse_id = 1.0 / math.sqrt(hist["best_fitness_final"]) if hist["best_fitness_final"] > 0 else math.inf
             hist["noise_floor_n"] = noise
             hist["noise_credible"] = bool(problem.noise.get("credible", True))

@@ -4,6 +4,7 @@
 - ``report``: the HTML report of a fit output folder;
 - ``fit_folder``: what the report reads (``FitFolder``);
 - ``fit_figures``: the fit report's figures (the paper's Figs. 6-11 and the loops);
+- ``intervals_report``: the identified parameters' intervals and flags (tables, characteristics with bands);
 - ``diagnosis_report``: the diagnosis section, and the report of a diagnosis on its own;
 - ``vehicle_report``: the vehicle section (the tuned FMUs in the vehicle, side by side);
 - ``html``: HTML building blocks (tables, figures, numbers, the page);

@@ -2,7 +2,7 @@
 
 ``make_report(out_dir)`` reads what ``tuner.identification.fit`` writes (SI units throughout)::
 
-    parameters.json       {model: {values, units, bounds, parametrization}}
+    parameters.json       {model: {values, units, bounds, parametrization, intervals}}
     metrics.json          {settings, tests: {name: {role, scenario, models: {model: metrics}}}, table3,
                            quality, full_rate}
     history_<model>.json  mean/best fitness per generation, initial and final populations (optional)
@@ -13,14 +13,17 @@ recommendation of what to use (``tuner.results.recommendation``, also in the end
 the paper's Table 3 with further indices, Figs. 9-10 (forces, differences, a zoom on the largest
 error), force-stroke and force-velocity loops, Fig. 6 (fitness), Fig. 7 (constant parameters),
 Fig. 8 (tables of the populations), Fig. 11 with eqs. 9-10 (5th-order fit, odd/even parts), the
-Table 2 form of the parameters with bound flags, and the run settings. Missing optional inputs
+Table 2 form of the parameters with bound flags, how well the tests determine each parameter (95 %
+intervals, identifiability flags and the characteristics with their bands: ``intervals_report``), and
+the run settings. Missing optional inputs
 (a model, a history file, the simulations) skip their figure and say so in the report.
 
 Errors (difference plots, metrics) are measured minus simulated force [N]. Samples before
 ``settings["warmup_s"]`` are drawn shaded; the metrics in metrics.json exclude them.
 
 The report's parts live beside it: what is read (``fit_folder``), the figures (``fit_figures``), the
-diagnosis and vehicle sections (``diagnosis_report``, ``vehicle_report``), the HTML building blocks
+parameter intervals (``intervals_report``), the diagnosis and vehicle sections (``diagnosis_report``,
+``vehicle_report``), the HTML building blocks
 (``html``); this module writes the fit report's own sections and assembles the page.
 """
 from __future__ import annotations
@@ -39,6 +42,7 @@ from tuner.results.diagnosis_report import diagnosis_section_html
 from tuner.results.fit_figures import bound_position, bounds_of, fig_constants, fig_fitness, fig_forces, fig_loops, fig_polyfit, fig_populations, is_log, polyfits
 from tuner.results.fit_folder import FitFolder
 from tuner.results.html import MODEL_LABEL, esc, figure_html, model_label, num, table, write_page
+from tuner.results.intervals_report import intervals_section_html
 from tuner.results.recommendation import railway_damper, recommend, recommendation_html
 from tuner.results.vehicle_report import vehicle_section_html
 
@@ -424,7 +428,8 @@ def make_report(out_dir, *, dpi: int = 110) -> Path:
         ("metrics", "Accuracy tables", True), ("time", "Force time histories and loops", True),
         ("fitness", "Fitness evolution", True), ("constants", "Constant parameters", True),
         ("tables", "Oil characteristics", True), ("poly", "Polynomial fits", True),
-        ("params", "Identified parameters", True), ("provenance", "Provenance", True)) if shown)
+        ("params", "Identified parameters", True), ("intervals", "Parameter intervals", True),
+        ("provenance", "Provenance", True)) if shown)
     intro = (f"<p>Identification of a hydraulic damper model (lumped nonlinear model of Isacchi, Ripamonti "
              f"and Corsi 2023) against rig measurements{', dataset <code>' + esc(ds) + '</code>' if ds else ''}; "
              f"models: {', '.join(model_label(m) for m in run.models)}; "
@@ -436,7 +441,7 @@ def make_report(out_dir, *, dpi: int = 110) -> Path:
             diagnosis, vehicle, _metrics_section(run),
             _timeseries_section(run, fdir, dpi), _fitness_section(run, fdir, dpi),
             _population_sections(run, fdir, dpi), _poly_section(run, fdir, dpi), _params_section(run),
-            _provenance_section(run)]
+            intervals_section_html(run, fdir, dpi), _provenance_section(run)]
     return write_page(out, title, body)
 
 
