@@ -528,11 +528,17 @@ def residual_figures(tests: list[TestResidual], out_dir: Path, prefix: str = "di
     sty = [{"color": f"C{i % 10}", "ls": "-" if p.t.role == "identification" else "--",
             "label": f"{p.t.name} ({p.t.role[:5]}.)"} for i, p in enumerate(preps)]
 
-    def save(fig, topic):
+    for topic, draw in (("time", _figure_time), ("loops", _figure_loops), ("reversals", _figure_reversals),
+                        ("spectra", _figure_spectra), ("drift", _figure_drift)):
+        fig = draw(preps, sty)
         FigureCanvasAgg(fig)
-        fig.savefig(out_dir / f"{prefix}_residual_{topic}.png", dpi=110)
         paths.append(out_dir / f"{prefix}_residual_{topic}.png")
+        fig.savefig(paths[-1], dpi=110)
+    return paths
 
+
+def _figure_time(preps: list, sty: list) -> Figure:
+    """Residual [N] in time over the measured force (grey: outside the mask), one panel per test."""
     fig = Figure(figsize=(10, 1.2 + 2.0 * len(preps)), layout="constrained")
     for p, st, ax in zip(preps, sty, fig.subplots(len(preps), 1, squeeze=False)[:, 0]):
         t, g, bx = p.t, _summary([p]), ax.twinx()
@@ -545,8 +551,11 @@ def residual_figures(tests: list[TestResidual], out_dir: Path, prefix: str = "di
             ax.axvspan(t.time[a], t.time[b - 1], color="0.9", lw=0, zorder=0)
         _finish(ax, "time [s]", "residual [N]", f"{t.name} ({t.role}): rms residual {g['rms_residual']:.0f} N "
                 f"= {g['residual_pct'] or 0:.1f} % of the force rms")
-    save(fig, "time")
+    return fig
 
+
+def _figure_loops(preps: list, sty: list) -> Figure:
+    """Residual [N] against velocity and stroke (the residual loops)."""
     fig = Figure(figsize=(11, 4.5), layout="constrained")
     axs = fig.subplots(1, 2, sharey=True)
     for p, st in zip(preps, sty):
@@ -555,8 +564,11 @@ def residual_figures(tests: list[TestResidual], out_dir: Path, prefix: str = "di
     _finish(axs[0], "damper velocity [mm/s] (+ extension)", "residual measured - simulated [N] (+ tension)",
             "residual vs velocity (F-v residual loop)", legend=True)
     _finish(axs[1], "stroke [mm] (+ extension)", "", "residual vs stroke (F-x residual loop)")
-    save(fig, "loops")
+    return fig
 
+
+def _figure_reversals(preps: list, sty: list) -> Figure:
+    """Residual x sign(v after) averaged around velocity reversals, with -F_sim."""
     tau = np.arange(*np.rint(np.array(REVERSAL_SPAN_S) * 1e3 + [0, 1]).astype(int)) * 1e-3
     fig = Figure(figsize=(9, 4.8), layout="constrained")
     ax, rr, ff = fig.subplots(), [], []
@@ -575,8 +587,11 @@ def residual_figures(tests: list[TestResidual], out_dir: Path, prefix: str = "di
     _finish(ax, "time from velocity reversal [ms]", "force x sign(v after reversal) [N]",
             "residual averaged around velocity reversals (shaded: free-play window)"
             + ("" if rr else ": no reversals in the masked samples"), legend=bool(rr))
-    save(fig, "reversals")
+    return fig
 
+
+def _figure_spectra(preps: list, sty: list) -> Figure:
+    """Welch spectra of residual and force, and their ratio."""
     fig = Figure(figsize=(11, 4.5), layout="constrained")
     a1, a2 = fig.subplots(1, 2, sharex=True)
     top = 0.0
@@ -594,8 +609,11 @@ def residual_figures(tests: list[TestResidual], out_dir: Path, prefix: str = "di
         a1.set_ylim(1e-9 * top, 3 * top)
     _finish(a1, "frequency [Hz]", "PSD [N^2/Hz]", "residual (lines) and measured force (faint), Welch", True)
     _finish(a2, "frequency [Hz]", "residual / force PSD [-]", "residual-to-force spectral ratio")
-    save(fig, "spectra")
+    return fig
 
+
+def _figure_drift(preps: list, sty: list) -> Figure:
+    """Windowed rms residual and force gain against time and temperature."""
     hot = any(p.t.temperature is not None for p in preps)
     fig = Figure(figsize=(5 + 4 * hot, 6), layout="constrained")
     axs = fig.subplots(2, 1 + hot, squeeze=False)
@@ -608,5 +626,4 @@ def residual_figures(tests: list[TestResidual], out_dir: Path, prefix: str = "di
         _finish(axs[0, j], "", f"rms residual per {DRIFT_WINDOW_S:g} s [N]",
                 "drift (thermal signature)" if j == 0 else "", legend=j == 0)
         _finish(axs[1, j], xl, "force gain measured / simulated [-]")
-    save(fig, "drift")
-    return paths
+    return fig
