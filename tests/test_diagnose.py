@@ -93,7 +93,7 @@ def test_friction_hidden_in_the_twin_tube_damper_is_named_on_the_two_chamber_bas
 
 
 @pytest.mark.slow
-@pytest.mark.full  # about 8 min (benchmarks/confusion_matrix.py --damper twin-tube --effects free_play measures it)
+@pytest.mark.full  # about 5 min (benchmarks/confusion_matrix.py --damper twin-tube --effects free_play measures it)
 def test_free_play_in_the_twin_tube_damper_is_named_after_the_base_is_chosen_again(tmp_path):
     """The physical twin-tube damper with a free play drawn in its typical range: a gap makes both bare
     bases fit badly and the base chosen first may be the wrong form; its diagnosis leaves a residual
@@ -106,8 +106,8 @@ def test_free_play_in_the_twin_tube_damper_is_named_after_the_base_is_chosen_aga
     assert res["effect_parameters"]["free_play"]["value"] == pytest.approx(value, rel=0.2)
 
 
-#: twin-tube single-effect blind tests beyond CI's friction, all seven candidates (2-3 min each, 8.6 min
-#: for the four on 2026-11-24; free play above). Valve lag is not among them: the rig's valve lag acts
+#: twin-tube single-effect blind tests beyond CI's friction, all seven candidates (1-1.5 min each since the
+#: screen, 2026-11-25; free play above). Valve lag is not among them: the rig's valve lag acts
 #: on its blow-off valves, which open only in the switch manoeuvre, an identification test; the
 #: held-out tests, on which every verdict rests, see 0.1-3.3 N rms of it against 10 N of noise
 #: (benchmarks/confusion_matrix.py prints that force), so no verdict can be earned for it with this
@@ -119,7 +119,7 @@ TWIN_TUBE_REL = {"inertia": 0.7}
 
 
 @pytest.mark.slow
-@pytest.mark.full  # 2-3 min each
+@pytest.mark.full  # 1-1.5 min each
 @pytest.mark.parametrize("effect", TWIN_TUBE_FULL)
 def test_an_effect_hidden_in_the_twin_tube_damper_is_named_blind_on_the_two_chamber_base(tmp_path, effect):
     spec = EFFECTS[effect]
@@ -134,7 +134,7 @@ def test_an_effect_hidden_in_the_twin_tube_damper_is_named_blind_on_the_two_cham
 
 #: the CI suite (10 min on 2 cores) runs the blind detection as friction and inertia hidden together
 #: in the lumped damper (below) and friction in the twin-tube damper (above); the single effects on
-#: the lumped damper run with DAMPER_FULL_TESTS=1 (all seven, 5.6 min on 2026-11-24) and in
+#: the lumped damper run with DAMPER_FULL_TESTS=1 (all seven, 3.7 min of test time on 2026-11-25) and in
 #: benchmarks/confusion_matrix.py (5/5 each with five seeds, 2026-11-23); a preload's residual
 #: signature is also checked analytically in tests/test_residuals.py
 
