@@ -2,6 +2,7 @@
 validation before and after, evidence) and the report of a diagnosis on its own."""
 from __future__ import annotations
 
+import html
 import math
 from pathlib import Path
 
@@ -39,48 +40,66 @@ def detection_html(limits: dict) -> str:
             + table(["effect", "the kind it covers", "detectable from", "best test", "limited by"], rows))
 
 
-def diagnosis_section_html(out_dir) -> str:
-    """HTML section of the report for ``out_dir/diagnosis.json`` ('' when there is none)."""
-    import html
+#: the head of a ranking table ({ref}: what the validation MSE change is measured against)
+RANKING_HEAD = ("<tr><th>candidate</th><th>fitted parameters</th><th>95 % interval</th><th>validation MSE change vs "
+                "{ref}</th><th>score</th><th>effect force [N rms]</th></tr>")
 
-    path = Path(out_dir) / "diagnosis.json"
-    if not path.exists():
-        return ""
-    d = strict_json.loads(path.read_text())
-    if d.get("failed_stage"):
-        return _failure_html(d)
-    e = html.escape
-    causes = d.get("causes") or ([d["cause"]] if d["cause"] not in ("none", "unexplained") else [])
 
-    def _rows(ranking, winner):
-        out = []
-        for r in ranking:
-            cls = " class='winner'" if r["effect"] == winner else ""
-            fitted = ", ".join(f"{n} = {effect_value(n, v, r['units'][n])}" for n, v in r["parameters"].items())
-            why = " (evidence disagrees)" if r.get("evidence_agrees") is False else " (below noise)"
-            size = (f"{r['effect_rms_n']:.3g}" + ("" if r.get("resolved", True) else why)
-                    if r.get("parameters") else "-")
-            ci = ", ".join(f"{fmt_quantity(lo, r['units'][n])} .. {fmt_quantity(hi, r['units'][n])}"
-                           for n, (lo, hi) in r.get("interval", {}).items())
-            ci += "" if "significant" not in r else (" (excludes 0)" if r["significant"] else " (includes 0)")
-            ci += "; magnitude below the effect's physical range" if r.get("meaningful") is False else ""
-            if r.get("excess_explained") is not None:  # a form: how much of the residual above the floor it removes
-                ci += f"; removes {100 * r['excess_explained']:.0f} % of the held-out residual above the floor"
-            out.append(f"<tr{cls}><td>{e(r['effect'])}</td><td>{e(fitted)}</td><td>{e(ci or '-')}</td>"
-                       f"<td>{r['validation_mse_change_pct']:+.1f} %</td><td>{r['score']:+.3f}</td>"
-                       f"<td>{e(size)}</td></tr>")
-        return "".join(out)
+def _ranking_rows(ranking: list[dict], winner: str | None) -> str:
+    """Table rows of ranking entries (``diagnosis.json``), the named one marked."""
+    e, out = html.escape, []
+    for r in ranking:
+        cls = " class='winner'" if r["effect"] == winner else ""
+        fitted = ", ".join(f"{n} = {effect_value(n, v, r['units'][n])}" for n, v in r["parameters"].items())
+        why = " (evidence disagrees)" if r.get("evidence_agrees") is False else " (below noise)"
+        size = (f"{r['effect_rms_n']:.3g}" + ("" if r.get("resolved", True) else why)
+                if r.get("parameters") else "-")
+        ci = ", ".join(f"{fmt_quantity(lo, r['units'][n])} .. {fmt_quantity(hi, r['units'][n])}"
+                       for n, (lo, hi) in r.get("interval", {}).items())
+        ci += "" if "significant" not in r else (" (excludes 0)" if r["significant"] else " (includes 0)")
+        ci += "; magnitude below the effect's physical range" if r.get("meaningful") is False else ""
+        ci += "; magnitude at its search bound" if r.get("within_bounds") is False else ""
+        ci += "; interval above the effect's plausible range" if r.get("plausible") is False else ""
+        if r.get("excess_explained") is not None:  # a form: how much of the residual above the floor it removes
+            ci += f"; removes {100 * r['excess_explained']:.0f} % of the held-out residual above the floor"
+        out.append(f"<tr{cls}><td>{e(r['effect'])}</td><td>{e(fitted)}</td><td>{e(ci or '-')}</td>"
+                   f"<td>{r['validation_mse_change_pct']:+.1f} %</td><td>{r['score']:+.3f}</td>"
+                   f"<td>{e(size)}</td></tr>")
+    return "".join(out)
 
-    head = ("<tr><th>candidate</th><th>fitted parameters</th><th>95 % interval</th><th>validation MSE change vs "
-            "{ref}</th><th>score</th><th>effect force [N rms]</th></tr>")
-    rows = _rows(d["ranking"], causes[0] if causes else None)
-    steps = ""
+
+def _steps_html(d: dict, causes: list[str]) -> str:
+    """The forward-selection steps and the forms' tables (weighed with the causes on the base, or on top)."""
+    e, steps = html.escape, ""
     for k, st in enumerate(d.get("selection", [])):
         if st.get("tried"):
             added = causes[k + 1] if st["cause"] != "none" else None
             winner = next((r["effect"] for r in st["tried"] if r.get("added") == added), None) if added else None
             steps += (f"<h3>Forward selection, step {k + 2}: on top of {e(' + '.join(causes[:k + 1]))}</h3>"
-                      f"<table>{head.format(ref='the causes so far')}{_rows(st['tried'], winner)}</table>")
+                      f"<table>{RANKING_HEAD.format(ref='the causes so far')}{_ranking_rows(st['tried'], winner)}"
+                      "</table>")
+    weighed, tried = d.get("forms_weighed"), d.get("forms_tried")
+    if weighed and weighed != tried:  # weighed on the base against a catalogue cause, and not named
+        steps += ("<h3>Forms beyond the catalogue, weighed with the causes on the base refitted alike</h3>"
+                  "<p>A catalogue cause was named while the base left a residual above the floor; a form that "
+                  "scored above it would have been the first cause.</p>"
+                  f"<table>{RANKING_HEAD.format(ref='the base refitted alike')}{_ranking_rows(weighed, None)}</table>")
+    if tried:  # the catalogue left a residual above the floor, or a form was weighed and came first
+        named = next((r["effect"] for r in tried if r["added"] == d.get("form")), None)
+        first = bool(weighed) and weighed == tried
+        model = "the base refitted alike" if first else (
+            " + ".join(c for c in causes if c != d.get("form")) or "the base refitted alike")
+        steps += (f"<h3>Forms beyond the catalogue, on top of {e(model)}</h3><p>Tried because the residual stayed "
+                  "above the floor. A form is named on the rules of a cause and only when it removes at least half "
+                  "of the held-out residual above the floor (one that patches part of another error is not the "
+                  f"missing element).</p><table>{RANKING_HEAD.format(ref=e(model))}{_ranking_rows(tried, named)}"
+                  "</table>")
+    return steps
+
+
+def _tables_html(d: dict) -> tuple[str, str]:
+    """(validation before/after rows, effect parameters vs plausible ranges rows)."""
+    e = html.escape
     val = "".join(f"<tr><td>{e(n)}</td><td>{v['mse_before']:.3e}</td><td>{v['mse_after']:.3e}</td>"
                   f"<td>{v['mse_change_pct']:+.1f} %</td><td>{v['ame_before']:.0f}</td><td>{v['ame_after']:.0f}</td></tr>"
                   for n, v in d["validation"].items())
@@ -89,15 +108,12 @@ def diagnosis_section_html(out_dir) -> str:
                      f"{e(fmt_quantity(p['plausible_range'][1], p['unit']))}</td>"
                      f"<td>{'yes' if p['plausible'] else 'NO'}</td></tr>" if "plausible_range" in p else
                      "- (a shape: no typical size)</td><td>-</td></tr>") for n, p in d["effect_parameters"].items())
-    if d.get("forms_tried"):  # the catalogue left a residual above the floor: forms beyond it were tried
-        named = next((r["effect"] for r in d["forms_tried"] if r["added"] == d.get("form")), None)
-        model = " + ".join(c for c in causes if c != d.get("form")) or "the base refitted alike"
-        steps += (f"<h3>Forms beyond the catalogue, on top of {e(model)}</h3><p>Tried because the residual stayed "
-                  "above the floor. A form is named on the rules of a cause and only when it removes at least half "
-                  "of the held-out residual above the floor (one that patches part of another error is not the "
-                  f"missing element).</p><table>{head.format(ref=e(model))}"
-                  f"{_rows(d['forms_tried'], named)}"
-                  "</table>")
+    return val, eff
+
+
+def _evidence_html(d: dict) -> str:
+    """List items of the residual evidence: each signature's sentence, and the joint screen."""
+    e = html.escape
     ev = (d.get("evidence") or {}).get("effects", {})
     ev_rows = "".join(f"<li><b>{e(k)}</b>: {e(str(v.get('sentence', '')))}</li>" for k, v in ev.items()
                       if isinstance(v, dict) and v.get("sentence"))
@@ -108,32 +124,57 @@ def diagnosis_section_html(out_dir) -> str:
                     f"{scr['threshold_n']:.3g} N or of unphysical sign dropped): keeps {e(kept)}, explaining "
                     f"{100 * scr['r2_kept']:.0f} % of the residual power; all seven together "
                     f"{100 * scr['r2_all']:.0f} %: the most any linear mix of catalogue effects could remove</li>")
-    figs = "".join(f"<figure><img src='{e(f)}' alt='{e(f)}'></figure>" for f in d.get("figures", []))
-    s = d["settings"]
+    return ev_rows
+
+
+def _base_html(d: dict) -> str:
+    """The base model and how it was chosen (again after the diagnosis when the first choice left a residual)."""
+    e = html.escape
     base_kind = d.get("base_model", "lumped")
     choice = d.get("base_choice") or {}
-    base_text = (f"<p>Base model: <b>{e(MODEL_LABEL.get(base_kind, base_kind))}</b>"
-                 + (", chosen by " + e(choice.get("by", "")) + ": " + ", ".join(
-                     f"{e(MODEL_LABEL.get(k, k))} {math.sqrt(v):.3g} N rms" for k, v in choice["validation_mse"].items())
-                    if choice.get("validation_mse") else "") + ".</p>")
+    text = (f"<p>Base model: <b>{e(MODEL_LABEL.get(base_kind, base_kind))}</b>"
+            + (", chosen by " + e(choice.get("by", "")) + ": " + ", ".join(
+                f"{e(MODEL_LABEL.get(k, k))} {math.sqrt(v):.3g} N rms" for k, v in choice["validation_mse"].items())
+               if choice.get("validation_mse") else "") + ".</p>")
     if choice.get("after_diagnosis"):  # the first choice left a residual above the floor: both diagnosed
-        base_text += ("<p>The first choice, " + e(MODEL_LABEL.get(choice["first_choice"], choice["first_choice"]))
-                      + ", left a residual above the floor, so the diagnosis was repeated on every base form and "
-                      "the final model with the lowest held-out MSE kept: " + ", ".join(
-                          f"{e(MODEL_LABEL.get(k, k))} with {e(' + '.join(v['causes']) or 'no cause')} "
-                          f"{math.sqrt(v['validation_mse']):.3g} N rms" for k, v in choice["after_diagnosis"].items())
-                      + ".</p>")
-    floor_text = (f" The residual floor is {d['residual_floor_n']:.3g} N: the force noise and the "
-                  f"{d['stroke_noise_force_n']:.3g} N the stroke channel's noise makes through the model."
-                  if d.get("residual_floor_n") else "")
+        text += ("<p>The first choice, " + e(MODEL_LABEL.get(choice["first_choice"], choice["first_choice"]))
+                 + ", left a residual above the floor, so the diagnosis was repeated on every base form and "
+                 "the final model with the lowest held-out MSE kept: " + ", ".join(
+                     f"{e(MODEL_LABEL.get(k, k))} with {e(' + '.join(v['causes']) or 'no cause')} "
+                     f"{math.sqrt(v['validation_mse']):.3g} N rms" for k, v in choice["after_diagnosis"].items())
+                 + ".</p>")
+    return text
+
+
+def _floor_text(d: dict) -> str:
+    """The residual floor, and why the residual was not compared with it when the noise is not credible."""
+    text = (f" The residual floor is {d['residual_floor_n']:.3g} N: the force noise and the "
+            f"{d['stroke_noise_force_n']:.3g} N the stroke channel's noise makes through the model."
+            if d.get("residual_floor_n") else "")
     noise = d.get("noise") or {}
     if noise and not noise.get("credible", True):
-        floor_text += (" The residual was not compared with it: "
-                       + e(noise.get("text", "noise estimate not credible")) + ".")
+        text += " The residual was not compared with it: " + html.escape(noise.get("text", "noise estimate not credible")) + "."
+    return text
+
+
+def diagnosis_section_html(out_dir) -> str:
+    """HTML section of the report for ``out_dir/diagnosis.json`` ('' when there is none)."""
+    path = Path(out_dir) / "diagnosis.json"
+    if not path.exists():
+        return ""
+    d = strict_json.loads(path.read_text())
+    if d.get("failed_stage"):
+        return _failure_html(d)
+    e = html.escape
+    causes = d.get("causes") or ([d["cause"]] if d["cause"] not in ("none", "unexplained") else [])
+    rows = _ranking_rows(d["ranking"], causes[0] if causes else None)
+    val, eff = _tables_html(d)
+    ev_rows, s, noise = _evidence_html(d), d["settings"], d.get("noise") or {}
+    figs = "".join(f"<figure><img src='{e(f)}' alt='{e(f)}'></figure>" for f in d.get("figures", []))
     return (
         "<section id='diagnosis'><h2>Diagnosis: what the model gets wrong, and why</h2>"
         f"<p class='verdict'>{e(d['verdict'])}{'. ' + e(d['note']) if d.get('note') else ''}</p>"
-        + base_text +
+        + _base_html(d) +
         "<p>Each candidate effect was added to the base model and the extended model refitted on the "
         "identification tests; the decision rests on the validation (held-out) MSE: score = -ln(MSE_ext / "
         f"MSE_base) - {s['penalty_per_parameter']} per extra parameter, a cause is named when its score exceeds "
@@ -148,8 +189,8 @@ def diagnosis_section_html(out_dir) -> str:
         "would be far too narrow. Causes are added one at a time (forward selection) while the next one "
         "earns its score against the model of the causes found so far. When the final model's residual stays "
         f"above {s.get('unexplained_ratio', 2)} x the residual floor, the report says so: a model-form error the "
-        f"catalogue does not explain.{floor_text}</p>"
-        f"<table>{head.format(ref=chr(39) + 'none' + chr(39))}{rows}</table>{steps}"
+        f"catalogue does not explain.{_floor_text(d)}</p>"
+        f"<table>{RANKING_HEAD.format(ref=chr(39) + 'none' + chr(39))}{rows}</table>{_steps_html(d, causes)}"
         + (f"<h3>Effect parameters vs plausible ranges</h3><table><tr><th>parameter</th><th>fitted</th>"
            f"<th>typical range</th><th>plausible</th></tr>{eff}</table>" if eff else "")
         + "<h3>Validation before and after</h3><table><tr><th>test</th><th>MSE before [N&sup2;]</th>"
