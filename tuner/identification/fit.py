@@ -165,13 +165,7 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
     opts = firefly.FireflyOptions(population=settings.population, max_iterations=settings.iterations,
                                   stop_tol=settings.stop_tol)
     key = _settings_hash(settings, digest, model)
-    state = None
-    if ckpt.exists():
-        saved = strict_json.loads(ckpt.read_text())
-        if saved.get("key") != key:
-            raise ValueError(f"{ckpt} was written with other settings or data; start a new output folder")
-        state = firefly.FireflyState.from_dict(saved["state"])
-        log(f"[{model}] resuming from iteration {state.iteration} ({state.evaluations} evaluations)")
+    state = _resumed_state(ckpt, key, model, log)
     guess_p = initial_guess(model, signals, par)  # seeds the first population and restarts the refinement
     guess = par.from_params(guess_p)
     initial = None
@@ -223,52 +217,95 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
             first_population["pop"] = np.array(strict_json.loads(ckpt.read_text()).get("initial_population"))
         result = firefly.run(evaluate, par.dimension, options=opts, seed=settings.seed, state=state,
                              callback=callback, initial=initial)
-        z_best, g_best, polish_evals = result.x_best, result.fitness_best, 0
         last_failure = eng.last_failure
-        polish_info = {"fitness": [], "stop": "no local refinement (--polish 0)", "converged": False, "jacobians": 0,
-                       "rule": "not started"}
-        local_runs, race = [], None
-        if settings.polish_jacobians > 0:
-            # restarts: the Firefly population often collapses into one basin, on random dampers sometimes
-            # a degenerate one (silent blocks as pure dashpots, 2.2x the floor) that the data-driven start
-            # avoids; the best refinement wins (benchmarks/convergence.py)
-            starts = [("Firefly best", result.x_best)]
-            if not np.allclose(guess, result.x_best):
-                starts.append(("data-driven start", guess))
-            for name in RESTART_LADDER.get(model, ()):
-                lo, hi = par.bounds[name]
-                for factor in (10.0, 0.1):
-                    value = min(max(guess_p[name] * factor, lo), hi)
-                    starts.append((f"data-driven start with {name} = {value:.3g}", par.from_params({**guess_p, name: value})))
-            for label, z0 in starts:
-                if local_runs and rival and local_runs[0]["rmse_n"] > RACE_RATIO * rival[1]:
-                    race = {"rival": rival[0], "rival_rmse_n": rival[1], "ratio": local_runs[0]["rmse_n"] / rival[1],
-                            "skipped": [lab for lab, _ in starts[1:]]}
-                    log(f"[{model}] no restart: {race['ratio']:.1f} x the {rival[0]} form's RMSE, "
-                        f"clearly the wrong form for this damper")
-                    break
-                log(f"[{model}] local refinement from the {label} (projected Levenberg-Marquardt until converged, "
-                    f"at most {settings.polish_jacobians} Jacobians of {par.dimension} parallel simulations)")
-                z, g, n_ev, info = polish(eng, par, z0, max_jacobians=settings.polish_jacobians, log=log)
-                polish_evals += n_ev
-                local_runs.append({"start": label, "rmse_n": 1.0 / math.sqrt(g) if g > 0 else math.inf,
-                                   "converged": info["converged"], "rule": info["rule"], "jacobians": info["jacobians"],
-                                   "stop": info["stop"]})
-                log(f"[{model}] local refinement from the {label}: RMSE {local_runs[-1]['rmse_n']:.2f} N, {info['stop']}")
-                if not local_runs[:-1] or g > g_best:  # polish never returns a point worse than its start
-                    z_best, g_best, polish_info = z, g, info
+        ref = _refine(eng, model, par, settings, result, guess, guess_p, rival, log)
     elapsed = time.perf_counter() - t_start
 
     def rmse(g):
         return 1.0 / math.sqrt(g) if g > 0 else math.inf
 
-    if g_best <= 0.0:
+    if ref.g <= 0.0:
         raise ValueError(f"[{model}] no candidate could be simulated; the last failure: {last_failure or 'none'}. "
                          f"Check the units of the input files (a stroke in mm read as m exceeds the FMU's "
                          f"stroke_limit) or use --parametrization improved")
-    best = par.to_params(z_best)
+    history = _history(result, ref, par, first_population, search_stop, elapsed)
+    log(f"[{model}] done: Firefly {history['stop_reason']} after {result.iterations} iterations "
+        f"(RMSE {rmse(result.fitness_best):.1f} N), {result.evaluations + ref.evaluations} evaluations, "
+        f"{elapsed:.0f} s; identification RMSE {rmse(ref.g):.1f} N")
+    return par.to_params(ref.z), history
+
+
+def _resumed_state(ckpt: Path, key: str, model: str, log):
+    """The Firefly state of an interrupted search on the same settings and data (None without a checkpoint;
+    ValueError for one written with others)."""
+    if not ckpt.exists():
+        return None
+    saved = strict_json.loads(ckpt.read_text())
+    if saved.get("key") != key:
+        raise ValueError(f"{ckpt} was written with other settings or data; start a new output folder")
+    state = firefly.FireflyState.from_dict(saved["state"])
+    log(f"[{model}] resuming from iteration {state.iteration} ({state.evaluations} evaluations)")
+    return state
+
+
+@dataclass
+class Refinement:
+    """The local refinements after the Firefly search: the best point (scaled ``z``, fitness ``g`` = N / SSE
+    [1/N^2]), the evaluations they took, the winning refinement's ``info`` (``polish``), every run, and the
+    restarts skipped as a clearly wrong form (``race``, or None)."""
+
+    z: np.ndarray
+    g: float
+    evaluations: int
+    info: dict
+    runs: list
+    race: dict | None
+
+
+def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result, guess: np.ndarray, guess_p: dict,
+            rival, log) -> Refinement:
+    """The local refinements from the Firefly best and the restarts (the data-driven start and its
+    ``RESTART_LADDER`` variants): the Firefly population often collapses into one basin, on random dampers
+    sometimes a degenerate one (silent blocks as pure dashpots, 2.2x the floor) that the data-driven start
+    avoids; the best refinement wins (benchmarks/convergence.py). A form ``RACE_RATIO`` x worse than its
+    ``rival`` after the first gets no restart."""
+    ref = Refinement(result.x_best, result.fitness_best, 0, {"fitness": [], "stop": "no local refinement "
+                     "(--polish 0)", "converged": False, "jacobians": 0, "rule": "not started"}, [], None)
+    if settings.polish_jacobians <= 0:
+        return ref
+    starts = [("Firefly best", result.x_best)]
+    if not np.allclose(guess, result.x_best):
+        starts.append(("data-driven start", guess))
+    for name in RESTART_LADDER.get(model, ()):
+        lo, hi = par.bounds[name]
+        for factor in (10.0, 0.1):
+            value = min(max(guess_p[name] * factor, lo), hi)
+            starts.append((f"data-driven start with {name} = {value:.3g}", par.from_params({**guess_p, name: value})))
+    for label, z0 in starts:
+        if ref.runs and rival and ref.runs[0]["rmse_n"] > RACE_RATIO * rival[1]:
+            ref.race = {"rival": rival[0], "rival_rmse_n": rival[1], "ratio": ref.runs[0]["rmse_n"] / rival[1],
+                        "skipped": [lab for lab, _ in starts[1:]]}
+            log(f"[{model}] no restart: {ref.race['ratio']:.1f} x the {rival[0]} form's RMSE, "
+                f"clearly the wrong form for this damper")
+            break
+        log(f"[{model}] local refinement from the {label} (projected Levenberg-Marquardt until converged, "
+            f"at most {settings.polish_jacobians} Jacobians of {par.dimension} parallel simulations)")
+        z, g, n_ev, info = polish(eng, par, z0, max_jacobians=settings.polish_jacobians, log=log)
+        ref.evaluations += n_ev
+        ref.runs.append({"start": label, "rmse_n": 1.0 / math.sqrt(g) if g > 0 else math.inf,
+                         "converged": info["converged"], "rule": info["rule"], "jacobians": info["jacobians"],
+                         "stop": info["stop"]})
+        log(f"[{model}] local refinement from the {label}: RMSE {ref.runs[-1]['rmse_n']:.2f} N, {info['stop']}")
+        if len(ref.runs) == 1 or g > ref.g:  # polish never returns a point worse than its start
+            ref.z, ref.g, ref.info = z, g, info
+    return ref
+
+
+def _history(result, ref: Refinement, par: Parametrization, first_population: dict, search_stop: dict,
+             elapsed: float) -> dict:
+    """The history record of one model's identification (``history_<model>.json``)."""
     st = result.state
-    history = {
+    return {
         "mean_fitness": list(map(float, st.history_mean)),
         "best_fitness": list(map(float, st.history_best)),
         "generation_best_fitness": list(map(float, st.history_generation_best)),
@@ -280,23 +317,19 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         "iterations": int(result.iterations),
         "firefly_evaluations": int(result.evaluations),
         "firefly_best_fitness": float(result.fitness_best),
-        "polish_fitness": list(map(float, polish_info["fitness"])),
-        "polish_stop": polish_info["stop"],
-        "polish_rule": polish_info.get("rule", "not started"),  # tuner.identification.polish: what ended it
-        "polish_jacobians": int(polish_info["jacobians"]),
-        "local_refinements": local_runs,
-        "race": race,  # None, or the restarts skipped as a clearly wrong form (RACE_RATIO)
-        "converged": bool(polish_info["converged"]),
-        "polish_evaluations": int(polish_evals),
-        "evaluation_count": int(result.evaluations + polish_evals),
-        "best_fitness_final": float(g_best),
+        "polish_fitness": list(map(float, ref.info["fitness"])),
+        "polish_stop": ref.info["stop"],
+        "polish_rule": ref.info.get("rule", "not started"),  # tuner.identification.polish: what ended it
+        "polish_jacobians": int(ref.info["jacobians"]),
+        "local_refinements": ref.runs,
+        "race": ref.race,  # None, or the restarts skipped as a clearly wrong form (RACE_RATIO)
+        "converged": bool(ref.info["converged"]),
+        "polish_evaluations": int(ref.evaluations),
+        "evaluation_count": int(result.evaluations + ref.evaluations),
+        "best_fitness_final": float(ref.g),
         "elapsed_s": elapsed,
         "parametrization": par.describe(),
     }
-    log(f"[{model}] done: Firefly {history['stop_reason']} after {result.iterations} iterations "
-        f"(RMSE {rmse(result.fitness_best):.1f} N), {result.evaluations + polish_evals} evaluations, "
-        f"{elapsed:.0f} s; identification RMSE {rmse(g_best):.1f} N")
-    return best, history
 
 
 def validation_run(model: str, params: dict, s: Signals, engine: str = "fmu") -> tuple[np.ndarray, dict]:
