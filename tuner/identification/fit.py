@@ -470,15 +470,11 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
         checkpoints = Path(scratch.name)
     checkpoints = Path(checkpoints)
     checkpoints.mkdir(parents=True, exist_ok=True)
-    digest, prep_id, signals, peak = problem.digest, problem.prep_id, problem.sig_id, problem.peak_n
+    digest, prep_id, signals = problem.digest, problem.prep_id, problem.sig_id
     # measurement noise in the fit band [N]: what a fit of a model that can represent the data
     # reaches, reported beside the identification RMSE
     noise, axes, force_limit = problem.noise_n, problem.axes, problem.force_limit_n
-    log(f"identification: {len(signals)} tests, {sum(int(s.mask.sum()) for s in signals)} samples at "
-        f"{settings.fit_rate_hz:g} Hz; peak force {peak:.0f} N -> Fc,O limit {force_limit:.3g} N")
-    log(f"table abscissae: Fc,O rates up to {1e3 * axes['Fc_v14']:.4g} mm/s, Fk,O elongations up to "
-        f"{1e3 * axes['Fk_x10']:.4g} mm (identification data: peak stroke velocity "
-        f"{1e3 * max(float(np.max(np.abs(s.stroke_velocity[s.mask]))) for s in signals):.4g} mm/s)")
+    _log_problem(problem, log)
     params, histories = {}, {}
     try:
         for model in settings.models:
@@ -508,29 +504,8 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
     # every result is checked through the FMU the user gets, whatever engine identified it
     stage(log, "validate and export")
     log(f"validating through the FMU (forces compared in the {settings.fit_rate_hz / 2:g} Hz fit band) ...")
-    tests_out, arrays = {}, {}
-    for t, p, s in zip([*identification, *validation], [*prep_id, *problem.prep_val], [*signals, *problem.sig_val]):
-        arrays[f"{t.name}__time"], arrays[f"{t.name}__stroke"] = p.time, p.stroke
-        arrays[f"{t.name}__force"] = p.force
-        models_m = {}
-        for model in settings.models:
-            arrays[f"{t.name}__{model}"], models_m[model] = validation_run(model, params[model]["values"], s)
-        tests_out[t.name] = {"role": t.role, "scenario": t.scenario, "models": models_m,
-                             "sample_rate_hz": p.sample_rate, "source_rate_hz": t.sample_rate,
-                             # the damper class the data was read as (None: not read from a file): the
-                             # report's railway wording depends on it
-                             "damper_class": (t.metadata.get("read") or {}).get("damper_class")}
-
-    table3 = {}
-    if "lumped" in settings.models and "maxwell" in settings.models:
-        for t in validation:
-            m = tests_out[t.name]["models"]
-            mx, lp = m["maxwell"], m["lumped"]
-            table3[t.name] = {"mse_maxwell": mx["mse"], "mse_lumped": lp["mse"],
-                              "mse_variation_pct": 100 * (lp["mse"] - mx["mse"]) / mx["mse"],
-                              "ame_maxwell": mx["ame"], "ame_lumped": lp["ame"],
-                              "ame_variation_pct": 100 * (lp["ame"] - mx["ame"]) / mx["ame"],
-                              "ame_lumped_pct_of_peak": 100 * lp["ame"] / lp["peak_measured"]}
+    tests_out, arrays = _validated(identification, validation, problem, params, settings.models)
+    table3 = _table3(tests_out, validation) if "lumped" in settings.models and "maxwell" in settings.models else {}
     quality = quality_gate(tests_out, settings.models)
     for model, q in quality.items():
         log(f"[{model}] {q['text']}")
@@ -550,3 +525,49 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
     })
     metrics = {"settings": settings_out, "tests": tests_out, "table3": table3, "quality": quality}
     return FitResult(params=params, histories=histories, metrics=metrics, simulations=arrays, problem=problem)
+
+
+def _log_problem(problem: Problem, log) -> None:
+    """What the fit works on: tests, samples, rate, peak force and the tables' abscissae."""
+    signals, axes = problem.sig_id, problem.axes
+    log(f"identification: {len(signals)} tests, {sum(int(s.mask.sum()) for s in signals)} samples at "
+        f"{problem.settings.fit_rate_hz:g} Hz; peak force {problem.peak_n:.0f} N -> Fc,O limit "
+        f"{problem.force_limit_n:.3g} N")
+    log(f"table abscissae: Fc,O rates up to {1e3 * axes['Fc_v14']:.4g} mm/s, Fk,O elongations up to "
+        f"{1e3 * axes['Fk_x10']:.4g} mm (identification data: peak stroke velocity "
+        f"{1e3 * max(float(np.max(np.abs(s.stroke_velocity[s.mask]))) for s in signals):.4g} mm/s)")
+
+
+def _validated(identification: list[RigTest], validation: list[RigTest], problem: Problem, params: dict,
+               models) -> tuple[dict, dict]:
+    """({test: role, scenario, per-model metrics (``validation_run``: through the FMU), rates, damper class},
+    the arrays of ``simulations.npz``: each test's time [s], stroke [m], force [N] and every model's force)."""
+    tests_out, arrays = {}, {}
+    for t, p, s in zip([*identification, *validation], [*problem.prep_id, *problem.prep_val],
+                       [*problem.sig_id, *problem.sig_val]):
+        arrays[f"{t.name}__time"], arrays[f"{t.name}__stroke"] = p.time, p.stroke
+        arrays[f"{t.name}__force"] = p.force
+        models_m = {}
+        for model in models:
+            arrays[f"{t.name}__{model}"], models_m[model] = validation_run(model, params[model]["values"], s)
+        tests_out[t.name] = {"role": t.role, "scenario": t.scenario, "models": models_m,
+                             "sample_rate_hz": p.sample_rate, "source_rate_hz": t.sample_rate,
+                             # the damper class the data was read as (None: not read from a file): the
+                             # report's railway wording depends on it
+                             "damper_class": (t.metadata.get("read") or {}).get("damper_class")}
+    return tests_out, arrays
+
+
+def _table3(tests_out: dict, validation: list[RigTest]) -> dict:
+    """The paper's Table 3 per validation test: MSE [N^2] and AME [N] of Maxwell and lumped, their variation
+    [%], and the lumped AME as a share of the peak measured force [%]."""
+    table3 = {}
+    for t in validation:
+        m = tests_out[t.name]["models"]
+        mx, lp = m["maxwell"], m["lumped"]
+        table3[t.name] = {"mse_maxwell": mx["mse"], "mse_lumped": lp["mse"],
+                          "mse_variation_pct": 100 * (lp["mse"] - mx["mse"]) / mx["mse"],
+                          "ame_maxwell": mx["ame"], "ame_lumped": lp["ame"],
+                          "ame_variation_pct": 100 * (lp["ame"] - mx["ame"]) / mx["ame"],
+                          "ame_lumped_pct_of_peak": 100 * lp["ame"] / lp["peak_measured"]}
+    return table3
