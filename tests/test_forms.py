@@ -206,7 +206,9 @@ def test_a_late_stage_that_fails_leaves_its_record_and_report_and_the_run_resume
     out, lines = tmp_path / "out", []
     kw = dict(base_params=defaults("lumped"), base_model="lumped", other_bases={"twochamber": defaults("twochamber")},
               log=lines.append)
-    settings = DiagnosisSettings(engine=fastest_engine(), base_iterations=0, candidates=("friction",))
+    # one catalogue candidate and one form: the stages, their record and the resume are tested here, not the search
+    settings = DiagnosisSettings(engine=fastest_engine(), base_iterations=0, candidates=("friction",),
+                                 forms=("hysteresis",))
     real_detection, runs = search_module.detection, []
 
     def failing_on_the_second_base(*args, **kwargs):
