@@ -43,3 +43,27 @@ def test_the_command_line_help_still_works():
                          timeout=120)
     assert out.returncode == 0, out.stderr
     assert "python -m tuner" in out.stdout and "fit" in out.stdout
+
+
+def test_a_diagnosis_result_is_read_only_and_holds_its_record():
+    """The object ``diagnose`` returns: attributes for the answers, the record by key, and nothing a caller
+    reads can change what was decided (each read is a copy)."""
+    import json
+
+    from tuner import Diagnosis
+
+    record = {"cause": "friction", "causes": ["friction"], "form": None, "verdict": "friction: 150 N",
+              "base_model": "lumped", "unexplained": None, "ranking": [{"effect": "friction", "score": 0.4}],
+              "effect_parameters": {"friction_force": {"value": 150.0, "unit": "N"}}}
+    d = Diagnosis(record)
+    assert (d.cause, d.causes, d.form, d.base_model) == ("friction", ["friction"], None, "lumped")
+    assert d.effect_parameters["friction_force"]["value"] == 150.0 and d["ranking"][0]["score"] == 0.4
+    d["ranking"][0]["score"] = -1.0
+    d.effect_parameters["friction_force"]["value"] = 0.0
+    d.causes.append("preload")
+    record["cause"] = "none"  # nor through the dict it was made from
+    assert d["ranking"][0]["score"] == 0.4 and d.effect_parameters["friction_force"]["value"] == 150.0
+    assert d.causes == ["friction"] and d.cause == "friction"
+    assert json.loads(json.dumps(d.to_dict())) == d.to_dict() and set(d) == set(record) and len(d) == len(record)
+    with pytest.raises(TypeError):
+        d["cause"] = "none"

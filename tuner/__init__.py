@@ -39,7 +39,8 @@ _EXPORTS = {
     "fit": "tuner.identification.fit", "validation_run": "tuner.identification.fit",
     "quality_gate": "tuner.identification.fit",
     # the diagnosis
-    "DiagnosisSettings": "tuner.diagnosis.diagnose", "DiagnosisFailed": "tuner.diagnosis.diagnose",
+    "Diagnosis": "tuner.diagnosis.result", "DiagnosisSettings": "tuner.diagnosis.diagnose",
+    "DiagnosisFailed": "tuner.diagnosis.diagnose",
     "diagnose": "tuner.diagnosis.diagnose", "choose_base": "tuner.diagnosis.diagnose",
     # the whole job, as the command line runs it
     "run": "tuner.job", "run_diagnosis": "tuner.job", "JobResult": "tuner.job", "export_fmus": "tuner.job",

@@ -23,7 +23,7 @@ from pathlib import Path
 from damper_fmu.fmu import SLAVES, build
 from damper_fmu.parameters import EFFECT_MODELS, MODEL_PARAMETERS
 from tuner.data.reading import RigTest
-from tuner.diagnosis.diagnose import DiagnosisFailed, DiagnosisSettings, choose_base, diagnose
+from tuner.diagnosis.diagnose import Diagnosis, DiagnosisFailed, DiagnosisSettings, choose_base, diagnose
 from tuner.identification.fit import FitResult, FitSettings, fit, full_rate_checks
 from tuner.identification.intervals import ModelIntervals
 from tuner.identification.problem import Problem
@@ -43,7 +43,7 @@ class JobResult:
 
     out: Path
     fit: FitResult
-    diagnosis: dict | None
+    diagnosis: Diagnosis | None
     fmus: list
     report: Path
 
@@ -130,7 +130,7 @@ def run_diagnosis(identification: list[RigTest], validation: list[RigTest], out:
 
 
 def _diagnose(identification, validation, out, settings, base_params, base_model, base_choice, other_bases,
-              problem, log) -> dict:
+              problem, log) -> Diagnosis:
     stage(log, "diagnosis")
     log(f"\ndiagnosis: refitting the {base_model or 'base'} model extended by each candidate effect ...")
     return diagnose(identification, validation, out, settings, base_params=base_params, base_model=base_model,

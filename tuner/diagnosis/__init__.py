@@ -1,6 +1,7 @@
 """What the fitted model gets wrong and why (SI units; forces in N).
 
 - ``diagnose``: the procedure's entry (``diagnose``): stages, checkpoints, the failure record, the export;
+- ``result``: the result of a diagnosis (``Diagnosis``: the causes, the verdict, the record of ``diagnosis.json``);
 - ``settings``: the settings of a diagnosis run (``DiagnosisSettings``) and its candidate causes;
 - ``bases``: the base forms: which, their identification, the choice by held-out MSE, the repeat rule;
 - ``search``: the diagnosis on one base form (``CandidateSearch``: one method per step of the procedure);

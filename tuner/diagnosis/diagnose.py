@@ -78,6 +78,7 @@ from tuner.data.reading import RigTest
 from tuner.diagnosis.bases import (BASE_MODELS, choose_base, identified_bases, progress_plan,  # noqa: F401
                                    why_not_repeated)
 from tuner.diagnosis.refit import MIN_BLOCKS, ExtendedParametrization, search_bounds  # noqa: F401
+from tuner.diagnosis.result import Diagnosis
 from tuner.diagnosis.rules import (ACCEPT_SCORE, PENALTY_PER_PARAMETER, UNEXPLAINED_RATIO, cross_check,  # noqa: F401
                                    decide)
 from tuner.diagnosis.search import diagnose_on
@@ -86,7 +87,7 @@ from tuner.diagnosis.verdict import ACQUISITION_CAUSES, NOTES  # noqa: F401
 from tuner.identification.problem import Problem
 from tuner.progress import advance
 
-__all__ = ["DiagnosisSettings", "DiagnosisFailed", "diagnose", "decide", "cross_check", "choose_base", "CANDIDATES",
+__all__ = ["Diagnosis", "DiagnosisSettings", "DiagnosisFailed", "diagnose", "decide", "cross_check", "choose_base", "CANDIDATES",
            "BASE_MODELS", "ExtendedParametrization", "search_bounds", "ACQUISITION_CAUSES", "NOTES", "ACCEPT_SCORE"]
 
 
@@ -106,8 +107,9 @@ class DiagnosisFailed(RuntimeError):
 def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path,
              settings: DiagnosisSettings | None = None, *, base_params: dict | None = None,
              base_model: str | None = None, base_choice: dict | None = None,
-             other_bases: dict | None = None, problem: Problem | None = None, log=print) -> dict:
-    """Run the diagnosis and write ``diagnosis.json`` (and figures, extended FMU) into ``out``.
+             other_bases: dict | None = None, problem: Problem | None = None, log=print) -> Diagnosis:
+    """Run the diagnosis, write ``diagnosis.json`` (and figures, extended FMU) into ``out`` and return the
+    :class:`tuner.diagnosis.result.Diagnosis` (read-only: the record ``diagnosis.json`` holds).
 
     base_params: the values of an earlier fit of ``base_model`` (default 'lumped'); without them the
     base is identified here (``settings.base_model``: 'auto' identifies every one of BASE_MODELS and
@@ -151,7 +153,7 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     result["settings"] = _settings_record(settings, problem, time.perf_counter() - t_start)
     (out / "diagnosis.json").write_text(strict_json.dumps(result, indent=2))
     log(result["verdict"])
-    return result
+    return Diagnosis(result)
 
 
 def _checked_problem(problem: Problem | None, identification, validation, settings) -> Problem:
