@@ -465,7 +465,7 @@ class CandidateSearch:
                 rows[rows.index(lead)] = lead = row
             attach_interval(lead, effect_intervals(self.eid, fit.ext, fit.z), fit.ext, EFFECT_IDENTIFIED[form][:1])
         if lead["score"] > ACCEPT_SCORE and earned(lead) and lead["excess_explained"] >= FORM_EXCESS_SHARE:
-            self.log(f"  form named: {FORM_LABELS[form]} (" + interval_text(lead, EFFECT_IDENTIFIED[form])
+            self.log(f"  form earns its parameters: {FORM_LABELS[form]} (" + interval_text(lead, EFFECT_IDENTIFIED[form])
                      + f"), validation MSE {lead['validation_mse_change_pct']:+.0f} %, score {lead['score']:+.3f}")
             return {"form": form, "tried": rows, "row": lead, "refit": fit,
                     "settled": self.settled(info, lead["identification_rmse_n"] ** -2)}
@@ -541,6 +541,9 @@ class CandidateSearch:
             return cause, best, None
         self.at("forms weighed with the causes")
         weighed = self.forms(self.par.to_params(self.z_none), self.none_row, [])
+        if weighed["form"] is not None and not weighed["row"]["score"] > best["score"]:
+            self.log(f"  {cause} scores above the form {weighed['form']} on the base ({best['score']:+.3f} against "
+                     f"{weighed['row']['score']:+.3f}): {cause} stays the first cause")
         if weighed["form"] is not None and weighed["row"]["score"] > best["score"]:
             self.log(f"  the form {weighed['form']} scores above {cause} on the base ({weighed['row']['score']:+.3f} "
                      f"against {best['score']:+.3f}): it is the first cause")
