@@ -24,6 +24,10 @@ from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidenc
 from tuner.diagnosis.rules import (ACCEPT_SCORE, FORM_EXCESS_SHARE, PENALTY_PER_PARAMETER, UNEXPLAINED_RATIO,
                                    cross_check, decide, earned, excess_explained, rescore, score, within_bounds)
 from tuner.diagnosis.screen import SCREEN_SHARE, profile_screen
+
+#: a form's shape is refitted only when the screen predicts it to win at least this share of the identification
+#: residual power above the floor: half the held-out share a form must remove to be named (FORM_EXCESS_SHARE)
+FORM_REFIT_EXCESS = 0.5 * FORM_EXCESS_SHARE
 from tuner.diagnosis.settings import DiagnosisSettings
 from tuner.diagnosis.verdict import (NOTES, UNITS, effect_parameters, interval_text, limit_text,
                                      unexplained_record, verdict_text)
@@ -367,7 +371,11 @@ class CandidateSearch:
         """One form on top of the model ``current`` (its values; identification SSE ``sse_cur`` [N^2]): the
         shape screen picks two shapes, those predicted to win SCREEN_SHARE of the SSE are refitted (profile
         of the magnitude with the model re-balanced, joint polish), best predicted first, the better kept
-        (by identification fitness, as between the shapes). A later shape is refitted only when its
+        (by identification fitness, as between the shapes). A shape is refitted only when its predicted
+        gain is also at least FORM_REFIT_EXCESS of the identification residual power above the floor: a form
+        is named only when it removes FORM_EXCESS_SHARE of the held-out one, and a shape predicted to win
+        less than half that cannot plausibly get there (on the real MR damper a hysteresis predicted 6 % of
+        an error at 9 x the floor took 70 s of refits and won 1 %). A later shape is refitted only when its
         predicted gain exceeds the gain the best refit so far realised: otherwise it could win only if its
         linearised prediction fell short, and on real data it is the refit that costs (two-chamber, 30 s).
         With none predicted to win SCREEN_SHARE, the form is ranked at its best screened point. Returns
@@ -381,7 +389,9 @@ class CandidateSearch:
             cand["refitted"] = False
         best, g = None, -math.inf
         evals = len(shape_grid(form, dict(zip(ext.extra, ext.extra_bounds)), knee)) + 1
-        to_refit = [c for c in shapes if c["predicted_share"] >= SCREEN_SHARE]
+        excess = sse_cur - self.eid.n_samples * self.floor ** 2  # the identification residual power above the floor
+        to_refit = [c for c in shapes if c["predicted_share"] >= SCREEN_SHARE
+                    and c["gain_n2"] >= FORM_REFIT_EXCESS * max(excess, 0.0)]
         for cand in to_refit or shapes[:1]:  # the shape's settings (direction, fade speed) are fixed in its model
             ext_c = ExtendedParametrization(self.par, ext.effect, self.peak, self.stroke_range, self.stroke_limits,
                                             fixed={k: v for k, v in cand["shape"].items() if k not in ext.extra})
