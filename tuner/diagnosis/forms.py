@@ -76,7 +76,9 @@ def screen(eid: Engine, ext: ExtendedParametrization, form: str, current: dict, 
     ``shape_grid``. For every shape the
     form's force at the probe magnitude is regressed on the residual, both projected off the
     Jacobian's span (what a re-balanced base absorbs); returns [{"shape": {...}, "magnitude": the
-    regression's estimate (SI, within the search range), "gain_n2": the SSE it removes there [N^2]}],
+    regression's estimate (SI, within the search range), "gain_n2": the SSE it removes there [N^2],
+    "held_magnitude": the same regression with the current model held as it is (no re-balance: where a
+    shape that is not refitted is ranked, since its "magnitude" wins only with the model re-balanced)}],
     best first (shapes whose force cannot be simulated are skipped)."""
     magnitude = EFFECT_IDENTIFIED[form][0]
     bounds = dict(zip(ext.extra, ext.extra_bounds))
@@ -100,7 +102,9 @@ def screen(eid: Engine, ext: ExtendedParametrization, form: str, current: dict, 
         # the regression's scale, held within the search range: the gain a magnitude outside the range would
         # bring is not on offer (unclipped, a groove on a real damper was predicted 57 % of the SSE, and won 0)
         a = min(max(float(d_p @ r_p) / dd, lo / probe), hi / probe)
-        rows.append({"shape": s, "magnitude": float(a * probe),
+        d = r0 - r
+        a_held = min(max(float(d @ r0) / float(d @ d), lo / probe), hi / probe)
+        rows.append({"shape": s, "magnitude": float(a * probe), "held_magnitude": float(a_held * probe),
                      "gain_n2": max(a * (2.0 * float(d_p @ r_p) - a * dd), 0.0)})
     rows.sort(key=lambda r: -r["gain_n2"])
     return rows[:keep]

@@ -395,8 +395,8 @@ class CandidateSearch:
         for cand in to_refit or shapes[:1]:  # the shape's settings (direction, fade speed) are fixed in its model
             ext_c = ExtendedParametrization(self.par, ext.effect, self.peak, self.stroke_range, self.stroke_limits,
                                             fixed={k: v for k, v in cand["shape"].items() if k not in ext.extra})
-            if not to_refit:  # ranked at its best screened point
-                z = ext_c.from_params({**current, **cand["shape"], magnitude: cand["magnitude"]})
+            if not to_refit:  # ranked at its best screened shape, the magnitude that fits best with the model held
+                z = ext_c.from_params({**current, **cand["shape"], magnitude: cand["held_magnitude"]})
                 best, g = Fit(ext_c, z, evals), self.eid.n_samples / float(self.eid.sse_batch([ext_c.to_params(z)])[0])
                 break
             if best is not None and not cand["gain_n2"] > sse_cur - self.eid.n_samples / g:
