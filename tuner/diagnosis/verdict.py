@@ -120,9 +120,7 @@ def verdict_text(causes: list[str], best: dict, none_row: dict, rejected: list[d
                        "the error is nonlinear or time-varying"))
         if form_step and not form:
             sig += "; forms beyond the catalogue tried, none earns its parameters: " + ", ".join(
-                f"{r['form']} {r['validation_mse_change_pct']:+.0f} % held-out MSE (score {r['score']:+.3f}"
-                + (", " + why_not(r, noise) if r["score"] > ACCEPT_SCORE and "interval" in r else "") + ")"
-                for r in form_step["tried"])
+                _form_tried_text(r, noise) for r in form_step["tried"])
         loop = unexplained.get("loop") or {}
         if loop:
             low = sum(v["power_share"] for k, v in loop.items() if k.startswith("below"))
@@ -162,3 +160,14 @@ def why_not(row: dict, noise: float) -> str:
     ci = "; ".join(f"{n} {fmt_quantity(lo, UNITS[n])} .. {fmt_quantity(hi, UNITS[n])}"
                    for n, (lo, hi) in row.get("interval", {}).items())
     return f"its 95 % interval includes zero ({ci or 'not computed'})"
+
+
+def _form_tried_text(row: dict, noise: float) -> str:
+    """A form tried and not named, for the verdict: its held-out change, or, when no shape was refitted, what
+    the screen predicted (a form ranked where it fits best with the model held gains nothing there)."""
+    if row.get("refitted") is False and row.get("screen"):
+        share = max(c["predicted_share"] for c in row["screen"])
+        return (f"{row['form']} screened only (its best shape predicted to win {100 * share:.0f} % of the "
+                f"identification residual, too little to be named; not refitted)")
+    return (f"{row['form']} {row['validation_mse_change_pct']:+.0f} % held-out MSE (score {row['score']:+.3f}"
+            + (", " + why_not(row, noise) if row["score"] > ACCEPT_SCORE and "interval" in row else "") + ")")
