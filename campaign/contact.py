@@ -48,8 +48,13 @@ def saturation(beta):
     b = np.asarray(beta, dtype=float)
     if np.any(b < 0.0) or not np.all(np.isfinite(b)):
         raise ValueError("beta must be finite and >= 0")
-    c = np.minimum(b, 3.0)
-    return c - c * c / 3.0 + c ** 3 / 27.0
+    return _saturation(b)
+
+
+def _saturation(beta: np.ndarray) -> np.ndarray:
+    """:func:`saturation` without the argument check (the integrators' inner loop)."""
+    c = np.minimum(beta, 3.0)
+    return c * (1.0 - c * (1.0 / 3.0 - c / 27.0))
 
 
 def rolling_radius_difference(y, conicity: float):
@@ -63,8 +68,7 @@ def flange_force(y, clearance: float, stiffness: float):
     flangeway ``|y| <= clearance`` [m], ``-stiffness (y - sign(y) clearance)`` beyond (``stiffness``
     [N/m]): a dead-band spring pushing the wheelset back towards the centreline."""
     y = np.asarray(y, dtype=float)
-    over = np.maximum(np.abs(y) - clearance, 0.0)
-    return -stiffness * np.sign(y) * over
+    return -stiffness * (np.maximum(y - clearance, 0.0) + np.minimum(y + clearance, 0.0))
 
 
 @dataclass
@@ -114,10 +118,9 @@ class WheelRailContact:
         (arrays of one shape): the linear Kalker forces scaled by ``s(beta) / beta``."""
         fx = -self.f11 * np.asarray(xi_x, dtype=float)
         fy = -self.f22 * np.asarray(xi_y, dtype=float)
-        limit = self.creep_limit()
-        beta = np.hypot(fx, fy) / limit
-        small = beta < 1e-12
-        scale = np.where(small, 1.0, saturation(beta) / np.where(small, 1.0, beta))
+        # s(beta) / beta = 1 - beta/3 + beta^2/27 below 3 (no division), 1 / beta beyond
+        beta = np.sqrt(fx * fx + fy * fy) * (1.0 / self.creep_limit())
+        scale = np.where(beta < 3.0, 1.0 - beta * (1.0 / 3.0 - beta / 27.0), 1.0 / np.maximum(beta, 3.0))
         return fx * scale, fy * scale
 
     def wheelset_forces(self, y, psi, y_dot, yaw_rate, speed: float) -> WheelsetForces:
@@ -131,7 +134,8 @@ class WheelRailContact:
         half_dr = 0.5 * rolling_radius_difference(y, self.conicity)  # r_L - r0 = r0 - r_R
         turn = b0 * np.asarray(yaw_rate, dtype=float) / speed
         xi_y = np.asarray(y_dot, dtype=float) / speed - np.asarray(psi, dtype=float)
+        # the right wheel's creepages are the left's with xi_x mirrored (symmetric cone, equal loads):
+        # its forces are (-F_x,L, F_y,L)
         fx_l, fy_l = self.wheel_forces(-(turn + half_dr / r0), xi_y)
-        fx_r, fy_r = self.wheel_forces(turn + half_dr / r0, xi_y)
         fl = flange_force(y, self.flange_clearance, self.flange_stiffness)
-        return WheelsetForces(fy_l + fy_r + fl, b0 * (fx_r - fx_l), fl)
+        return WheelsetForces(2.0 * fy_l + fl, -2.0 * b0 * fx_l, fl)
