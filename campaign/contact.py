@@ -60,7 +60,7 @@ def _saturation(beta: np.ndarray) -> np.ndarray:
 def rolling_radius_difference(y, conicity: float):
     """Rolling-radius difference ``r_L - r_R`` [m] of a conical wheelset displaced ``y`` [m] to the left:
     ``2 conicity y`` (conicity [-], the equivalent conicity of the profile pair)."""
-    return 2.0 * conicity * np.asarray(y, dtype=float)
+    return (2.0 * conicity) * np.asarray(y, dtype=float)
 
 
 def flange_force(y, clearance: float, stiffness: float):
@@ -129,11 +129,15 @@ class WheelRailContact:
         at ``speed`` [m/s] on straight track (see the module docstring for the creepages and signs)."""
         if not (math.isfinite(speed) and speed > 0.0):
             raise ValueError(f"speed must be finite and > 0 m/s, got {speed}")
-        y = np.asarray(y, dtype=float)
+        return self.forces(*(np.asarray(a, dtype=float) for a in (y, psi, y_dot, yaw_rate)), speed)
+
+    def forces(self, y: np.ndarray, psi: np.ndarray, y_dot: np.ndarray, yaw_rate: np.ndarray,
+               speed: float) -> WheelsetForces:
+        """:meth:`wheelset_forces` for float arrays and a valid speed, unchecked (integrators' inner loop)."""
         b0, r0 = self.contact_half_distance, self.wheel_radius
         half_dr = 0.5 * rolling_radius_difference(y, self.conicity)  # r_L - r0 = r0 - r_R
-        turn = b0 * np.asarray(yaw_rate, dtype=float) / speed
-        xi_y = np.asarray(y_dot, dtype=float) / speed - np.asarray(psi, dtype=float)
+        turn = (b0 / speed) * yaw_rate
+        xi_y = y_dot * (1.0 / speed) - psi
         # the right wheel's creepages are the left's with xi_x mirrored (symmetric cone, equal loads):
         # its forces are (-F_x,L, F_y,L)
         fx_l, fy_l = self.wheel_forces(-(turn + half_dr / r0), xi_y)

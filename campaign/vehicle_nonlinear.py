@@ -131,8 +131,7 @@ class NonlinearVehicle:
 
     def contact_forces(self, x: np.ndarray) -> WheelsetForces:
         """Contact forces [N, N m] on the four wheelsets in the state ``x`` (mechanical part used)."""
-        return self.contact.wheelset_forces(x[_W], x[N_BODIES + _W], x[N_DOF + _W], x[N_DOF + N_BODIES + _W],
-                                            self.speed)
+        return self.contact.forces(x[_W], x[N_BODIES + _W], x[N_DOF + _W], x[N_DOF + N_BODIES + _W], self.speed)
 
     def mechanical_rhs(self, x: np.ndarray, damper_forces: np.ndarray) -> np.ndarray:
         """Derivative of the mechanical state ``x`` (N_MECH,) with the yaw damper forces ``damper_forces``
