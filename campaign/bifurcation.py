@@ -1,13 +1,14 @@
-"""Hunting limit cycles against speed: the bifurcation diagram by ramping the speed down, the nonlinear
-critical speed, and the disturbance needed to start hunting.
+"""Hunting limit cycles against speed: the bifurcation diagram by ramping the speed down, the fold of the
+branch and the nonlinear critical speed, against equivalent conicity.
 
 Method (path following by simulation, as in True's studies of Cooperrider's bogie): start above the
 linear critical speed with a large lateral kick, let the motion settle on the large (stable) limit
 cycle, then lower the speed in steps of ``dv``, each plateau starting from the last state of the one
 before. On each plateau the amplitude ``A`` of the leading wheelset (largest ``|y|`` [m] in a window
 of ``window`` s) is compared with the window before: the plateau holds a cycle of the branch when
-``A`` changes by less than ``rel_tol``; the motion has left the branch when ``A`` falls below
-``floor`` [m], or keeps falling and is below half the amplitude at the speed before; otherwise the
+``A`` changes by less than ``rel_tol`` and is at least half the amplitude at the speed before; the
+motion has left the branch when ``A`` falls below ``floor`` [m], or is below half the amplitude at the
+speed before and falling or settled (on a small cycle near the linear critical speed); otherwise the
 plateau is extended up to ``max_time`` s (near the fold the motion lingers) and then judged by its
 trend. The first speed off the branch and the last on it bracket the **fold** of the branch (the
 lowest speed at which the large cycle exists), refined by bisection (each trial from the cycle at the
@@ -116,9 +117,10 @@ def _amplitudes(run, window: float):
     return float(np.max(y[last])), float(np.max(y[before]))
 
 
-def plateau(runner, speed: float, x0, s: RampSettings, reference: float = math.inf):
+def plateau(runner, speed: float, x0, s: RampSettings, reference: float = 0.0):
     """Run one plateau at ``speed`` [m/s] from ``x0`` and judge it (see the module docstring);
-    ``reference`` [m]: the cycle amplitude at the speed before. Returns (LimitCycle, final state)."""
+    ``reference`` [m]: the cycle amplitude at the speed before (0: none, the first plateau).
+    Returns (LimitCycle, final state)."""
     run = runner(speed, x0, s.settle + 2.0 * s.window)
     total = s.settle + 2.0 * s.window
     while True:
@@ -126,12 +128,13 @@ def plateau(runner, speed: float, x0, s: RampSettings, reference: float = math.i
         x = run.final_state
         if a < s.floor:
             return LimitCycle(speed, 0.0, False, True, total), x
+        off = a < 0.5 * reference  # far below the branch: fallen off it (to a small cycle or to rest)
         if abs(a - before) <= s.rel_tol * a:
-            return LimitCycle(speed, a, True, True, total), x
-        if a < before and a < 0.5 * reference:
+            return LimitCycle(speed, a, not off, True, total), x
+        if a < before and off:
             return LimitCycle(speed, a, False, True, total), x
         if total + 2.0 * s.window > s.max_time:
-            return LimitCycle(speed, a, a > before, False, total), x
+            return LimitCycle(speed, a, a > before and not off, False, total), x
         run = runner(speed, x, 2.0 * s.window)
         total += 2.0 * s.window
 
@@ -155,7 +158,7 @@ def ramp_down(runner, v_start: float, v_stop: float, x_start, s: RampSettings | 
                 f"{c.amplitude * 1e3:.2f} mm{'' if c.converged else ' (trend)'} after {c.duration:.0f} s")
         return c, xe
 
-    c, x = step(v_start, x, math.inf)
+    c, x = step(v_start, x, 0.0)
     if not c.exists:
         return BifurcationDiagram(cycles, math.inf, (v_start, math.inf), linear_critical_speed)
     hi, x_hi, ref, lo = v_start, x, c.amplitude, None
