@@ -82,3 +82,22 @@ def test_bad_input_is_named():
         NonlinearVehicle(PARAMS, 50.0).simulate(np.zeros(3), 1.0)
     with pytest.raises(ValueError, match="amplitude"):
         kick_state(math.nan)
+
+
+@pytest.mark.parametrize("primary", ["free", "rigid"])
+def test_kinematic_hunting_wavelengths_of_klingel_and_wickens(primary):
+    """Published closed forms of the kinematic (low-speed) hunting of conical wheelsets, reproduced by the car's
+    linearisation (= the nonlinear car's Jacobian at rest, tested above) with the bogies freed from the carbody:
+    a free wheelset (primary suspension 1e-3 N/m) runs a sine of wavelength 2 pi sqrt(r0 b0 / lambda)
+    (Klingel 1883), a rigid two-axle bogie (primary 1e10 N/m) one of 2 pi sqrt(r0 b0 (1 + a^2 / b0^2) / lambda)
+    (Wickens 1965; both e.g. in Knothe & Stichel, Rail Vehicle Dynamics, Springer 2017, ch. on the kinematics of
+    the wheelset). At 1 m/s the hunting frequency V / wavelength is reproduced to 1e-3 (measured 1e-4)."""
+    k = 1e-3 if primary == "free" else 1e10
+    p = dataclasses.replace(VehicleParams(), k_px=k, k_py=k, k_sx=0.0, k_sy=0.0, c_sy=0.0, yaw_damping=1e-3,
+                            yaw_series_stiffness=1e-3)
+    r0, b0, a, lam = p.wheel_radius, p.contact_half_distance, p.semi_wheelbase, p.conicity
+    wavelength = 2.0 * math.pi * math.sqrt(r0 * b0 / lam * (1.0 if primary == "free" else 1.0 + a * a / b0 ** 2))
+    V = 1.0
+    ev = VehicleModel(p, V).eigenvalues()
+    f = ev.imag[ev.imag > 1e-6] / (2.0 * math.pi)
+    assert np.min(np.abs(f / (V / wavelength) - 1.0)) < 1e-3
