@@ -7,10 +7,11 @@ cycle, then lower the speed in steps of ``dv``, each plateau starting from the l
 before. On each plateau the amplitude ``A`` of the leading wheelset (largest ``|y|`` [m] in a window
 of ``window`` s) is compared with the window before: the plateau holds a cycle of the branch when
 ``A`` changes by less than ``rel_tol`` and is at least half the amplitude at the speed before; the
-motion has left the branch when ``A`` falls below ``floor`` [m], or is below half the amplitude at the
-speed before and falling or settled (on a small cycle near the linear critical speed); otherwise the
-plateau is extended up to ``max_time`` s (near the fold the motion lingers) and then judged by its
-trend. The first speed off the branch and the last on it bracket the **fold** of the branch (the
+motion has left the branch when ``A`` falls below ``floor`` [m] (below the linear critical speed, where
+straight running is stable), or is below half the amplitude at the speed before and falling or
+settled (on a small cycle near the linear critical speed); otherwise the plateau is extended up to
+``max_time`` s (near the fold the motion lingers; the two bogies' hunting modes may beat slowly) and
+then counts as on the branch when ``A`` is still at least half the amplitude before. The first speed off the branch and the last on it bracket the **fold** of the branch (the
 lowest speed at which the large cycle exists), refined by bisection (each trial from the cycle at the
 upper end) to ``tol``.
 
@@ -52,10 +53,10 @@ class RampSettings:
 
     dv: float = 20.0 / 3.6
     tol: float = 2.0 / 3.6
-    settle: float = 4.0
-    window: float = 1.0
-    max_time: float = 24.0
-    rel_tol: float = 0.01
+    settle: float = 6.0
+    window: float = 2.0
+    max_time: float = 40.0
+    rel_tol: float = 0.02
     floor: float = 1e-4
     kick: float = 10e-3
 
@@ -117,24 +118,26 @@ def _amplitudes(run, window: float):
     return float(np.max(y[last])), float(np.max(y[before]))
 
 
-def plateau(runner, speed: float, x0, s: RampSettings, reference: float = 0.0):
+def plateau(runner, speed: float, x0, s: RampSettings, reference: float = 0.0, rest_stable: bool = True):
     """Run one plateau at ``speed`` [m/s] from ``x0`` and judge it (see the module docstring);
-    ``reference`` [m]: the cycle amplitude at the speed before (0: none, the first plateau).
-    Returns (LimitCycle, final state)."""
+    ``reference`` [m]: the cycle amplitude at the speed before (0: none, the first plateau);
+    ``rest_stable``: straight running is stable at this speed (below the linear critical speed), so a
+    motion below ``floor`` has died out (above it, it must grow again). Returns (LimitCycle, final state)."""
     run = runner(speed, x0, s.settle + 2.0 * s.window)
     total = s.settle + 2.0 * s.window
     while True:
         a, before = _amplitudes(run, s.window)
         x = run.final_state
-        if a < s.floor:
-            return LimitCycle(speed, 0.0, False, True, total), x
-        off = a < 0.5 * reference  # far below the branch: fallen off it (to a small cycle or to rest)
-        if abs(a - before) <= s.rel_tol * a:
+        if a < s.floor and rest_stable:
+            return LimitCycle(speed, a, False, True, total), x
+        off = a < max(0.5 * reference, s.floor)  # far below the branch: off it (to a small cycle or to rest)
+        if abs(a - before) <= s.rel_tol * a and not (a < s.floor):
             return LimitCycle(speed, a, not off, True, total), x
-        if a < before and off:
+        if a < before and off and reference > 0.0:
             return LimitCycle(speed, a, False, True, total), x
         if total + 2.0 * s.window > s.max_time:
-            return LimitCycle(speed, a, a > before and not off, False, total), x
+            # still hunting at the branch's size (a slow beat of the two bogies' hunting modes) or not
+            return LimitCycle(speed, a, not off, False, total), x
         run = runner(speed, x, 2.0 * s.window)
         total += 2.0 * s.window
 
@@ -151,7 +154,7 @@ def ramp_down(runner, v_start: float, v_stop: float, x_start, s: RampSettings | 
     cycles, x = [], np.array(x_start, dtype=float)
 
     def step(v, x0, reference):
-        c, xe = plateau(runner, v, x0, s, reference)
+        c, xe = plateau(runner, v, x0, s, reference, not v >= linear_critical_speed)
         cycles.append(c)
         if log is not None:
             log(f"  {v * 3.6:7.1f} km/h: {'on the branch' if c.exists else 'left the branch'}, amplitude "
@@ -207,7 +210,7 @@ class ConicityPoint:
         return self.diagram.nonlinear_critical_speed
 
 
-def start_speed(linear_critical_speed: float, v_max: float, factor: float = 1.1) -> float:
+def start_speed(linear_critical_speed: float, v_max: float, factor: float = 1.15) -> float:
     """Speed [m/s] to start a ramp-down at: ``factor`` times the linear critical speed, at most ``v_max``."""
     if not (factor > 1.0 and v_max > 0.0):
         raise ValueError(f"need factor > 1 and v_max > 0, got {factor}, {v_max}")
