@@ -97,11 +97,20 @@ class BifurcationDiagram:
     fold_below_stop: bool = False
 
     @property
+    def cycle_reached(self) -> bool:
+        """A limit cycle was reached at the start of the ramp."""
+        return any(c.exists for c in self.cycles)
+
+    @property
     def nonlinear_critical_speed(self) -> float:
         """Lowest speed [m/s] at which a limit cycle exists: the fold speed, or the linear critical speed
-        where that is lower (module docstring)."""
+        where that is lower (module docstring); ``inf`` when no cycle was reached and straight running
+        is stable up to the start (or the linear speed is unknown), ``nan`` when no cycle was reached
+        although straight running is unstable there (not found)."""
         if math.isnan(self.linear_critical_speed):
             return self.fold_speed
+        if not self.cycle_reached and math.isfinite(self.linear_critical_speed):
+            return math.nan
         return min(self.fold_speed, self.linear_critical_speed)
 
     def branch(self):
@@ -143,10 +152,11 @@ def plateau(runner, speed: float, x0, s: RampSettings, reference: float = 0.0, r
 
 
 def ramp_down(runner, v_start: float, v_stop: float, x_start, s: RampSettings | None = None, *,
-              linear_critical_speed: float = math.nan, log=None) -> BifurcationDiagram:
+              linear_critical_speed: float = math.nan, v_max: float = math.nan, log=None) -> BifurcationDiagram:
     """The stable branch from ``v_start`` down to ``v_stop`` [m/s] (``v_start > v_stop > 0``) starting
     from the state ``x_start`` (a large kick), its fold, and so the nonlinear critical speed with the
-    ``linear_critical_speed`` [m/s] (module docstring).
+    ``linear_critical_speed`` [m/s] (module docstring). When the kick reaches no cycle at ``v_start``,
+    up to three more starts, each 15 % faster, up to ``v_max`` [m/s].
     ``log``: callable taking one line per plateau."""
     s = s if s is not None else RampSettings()
     if not (math.isfinite(v_start) and 0.0 < v_stop < v_start):
@@ -162,6 +172,11 @@ def ramp_down(runner, v_start: float, v_stop: float, x_start, s: RampSettings | 
         return c, xe
 
     c, x = step(v_start, x, 0.0)
+    for _ in range(3):
+        if c.exists or not v_max > v_start:
+            break
+        v_start = min(1.15 * v_start, v_max)
+        c, x = step(v_start, np.array(x_start, dtype=float), 0.0)
     if not c.exists:
         return BifurcationDiagram(cycles, math.inf, (v_start, math.inf), linear_critical_speed)
     hi, x_hi, ref, lo = v_start, x, c.amplitude, None
@@ -231,6 +246,6 @@ def conicity_sweep(conicities, make_runner, linear_speed, x_start, *, v_max: flo
         if log is not None:
             log(f"conicity {lam:.3f}: linear critical speed {v_lin * 3.6:.1f} km/h")
         d = ramp_down(make_runner(lam), start_speed(v_lin, v_max), v_min, x_start, settings,
-                      linear_critical_speed=v_lin, log=log)
+                      linear_critical_speed=v_lin, v_max=v_max, log=log)
         out.append(ConicityPoint(float(lam), d))
     return out

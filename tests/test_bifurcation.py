@@ -49,6 +49,10 @@ def test_nonlinear_critical_speed_is_the_lower_of_fold_and_linear():
     assert BifurcationDiagram(c, 45.0, (44.0, 45.0), linear_critical_speed=48.0).nonlinear_critical_speed == 45.0
     assert BifurcationDiagram(c, 49.0, (48.5, 49.0), linear_critical_speed=48.0).nonlinear_critical_speed == 48.0
     assert BifurcationDiagram(c, 49.0, (48.5, 49.0)).nonlinear_critical_speed == 49.0
+    # no cycle reached at the start: not found where straight running was unstable, above the top where stable
+    none = [LimitCycle(60.0, 1e-6, False, True, 40.0)]
+    assert math.isnan(BifurcationDiagram(none, math.inf, (60.0, math.inf), 50.0).nonlinear_critical_speed)
+    assert math.isinf(BifurcationDiagram(none, math.inf, (60.0, math.inf), math.inf).nonlinear_critical_speed)
 
 
 def test_no_cycle_at_the_start_and_bad_settings():

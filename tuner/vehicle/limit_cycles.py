@@ -92,7 +92,7 @@ def fmu_conicity_point(fmu, conicity: float, study: HuntingStudy) -> ConicityPoi
     v_lin = _linear_speed(Path(fmu), params, study)
     with NonlinearCosim(fmu, params=params, settings=study.contact, step=study.step) as co:
         d = ramp_down(co.runner(), start_speed(v_lin, study.v_max), study.v_min, kick_state(study.ramp.kick),
-                      study.ramp, linear_critical_speed=v_lin)
+                      study.ramp, linear_critical_speed=v_lin, v_max=study.v_max)
     return ConicityPoint(float(conicity), d)
 
 
@@ -134,7 +134,7 @@ def hunting_study(fmus, out: Path, study: HuntingStudy | None = None, *, log=pri
 
 
 def _kmh(v: float):
-    return "> v_max" if math.isinf(v) else f"{v * 3.6:.1f}"
+    return "> v_max" if math.isinf(v) else "no cycle reached" if math.isnan(v) else f"{v * 3.6:.1f}"
 
 
 def _json(points: dict, paths, labels, study: HuntingStudy, wall: float) -> dict:
@@ -149,6 +149,7 @@ def _json(points: dict, paths, labels, study: HuntingStudy, wall: float) -> dict
                    "fold_speed_kmh": _num(d.fold_speed * 3.6),
                    "fold_bracket_kmh": [_num(b * 3.6) for b in d.bracket],
                    "nonlinear_critical_speed_kmh": _num(d.nonlinear_critical_speed * 3.6),
+                   "cycle_reached": d.cycle_reached,
                    "fold_below_v_min": d.fold_below_stop,
                    "branch": {"speed_kmh": list(v * 3.6), "amplitude_mm": list(a * 1e3)},
                    "plateaus": [dataclasses.asdict(c) for c in d.cycles]}
@@ -224,14 +225,17 @@ def _diagram_panel(ax, label: str, pt: ConicityPoint, study: HuntingStudy) -> No
 
 def format_study_table(data: dict) -> str:
     """The study's critical speeds as a text table: one row per conicity, per FMU the linear and the
-    nonlinear critical speed [km/h] (``> v_max`` where none was found below the top speed)."""
+    nonlinear critical speed [km/h] (``> v_max`` where none was found below the top speed, ``no cycle`` where
+    the ramp's kick reached no limit cycle although straight running was unstable)."""
     labels = list(data["results"])
     lams = sorted({row["conicity"] for lab in labels for row in data["results"][lab]["conicities"]})
 
     def cell(lab, lam):
         row = next(r for r in data["results"][lab]["conicities"] if r["conicity"] == lam)
         f = (lambda v: "> v_max" if v is None else f"{v:.0f}")
-        return f"{f(row['linear_critical_speed_kmh'])} / {f(row['nonlinear_critical_speed_kmh'])}"
+        nl = f(row["nonlinear_critical_speed_kmh"]) if row["cycle_reached"] or row["linear_critical_speed_kmh"] is None \
+            else "no cycle"
+        return f"{f(row['linear_critical_speed_kmh'])} / {nl}"
 
     head = ["conicity", *(f"{lab}: linear / nonlinear [km/h]" for lab in labels)]
     rows = [[f"{lam:.3f}", *(cell(lab, lam) for lab in labels)] for lam in lams]
