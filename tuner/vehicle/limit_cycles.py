@@ -193,7 +193,7 @@ def _figures(points: dict, study: HuntingStudy, out: Path) -> None:
         ax.plot(lam, np.where(np.isfinite(nl), nl, np.nan), "-s", color=color, label=f"{lab}: nonlinear")
     ax.set_xlabel("equivalent conicity [-]")
     ax.set_ylabel("critical speed [km/h]")
-    ax.set_title(f"Critical hunting speed against wheel conicity (up to {study.v_max * 3.6:.0f} km/h)")
+    ax.set_title(f"Critical hunting speed against wheel conicity (drawn up to {study.v_max * 3.6:.0f} km/h)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
@@ -219,8 +219,10 @@ def _diagram_panel(ax, label: str, pt: ConicityPoint, study: HuntingStudy) -> No
     ax.axhline(study.contact.flange_clearance * 1e3, color="0.6", lw=0.8, ls="-.", label="flange clearance")
     ax.set_title(f"{label}\nlinear {_kmh(vl)} / nonlinear {_kmh(d.nonlinear_critical_speed)} km/h", fontsize=9)
     ax.set_xlabel("speed [km/h]")
+    speeds = [c.speed for c in d.cycles] + ([vl] if math.isfinite(vl) else [])
+    ax.set_xlim(max(study.v_min, 0.85 * min(speeds)) * 3.6, min(top, 1.05 * max(speeds)) * 3.6)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=6, loc="lower right")
+    ax.legend(fontsize=6, loc="upper left")
 
 
 def format_study_table(data: dict) -> str:
