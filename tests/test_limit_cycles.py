@@ -28,7 +28,7 @@ def test_nonlinear_command_writes_table_json_and_figures(monkeypatch, tmp_path, 
                  "--conicities", "0.15", "0.3", "--diagram-conicity", "0.3", "--workers", "1"])
     assert code == 0
     text = capsys.readouterr().out
-    assert "DamperMaxwell: linear / nonlinear [km/h]" in text and "DamperMaxwell-2" in text
+    assert "DamperMaxwell: linear / nonlinear (fold) [km/h]" in text and "DamperMaxwell-2" in text
     data = json.loads((out / "hunting_nonlinear.json").read_text())
     rows = data["results"]["DamperMaxwell"]["conicities"]
     assert [r["conicity"] for r in rows] == [0.15, 0.3]

@@ -45,7 +45,7 @@ def test_c_and_python_master_loops_agree():
     runs = []
     for c_loop in (True, False):
         with NonlinearCosim(ensure_fmu("lumped"), params=LINEAR, substeps=2, c_loop=c_loop) as co:
-            runs.append(co.run(140.0, kick_state(8e-3), 0.3))
+            runs.append(co.run(140.0, kick_state(8e-3), 0.15))
     a, b = runs
     assert np.all(np.abs(a.states - b.states) <= 1e-9 * np.max(np.abs(b.states), axis=0))  # per state
 

@@ -227,8 +227,9 @@ def _diagram_panel(ax, label: str, pt: ConicityPoint, study: HuntingStudy) -> No
 
 def format_study_table(data: dict) -> str:
     """The study's critical speeds as a text table: one row per conicity, per FMU the linear and the
-    nonlinear critical speed [km/h] (``> v_max`` where none was found below the top speed, ``no cycle`` where
-    the ramp's kick reached no limit cycle although straight running was unstable)."""
+    nonlinear critical speed [km/h] and the fold of the large cycles' branch in brackets (``> v_max`` where
+    none was found below the top speed, ``no cycle`` where the ramp's kick reached no limit cycle although
+    straight running was unstable)."""
     labels = list(data["results"])
     lams = sorted({row["conicity"] for lab in labels for row in data["results"][lab]["conicities"]})
 
@@ -237,9 +238,10 @@ def format_study_table(data: dict) -> str:
         f = (lambda v: "> v_max" if v is None else f"{v:.0f}")
         nl = f(row["nonlinear_critical_speed_kmh"]) if row["cycle_reached"] or row["linear_critical_speed_kmh"] is None \
             else "no cycle"
-        return f"{f(row['linear_critical_speed_kmh'])} / {nl}"
+        fold = f" ({f(row['fold_speed_kmh'])})" if row["cycle_reached"] else ""
+        return f"{f(row['linear_critical_speed_kmh'])} / {nl}{fold}"
 
-    head = ["conicity", *(f"{lab}: linear / nonlinear [km/h]" for lab in labels)]
+    head = ["conicity", *(f"{lab}: linear / nonlinear (fold) [km/h]" for lab in labels)]
     rows = [[f"{lam:.3f}", *(cell(lab, lam) for lab in labels)] for lam in lams]
     w = [max(len(head[i]), *(len(r[i]) for r in rows)) for i in range(len(head))]
     return "\n".join("  ".join(c.rjust(wi) for c, wi in zip(r, w)) for r in [head, *rows])
