@@ -190,7 +190,10 @@ def _figures(points: dict, study: HuntingStudy, out: Path) -> None:
         nl = np.array([points[lab][x].nonlinear_critical_speed for x in lam]) * 3.6
         color = f"C{i}"
         ax.plot(lam, np.where(np.isfinite(lin), lin, np.nan), "--o", color=color, mfc="none", label=f"{lab}: linear")
+        fold = np.array([points[lab][x].diagram.fold_speed for x in lam]) * 3.6
         ax.plot(lam, np.where(np.isfinite(nl), nl, np.nan), "-s", color=color, label=f"{lab}: nonlinear")
+        ax.plot(lam, np.where(np.isfinite(fold), fold, np.nan), ":^", color=color, ms=4,
+                label=f"{lab}: fold of large hunting")
     ax.set_xlabel("equivalent conicity [-]")
     ax.set_ylabel("critical speed [km/h]")
     ax.set_title(f"Critical hunting speed against wheel conicity (drawn up to {study.v_max * 3.6:.0f} km/h)")
