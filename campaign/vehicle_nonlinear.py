@@ -145,8 +145,13 @@ class NonlinearVehicle:
     def rhs(self, t: float, x: np.ndarray) -> np.ndarray:
         """Derivative of the full state ``x`` (N_STATES,) with the built-in yaw dampers (time ``t`` [s]
         unused: straight ideal track)."""
+        return self.derivative(x, self.speed)
+
+    def derivative(self, x: np.ndarray, speed: float) -> np.ndarray:
+        """:meth:`rhs` at another ``speed`` [m/s]: the matrices without creep do not depend on speed, the
+        contact's creepages do (for shooting, where the speed is an unknown)."""
         dx = self.A @ x + self.linear.Bw @ self.params._excess(x[N_MECH:])
-        f = self.contact_forces(x)
+        f = self.contact.forces(x[_W], x[N_BODIES + _W], x[N_DOF + _W], x[N_DOF + N_BODIES + _W], speed)
         dx[N_DOF + _W] += f.lateral * self._inv_mass
         dx[N_DOF + N_BODIES + _W] += f.yaw_moment * self._inv_inertia
         return dx
