@@ -33,7 +33,7 @@ nonlinear car with its built-in Maxwell yaw dampers, ``tuner.vehicle`` gives one
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -74,13 +74,14 @@ class LimitCycle:
     """One plateau: ``speed`` [m/s], ``amplitude`` [m] of the leading wheelset (largest |y| in the last
     window), ``exists`` (the motion stayed on the branch's limit cycle), ``converged`` (the amplitude
     settled within ``rel_tol`` or clearly left, rather than judged by its trend at ``max_time``),
-    ``duration`` [s] simulated."""
+    ``duration`` [s] simulated, ``state`` at its end (the runner's state vector)."""
 
     speed: float
     amplitude: float
     exists: bool
     converged: bool
     duration: float
+    state: np.ndarray = field(default=None, repr=False)
 
 
 @dataclass
@@ -138,15 +139,15 @@ def plateau(runner, speed: float, x0, s: RampSettings, reference: float = 0.0, r
         a, before = _amplitudes(run, s.window)
         x = run.final_state
         if a < s.floor and rest_stable:
-            return LimitCycle(speed, a, False, True, total), x
+            return LimitCycle(speed, a, False, True, total, x), x
         off = a < max(0.5 * reference, s.floor)  # far below the branch: off it (to a small cycle or to rest)
         if abs(a - before) <= s.rel_tol * a and not (a < s.floor):
-            return LimitCycle(speed, a, not off, True, total), x
+            return LimitCycle(speed, a, not off, True, total, x), x
         if a < before and off and reference > 0.0:
-            return LimitCycle(speed, a, False, True, total), x
+            return LimitCycle(speed, a, False, True, total, x), x
         if total + 2.0 * s.window > s.max_time:
             # still hunting at the branch's size (a slow beat of the two bogies' hunting modes) or not
-            return LimitCycle(speed, a, not off, False, total), x
+            return LimitCycle(speed, a, not off, False, total, x), x
         run = runner(speed, x, 2.0 * s.window)
         total += 2.0 * s.window
 

@@ -152,7 +152,8 @@ def _json(points: dict, paths, labels, study: HuntingStudy, wall: float) -> dict
                    "cycle_reached": d.cycle_reached,
                    "fold_below_v_min": d.fold_below_stop,
                    "branch": {"speed_kmh": list(v * 3.6), "amplitude_mm": list(a * 1e3)},
-                   "plateaus": [dataclasses.asdict(c) for c in d.cycles]}
+                   "plateaus": [{k: getattr(c, k) for k in ("speed", "amplitude", "exists", "converged", "duration")}
+                                for c in d.cycles]}
             if mx is not None:
                 ve = eigen_critical_speed(mx["k_s"], mx["c"], dataclasses.replace(study.params, conicity=lam),
                                           v_max=study.v_max)
