@@ -8,7 +8,7 @@ Prints, per conicity, the linear critical speed (eigenvalues of campaign.vehicle
 large limit cycle's branch, the nonlinear critical speed (the lower of the two), the cycle amplitude of
 the leading wheelset at the fold, the plateaus run and the wall time on this machine. ``--unstable``:
 also the branch through the fold by shooting (campaign.periodic_orbits), from the lowest stable cycle of
-the ramp down in amplitude steps of 0.25 mm: amplitude against speed, the unstable part between the fold
+the ramp down in amplitude steps of 0.2 mm: amplitude against speed, the unstable part between the fold
 and the linear critical speed.
 """
 from __future__ import annotations
@@ -30,9 +30,11 @@ from campaign.vehicle import VehicleParams, critical_speed  # noqa: E402
 from campaign.vehicle_nonlinear import LEADING_WHEELSET, NonlinearVehicle, kick_state  # noqa: E402
 
 
-def unstable_branch(params, diagram, step: float = 0.25e-3) -> list:
-    """The branch through the lowest stable cycle of ``diagram`` continued down in amplitude by shooting."""
-    low = min((c for c in diagram.cycles if c.exists), key=lambda c: c.speed)
+def unstable_branch(params, diagram, step: float = 0.2e-3) -> list:
+    """The branch through the second-lowest stable cycle of ``diagram`` (the lowest sits at the fold, where a
+    step in amplitude has no good predictor) continued down in amplitude by shooting."""
+    stable = sorted((c for c in diagram.cycles if c.exists), key=lambda c: c.speed)
+    low = stable[1] if len(stable) > 1 else stable[0]
     run = NonlinearVehicle(params, low.speed).simulate(low.state, 1.0)
     guess = orbit_guess(run.t, run.states, low.speed, LEADING_WHEELSET)
     prob = vehicle_shooting_problem(params, None, np.max(np.abs(run.states), axis=0))
