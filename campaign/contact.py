@@ -48,13 +48,13 @@ def saturation(beta):
     b = np.asarray(beta, dtype=float)
     if np.any(b < 0.0) or not np.all(np.isfinite(b)):
         raise ValueError("beta must be finite and >= 0")
-    return _saturation(b)
+    return np.where(b < 3.0, b * _scale(b), 1.0)
 
 
-def _saturation(beta: np.ndarray) -> np.ndarray:
-    """:func:`saturation` without the argument check (the integrators' inner loop)."""
-    c = np.minimum(beta, 3.0)
-    return c * (1.0 - c * (1.0 / 3.0 - c / 27.0))
+def _scale(beta: np.ndarray) -> np.ndarray:
+    """``s(beta) / beta`` [-], the factor on the linear creep force, without a division at small ``beta``:
+    ``1 - beta/3 + beta^2/27`` below 3, ``1 / beta`` beyond (unchecked: the integrators' inner loop)."""
+    return np.where(beta < 3.0, 1.0 - beta * (1.0 / 3.0 - beta / 27.0), 1.0 / np.maximum(beta, 3.0))
 
 
 def rolling_radius_difference(y, conicity: float):
@@ -118,9 +118,7 @@ class WheelRailContact:
         (arrays of one shape): the linear Kalker forces scaled by ``s(beta) / beta``."""
         fx = -self.f11 * np.asarray(xi_x, dtype=float)
         fy = -self.f22 * np.asarray(xi_y, dtype=float)
-        # s(beta) / beta = 1 - beta/3 + beta^2/27 below 3 (no division), 1 / beta beyond
-        beta = np.sqrt(fx * fx + fy * fy) * (1.0 / self.creep_limit())
-        scale = np.where(beta < 3.0, 1.0 - beta * (1.0 / 3.0 - beta / 27.0), 1.0 / np.maximum(beta, 3.0))
+        scale = _scale(np.sqrt(fx * fx + fy * fy) * (1.0 / self.creep_limit()))
         return fx * scale, fy * scale
 
     def wheelset_forces(self, y, psi, y_dot, yaw_rate, speed: float) -> WheelsetForces:
