@@ -8,7 +8,7 @@ Prints, per conicity, the linear critical speed (eigenvalues of campaign.vehicle
 large limit cycle's branch, the nonlinear critical speed (the lower of the two), the cycle amplitude of
 the leading wheelset at the fold, the plateaus run and the wall time on this machine. ``--unstable``:
 also the branch through the fold by shooting (campaign.periodic_orbits), from the lowest stable cycle of
-the ramp down in amplitude steps of 0.2 mm: amplitude against speed, the unstable part between the fold
+the ramp about 8 km/h above the fold down in amplitude steps of 0.2 mm: amplitude against speed, the unstable part between the fold
 and the linear critical speed.
 """
 from __future__ import annotations
@@ -30,11 +30,11 @@ from campaign.vehicle import VehicleParams, critical_speed  # noqa: E402
 from campaign.vehicle_nonlinear import LEADING_WHEELSET, NonlinearVehicle, kick_state  # noqa: E402
 
 
-def unstable_branch(params, diagram, step: float = 0.2e-3) -> list:
-    """The branch through the second-lowest stable cycle of ``diagram`` (the lowest sits at the fold, where a
-    step in amplitude has no good predictor) continued down in amplitude by shooting."""
-    stable = sorted((c for c in diagram.cycles if c.exists), key=lambda c: c.speed)
-    low = stable[1] if len(stable) > 1 else stable[0]
+def unstable_branch(params, diagram, step: float = 0.2e-3, above: float = 8.0 / 3.6) -> list:
+    """The branch through the stable cycle of ``diagram`` nearest ``above`` [m/s] over the fold (at the fold
+    itself a step in amplitude has no good predictor) continued down in amplitude by shooting."""
+    stable = [c for c in diagram.cycles if c.exists]
+    low = min(stable, key=lambda c: abs(c.speed - diagram.fold_speed - above))
     run = NonlinearVehicle(params, low.speed).simulate(low.state, 1.0)
     guess = orbit_guess(run.t, run.states, low.speed, LEADING_WHEELSET)
     prob = vehicle_shooting_problem(params, None, np.max(np.abs(run.states), axis=0))

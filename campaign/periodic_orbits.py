@@ -142,31 +142,44 @@ def floquet_multipliers(p: ShootingProblem, orbit: PeriodicOrbit) -> PeriodicOrb
     return orbit
 
 
+def _predict(out: list, start: PeriodicOrbit, a: float) -> PeriodicOrbit:
+    """Guess at amplitude ``a``: the secant through the last two orbits, else the last (or ``start``)."""
+    if len(out) < 2:
+        return out[-1] if out else start
+    o1, o2 = out[-2], out[-1]
+    w = (a - o2.amplitude) / (o2.amplitude - o1.amplitude)
+    return PeriodicOrbit(a, o2.speed + w * (o2.speed - o1.speed), o2.period + w * (o2.period - o1.period),
+                         o2.state + w * (o2.state - o1.state))
+
+
 def continue_in_amplitude(p: ShootingProblem, start: PeriodicOrbit, amplitudes, *, stability: bool = True,
                           log=None) -> list:
     """The branch through ``start`` at each of ``amplitudes`` [m] in turn (each solve from the secant
-    through the two before); stops at the first amplitude that does not converge. Returns the
-    :class:`PeriodicOrbit` list."""
-    out, guess = [], start
+    through the two before; a step that does not converge is retried once through its midpoint); stops
+    at the first amplitude that still does not converge. Returns the :class:`PeriodicOrbit` list."""
+    out = []
     for a in amplitudes:
-        if len(out) >= 2:  # secant predictor in amplitude
-            o1, o2 = out[-2], out[-1]
-            w = (float(a) - o2.amplitude) / (o2.amplitude - o1.amplitude)
-            guess = PeriodicOrbit(float(a), o2.speed + w * (o2.speed - o1.speed),
-                                  o2.period + w * (o2.period - o1.period), o2.state + w * (o2.state - o1.state))
-        try:
-            orbit = solve_orbit(p, float(a), guess)
-        except ValueError as err:
-            if log is not None:
-                log(f"  stopped: {err}")
-            break
+        last = out[-1].amplitude if out else start.amplitude
+        targets, orbit = [float(a)], None
+        for attempt in range(2):
+            try:
+                for t in targets:
+                    orbit = solve_orbit(p, t, _predict(out, start, t))
+                    if t != float(a):
+                        out.append(orbit)
+                break
+            except ValueError as err:
+                if attempt == 1:
+                    if log is not None:
+                        log(f"  stopped: {err}")
+                    return out
+                targets = [0.5 * (last + float(a)), float(a)]
         if stability:
             floquet_multipliers(p, orbit)
         if log is not None:
             log(f"  amplitude {a * 1e3:.2f} mm: {orbit.speed * 3.6:.1f} km/h, period {orbit.period:.4f} s"
                 + ("" if orbit.stable is None else f", {'stable' if orbit.stable else 'unstable'}"))
         out.append(orbit)
-        guess = orbit
     return out
 
 
