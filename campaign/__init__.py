@@ -5,6 +5,10 @@ It never imports the tuner; the tuner uses its vehicle (``tuner.vehicle``) and i
 - ``track``: design track geometry (straights, clothoids, constant curves, the S-curve switch);
 - ``irregularity``: lateral track irregularity from the ERRI B176 PSD;
 - ``vehicle``: the linear lateral/yaw model of one high-speed car with Maxwell yaw dampers;
+- ``contact``: nonlinear wheel-rail contact of a wheelset: conicity, flange dead band, saturating creep;
+- ``vehicle_nonlinear``: the same car with that contact on straight track, for hunting limit cycles;
+- ``bifurcation``: hunting limit cycles against speed by ramp-down, nonlinear critical speed, conicity sweep;
+- ``periodic_orbits``: limit cycles by shooting, stable or unstable, continued in amplitude through the fold;
 - ``scenarios``: the six manoeuvres of the paper's Table 1 and the front-right yaw damper's stroke [m];
 - ``rig``: the virtual damper test rig (stroke imposed, force and stroke recorded);
 - ``rig_damper``: the rig's physically based twin-tube damper (the "real" damper);

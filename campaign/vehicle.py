@@ -147,9 +147,11 @@ class VehicleModel:
     wheelset track headings theta [rad] (4), wheelset irregularity y_irr [m] (4), body
     uncompensated accelerations [m/s^2] (7), connection geometry Y(s_Q) - Y(s_P) [m] (6)
     and its rate [m/s] (6). ``x' = A x + B u + Bw w`` with ``w = excess dashpot velocity``.
+    ``creep=False`` leaves the wheel-rail creep forces out (the nonlinear contact of
+    :mod:`campaign.vehicle_nonlinear` adds its own).
     """
 
-    def __init__(self, params: VehicleParams | None = None, speed: float = 250.0 / 3.6):
+    def __init__(self, params: VehicleParams | None = None, speed: float = 250.0 / 3.6, *, creep: bool = True):
         if not (math.isfinite(speed) and speed > 0.0):
             raise ValueError(f"speed must be finite and > 0 m/s, got {speed}")
         self.p = p = params if params is not None else VehicleParams()
@@ -179,7 +181,7 @@ class VehicleModel:
             G[:, 15 + c] = -ky * lat
             G[:, 15 + nc + c] = -cy * lat
         b0, lam, r0 = p.contact_half_distance, p.conicity, p.wheel_radius
-        for j, w in enumerate(WHEELSETS):
+        for j, w in enumerate(WHEELSETS if creep else ()):
             C[_y(w), _y(w)] += 2.0 * p.f22 / V
             K[_y(w), _psi(w)] -= 2.0 * p.f22
             G[_y(w), j] = -2.0 * p.f22

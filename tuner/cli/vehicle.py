@@ -5,6 +5,11 @@ with irregularities) with four copies of each FMU as the vehicle's yaw dampers, 
 peak and RMS yaw damper force, carbody lateral acceleration and bogie yaw per FMU, and writes
 ``vehicle.json`` and one figure per scenario into ``--out`` (default ``results/vehicle``, or the first
 free ``results/vehicle-N``).
+
+With ``--nonlinear``: hunting with nonlinear wheel-rail contact instead (:mod:`tuner.vehicle.limit_cycles`):
+per FMU and equivalent conicity the linear and nonlinear critical speeds, the bifurcation diagrams
+(``hunting_bifurcation.png``), the critical speed against conicity (``critical_speed_conicity.png``) and
+``hunting_nonlinear.json``.
 """
 from __future__ import annotations
 
@@ -13,7 +18,9 @@ from pathlib import Path
 
 from tuner.cli.folders import DEFAULT_RESULTS, free_folder
 from tuner.progress import JobProgress
+from campaign.bifurcation import RampSettings
 from tuner.vehicle.compare import SCENARIO_NAMES, compare_fmus, format_table
+from tuner.vehicle.limit_cycles import DEFAULT_CONICITIES, HuntingStudy, format_study_table, hunting_study
 
 __all__ = ["add_parser", "cmd_vehicle"]
 
@@ -34,6 +41,15 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--tol", type=float, default=1.0, help="critical speed tolerance [km/h] (default 1)")
     p.add_argument("--kick", type=float, default=3.0, help="lateral kick of wheelsets and bogies [mm] (default 3)")
     p.add_argument("--quiet", action="store_true", help="no progress display")
+    p.add_argument("--nonlinear", action="store_true",
+                   help="hunting with nonlinear contact (saturating creep, flange) instead of the scenarios: "
+                        "bifurcation diagrams, linear and nonlinear critical speed against conicity")
+    p.add_argument("--conicities", nargs="+", type=float, default=list(DEFAULT_CONICITIES), metavar="LAMBDA",
+                   help="--nonlinear: equivalent conicities of the sweep (default 0.05 0.15 0.25 0.35 0.45)")
+    p.add_argument("--diagram-conicity", type=float, default=0.25,
+                   help="--nonlinear: conicity of the bifurcation diagrams (default 0.25)")
+    p.add_argument("--dv", type=float, default=20.0, help="--nonlinear: speed step of the ramp-down [km/h] (default 20)")
+    p.add_argument("--workers", type=int, default=2, help="--nonlinear: processes (default 2)")
     p.set_defaults(func=cmd_vehicle)
     return p
 
@@ -45,6 +61,8 @@ def cmd_vehicle(args) -> int:
         if not f.is_file():
             raise FileNotFoundError(f"damper FMU not found: {f}")
     out = args.out if args.out is not None else free_folder(DEFAULT_RESULTS / "vehicle")
+    if args.nonlinear:
+        return _nonlinear(args, out)
     weights = {f"{Path(f).stem}: {s}": (6.0 if s == "critical_speed" else 1.0) for f in args.fmus for s in args.scenarios}
     log = JobProgress(weights, quiet=args.quiet)
     try:
@@ -55,4 +73,19 @@ def cmd_vehicle(args) -> int:
         log.finish()
     print(format_table(data), flush=True)
     print(f"written: {out / 'vehicle.json'} and one figure per scenario in {out}", flush=True)
+    return 0
+
+
+def _nonlinear(args, out: Path) -> int:
+    if not (args.dv > 0 and args.workers >= 1):
+        raise ValueError("need --dv > 0 and --workers >= 1")
+    study = HuntingStudy(conicities=tuple(args.conicities), diagram_conicity=args.diagram_conicity,
+                         v_min=args.v_min / 3.6, v_max=args.v_max / 3.6, tol=args.tol / 3.6,
+                         ramp=RampSettings(dv=args.dv / 3.6, tol=args.tol / 3.6), step=args.step,
+                         workers=args.workers)
+    log = (lambda line: None) if args.quiet else (lambda line: print(line, flush=True))
+    data = hunting_study(args.fmus, out, study, log=log)
+    print(format_study_table(data), flush=True)
+    print(f"written: {out / 'hunting_nonlinear.json'}, {out / 'hunting_bifurcation.png'} and "
+          f"{out / 'critical_speed_conicity.png'}", flush=True)
     return 0

@@ -3,5 +3,9 @@
 - ``cosim``: the 14-DOF vehicle of ``campaign.vehicle`` as co-simulation master of four yaw damper
   FMUs (``VehicleCosim``; its master loop in C, ``c/vehicle_master.c``);
 - ``hunting``: the critical speed [m/s] by a time-domain speed search, and by eigenvalues;
+- ``nonlinear_cosim``: the nonlinear car of ``campaign.vehicle_nonlinear`` (saturating creep, flange) with four
+  yaw damper FMUs, Runge-Kutta within each communication step (``NonlinearCosim``);
+- ``limit_cycles``: per FMU and wheel conicity the linear and nonlinear critical speeds and the bifurcation
+  diagrams, side by side (``python -m tuner vehicle --nonlinear``);
 - ``compare``: the same scenarios with several FMUs side by side (``python -m tuner vehicle``).
 """

@@ -30,7 +30,7 @@ from tuner.vehicle.hunting import critical_speed_time_domain, eigen_critical_spe
 from tuner import strict_json
 
 __all__ = ["SCENARIO_NAMES", "compare_fmus", "scenario_runs", "run_figures", "summary_rows", "format_table",
-           "VEHICLE_FOLDER"]
+           "VEHICLE_FOLDER", "fmu_labels", "maxwell_values"]
 
 SCENARIO_NAMES = ("critical_speed", "curve_entry", "straight_irregular")
 #: sub-folder of a tuner output folder for the vehicle consequences (``tuner.job``, the report)
@@ -70,7 +70,7 @@ def run_figures(run) -> dict[str, float]:
     }
 
 
-def _maxwell_values(path: Path) -> dict | None:
+def maxwell_values(path: Path) -> dict | None:
     """``k_s`` [N/m] and ``c`` [N s/m] start values of a linear Maxwell FMU, else None."""
     md = read_model_description(str(path))
     names = {v.name: v for v in md.modelVariables}
@@ -79,7 +79,8 @@ def _maxwell_values(path: Path) -> dict | None:
     return {"k_s": float(names["k_s"].start), "c": float(names["c"].start)}
 
 
-def _labels(paths) -> list[str]:
+def fmu_labels(paths) -> list[str]:
+    """One label per FMU path: its file stem, ``-2``, ``-3``... appended to repeats."""
     labels = []
     for p in paths:
         lab = Path(p).stem
@@ -109,7 +110,7 @@ def compare_fmus(fmus, out: Path, *, scenarios=SCENARIO_NAMES, step: float = 1e-
         raise ValueError(f"unknown scenario(s) {unknown}; choose from {list(SCENARIO_NAMES)}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    labels = _labels(paths)
+    labels = fmu_labels(paths)
     runs = scenario_runs()
     results: dict = {lab: {"fmu": str(p)} for lab, p in zip(labels, paths)}
     histories: dict = {s: {} for s in scenarios}
@@ -126,7 +127,7 @@ def compare_fmus(fmus, out: Path, *, scenarios=SCENARIO_NAMES, step: float = 1e-
                              "unstable_at_min": res.unstable_at_min,
                              "runs": [{"speed_kmh": v * 3.6, "growth_rate_per_s": s, "completed": d}
                                       for v, s, d in res.runs], "kick_m": kick}
-                    mx = _maxwell_values(p)
+                    mx = maxwell_values(p)
                     if mx is not None:
                         ve = eigen_critical_speed(mx["k_s"], mx["c"], co.params, v_max=v_max)
                         entry["eigenvalue_critical_speed_kmh"] = ve * 3.6 if math.isfinite(ve) else None

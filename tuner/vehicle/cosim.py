@@ -41,8 +41,8 @@ from campaign.vehicle import DAMPER_NAMES, DT_MAX, N_BODIES, N_DAMPERS, N_DOF, V
 from damper_fmu.native import compile_library
 from tuner.identification.runner import FmuRunner
 
-__all__ = ["VehicleCosim", "VehicleRun", "reference_run", "check_damper_fmu", "master_loop", "N_MECH",
-           "DEFAULT_STEP"]
+__all__ = ["VehicleCosim", "VehicleRun", "DamperInstance", "reference_run", "check_damper_fmu", "master_loop",
+           "N_MECH", "DEFAULT_STEP"]
 
 N_MECH = 2 * N_DOF
 """Mechanical states of the vehicle: y_0..y_6, Psi_0..Psi_6 [m, rad], their rates [m/s, rad/s]."""
@@ -145,7 +145,7 @@ class VehicleRun:
         return self.states[:, 3:7]
 
 
-class _Damper:
+class DamperInstance:
     """One damper FMU instance (extracted and instantiated once, reset for every run)."""
 
     def __init__(self, path, name: str, parameters: dict | None):
@@ -163,6 +163,7 @@ class _Damper:
             self.set_der = dll.fmi2SetRealInputDerivatives
         self.fn = [ctypes.cast(f, ctypes.c_void_p).value for f in (r._set_real, r._do_step, r._get_real)]
         self.der_ptr = ctypes.cast(self.set_der, ctypes.c_void_p).value if self.set_der is not None else None
+        self._buf = None
 
     def start(self, t0: float, stroke: float, velocity: float) -> float:
         """Reset, apply the parameters, initialise at (``stroke`` [m], ``velocity`` [m/s]); the force [N]."""
@@ -172,6 +173,24 @@ class _Damper:
         buf = (ctypes.c_double * 1)()
         r._check(r._get_real(r._component, (ctypes.c_uint * 1)(self.vr[2]), 1, buf), "reading the initial force")
         return float(buf[0])
+
+    def step(self, t: float, h: float, stroke: float, velocity: float, acceleration: float) -> float:
+        """One communication step from ``t`` over ``h`` [s] with the elongation ``stroke`` [m], its rate
+        ``velocity`` [m/s] and (where the FMU interpolates its inputs) rate of change ``acceleration``
+        [m/s^2] at ``t``; the force [N] at ``t + h``. Raises SimulationError naming the damper on failure."""
+        r, c = self.runner, self.runner._component
+        if self._buf is None:
+            self._buf = ((ctypes.c_uint * 2)(self.vr[0], self.vr[1]), (ctypes.c_uint * 1)(self.vr[1]),
+                         (ctypes.c_uint * 1)(self.vr[2]), (ctypes.c_double * 2)(), (ctypes.c_double * 1)(),
+                         (ctypes.c_double * 1)(), (ctypes.c_int * 1)(1))
+        vr_in, vr_v, vr_f, inp, acc, out, order = self._buf
+        inp[0], inp[1], acc[0] = stroke, velocity, acceleration
+        r._check(r._set_real(c, vr_in, 2, inp), f"damper {self.name}: setting inputs at t = {t:.6g} s")
+        if self.set_der is not None:
+            r._check(self.set_der(c, vr_v, 1, order, acc), f"damper {self.name}: input derivative at t = {t:.6g} s")
+        r._check(r._do_step(c, t, h, 1), f"damper {self.name}: step at t = {t:.6g} s")
+        r._check(r._get_real(c, vr_f, 1, out), f"damper {self.name}: reading the force at t = {t + h:.6g} s")
+        return float(out[0])
 
     def close(self):
         self.runner.close()
@@ -200,10 +219,10 @@ class VehicleCosim:
         self.params = params if params is not None else VehicleParams()
         self.step = float(step)
         self.paths = [Path(p) for p in paths]
-        self.dampers: list[_Damper] = []
+        self.dampers: list[DamperInstance] = []
         try:
             for p, name in zip(self.paths, DAMPER_NAMES):
-                self.dampers.append(_Damper(p, name, fmu_parameters))
+                self.dampers.append(DamperInstance(p, name, fmu_parameters))
         except BaseException:
             self.close()
             raise
