@@ -157,6 +157,19 @@ def test_results_round_trip_through_strict_json():
     assert [p.flags for p in back.parameters] == [p.flags for p in iv.parameters]
     assert all(isinstance(p, ParameterInterval) for p in back.parameters)
     assert back.descriptions() == iv.descriptions()
+    # the covariance in the identification's coordinates, for draws of parameter sets, comes back too, and
+    # maps to the stored physical covariance by the coordinates' Jacobian (delta method)
+    assert back.local.resolved == iv.local.resolved and np.allclose(back.local.matrix, iv.local.matrix)
+    par = back.local.parametrization("lumped", known)
+    space = par.local_space()
+    assert list(space.names) == back.local.coordinates
+    keep = [back.local.coordinates.index(c) for c in back.local.resolved]
+    u0, h = back.local.u, 1e-7
+    p0 = space.to_params(u0)
+    G = np.column_stack([[(space.to_params(u0 + h * np.eye(u0.size)[i])[n] - p0[n]) / h
+                          for n in back.covariance_names] for i in keep])
+    cov = G @ back.local.matrix @ G.T
+    assert np.allclose(np.sqrt(np.diag(cov)), np.sqrt(np.diag(back.covariance)), rtol=1e-3)
 
 
 def test_fit_writes_the_intervals_and_the_report_shows_them(small_lumped, tmp_path):
