@@ -3,5 +3,7 @@
 - ``cosim``: the 14-DOF vehicle of ``campaign.vehicle`` as co-simulation master of four yaw damper
   FMUs (``VehicleCosim``; its master loop in C, ``c/vehicle_master.c``);
 - ``hunting``: the critical speed [m/s] by a time-domain speed search, and by eigenvalues;
-- ``compare``: the same scenarios with several FMUs side by side (``python -m tuner vehicle``).
+- ``compare``: the same scenarios with several FMUs side by side (``python -m tuner vehicle``);
+- ``propagation``: the identification's parameter uncertainty carried to the critical speed and the curve's
+  peak damper force (95 % intervals from parameter sets drawn from the fitted covariance).
 """
