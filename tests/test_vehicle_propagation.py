@@ -11,11 +11,13 @@ references:
 (c) the robust search finds the eigenvalue critical speed (linear FMU) from a guess far off.
 """
 import math
+from argparse import Namespace
 
 import numpy as np
 import pytest
 
 from damper_fmu.fmu import ensure_fmu
+from tuner.cli.options import vehicle_scheduler
 from tuner.cli.summary import vehicle_interval_summary
 from tuner.identification.parameter_draws import draw_parameter_sets
 from tuner.metrics import Z95
@@ -103,3 +105,14 @@ def test_bad_settings_and_folders_are_named(tmp_path):
         propagate(tmp_path, PropagationSettings(draws=1))
     with pytest.raises(FileNotFoundError, match="parameters.json"):
         propagate(tmp_path, PropagationSettings())
+
+
+def test_the_command_line_options_are_checked_and_mapped():
+    assert vehicle_scheduler(Namespace(vehicle_draws=24, vehicle_scheduler=None, workers=2)) == "pool:2"
+    assert vehicle_scheduler(Namespace(vehicle_draws=24, vehicle_scheduler=None, workers=0)) is None
+    assert vehicle_scheduler(Namespace(vehicle_draws=24, vehicle_scheduler="here", workers=2)) is None
+    assert vehicle_scheduler(Namespace(vehicle_draws=24, vehicle_scheduler="local:2", workers=2)) == "local:2"
+    with pytest.raises(ValueError, match="--vehicle-scheduler"):
+        vehicle_scheduler(Namespace(vehicle_draws=24, vehicle_scheduler="pool:x", workers=2))
+    with pytest.raises(ValueError, match="--vehicle-draws"):
+        vehicle_scheduler(Namespace(vehicle_draws=1, vehicle_scheduler=None, workers=2))

@@ -52,6 +52,7 @@ from tuner.identification.runner import FmuRunner
 from tuner.metrics import Z95, block_sandwich, correlation_time
 
 __all__ = ["ParameterInterval", "ReachedRange", "LocalCovariance", "ModelIntervals", "parameter_intervals", "model_intervals",
+           "residual_jacobian",
            "reached_ranges", "classify", "STEP", "DETERMINED_WIDTH", "BOUND_FRACTION", "TIE_CORRELATION",
            "NULL_RCOND", "BLOCK_CORRELATION_TIMES", "MIN_BLOCKS_PER_PARAMETER", "MIN_BLOCKS", "CONFIDENCE"]
 
@@ -302,7 +303,7 @@ class ModelIntervals:
 
 # -- the statistics ----------------------------------------------------------------------------------
 
-def _jacobian(engine, space, u: np.ndarray, names: list[str], step: float):
+def residual_jacobian(engine, space, u: np.ndarray, names: list[str], step: float = STEP):
     """(residual r [N], J [N per coordinate], G = d theta / d u [unit per coordinate], failed coordinates)
     at u of ``space`` (forward differences; a step that would leave [0, 1] goes the other way). theta: the
     parameters ``names`` (the Parametrization's order)."""
@@ -412,7 +413,7 @@ def parameter_intervals(engine, par: Parametrization, params: dict, *, reached: 
     names = list(par.names)
     u = space.from_params(params)
     params = space.to_params(u)  # the point the Jacobian is taken at (params itself, within rounding)
-    r, J, G, failed = _jacobian(engine, space, u, names, step)
+    r, J, G, failed = residual_jacobian(engine, space, u, names, step)
     lengths = [int(s.mask.sum()) for s in engine.tests]
     dropped = _unresolved(J, set(failed))
     keep = [i for i in range(J.shape[1]) if i not in dropped]
