@@ -8,9 +8,7 @@ the prediction is linear, at the fit's residual level)."""
 import numpy as np
 import pytest
 
-from damper_fmu import simulate
-from interval_cases import FS, TRUTH_STEPS, fitted, rig_tests, truth
-from tuner.data.reading import RigTest
+from interval_cases import FS, fitted, rig_tests, run_on_truth, truth
 from tuner.identification.engine import fastest_engine
 from tuner.identification.test_design import RigLimits, candidate_tests, rank_candidates
 
@@ -30,12 +28,7 @@ def test_the_recommended_test_shrinks_the_mass_interval_it_promised():
     slow = next(g for g in ranked if g.candidate.name == "sine_0.5Hz")
     assert slow.shrink("M_P") > 0.8 > 0.5 > best.shrink("M_P")
     # run it on the "rig": the truth's force under the recommended stroke, plus the same noise
-    c = best.candidate
-    v = np.gradient(c.stroke, c.time)
-    force = simulate("lumped", c.time, c.stroke, v, params=known, **TRUTH_STEPS["fine"])
-    force = force + np.random.default_rng(77).normal(0.0, 25.0, c.time.size)
-    new = RigTest(name=c.name, role="identification", scenario=c.description, time=c.time, stroke=c.stroke,
-                  force=force, sample_rate=FS)
+    new = run_on_truth(known, best.candidate, seed=77)
     _, _, _, iv2, _ = fitted(known, [*tests, new])
     before, after = best.widths_before["M_P"], iv2.get("M_P").high - iv2.get("M_P").low
     assert after < 0.5 * before

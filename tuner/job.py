@@ -157,6 +157,9 @@ def vehicle_consequences(fmus: list[Path], out: Path, seed: int = 0, log=print, 
                         log=SubStages(log, len(fmus) * len(SCENARIO_NAMES)))
     if draws > 0:
         stage(log, "vehicle intervals")
-        propagate(out, PropagationSettings(draws=draws, seed=seed, irregularity_seed=seed), scheduler=scheduler,
-                  log=log)
+        try:
+            propagate(out, PropagationSettings(draws=draws, seed=seed, irregularity_seed=seed), scheduler=scheduler,
+                      log=log)
+        except (ValueError, OSError, RuntimeError) as err:  # e.g. the Dask cluster went away: the rest stands
+            log(f"vehicle intervals not computed: {err}")
     return data

@@ -148,7 +148,8 @@ def add_fit_options(ap: argparse.ArgumentParser) -> None:
                    help="skip the diagnosis that follows the fit (it needs validation tests)")
     g.add_argument("--vehicle", action="store_true",
                    help="yaw dampers: run the tuned FMUs as the yaw dampers of the campaign's vehicle (critical "
-                        "speed, curve entry, straight track; about 25 s) and add the section to the report "
+                        "speed, curve entry, straight track; about 25 s; with --vehicle-draws their 95 %% intervals, about a "
+                        "minute more) and add the section to the report "
                         "(on in the default run)")
     g.add_argument("--vehicle-draws", type=int, default=PropagationSettings().draws, metavar="N",
                    help="with --vehicle: 95 %% intervals of the critical speed and the curve's peak damper force "

@@ -5,7 +5,7 @@ from pathlib import Path
 
 from tuner.results.html import esc, figure_html, table
 from tuner.vehicle.compare import VEHICLE_FOLDER, summary_rows
-from tuner.vehicle.propagation import INTERVALS_FILE
+from tuner.vehicle.propagation import INTERVALS_FILE, SKEWED
 from tuner import strict_json
 
 
@@ -59,7 +59,10 @@ def intervals_html(folder: Path) -> str:
                      "-" if scatter is None else f"+-{scatter * 3.6:.2g}", esc(r["peak_curve_force_text"]),
                      esc(err(pf, 1e-3, "kN")), str(cs["draws"]) + (f" ({cs['failed']} failed)" if cs["failed"] else ""),
                      esc(cs["method"])])
-        notes.append(f"<li>{esc(label)}: {esc(r['draws']['text'])}; {esc(r['stop'])}</li>")
+        skew = [f"{f['quantity']}: skewed draws (skewness {f['skewness']:+.1f}), the normal-theory ends are rough"
+                for f in (cs, pf) if f["method"] == "normal" and abs(f.get("skewness", 0.0)) > SKEWED]
+        notes.append(f"<li>{esc(label)}: {esc(r['draws']['text'])}; {esc(r['stop'])}"
+                     f"{''.join('; ' + esc(t) for t in skew)}</li>")
     errors = "".join(f"<li>{esc(k)}: no interval ({esc(v)})</li>" for k, v in data.get("errors", {}).items())
     return ("<h3>What the identification's uncertainty means in the vehicle</h3>"
             "<p>Parameter sets drawn from each fitted model's covariance (in the identification's coordinates, "

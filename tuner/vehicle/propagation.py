@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -58,6 +58,8 @@ INTERVALS_FILE = "intervals.json"
 #: offset times the first bracket's half width; indices -1, -2, -3): the first is the nominal value, the
 #: spread of the three the search's own scatter
 NOMINAL_OFFSETS = (0.0, -0.5, 0.5)
+#: |skewness| of the draws beyond which the normal-theory interval is said to be rough
+SKEWED = 1.0
 _COSIMS: dict = {}
 
 
@@ -169,7 +171,8 @@ class FigureInterval:
     nominal: with the fitted parameters; low/high: the interval's ends; mean/std: of the draws; draws:
     counted draws; failed: draws left out; censored_low/high: draws at the search range's bottom/top
     (unstable at v_min / stable to v_max); method: 'normal' or 'percentile'; mc_error: Monte-Carlo standard
-    error of the ends (None when the draws cannot tell)."""
+    error of the ends (None when the draws cannot tell); skewness: of the draws (normal theory assumes about
+    0: beyond SKEWED, ``error_text`` says the ends are rough)."""
 
     quantity: str
     unit: str
@@ -184,6 +187,7 @@ class FigureInterval:
     mc_error: float | None
     censored_low: int = 0
     censored_high: int = 0
+    skewness: float = 0.0
 
     def text(self, scale: float = 1.0, unit: str | None = None, spec: str = ".0f") -> str:
         """'804 km/h (95 %: 790-815)' in ``unit`` (the values times ``scale``)."""
@@ -200,7 +204,10 @@ class FigureInterval:
         err = "not estimable" if self.mc_error is None else f"+-{format(self.mc_error * scale, spec)} {u}"
         method = "normal theory" if self.method == "normal" else "empirical quantiles"
         failed = f", {self.failed} failed" if self.failed else ""
-        return f"ends {err} (Monte-Carlo, {self.draws} draws{failed}, {method})"
+        skew = (f"; the draws are skewed (skewness {self.skewness:+.1f}): the normal-theory ends are rough, about "
+                f"200 draws give the empirical quantiles" if self.method == "normal" and abs(self.skewness) > SKEWED
+                else "")
+        return f"ends {err} (Monte-Carlo, {self.draws} draws{failed}, {method}){skew}"
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -224,6 +231,7 @@ def figure_interval(values, nominal: float | None, quantity: str, unit: str, *, 
         raise ValueError(f"{quantity}: need at least 2 draws that ran, got {n} ({failed} failed)")
     cens_lo, cens_hi = int(np.sum(x <= bottom)), int(np.sum(x >= top))
     mean, std = float(np.mean(x)), float(np.std(x, ddof=1))
+    skew = float(np.mean((x - mean) ** 3) / std ** 3) if std > 0 else 0.0
     ranks = [_rank_interval(n, p) for p in (0.025, 0.975)]
     if all(ranks) or cens_lo or cens_hi:
         low, high = (float(v) for v in np.quantile(x, [0.025, 0.975]))
@@ -233,7 +241,7 @@ def figure_interval(values, nominal: float | None, quantity: str, unit: str, *, 
         low, high = mean - Z95 * std, mean + Z95 * std
         err, method = std * math.sqrt(1.0 / n + Z95 ** 2 / (2.0 * (n - 1))), "normal"
     return FigureInterval(quantity, unit, nominal, low, high, mean, std, n, failed, method,
-                          None if err is None else float(err), cens_lo, cens_hi)
+                          None if err is None else float(err), cens_lo, cens_hi, skew)
 
 
 # -- the whole folder ---------------------------------------------------------------------------------
@@ -415,7 +423,8 @@ def propagate(folder, settings: PropagationSettings = PropagationSettings(), *, 
             continue
         nominal = [o.critical_speed for k, o in p.done.items() if k < 0 and o.error is None]
         scatter = 0.5 * (max(nominal) - min(nominal)) if len(nominal) > 1 and np.all(np.isfinite(nominal)) else None
-        results[p.fmu.stem] = FmuIntervals(p.fmu.stem, p.model, str(p.fmu), p.draws.to_dict(), cs, pf,
+        used = replace(p.draws, sets=p.draws.sets[:p.next_index])  # the sets drawn, not the most planned
+        results[p.fmu.stem] = FmuIntervals(p.fmu.stem, p.model, str(p.fmu), used.to_dict(), cs, pf,
                                            list(p.done.values()), p.stop, scatter)
         log(f"vehicle intervals: {results[p.fmu.stem].headline()}; {cs.error_text(3.6, 'km/h')}")
     data = {"settings": asdict(settings), "where": executor.description, "method": __doc__.split("\n\n")[1],
