@@ -217,6 +217,20 @@ def test_fit_writes_the_intervals_and_the_report_shows_them(small_lumped, tmp_pa
     for p in lumped.parameters:
         assert p.range_text() in described[p.name], (p.name, described[p.name])
     assert "NOT determined" in described["M_C"]
+    # the design command on this fit: the best tests for what it leaves open, as a dataset the reader takes
+    from tuner.__main__ import main
+    from tuner.data.reading import load_dataset
+
+    assert main(["design", "--from", str(out), "--duration", "3", "--top", "2", "--quiet"]) == 0
+    design = json.loads((out / "design" / "design.json").read_text(),
+                        parse_constant=lambda c: pytest.fail(f"design.json holds {c}"))
+    assert "M_C" in design["models"]["lumped"]["targets"]
+    lim = design["limits"]
+    written = load_dataset(out / "design")
+    assert {t.name + ".csv" for t in written} >= set(design["models"]["lumped"]["written"])
+    assert all(float(np.max(np.abs(t.stroke))) <= lim["stroke_m"] * (1 + 1e-6) for t in written)
+    ranked = design["models"]["lumped"]["ranked"]
+    assert [g["score_nats"] for g in ranked] == sorted((g["score_nats"] for g in ranked), reverse=True)
 
 
 def descriptions(fmu) -> dict:

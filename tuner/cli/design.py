@@ -13,7 +13,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from tuner import strict_json
 from tuner.identification.test_design import RigLimits, design_from_folder
+from tuner.progress import JobProgress
 
 __all__ = ["add_parser", "cmd_design"]
 
@@ -35,6 +37,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="the rig's largest |stroke velocity| [mm/s] (default: the identification tests')")
     p.add_argument("--force-limit", type=float, default=None, metavar="N",
                    help="the rig's largest |force| [N] (default: the identification tests')")
+    p.add_argument("--quiet", action="store_true", help="no progress display")
     p.set_defaults(func=cmd_design)
     return p
 
@@ -50,8 +53,16 @@ def cmd_design(args) -> int:
         limits = RigLimits(args.stroke_limit * 1e-3, args.velocity_limit * 1e-3, args.force_limit)
         limits.check()
     models = [m.strip() for m in args.models.split(",")] if args.models else None
-    data = design_from_folder(args.folder, args.out, limits=limits, top=args.top, duration=args.duration,
-                              rate=args.rate, models=models)
+    pj = args.folder / "parameters.json"
+    if not pj.is_file():
+        raise FileNotFoundError(f"--from {args.folder}: no parameters.json (not a fit output folder)")
+    fitted = [m for m in strict_json.loads(pj.read_text()) if not models or m in models]
+    log = JobProgress({f"design {m}": 1.0 for m in fitted} or {"design": 1.0}, quiet=args.quiet)
+    try:
+        data = design_from_folder(args.folder, args.out, limits=limits, top=args.top, duration=args.duration,
+                                  rate=args.rate, models=models, log=log)
+    finally:
+        log.finish()
     out = args.out or args.folder / "design"
     for model, d in data["models"].items():
         print(f"{model}: not determined {', '.join(d['targets'])}; best tests: {', '.join(d['written'])}")

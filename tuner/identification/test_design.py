@@ -52,6 +52,7 @@ from tuner.identification.intervals import ModelIntervals, residual_jacobian
 from tuner.identification.problem import to_signals
 from tuner.identification.runner import FmuRunner
 from tuner.metrics import Z95
+from tuner.progress import advance, stage
 
 __all__ = ["RigLimits", "Candidate", "CandidateGain", "ModelDesign", "candidate_tests", "rank_candidates",
            "design_from_folder", "limits_from_tests", "EASE_IN_S", "PRIOR_UNSEEN", "DESIGN_FOLDER"]
@@ -313,7 +314,8 @@ def design_from_folder(folder, out=None, *, limits: RigLimits | None = None, top
     ``folder/design``: one CSV per test in the ``damper-rig-dataset/1`` format whose ``force`` column is the
     fitted model's prediction, for the rig's force limit; the rig records the measured force in its place),
     ``design.json`` there with every candidate's expected gain; return design.json's content. ``limits``:
-    the rig's (default: what the identification tests reached, ``limits_from_tests``)."""
+    the rig's (default: what the identification tests reached, ``limits_from_tests``). ``log``: progress lines
+    (a ``tuner.progress.JobProgress`` also gets a stage 'design MODEL' per model)."""
     folder = Path(folder)
     for name in ("parameters.json", "metrics.json", "simulations.npz"):
         if not (folder / name).is_file():
@@ -339,9 +341,11 @@ def design_from_folder(folder, out=None, *, limits: RigLimits | None = None, top
         if not targets:
             log(f"design: {model}: every parameter determined; nothing to design")
             continue
+        stage(log, f"design {model}")
         log(f"design: {model}: {len(targets)} parameters not determined ({', '.join(targets)}); ranking ...")
         ranked = rank_candidates(model, entry["values"], iv, candidates, fit_rate_hz=settings["fit_rate_hz"],
-                                 warmup_s=settings["warmup_s"], limits=limits, engine=fastest_engine())
+                                 warmup_s=settings["warmup_s"], limits=limits, engine=fastest_engine(),
+                                 progress=lambda share: advance(log, share))
         designs.append(ModelDesign(model, targets, ranked))
     return _write_design(folder, Path(out) if out else folder / DESIGN_FOLDER, designs, limits, top, log)
 
