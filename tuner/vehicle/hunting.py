@@ -12,6 +12,9 @@ critical speed. ``sigma < 0``: stable at that speed.
 The critical speed is bracketed by bisection on the speed [m/s] and, once the bracket is narrower than
 ``tol``, taken where the linear interpolation of ``sigma`` between the bracket ends crosses zero.
 A run whose motion exceeds ``abort_ratio * kick`` is stopped early and counts as unstable.
+:func:`critical_speed_near` finds it from a guess instead (the draws of ``tuner.vehicle.propagation``): a
+bracket around the guess and the zero of a robust line through the growth rates of the decaying runs, not
+swayed by the growth rates a nonlinear damper's growing motion gives on the unstable side.
 
 With a nonlinear damper the result depends on the kick amplitude (the damper's stiffness and damping
 change with amplitude): it is the speed above which a disturbance of that size grows.
