@@ -52,6 +52,7 @@ def cmd_fit(args) -> int:
             raise ValueError(f"--{opt} must be >= 1")
     if args.population < 2:
         raise ValueError("--population must be >= 2")
+    vehicle_scheduler(args)  # --vehicle-draws and --vehicle-scheduler checked before anything runs
     t0 = time.perf_counter()
     budget = args.population * args.iterations / (20 * 150)  # relative to the default run's
     weights = {f"fit {m}": {"lumped": 60.0, "maxwell": 8.0, "maxwell_table": 30.0, "twochamber": 60.0}[m] * budget
