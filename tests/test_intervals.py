@@ -231,6 +231,9 @@ def test_fit_writes_the_intervals_and_the_report_shows_them(small_lumped, tmp_pa
     assert all(float(np.max(np.abs(t.stroke))) <= lim["stroke_m"] * (1 + 1e-6) for t in written)
     ranked = design["models"]["lumped"]["ranked"]
     assert [g["score_nats"] for g in ranked] == sorted((g["score_nats"] for g in ranked), reverse=True)
+    section = (out / "report.html").read_text(encoding="utf-8")  # rebuilt with the design's section
+    section = section[section.index("id='design'"):]
+    assert all(n.removesuffix(".csv") in section[:section.index("</section>")] for n in design["models"]["lumped"]["written"])
 
 
 def descriptions(fmu) -> dict:

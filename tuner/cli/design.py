@@ -6,7 +6,8 @@ stroke, velocity and force limits, and the identification tests run again) by ho
 to shrink the 95 % intervals of the parameters each fitted model leaves not determined
 (``tuner.identification.test_design``), and writes the best as a dataset ready for the rig (one CSV per
 test, ``damper-rig-dataset/1``; the force column holds the fitted model's prediction) with ``design.json``
-(every candidate's expected gain) into ``--out`` (default ``RUN/design``).
+(every candidate's expected gain) into ``--out`` (default ``RUN/design``; then the run's report is rebuilt
+with the section "The tests that would pin down the rest").
 """
 from __future__ import annotations
 
@@ -14,8 +15,9 @@ import argparse
 from pathlib import Path
 
 from tuner import strict_json
-from tuner.identification.test_design import RigLimits, design_from_folder
+from tuner.identification.test_design import DESIGN_FOLDER, RigLimits, design_from_folder
 from tuner.progress import JobProgress
+from tuner.results.report import make_report
 
 __all__ = ["add_parser", "cmd_design"]
 
@@ -63,8 +65,10 @@ def cmd_design(args) -> int:
                                   rate=args.rate, models=models, log=log)
     finally:
         log.finish()
-    out = args.out or args.folder / "design"
+    out = args.out or args.folder / DESIGN_FOLDER
     for model, d in data["models"].items():
         print(f"{model}: not determined {', '.join(d['targets'])}; best tests: {', '.join(d['written'])}")
     print(f"written: {out} (stroke files and manifest.json, design.json)", flush=True)
+    if Path(out).resolve() == (args.folder / DESIGN_FOLDER).resolve() and (args.folder / "report.html").exists():
+        print(f"report with the design section: {make_report(args.folder)}", flush=True)
     return 0
