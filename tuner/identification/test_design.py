@@ -227,12 +227,12 @@ def _widths(cov_u: np.ndarray, G: np.ndarray, names: list, targets: list, iv: Mo
 
 def rank_candidates(model: str, values: dict, iv: ModelIntervals, candidates: list[Candidate], *, fit_rate_hz: float,
                     warmup_s: float, targets: list | None = None, limits: RigLimits | None = None,
-                    engine: str = "native", progress=None) -> list[CandidateGain]:
+                    engine: str | None = None, progress=None) -> list[CandidateGain]:
     """The ``candidates`` ranked by their expected gain on the ``targets`` (default: the parameters ``iv`` says
     are not determined) of ``model`` fitted at ``values`` (SI) with the intervals ``iv`` (module docstring);
     prepared at ``fit_rate_hz`` [Hz] with ``warmup_s`` [s] as the fit's tests; those whose predicted peak force
-    exceeds ``limits.force_n`` are left out. ``progress``: called with the share done (0-1). ValueError when
-    there is nothing to rank."""
+    exceeds ``limits.force_n`` are left out. ``engine``: the identification engine (default the fastest
+    here). ``progress``: called with the share done (0-1). ValueError when there is nothing to rank."""
     if iv.local is None:
         raise ValueError(f"{model}: no covariance in the identification's coordinates in parameters.json; refit "
                          "with this version")
@@ -246,7 +246,7 @@ def rank_candidates(model: str, values: dict, iv: ModelIntervals, candidates: li
     info0 = _prior_information(iv)
     cov0 = _inverse(info0)
     signals = [to_signals(prepare(c.rig_test(), fit_rate_hz), warmup_s) for c in candidates]
-    with Engine(model, signals, engine=engine, workers=0) as eng:
+    with Engine(model, signals, engine=engine or fastest_engine(), workers=0) as eng:
         r, J, G, failed = residual_jacobian(eng, space, u0, names)
     if failed:
         raise ValueError(f"{model}: the fitted model could not be simulated on the candidates next to the fit")
