@@ -40,6 +40,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--force-limit", type=float, default=None, metavar="N",
                    help="the rig's largest |force| [N] (default: the identification tests')")
     p.add_argument("--quiet", action="store_true", help="no progress display")
+    p.add_argument("--no-report", action="store_true", help="do not rebuild RUN/report.html with the design's section")
     p.set_defaults(func=cmd_design)
     return p
 
@@ -69,6 +70,7 @@ def cmd_design(args) -> int:
     for model, d in data["models"].items():
         print(f"{model}: not determined {', '.join(d['targets'])}; best tests: {', '.join(d['written'])}")
     print(f"written: {out} (stroke files and manifest.json, design.json)", flush=True)
-    if Path(out).resolve() == (args.folder / DESIGN_FOLDER).resolve() and (args.folder / "report.html").exists():
+    if (not args.no_report and Path(out).resolve() == (args.folder / DESIGN_FOLDER).resolve()
+            and (args.folder / "report.html").exists()):
         print(f"report with the design section: {make_report(args.folder)}", flush=True)
     return 0
