@@ -92,3 +92,14 @@ def fitted(params: dict, tests: list[RigTest], *, jacobians: int = 20, fit_rate_
             est = par.to_params(z)
         iv = parameter_intervals(eng, par, est, reached=reached_ranges("lumped", est, problem.sig_id))
     return problem, par, est, iv, info
+
+
+def run_on_truth(params: dict, candidate, seed: int, noise_n: float = 25.0) -> RigTest:
+    """The rig test a designed ``candidate`` (``tuner.identification.test_design.Candidate``) gives on the damper
+    ``params``: the model's force, finely integrated, under its stroke, plus ``noise_n`` rms [N] of white noise."""
+    c = candidate
+    v = np.gradient(c.stroke, c.time)
+    force = simulate("lumped", c.time, c.stroke, v, params=params, **TRUTH_STEPS["fine"])
+    force = force + np.random.default_rng(seed + 20_000).normal(0.0, noise_n, c.time.size)
+    return RigTest(name=c.name, role="identification", scenario=c.description, time=c.time, stroke=c.stroke,
+                   force=force, sample_rate=(c.time.size - 1) / (c.time[-1] - c.time[0]))

@@ -157,6 +157,19 @@ def test_results_round_trip_through_strict_json():
     assert [p.flags for p in back.parameters] == [p.flags for p in iv.parameters]
     assert all(isinstance(p, ParameterInterval) for p in back.parameters)
     assert back.descriptions() == iv.descriptions()
+    # the covariance in the identification's coordinates, for draws of parameter sets, comes back too, and
+    # maps to the stored physical covariance by the coordinates' Jacobian (delta method)
+    assert back.local.resolved == iv.local.resolved and np.allclose(back.local.matrix, iv.local.matrix)
+    par = back.local.parametrization("lumped", known)
+    space = par.local_space()
+    assert list(space.names) == back.local.coordinates
+    keep = [back.local.coordinates.index(c) for c in back.local.resolved]
+    u0, h = back.local.u, 1e-7
+    p0 = space.to_params(u0)
+    G = np.column_stack([[(space.to_params(u0 + h * np.eye(u0.size)[i])[n] - p0[n]) / h
+                          for n in back.covariance_names] for i in keep])
+    cov = G @ back.local.matrix @ G.T
+    assert np.allclose(np.sqrt(np.diag(cov)), np.sqrt(np.diag(back.covariance)), rtol=1e-3)
 
 
 def test_fit_writes_the_intervals_and_the_report_shows_them(small_lumped, tmp_path):
@@ -204,6 +217,23 @@ def test_fit_writes_the_intervals_and_the_report_shows_them(small_lumped, tmp_pa
     for p in lumped.parameters:
         assert p.range_text() in described[p.name], (p.name, described[p.name])
     assert "NOT determined" in described["M_C"]
+    # the design command on this fit: the best tests for what it leaves open, as a dataset the reader takes
+    from tuner.__main__ import main
+    from tuner.data.reading import load_dataset
+    from tuner.results.design_report import design_section_html
+
+    assert main(["design", "--from", str(out), "--duration", "3", "--top", "2", "--quiet", "--no-report"]) == 0
+    design = json.loads((out / "design" / "design.json").read_text(),
+                        parse_constant=lambda c: pytest.fail(f"design.json holds {c}"))
+    assert "M_C" in design["models"]["lumped"]["targets"]
+    lim = design["limits"]
+    written = load_dataset(out / "design")
+    assert {t.name + ".csv" for t in written} >= set(design["models"]["lumped"]["written"])
+    assert all(float(np.max(np.abs(t.stroke))) <= lim["stroke_m"] * (1 + 1e-6) for t in written)
+    ranked = design["models"]["lumped"]["ranked"]
+    assert [g["score_nats"] for g in ranked] == sorted((g["score_nats"] for g in ranked), reverse=True)
+    section = design_section_html(out)  # the report's section (the command rebuilds the report without --no-report)
+    assert all(n.removesuffix(".csv") in section for n in design["models"]["lumped"]["written"])
 
 
 def descriptions(fmu) -> dict:

@@ -10,6 +10,7 @@
     python -m tuner batch MANIFEST       a fleet: one fit per manifest row, local pool or Dask (see --help)
     python -m tuner report DIR           rebuild the report of a fit output folder
     python -m tuner vehicle --fmus F...  the damper FMUs in a vehicle: critical speed, curve, ride (see --help)
+    python -m tuner design --from RUN    the rig tests that would pin down the parameters not determined
 
 Exit status: 0 success, 2 bad input or arguments (message on stderr), 130 interrupted.
 """
@@ -21,7 +22,7 @@ from pathlib import Path
 
 from campaign.cli import add_generate_arguments, cmd_generate as generate_command
 from tuner.cli import batch as batch_command, fit as fit_commands, inspect as inspect_command
-from tuner.cli import vehicle as vehicle_command
+from tuner.cli import design as design_command, vehicle as vehicle_command
 from tuner.cli.folders import DEFAULT_DATASET
 from tuner.cli.log import log
 from tuner.cli.run import run_handler
@@ -55,6 +56,7 @@ def parser() -> argparse.ArgumentParser:
     p_rep.set_defaults(func=cmd_report)
     batch_command.add_parser(sub)
     vehicle_command.add_parser(sub)
+    design_command.add_parser(sub)
     return ap
 
 

@@ -9,6 +9,7 @@ full-rate check, which runs after the results are safe on disk):
     fmu/<Model>_tuned.fmu                                                   the tuned FMUs
     diagnosis.json, figures/, fmu/<Model>_<causes>_tuned.fmu                the diagnosis
     vehicle/vehicle.json, vehicle/<scenario>.png                            the vehicle (``vehicle=True``)
+    vehicle/intervals.json                                                  its 95 % intervals (``vehicle_draws``)
     report.html, figures/                                                   the report (last)
     checkpoints/                                                            what --resume continues from
 
@@ -31,6 +32,7 @@ from tuner.progress import SubStages, stage
 from tuner.results.diagnosis_report import make_diagnosis_report
 from tuner.results.report import make_report
 from tuner.vehicle.compare import SCENARIO_NAMES, VEHICLE_FOLDER, compare_fmus
+from tuner.vehicle.propagation import PropagationSettings, propagate
 
 __all__ = ["JobResult", "run", "run_diagnosis", "diagnosis_settings", "export_fmus", "wants_diagnosis",
            "vehicle_consequences"]
@@ -80,11 +82,13 @@ def export_fmus(result: FitResult, out: Path) -> list[Path]:
 
 
 def run(identification: list[RigTest], validation: list[RigTest], out: Path, settings: FitSettings, *,
-        diagnose_after: bool = True, vehicle: bool = False, provenance: dict | None = None, log=print) -> JobResult:
+        diagnose_after: bool = True, vehicle: bool = False, vehicle_draws: int = 0, vehicle_scheduler: str | None = None,
+        provenance: dict | None = None, log=print) -> JobResult:
     """The whole job into the existing folder ``out`` (checkpoints there are resumed).
 
     diagnose_after: diagnose the best-validated base form after the fit (when ``wants_diagnosis``);
-    vehicle: the tuned FMUs as the yaw dampers of the campaign's vehicle (``vehicle_consequences``);
+    vehicle: the tuned FMUs as the yaw dampers of the campaign's vehicle (``vehicle_consequences``), with
+    95 % intervals from up to ``vehicle_draws`` parameter sets per FMU (0: none) run on ``vehicle_scheduler``;
     log: a callable taking one line (or a ``tuner.progress.JobProgress``, whose stages it advances)."""
     out = Path(out)
     problem = Problem.build(identification, validation, settings.data())  # prepared once, for every stage
@@ -106,7 +110,8 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
             make_report(out)  # the fit's report with the failure said: the fit and its FMUs are safe
             raise
     if vehicle:
-        vehicle_consequences(sorted((out / "fmu").glob("*_tuned.fmu")), out, settings.seed, log)
+        vehicle_consequences(sorted((out / "fmu").glob("*_tuned.fmu")), out, settings.seed, log, draws=vehicle_draws,
+                             scheduler=vehicle_scheduler)
     stage(log, "report")
     report = make_report(out)
     return JobResult(out=out, fit=result, diagnosis=diagnosis, fmus=sorted((out / "fmu").glob("*.fmu")),
@@ -138,11 +143,23 @@ def _diagnose(identification, validation, out, settings, base_params, base_model
 
 
 
-def vehicle_consequences(fmus: list[Path], out: Path, seed: int = 0, log=print) -> dict:
+def vehicle_consequences(fmus: list[Path], out: Path, seed: int = 0, log=print, *, draws: int = 0,
+                         scheduler: str | None = None) -> dict:
     """What the damper model changes at vehicle level: each FMU of ``fmus`` as the four yaw dampers of the
     campaign's vehicle in every scenario of ``tuner.vehicle.compare`` (hunting critical speed, curve
     entry, straight track with irregularities), into ``out / VEHICLE_FOLDER`` (the report's vehicle
-    section). ``seed``: the irregularities' master seed."""
+    section). ``seed``: the irregularities' master seed and the draws'. ``draws`` > 0: the 95 % intervals of
+    the critical speed and the curve's peak damper force from up to that many parameter sets per tuned FMU
+    (``tuner.vehicle.propagation``), run on ``scheduler`` (None: in this process)."""
     stage(log, "vehicle")
     log(f"vehicle: {len(fmus)} tuned FMUs as the yaw dampers, scenarios {', '.join(SCENARIO_NAMES)} ...")
-    return compare_fmus(fmus, Path(out) / VEHICLE_FOLDER, seed=seed, log=SubStages(log, len(fmus) * len(SCENARIO_NAMES)))
+    data = compare_fmus(fmus, Path(out) / VEHICLE_FOLDER, seed=seed,
+                        log=SubStages(log, len(fmus) * len(SCENARIO_NAMES)))
+    if draws > 0:
+        stage(log, "vehicle intervals")
+        try:
+            propagate(out, PropagationSettings(draws=draws, seed=seed, irregularity_seed=seed), scheduler=scheduler,
+                      log=log)
+        except (ValueError, OSError, RuntimeError) as err:  # e.g. the Dask cluster went away: the rest stands
+            log(f"vehicle intervals not computed: {err}")
+    return data

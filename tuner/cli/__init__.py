@@ -5,6 +5,7 @@
 - ``inspect``: ``inspect``, what the reader understands of rig files;
 - ``batch``: ``batch``, a fleet from a manifest;
 - ``vehicle``: ``vehicle``, damper FMUs in the campaign's vehicle;
+- ``design``: ``design``, the rig tests that would pin down the parameters not determined;
 - ``options``: the shared options and their one mapping to settings;
 - ``log``: the log and the progress display;
 - ``folders``: output folders (``results/default-N``, ``--force``, ``--resume``);

@@ -10,7 +10,7 @@ from damper_fmu.parameters import EFFECT_MODELS, MODEL_KINDS
 from tuner import job
 from tuner.cli.folders import DEFAULT_DATASET, DEFAULT_RESULTS, free_folder, prepare_out, tidy_checkpoints
 from tuner.cli.log import end_job, job_log, log, progress, start_job
-from tuner.cli.options import add_fit_options, fit_settings, load_tests
+from tuner.cli.options import add_fit_options, fit_settings, load_tests, vehicle_scheduler
 from tuner.cli.summary import end_summary, print_table3
 from tuner.diagnosis.diagnose import DiagnosisFailed, choose_base
 from tuner import strict_json
@@ -52,6 +52,7 @@ def cmd_fit(args) -> int:
             raise ValueError(f"--{opt} must be >= 1")
     if args.population < 2:
         raise ValueError("--population must be >= 2")
+    vehicle_scheduler(args)  # --vehicle-draws and --vehicle-scheduler checked before anything runs
     t0 = time.perf_counter()
     budget = args.population * args.iterations / (20 * 150)  # relative to the default run's
     weights = {f"fit {m}": {"lumped": 60.0, "maxwell": 8.0, "maxwell_table": 30.0, "twochamber": 60.0}[m] * budget
@@ -59,6 +60,8 @@ def cmd_fit(args) -> int:
     weights.update({"validate and export": 12.0, "report": 8.0})
     if getattr(args, "vehicle", False):
         weights["vehicle"] = 8.0 * len(models)
+        if args.vehicle_draws > 0:
+            weights["vehicle intervals"] = 1.0 * args.vehicle_draws * len(models)  # 79 s measured, 24 draws, 3 models
     if not args.no_diagnose and any(m in EFFECT_MODELS for m in models):
         weights["diagnosis"] = 70.0
     start_job(args, weights)
@@ -96,6 +99,7 @@ def _fit_job(args, models) -> Path:
     if not diagnosis and progress() is not None:
         progress().weights.pop("diagnosis", None)
     result = job.run(ident, valid, out, settings, diagnose_after=diagnosis, vehicle=args.vehicle,
+                     vehicle_draws=args.vehicle_draws, vehicle_scheduler=vehicle_scheduler(args),
                      provenance=provenance, log=job_log())  # the progress display when a job runs
     print_table3(result.fit.metrics)
     return out

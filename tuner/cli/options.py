@@ -9,10 +9,12 @@ from campaign.cli import float_list  # the one argparse type for number lists
 from tuner.cli.log import log
 from tuner.data.reading import DEFAULT_DAMPER_CLASS, load_dataset, load_files, read_column_mapping
 from tuner.data.summary import format_summary
+from tuner.fleet.executors import parse_scheduler
 from tuner.identification.fit import FitSettings
+from tuner.vehicle.propagation import PropagationSettings
 
 __all__ = ["add_data_options", "add_fit_options", "column_options", "fit_settings", "load_tests", "fit_rate_and_band",
-           "DATA_OPTIONS"]
+           "vehicle_scheduler", "DATA_OPTIONS"]
 
 
 def add_data_options(g) -> None:
@@ -146,8 +148,17 @@ def add_fit_options(ap: argparse.ArgumentParser) -> None:
                    help="skip the diagnosis that follows the fit (it needs validation tests)")
     g.add_argument("--vehicle", action="store_true",
                    help="yaw dampers: run the tuned FMUs as the yaw dampers of the campaign's vehicle (critical "
-                        "speed, curve entry, straight track; about 25 s) and add the section to the report "
+                        "speed, curve entry, straight track; about 25 s; with --vehicle-draws their 95 %% intervals, about a "
+                        "minute more) and add the section to the report "
                         "(on in the default run)")
+    g.add_argument("--vehicle-draws", type=int, default=PropagationSettings().draws, metavar="N",
+                   help="with --vehicle: 95 %% intervals of the critical speed and the curve's peak damper force "
+                        "from up to N parameter sets per tuned FMU drawn from the fitted covariance, fewer once "
+                        "the Monte-Carlo error is below 2 km/h and 1 %% (default %(default)s; 0: no intervals)")
+    g.add_argument("--vehicle-scheduler", default=None, metavar="SPEC",
+                   help="where the draws run: pool:N (local processes), local:N (Dask LocalCluster), a Dask "
+                        "scheduler address tcp://HOST:PORT, or 'here' (this process); default a pool of "
+                        "--workers processes")
     g.add_argument("--polish", type=int, default=d.polish_jacobians, metavar="N",
                    help="local least-squares refinement after Firefly until converged, at most N Jacobians "
                         "(default %(default)s, a safety cap; 0 = the paper's Firefly result as is)")
@@ -174,6 +185,23 @@ def fit_settings(args, models: tuple | None = None) -> "object":
                        tuple(1e-3 * v for v in args.damping_abscissae),
                        elastic_abscissae_m=None if args.elastic_abscissae is None else
                        tuple(1e-3 * x for x in args.elastic_abscissae))
+
+
+def vehicle_scheduler(args) -> str | None:
+    """Where the vehicle's draws run (``tuner.fleet.executors.parse_scheduler``'s spec, None: in this process)
+    from --vehicle-scheduler and --workers; ValueError naming the option for a bad value."""
+    if getattr(args, "vehicle_draws", 0) < 0 or getattr(args, "vehicle_draws", 0) == 1:
+        raise ValueError(f"--vehicle-draws must be 0 (no intervals) or at least 2, got {args.vehicle_draws}")
+    spec = getattr(args, "vehicle_scheduler", None)
+    if spec == "here":
+        return None
+    if spec is None:
+        return f"pool:{args.workers}" if args.workers > 1 else None
+    try:
+        parse_scheduler(spec)
+    except ValueError as err:
+        raise ValueError(str(err).replace("--scheduler", "--vehicle-scheduler")) from None
+    return spec
 
 
 def load_tests(args, file_role: str | None = "identification"):

@@ -6,11 +6,12 @@ from pathlib import Path
 
 from tuner.cli.log import log
 from tuner.identification.intervals import ModelIntervals
-from tuner.results.recommendation import recommend
+from tuner.results.recommendation import MODEL_NAME, recommend
 from tuner.vehicle.compare import VEHICLE_FOLDER
+from tuner.vehicle.propagation import INTERVALS_FILE
 from tuner import strict_json
 
-__all__ = ["end_summary", "print_table3", "interval_summary"]
+__all__ = ["end_summary", "print_table3", "interval_summary", "vehicle_interval_summary"]
 
 
 def interval_summary(parameters: dict) -> dict:
@@ -32,6 +33,29 @@ def interval_summary(parameters: dict) -> dict:
                       "ranges": {p.name: {"low": p.low, "high": p.high, "status": p.status, "unit": p.unit}
                                  for p in iv.parameters}}
     return out
+
+
+def vehicle_interval_summary(out: Path) -> dict:
+    """summary.json's ``vehicle_intervals`` from ``vehicle/intervals.json`` (``tuner.vehicle.propagation``):
+    per tuned FMU its model, the critical speed [km/h] and the curve entry's peak damper force [N], each
+    {"nominal", "low", "high", "mc_error", "draws", "method"}, the search's own scatter [km/h] and the
+    sentence ("critical speed 804 km/h (95 %: 790-815), ... with the lumped FMU"); {} without the file."""
+    path = out / VEHICLE_FOLDER / INTERVALS_FILE
+    if not path.exists():
+        return {}
+    out_ = {}
+    for label, r in strict_json.loads(path.read_text())["results"].items():
+        def pick(f, scale):
+            return {**{k: None if f[k] is None else f[k] * scale for k in ("nominal", "low", "high", "mc_error")},
+                    "draws": f["draws"], "method": f["method"]}
+        scatter = r.get("search_scatter_ms")
+        name = MODEL_NAME.get(r["model"], r["model"]).removesuffix(" model")
+        out_[label] = {"model": r["model"], "critical_speed_kmh": pick(r["critical_speed"], 3.6),
+                       "peak_curve_force_n": pick(r["peak_curve_force"], 1.0),
+                       "search_scatter_kmh": None if scatter is None else scatter * 3.6,
+                       "text": f"critical speed {r['critical_speed_text']}, curve entry peak damper force "
+                               f"{r['peak_curve_force_text']} with the {name} FMU"}
+    return out_
 
 
 def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
@@ -62,6 +86,7 @@ def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
         "parameter_intervals": interval_summary(params),
         "critical_speed_kmh": {k: (r.get("critical_speed") or {}).get("critical_speed_kmh")
                                for k, r in vehicle.get("results", {}).items()},
+        "vehicle_intervals": vehicle_interval_summary(out),
         "report": str(out / "report.html") if (out / "report.html").exists() else None,
         "fmus": sorted(str(f) for f in out.rglob("*.fmu")),
         "total_time_s": seconds, "output_folder": str(out),
@@ -85,6 +110,8 @@ def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
     if summary["critical_speed_kmh"]:
         lines.append("  vehicle, hunting critical speed [km/h]: " + ", ".join(
             f"{k} {'-' if v is None else format(v, '.0f')}" for k, v in summary["critical_speed_kmh"].items()))
+    for v in summary["vehicle_intervals"].values():
+        lines.append(f"  vehicle: {v['text']}")
     if summary["report"]:
         lines.append(f"  report: {summary['report']}")
     for f in summary["fmus"]:

@@ -51,7 +51,8 @@ from tuner.identification.parametrization import Parametrization
 from tuner.identification.runner import FmuRunner
 from tuner.metrics import Z95, block_sandwich, correlation_time
 
-__all__ = ["ParameterInterval", "ReachedRange", "ModelIntervals", "parameter_intervals", "model_intervals",
+__all__ = ["ParameterInterval", "ReachedRange", "LocalCovariance", "ModelIntervals", "parameter_intervals", "model_intervals",
+           "residual_jacobian",
            "reached_ranges", "classify", "STEP", "DETERMINED_WIDTH", "BOUND_FRACTION", "TIE_CORRELATION",
            "NULL_RCOND", "BLOCK_CORRELATION_TIMES", "MIN_BLOCKS_PER_PARAMETER", "MIN_BLOCKS", "CONFIDENCE"]
 
@@ -97,6 +98,49 @@ class ReachedRange:
     def to_dict(self) -> dict:
         return {"table": self.table, "quantity": self.quantity, "unit": self.unit, "low": self.low,
                 "high": self.high}
+
+
+@dataclass
+class LocalCovariance:
+    """The fitted covariance in the local solver's coordinates u (``Parametrization.local_space()``), where
+    the linearisation is made and the estimate is Gaussian (module docstring): what draws of parameter sets
+    need (``tuner.identification.parameter_draws``).
+
+    coordinates: the coordinate names, in the space's order (each named by the parameter it sets: a table
+    ordinate's coordinate is its increment from the neighbour nearer zero); u: the fitted point (each
+    coordinate in [0, 1] across its bounds); resolved: the coordinates with a finite variance, in
+    ``coordinates``' order; matrix: their covariance [coordinate units^2]; scheme, force_limit_n [N],
+    spring_reference_n_per_m [N/m]: the Parametrization the coordinates belong to (with the fitted
+    model's fixed values it is rebuilt by ``parametrization``)."""
+
+    coordinates: list
+    u: np.ndarray
+    resolved: list
+    matrix: np.ndarray
+    scheme: str
+    force_limit_n: float
+    spring_reference_n_per_m: float
+
+    def parametrization(self, model: str, values: dict) -> Parametrization:
+        """The Parametrization of ``model`` these coordinates belong to, its fixed values (the abscissae)
+        taken from the fitted ``values`` (SI)."""
+        tunable = {p.name for p in MODEL_PARAMETERS[model] if p.tunable}
+        return Parametrization(model, self.scheme, force_limit=self.force_limit_n,
+                               spring_reference=self.spring_reference_n_per_m,
+                               fixed={k: v for k, v in values.items() if k not in tunable})
+
+    def to_dict(self) -> dict:
+        return {"coordinates": list(self.coordinates), "u": np.asarray(self.u, dtype=float).tolist(),
+                "resolved": list(self.resolved), "matrix": np.asarray(self.matrix, dtype=float).tolist(),
+                "scheme": self.scheme, "force_limit_n": self.force_limit_n,
+                "spring_reference_n_per_m": self.spring_reference_n_per_m}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "LocalCovariance":
+        k = len(d["resolved"])
+        return cls(coordinates=list(d["coordinates"]), u=np.asarray(d["u"], dtype=float), resolved=list(d["resolved"]),
+                   matrix=np.asarray(d["matrix"], dtype=float).reshape(k, k), scheme=d["scheme"],
+                   force_limit_n=float(d["force_limit_n"]), spring_reference_n_per_m=float(d["spring_reference_n_per_m"]))
 
 
 @dataclass(frozen=True)
@@ -188,7 +232,9 @@ class ModelIntervals:
     covariance: of the parameters with a finite variance (``covariance_names``), SI units (unit_i
     unit_j); method: 'block sandwich' or 'textbook x correlation time' (too few blocks); blocks: the
     residual blocks; block_length_s, correlation_time_s [s]: of the residual at the fit rate; samples:
-    counted residual samples; residual_rms_n [N]; reached: the ``ReachedRange`` of each table."""
+    counted residual samples; residual_rms_n [N]; reached: the ``ReachedRange`` of each table; local: the
+    same covariance in the local solver's coordinates (``LocalCovariance``; None in results written before
+    it was stored)."""
 
     model: str
     parameters: list
@@ -201,6 +247,7 @@ class ModelIntervals:
     samples: int
     residual_rms_n: float
     reached: list = field(default_factory=list)
+    local: LocalCovariance | None = None
 
     def get(self, name: str) -> ParameterInterval:
         for p in self.parameters:
@@ -237,6 +284,7 @@ class ModelIntervals:
                 "order": [p.name for p in self.parameters],  # the JSON object's keys may be sorted
                 "parameters": {p.name: p.to_dict() for p in self.parameters},
                 "covariance": {"names": list(self.covariance_names), "matrix": np.asarray(self.covariance).tolist()},
+                "local_covariance": None if self.local is None else self.local.to_dict(),
                 "summary": self.summary_text()}
 
     @classmethod
@@ -249,12 +297,13 @@ class ModelIntervals:
                    method=d["method"], blocks=d["blocks"], block_length_s=d["block_length_s"],
                    correlation_time_s=d["correlation_time_s"], samples=d["samples"],
                    residual_rms_n=d["residual_rms_n"],
-                   reached=[ReachedRange(**r) for r in d.get("reached", {}).values()])
+                   reached=[ReachedRange(**r) for r in d.get("reached", {}).values()],
+                   local=LocalCovariance.from_dict(d["local_covariance"]) if d.get("local_covariance") else None)
 
 
 # -- the statistics ----------------------------------------------------------------------------------
 
-def _jacobian(engine, space, u: np.ndarray, names: list[str], step: float):
+def residual_jacobian(engine, space, u: np.ndarray, names: list[str], step: float = STEP):
     """(residual r [N], J [N per coordinate], G = d theta / d u [unit per coordinate], failed coordinates)
     at u of ``space`` (forward differences; a step that would leave [0, 1] goes the other way). theta: the
     parameters ``names`` (the Parametrization's order)."""
@@ -364,7 +413,7 @@ def parameter_intervals(engine, par: Parametrization, params: dict, *, reached: 
     names = list(par.names)
     u = space.from_params(params)
     params = space.to_params(u)  # the point the Jacobian is taken at (params itself, within rounding)
-    r, J, G, failed = _jacobian(engine, space, u, names, step)
+    r, J, G, failed = residual_jacobian(engine, space, u, names, step)
     lengths = [int(s.mask.sum()) for s in engine.tests]
     dropped = _unresolved(J, set(failed))
     keep = [i for i in range(J.shape[1]) if i not in dropped]
@@ -391,10 +440,14 @@ def parameter_intervals(engine, par: Parametrization, params: dict, *, reached: 
                       bool(spec[n].log_scale), why)
         iv = _with_context(iv, n, finite, names, cov, params, reached or [])
         out.append(_with_offset(iv, None if infinite[i] else float(offset[i])))
+    local = LocalCovariance(coordinates=list(space.names), u=u, resolved=[space.names[i] for i in keep],
+                            matrix=cov_u, scheme=par.scheme, force_limit_n=par.force_limit,
+                            spring_reference_n_per_m=par.spring_reference)
     return ModelIntervals(model=par.model, parameters=out, covariance_names=[names[i] for i in finite],
                           covariance=cov, method=method, blocks=blocks, block_length_s=block / rate,
                           correlation_time_s=tau / rate, samples=int(r.size),
-                          residual_rms_n=math.sqrt(float(r @ r) / r.size), reached=list(reached or []))
+                          residual_rms_n=math.sqrt(float(r @ r) / r.size), reached=list(reached or []),
+                          local=local)
 
 
 def _gauss_newton_offset(J: np.ndarray, r: np.ndarray, G: np.ndarray, u: np.ndarray, keep: list[int]) -> np.ndarray:

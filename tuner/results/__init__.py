@@ -6,7 +6,8 @@
 - ``fit_figures``: the fit report's figures (the paper's Figs. 6-11 and the loops);
 - ``intervals_report``: the identified parameters' intervals and flags (tables, characteristics with bands);
 - ``diagnosis_report``: the diagnosis section, and the report of a diagnosis on its own;
-- ``vehicle_report``: the vehicle section (the tuned FMUs in the vehicle, side by side);
+- ``vehicle_report``: the vehicle section (the tuned FMUs in the vehicle, side by side, and their intervals);
+- ``design_report``: the test design section (the rig tests that would pin down the rest);
 - ``html``: HTML building blocks (tables, figures, numbers, the page);
 - ``fleet_summary``: the fleet summary of a batch (table, outliers, characteristics).
 """

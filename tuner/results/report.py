@@ -45,6 +45,7 @@ from tuner.results.html import MODEL_LABEL, esc, figure_html, model_label, num, 
 from tuner.results.intervals_report import intervals_section_html
 from tuner.results.recommendation import railway_damper, recommend, recommendation_html
 from tuner.results.vehicle_report import vehicle_section_html
+from tuner.results.design_report import design_section_html
 
 
 __all__ = ["make_report", "main"]
@@ -423,13 +424,14 @@ def make_report(out_dir, *, dpi: int = 110) -> Path:
     title = "Damper model identification report"
     ds = run.settings.get("dataset")
     diagnosis, vehicle = diagnosis_section_html(out), vehicle_section_html(out)  # '' when that stage did not run
+    design = design_section_html(out)  # '' before python -m tuner design
     toc = "".join(f"<li><a href='#{a}'>{t}</a></li>" for a, t, shown in (
         ("summary", "Summary", True), ("diagnosis", "Diagnosis", diagnosis), ("vehicle", "In the vehicle", vehicle),
         ("metrics", "Accuracy tables", True), ("time", "Force time histories and loops", True),
         ("fitness", "Fitness evolution", True), ("constants", "Constant parameters", True),
         ("tables", "Oil characteristics", True), ("poly", "Polynomial fits", True),
         ("params", "Identified parameters", True), ("intervals", "Parameter intervals", True),
-        ("provenance", "Provenance", True)) if shown)
+        ("design", "Tests that would pin down the rest", design), ("provenance", "Provenance", True)) if shown)
     intro = (f"<p>Identification of a hydraulic damper model (lumped nonlinear model of Isacchi, Ripamonti "
              f"and Corsi 2023) against rig measurements{', dataset <code>' + esc(ds) + '</code>' if ds else ''}; "
              f"models: {', '.join(model_label(m) for m in run.models)}; "
@@ -441,7 +443,7 @@ def make_report(out_dir, *, dpi: int = 110) -> Path:
             diagnosis, vehicle, _metrics_section(run),
             _timeseries_section(run, fdir, dpi), _fitness_section(run, fdir, dpi),
             _population_sections(run, fdir, dpi), _poly_section(run, fdir, dpi), _params_section(run),
-            intervals_section_html(run, fdir, dpi), _provenance_section(run)]
+            intervals_section_html(run, fdir, dpi), design, _provenance_section(run)]
     return write_page(out, title, body)
 
 

@@ -7,5 +7,7 @@
   yaw damper FMUs, Runge-Kutta within each communication step (``NonlinearCosim``);
 - ``limit_cycles``: per FMU and wheel conicity the linear and nonlinear critical speeds and the bifurcation
   diagrams, side by side (``python -m tuner vehicle --nonlinear``);
-- ``compare``: the same scenarios with several FMUs side by side (``python -m tuner vehicle``).
+- ``compare``: the same scenarios with several FMUs side by side (``python -m tuner vehicle``);
+- ``propagation``: the identification's parameter uncertainty carried to the critical speed and the curve's
+  peak damper force (95 % intervals from parameter sets drawn from the fitted covariance).
 """

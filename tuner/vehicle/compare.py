@@ -231,3 +231,14 @@ def format_table(data: dict) -> str:
     for q, cells in rows:
         lines.append("  ".join([q.ljust(w0), *(c.rjust(w) for c, w in zip(cells, ws))]))
     return "\n".join(lines)
+
+
+def scenario_run(cosim, name: str, seed: int = 0):
+    """One time-history scenario of ``scenario_runs`` (``curve_entry``, ``straight_irregular``) with the
+    vehicle and dampers of ``cosim`` (a :class:`tuner.vehicle.cosim.VehicleCosim`): its ``VehicleRun``
+    (``run_figures`` gives the figures). ``seed``: master seed of the irregularity realisation."""
+    runs = scenario_runs()
+    if name not in runs:
+        raise ValueError(f"unknown time-history scenario {name!r}; choose from {list(runs)}")
+    sc = runs[name]
+    return cosim.run(sc.speed, sc.track(), _irregularity(sc, seed, cosim.params), sc.duration_s, s0=START_OFFSET)

@@ -229,6 +229,18 @@ class VehicleCosim:
         self._loop = master_loop() if c_loop else None
         self._disc: dict = {}
 
+    def set_fmu_parameters(self, fmu_parameters: dict | None) -> None:
+        """FMU parameter name -> SI value applied to every damper before each later run, instead of those
+        given so far (the others keep the FMU's start values): one vehicle, many damper parameter sets,
+        without re-extracting the FMUs. ValueError naming the FMU and the unknown parameters."""
+        new = dict(fmu_parameters or {})
+        for d in self.dampers:
+            unknown = [p for p in new if p not in d.runner.parameter_names]
+            if unknown:
+                raise ValueError(f"{d.runner.path}: no parameter(s) {unknown}")
+        for d in self.dampers:
+            d.parameters = dict(new)
+
     # -- discretisation ---------------------------------------------------------------------------
     def _matrices(self, speed: float):
         key = float(speed)

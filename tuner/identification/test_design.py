@@ -1,0 +1,392 @@
+"""The rig test that would pin down what the identification tests leave open (test design).
+
+For a fitted model whose intervals (``tuner.identification.intervals``) say some parameters are not
+determined (the targets), each candidate test is scored by how much it would shrink their intervals if it
+were run on the rig and added to the identification:
+
+* candidates (``candidate_tests``), every one within the rig's stroke amplitude, stroke velocity and force
+  limits (the force the fitted model predicts), ``duration`` [s] long at ``rate`` [Hz], eased in over the
+  first second: sines from 0.5 to 20 Hz at the largest amplitude the limits allow; small-amplitude,
+  high-frequency sines (0.5 mm, or what the velocity limit allows, at 10-40 Hz); sweeps (a logarithmic
+  chirp 0.5-20 Hz at the velocity limit); steps (raised-cosine ramps between +-amplitude at the velocity
+  limit, a hold between them); and the campaign's manoeuvres, i.e. the identification tests' own strokes,
+  run once more (``manoeuvres``);
+* the information a candidate adds: J_c, the Jacobian of the model's force on the candidate's stroke
+  (prepared as the fit prepares a test: differentiated, resampled to the fit rate, the warm-up left out)
+  with respect to the identification's coordinates u at the fitted point (``residual_jacobian``: forward
+  differences, one simulation per coordinate), over the residual's variance s^2 (the fit's residual rms)
+  and its correlation time tau (the fit's, in samples: each sample worth 1/tau of an independent one):
+  I_c = J_c^T J_c / (s^2 tau);
+* the information the fit has: the inverse of its covariance in u on the resolved coordinates; a
+  coordinate without finite variance gets 12, that of a uniform distribution over its bounds (variance
+  1/12), so "before" is the bounds and "after" is finite;
+* after: Sigma' = (I_0 + I_c)^-1; each parameter's standard error by the delta method (G = d theta / d u);
+  the expected 95 % interval width before and after, each target's shrink factor; the score (D-optimal on
+  the targets): 1/2 ln det Sigma_T - 1/2 ln det Sigma'_T, the logarithm of the factor by which the targets'
+  joint confidence region shrinks in volume. Candidates are ranked by the score; each also states the
+  largest-eigen-direction gain (the worst-determined combination of targets: the largest eigenvalue of
+  Sigma_T over that of Sigma'_T).
+
+The prediction is linear (at the fit, with the fit's residual level): a parameter the new test pins down
+moves the fit, and with it the Jacobian. Units: SI inside; parameters in their units of
+``damper_fmu.parameters``; strokes in m, velocities in m/s, forces in N.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+import pandas as pd
+
+from damper_dataset.writer import write_dataset
+from damper_fmu.fmu import ensure_fmu
+from damper_fmu.parameters import MODEL_PARAMETERS
+from tuner import strict_json
+from tuner.data.preprocess import prepare
+from tuner.data.reading import RigTest
+from tuner.identification.engine import IDENTIFICATION_STEP, IDENTIFICATION_TOLERANCE, Engine, fastest_engine
+from tuner.identification.intervals import ModelIntervals, residual_jacobian
+from tuner.identification.problem import to_signals
+from tuner.identification.runner import FmuRunner
+from tuner.metrics import Z95
+from tuner.progress import advance, stage
+
+__all__ = ["RigLimits", "Candidate", "CandidateGain", "ModelDesign", "candidate_tests", "rank_candidates",
+           "design_from_folder", "limits_from_tests", "EASE_IN_S", "PRIOR_UNSEEN", "DESIGN_FOLDER"]
+
+#: sub-folder of a fit output folder for the designed tests (``design_from_folder``)
+DESIGN_FOLDER = "design"
+
+#: candidates are eased in (raised cosine) over this time [s]
+EASE_IN_S = 1.0
+#: information [1/u^2] of a coordinate the fit does not see at all: a uniform distribution over its bounds
+PRIOR_UNSEEN = 12.0
+
+
+@dataclass(frozen=True)
+class RigLimits:
+    """What the rig can do: stroke_m: largest |stroke| [m]; velocity_m_s: largest |stroke velocity| [m/s];
+    force_n: largest |force| [N] (checked on the fitted model's prediction)."""
+
+    stroke_m: float
+    velocity_m_s: float
+    force_n: float
+
+    def check(self) -> None:
+        for name, v in (("stroke", self.stroke_m), ("velocity", self.velocity_m_s), ("force", self.force_n)):
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"the rig's {name} limit must be a positive number, got {v} (--{name}-limit)")
+
+
+@dataclass
+class Candidate:
+    """One candidate rig test: name (file-safe), kind ('sine', 'small-amplitude sine', 'sweep', 'step',
+    'manoeuvre'), description, time [s], stroke [m] at the rig's rate."""
+
+    name: str
+    kind: str
+    description: str
+    time: np.ndarray
+    stroke: np.ndarray
+
+    @property
+    def peak_velocity(self) -> float:
+        """Largest |stroke velocity| [m/s] (central differences)."""
+        return float(np.max(np.abs(np.gradient(self.stroke, self.time))))
+
+    def rig_test(self) -> RigTest:
+        """The candidate as a rig test without a measured force (zeros): what the fit's preparation takes."""
+        rate = (self.time.size - 1) / (self.time[-1] - self.time[0])
+        return RigTest(name=self.name, role="identification", scenario=self.description, time=self.time,
+                       stroke=self.stroke, force=np.zeros_like(self.stroke), sample_rate=rate)
+
+
+@dataclass
+class CandidateGain:
+    """A candidate's expected effect on a fitted model's intervals (module docstring): score [nats] (D-optimal
+    on the targets), eigen_gain (the worst-determined target combination's variance before over after),
+    widths_before/after: expected 95 % interval width per target [its unit] (before: the fit's; the bound
+    range when it has no finite interval), peak_force_n: the fitted model's peak |force| on it [N]."""
+
+    candidate: Candidate
+    score: float
+    eigen_gain: float
+    widths_before: dict = field(default_factory=dict)
+    widths_after: dict = field(default_factory=dict)
+    peak_force_n: float = 0.0
+
+    def shrink(self, name: str) -> float:
+        """Expected width after over before, for the target ``name``."""
+        return self.widths_after[name] / self.widths_before[name]
+
+    def to_dict(self) -> dict:
+        return {"name": self.candidate.name, "kind": self.candidate.kind, "description": self.candidate.description,
+                "score_nats": self.score, "volume_shrink_factor": math.exp(-self.score), "eigen_gain": self.eigen_gain,
+                "peak_force_n": self.peak_force_n,
+                "peak_stroke_m": float(np.max(np.abs(self.candidate.stroke))),
+                "peak_velocity_m_s": self.candidate.peak_velocity,
+                "targets": {n: {"width_before": self.widths_before[n], "width_after": self.widths_after[n],
+                                "shrink": self.shrink(n)} for n in self.widths_before}}
+
+
+# -- the candidates -----------------------------------------------------------------------------------
+
+def _eased(t: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``x`` eased in over EASE_IN_S by a raised cosine."""
+    w = np.where(t < EASE_IN_S, 0.5 - 0.5 * np.cos(np.pi * np.clip(t / EASE_IN_S, 0.0, 1.0)), 1.0)
+    return x * w
+
+
+def candidate_tests(limits: RigLimits, *, duration: float = 10.0, rate: float = 1000.0,
+                    manoeuvres: list | None = None) -> list[Candidate]:
+    """The parametric candidates within ``limits`` and the ``manoeuvres`` ([(name, time [s], stroke [m])],
+    those within the stroke limit) (module docstring)."""
+    limits.check()
+    t = np.arange(int(round(duration * rate)) + 1) / rate
+    A, V = limits.stroke_m, limits.velocity_m_s
+    out = []
+    for f in (0.5, 1.0, 2.0, 4.0, 8.0, 12.0, 16.0, 20.0):
+        a = min(A, 0.95 * V / (2 * np.pi * f))
+        out.append(Candidate(f"sine_{f:g}Hz", "sine", f"sine {f:g} Hz, amplitude {1e3 * a:.3g} mm", t,
+                             _eased(t, a * np.sin(2 * np.pi * f * t))))
+    for f in (10.0, 20.0, 30.0, 40.0):
+        a = min(5e-4, A, 0.95 * V / (2 * np.pi * f))
+        out.append(Candidate(f"small_sine_{f:g}Hz", "small-amplitude sine",
+                             f"small-amplitude sine {f:g} Hz, amplitude {1e3 * a:.3g} mm", t,
+                             _eased(t, a * np.sin(2 * np.pi * f * t))))
+    f0, f1 = 0.5, 20.0
+    k = math.log(f1 / f0) / duration
+    phase = 2 * np.pi * f0 * (np.exp(k * t) - 1.0) / k
+    freq = f0 * np.exp(k * t)
+    a = np.minimum(A, 0.95 * V / (2 * np.pi * freq))
+    out.append(Candidate("sweep_0.5-20Hz", "sweep", f"logarithmic sweep {f0:g}-{f1:g} Hz at the velocity limit", t,
+                         _eased(t, a * np.sin(phase))))
+    for hold in (0.5, 1.0):
+        out.append(_steps(t, A, V, hold))
+    for name, tm, x in manoeuvres or []:
+        if np.max(np.abs(x)) <= A * (1 + 1e-9):
+            out.append(Candidate(f"repeat_{name}", "manoeuvre", f"the identification test {name} run again",
+                                 np.asarray(tm, dtype=float) - tm[0], np.asarray(x, dtype=float)))
+    return out
+
+
+def _steps(t: np.ndarray, A: float, V: float, hold: float) -> Candidate:
+    """Raised-cosine ramps between -0.8 A and +0.8 A at 0.9 of the velocity limit, ``hold`` [s] between."""
+    a = 0.8 * A
+    ramp = math.pi * a / (0.9 * V)  # the raised cosine's peak velocity is pi a / T
+    period = 2 * (ramp + hold)
+    ph = np.mod(t, period)
+    up = np.clip(ph / ramp, 0, 1)
+    down = np.clip((ph - ramp - hold) / ramp, 0, 1)
+    x = np.where(ph < ramp + hold, a * -np.cos(np.pi * up), a * np.cos(np.pi * down))
+    return Candidate(f"steps_hold{hold:g}s", "step", f"steps +-{1e3 * a:.3g} mm, ramps of {1e3 * ramp:.0f} ms, "
+                     f"held {hold:g} s", t, _eased(t, x))
+
+
+# -- the expected gain ----------------------------------------------------------------------------------
+
+def _inverse(a: np.ndarray) -> np.ndarray:
+    """The (pseudo-)inverse of the symmetric positive semi-definite ``a``, scaled to unit diagonal first:
+    the coordinates' variances span twenty decades (a mass the tests do not see, a table point they do)."""
+    d = np.sqrt(np.maximum(np.diag(a), 1e-300))
+    return np.linalg.pinv(a / np.outer(d, d), rcond=1e-12, hermitian=True) / np.outer(d, d)
+
+
+def _prior_information(iv: ModelIntervals) -> np.ndarray:
+    """The fit's information [1/u^2] on every coordinate: its covariance inverted on the resolved ones,
+    PRIOR_UNSEEN on the others."""
+    local = iv.local
+    d = len(local.coordinates)
+    info = np.diag(np.full(d, PRIOR_UNSEEN))
+    keep = [local.coordinates.index(c) for c in local.resolved]
+    if keep:
+        info[np.ix_(keep, keep)] = _inverse(local.matrix)
+    return info
+
+
+def _widths(cov_u: np.ndarray, G: np.ndarray, names: list, targets: list, iv: ModelIntervals) -> dict:
+    """Expected 95 % widths [unit] of the targets from a covariance in u (delta method; log-scaled: in the
+    logarithm, as the intervals), capped at the bound range."""
+    cov = G @ cov_u @ G.T
+    out = {}
+    for n in targets:
+        i = names.index(n)
+        p = iv.get(n)
+        sd = math.sqrt(max(cov[i, i], 0.0))
+        lo_b, hi_b = p.bounds
+        if p.log_scale and p.value > 0:
+            lo, hi = p.value * math.exp(-Z95 * sd / p.value), p.value * math.exp(Z95 * sd / p.value)
+        else:
+            lo, hi = p.value - Z95 * sd, p.value + Z95 * sd
+        out[n] = min(hi, hi_b) - max(lo, lo_b)
+    return out
+
+
+def rank_candidates(model: str, values: dict, iv: ModelIntervals, candidates: list[Candidate], *, fit_rate_hz: float,
+                    warmup_s: float, targets: list | None = None, limits: RigLimits | None = None,
+                    engine: str | None = None, progress=None) -> list[CandidateGain]:
+    """The ``candidates`` ranked by their expected gain on the ``targets`` (default: the parameters ``iv`` says
+    are not determined) of ``model`` fitted at ``values`` (SI) with the intervals ``iv`` (module docstring);
+    prepared at ``fit_rate_hz`` [Hz] with ``warmup_s`` [s] as the fit's tests; those whose predicted peak force
+    exceeds ``limits.force_n`` are left out. ``engine``: the identification engine (default the fastest
+    here). ``progress``: called with the share done (0-1). ValueError when there is nothing to rank."""
+    if iv.local is None:
+        raise ValueError(f"{model}: no covariance in the identification's coordinates in parameters.json; refit "
+                         "with this version")
+    targets = list(targets) if targets is not None else iv.names_with("not determined")
+    if not targets:
+        raise ValueError(f"{model}: every parameter is determined by the identification tests: nothing to design for")
+    par = iv.local.parametrization(model, values)
+    space = par.local_space()
+    names = list(par.names)
+    u0 = np.asarray(iv.local.u, dtype=float)
+    info0 = _prior_information(iv)
+    cov0 = _inverse(info0)
+    signals = [to_signals(prepare(c.rig_test(), fit_rate_hz), warmup_s) for c in candidates]
+    with Engine(model, signals, engine=engine or fastest_engine(), workers=0) as eng:
+        r, J, G, failed = residual_jacobian(eng, space, u0, names)
+    if failed:
+        raise ValueError(f"{model}: the fitted model could not be simulated on the candidates next to the fit")
+    before = _widths(cov0, G, names, targets, iv)
+    tau = max(iv.correlation_time_s * fit_rate_hz, 1.0)
+    s2 = iv.residual_rms_n ** 2
+    T = [names.index(n) for n in targets]
+    gains, start = [], 0
+    for k, (c, sig) in enumerate(zip(candidates, signals)):
+        n = int(sig.mask.sum())
+        Jc, rc = J[start:start + n], r[start:start + n]
+        start += n
+        peak = float(np.max(np.abs(rc)))
+        if limits is not None and peak > limits.force_n:
+            continue
+        cov1 = _inverse(info0 + Jc.T @ Jc / (s2 * tau))
+        ct0, ct1 = (G @ c_ @ G.T for c_ in (cov0, cov1))
+        a0, a1 = ct0[np.ix_(T, T)], ct1[np.ix_(T, T)]
+        score = 0.5 * (np.linalg.slogdet(a0)[1] - np.linalg.slogdet(a1)[1])
+        eigen = float(np.linalg.eigvalsh(a0)[-1] / max(np.linalg.eigvalsh(a1)[-1], 1e-300))
+        gains.append(CandidateGain(c, float(score), eigen, before, _widths(cov1, G, names, targets, iv), peak))
+        if progress is not None:
+            progress((k + 1) / len(candidates))
+    if not gains:
+        raise ValueError(f"{model}: every candidate's predicted force exceeds the rig's force limit "
+                         f"{limits.force_n:.0f} N (--force-limit)")
+    return sorted(gains, key=lambda g: -g.score)
+
+
+# -- a fit output folder --------------------------------------------------------------------------------
+
+@dataclass
+class ModelDesign:
+    """The ranked candidates of one fitted model: targets (the parameters not determined), ranked
+    (``CandidateGain``, best first), written: the files of the best ones (relative to the design folder)."""
+
+    model: str
+    targets: list
+    ranked: list
+    written: list = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        return {"model": self.model, "targets": list(self.targets), "written": list(self.written),
+                "ranked": [g.to_dict() for g in self.ranked]}
+
+
+def limits_from_tests(arrays, names: list[str]) -> RigLimits:
+    """What the rig already did in the identification tests ``names`` of ``simulations.npz`` (``arrays``):
+    their largest |stroke| [m], |stroke velocity| [m/s] and |force| [N]."""
+    if not names:
+        raise ValueError("no identification test in the folder to take the rig's limits from; give them "
+                         "(--stroke-limit, --velocity-limit, --force-limit)")
+    x = [np.asarray(arrays[f"{n}__stroke"]) for n in names]
+    t = [np.asarray(arrays[f"{n}__time"]) for n in names]
+    f = [np.asarray(arrays[f"{n}__force"]) for n in names]
+    return RigLimits(max(float(np.max(np.abs(a))) for a in x),
+                     max(float(np.max(np.abs(np.gradient(a, b)))) for a, b in zip(x, t)),
+                     max(float(np.max(np.abs(a))) for a in f))
+
+
+def design_from_folder(folder, out=None, *, limits: RigLimits | None = None, top: int = 3, duration: float = 10.0,
+                       rate: float = 1000.0, models: list | None = None, log=print) -> dict:
+    """Rank the candidate tests for every fitted model of the fit output folder ``folder`` with parameters not
+    determined (``models``: only these), write the ``top`` best of each as a dataset (``out``, default
+    ``folder/design``: one CSV per test in the ``damper-rig-dataset/1`` format whose ``force`` column is the
+    fitted model's prediction, for the rig's force limit; the rig records the measured force in its place),
+    ``design.json`` there with every candidate's expected gain; return design.json's content. ``limits``:
+    the rig's (default: what the identification tests reached, ``limits_from_tests``). ``log``: progress lines
+    (a ``tuner.progress.JobProgress`` also gets a stage 'design MODEL' per model)."""
+    folder = Path(folder)
+    for name in ("parameters.json", "metrics.json", "simulations.npz"):
+        if not (folder / name).is_file():
+            raise FileNotFoundError(f"--from {folder}: no {name} (not a fit output folder)")
+    params = strict_json.loads((folder / "parameters.json").read_text())
+    settings = strict_json.loads((folder / "metrics.json").read_text())["settings"]
+    with np.load(folder / "simulations.npz") as arrays:
+        ident = list(settings.get("identification_tests") or [])
+        limits = limits or limits_from_tests(arrays, ident)
+        manoeuvres = [(n, arrays[f"{n}__time"], arrays[f"{n}__stroke"]) for n in ident]
+    candidates = candidate_tests(limits, duration=duration, rate=rate, manoeuvres=manoeuvres)
+    log(f"design: {len(candidates)} candidate tests within the rig's limits (stroke {1e3 * limits.stroke_m:.3g} mm, "
+        f"velocity {1e3 * limits.velocity_m_s:.3g} mm/s, force {limits.force_n:.0f} N)")
+    designs = []
+    for model, entry in params.items():
+        if models and model not in models:
+            continue
+        if not entry.get("intervals"):
+            log(f"design: {model}: no intervals ({entry.get('intervals_note', 'not computed')}); skipped")
+            continue
+        iv = ModelIntervals.from_dict(model, entry["intervals"])
+        targets = iv.names_with("not determined")
+        if not targets:
+            log(f"design: {model}: every parameter determined; nothing to design")
+            continue
+        stage(log, f"design {model}")
+        log(f"design: {model}: {len(targets)} parameters not determined ({', '.join(targets)}); ranking ...")
+        ranked = rank_candidates(model, entry["values"], iv, candidates, fit_rate_hz=settings["fit_rate_hz"],
+                                 warmup_s=settings["warmup_s"], limits=limits, engine=fastest_engine(),
+                                 progress=lambda share: advance(log, share))
+        designs.append(ModelDesign(model, targets, ranked))
+    return _write_design(folder, Path(out) if out else folder / DESIGN_FOLDER, designs, limits, top, log)
+
+
+def _predicted_force(model: str, values: dict, c: Candidate) -> np.ndarray:
+    """The fitted model's force [N] on the candidate's stroke at the rig's rate (its FMU, the identification's
+    internal step)."""
+    names = {p.name for p in MODEL_PARAMETERS[model]}
+    runner = FmuRunner(ensure_fmu(model), max_internal_step=IDENTIFICATION_STEP, tolerance=IDENTIFICATION_TOLERANCE)
+    try:
+        return runner.run(c.time, c.stroke, np.gradient(c.stroke, c.time), {k: v for k, v in values.items() if k in names})
+    finally:
+        runner.close()
+
+
+def _write_design(folder: Path, out: Path, designs: list, limits: RigLimits, top: int, log) -> dict:
+    """The best ``top`` candidates of each design as a dataset in ``out`` and ``design.json`` (module docstring)."""
+    params = strict_json.loads((folder / "parameters.json").read_text())
+    tests, seen = [], set()
+    for d in designs:
+        for g in d.ranked[:top]:
+            c = g.candidate
+            d.written.append(f"{c.name}.csv")
+            if c.name in seen:
+                continue
+            seen.add(c.name)
+            force = _predicted_force(d.model, params[d.model]["values"], c)
+            gains = "; ".join(f"{n} x{g.shrink(n):.2g}" for n in d.targets)
+            tests.append({"name": c.name, "role": "identification",
+                          "scenario": f"designed test: {c.description} (expected 95 % widths, {d.model} model: {gains})",
+                          "frame": pd.DataFrame({"time": c.time, "stroke": c.stroke, "force": force}),
+                          "expected_score_nats": g.score})
+            log(f"design: {d.model}: {c.name}: {c.description}; expected widths after/before: {gains}")
+    data = {"from": str(folder), "limits": {"stroke_m": limits.stroke_m, "velocity_m_s": limits.velocity_m_s,
+                                            "force_n": limits.force_n},
+            "method": __doc__.split("\n\n")[1], "models": {d.model: d.to_dict() for d in designs}}
+    if tests:
+        write_dataset(out, tests, "Designed rig tests: the candidates that would shrink the intervals of the "
+                      "parameters the identification tests do not determine (the force column is the fitted "
+                      "model's prediction; the rig records the measured force in its place)",
+                      {"command": "python -m tuner design", "from": str(folder)}, overwrite=True)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "design.json").write_text(strict_json.dumps(data, indent=1))
+    return data
