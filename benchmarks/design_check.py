@@ -1,4 +1,4 @@
-"""Test design (tuner.identification.test_design) on known truth, over many seeds: does the recommended test
+"""Test design (tuner.identification.rig_test_design) on known truth, over many seeds: does the recommended test
 shrink the intervals it promised to shrink?
 
 For each seed: rig tests of a lumped damper of known parameters (tests/interval_cases.py: Table 2's tables,
@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # interv
 
 from interval_cases import FS, KINDS, fitted, rig_tests, run_on_truth, truth  # noqa: E402
 from tuner.identification.engine import fastest_engine  # noqa: E402
-from tuner.identification.test_design import RigLimits, candidate_tests, rank_candidates  # noqa: E402
+from tuner.identification.rig_test_design import RigLimits, candidate_tests, rank_candidates  # noqa: E402
 
 
 def one_seed(seed: int, args) -> list[tuple]:

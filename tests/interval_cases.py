@@ -95,7 +95,7 @@ def fitted(params: dict, tests: list[RigTest], *, jacobians: int = 20, fit_rate_
 
 
 def run_on_truth(params: dict, candidate, seed: int, noise_n: float = 25.0) -> RigTest:
-    """The rig test a designed ``candidate`` (``tuner.identification.test_design.Candidate``) gives on the damper
+    """The rig test a designed ``candidate`` (``tuner.identification.rig_test_design.Candidate``) gives on the damper
     ``params``: the model's force, finely integrated, under its stroke, plus ``noise_n`` rms [N] of white noise."""
     c = candidate
     v = np.gradient(c.stroke, c.time)

@@ -1,4 +1,4 @@
-"""Test design (tuner.identification.test_design) on known truth: a lumped damper identified from slow strokes
+"""Test design (tuner.identification.rig_test_design) on known truth: a lumped damper identified from slow strokes
 alone leaves its piston mass M_P not determined (its force M_P x'' is a few N against 25 N of noise). The
 design ranks candidate tests; the physics says a mass shows at high frequency (x'' = (2 pi f)^2 x: at the
 velocity limit the mass force grows as f), so the best candidate for M_P must be a fast one, and a slow sine
@@ -10,7 +10,7 @@ import pytest
 
 from interval_cases import FS, fitted, rig_tests, run_on_truth, truth
 from tuner.identification.engine import fastest_engine
-from tuner.identification.test_design import RigLimits, candidate_tests, rank_candidates
+from tuner.identification.rig_test_design import RigLimits, candidate_tests, rank_candidates
 
 
 def test_the_recommended_test_shrinks_the_mass_interval_it_promised():

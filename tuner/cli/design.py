@@ -4,7 +4,7 @@ tests leave open.
 Ranks candidate rig tests (sines, small-amplitude high-frequency sines, sweeps, steps within the rig's
 stroke, velocity and force limits, and the identification tests run again) by how much they are expected
 to shrink the 95 % intervals of the parameters each fitted model leaves not determined
-(``tuner.identification.test_design``), and writes the best as a dataset ready for the rig (one CSV per
+(``tuner.identification.rig_test_design``), and writes the best as a dataset ready for the rig (one CSV per
 test, ``damper-rig-dataset/1``; the force column holds the fitted model's prediction) with ``design.json``
 (every candidate's expected gain) into ``--out`` (default ``RUN/design``; then the run's report is rebuilt
 with the section "The tests that would pin down the rest").
@@ -15,7 +15,7 @@ import argparse
 from pathlib import Path
 
 from tuner import strict_json
-from tuner.identification.test_design import DESIGN_FOLDER, RigLimits, design_from_folder
+from tuner.identification.rig_test_design import DESIGN_FOLDER, RigLimits, design_from_folder
 from tuner.progress import JobProgress
 from tuner.results.report import make_report
 

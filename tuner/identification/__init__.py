@@ -9,7 +9,7 @@
 - ``polish``: the local solver (projected Levenberg-Marquardt);
 - ``intervals``: 95 % intervals and identifiability flags of every identified parameter at the fit;
 - ``parameter_draws``: parameter sets drawn from a fitted model's covariance (for the vehicle's intervals);
-- ``test_design``: the rig tests that would shrink the intervals of the parameters not determined;
+- ``rig_test_design``: the rig tests that would shrink the intervals of the parameters not determined;
 - ``fit``: identification and validation (``fit`` returns a ``FitResult``);
 - ``full_rate``: the full-rate check of a decimated fit.
 """

@@ -1,13 +1,13 @@
 """The report's section on test design: the rig tests that would pin down the parameters the identification
 tests leave open (``design/design.json``, written by ``python -m tuner design``,
-``tuner.identification.test_design``): per model the best candidates, their expected gain per parameter,
+``tuner.identification.rig_test_design``): per model the best candidates, their expected gain per parameter,
 and the stroke files written. SI units in, mm and % out."""
 from __future__ import annotations
 
 import math
 from pathlib import Path
 
-from tuner.identification.test_design import DESIGN_FOLDER
+from tuner.identification.rig_test_design import DESIGN_FOLDER
 from tuner.results.html import esc, model_label, table
 from tuner import strict_json
 
