@@ -107,7 +107,7 @@ def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
         lines.append(f"  {m} parameters: {iv.get('summary') or iv['note']}")
     if summary["verdict"]:
         lines.append(f"  diagnosis: {summary['verdict']}")
-    if summary["critical_speed_kmh"]:
+    if summary["critical_speed_kmh"] and not summary["vehicle_intervals"]:  # else the interval lines give it
         lines.append("  vehicle, hunting critical speed [km/h]: " + ", ".join(
             f"{k} {'-' if v is None else format(v, '.0f')}" for k, v in summary["critical_speed_kmh"].items()))
     for v in summary["vehicle_intervals"].values():
