@@ -42,30 +42,35 @@ from damper_fmu.native import compile_library
 from tuner.identification.runner import FmuRunner
 
 __all__ = ["VehicleCosim", "VehicleRun", "DamperInstance", "reference_run", "check_damper_fmu", "master_loop",
-           "N_MECH", "DEFAULT_STEP"]
+           "compiled_loop", "N_MECH", "DEFAULT_STEP"]
 
 N_MECH = 2 * N_DOF
 """Mechanical states of the vehicle: y_0..y_6, Psi_0..Psi_6 [m, rad], their rates [m/s, rad/s]."""
 DEFAULT_STEP = 1e-3
 """Default communication step [s]."""
-_MASTER: dict = {}
+_LOOPS: dict = {}
+
+
+def compiled_loop(source: str, symbol: str, argtypes: list):
+    """The C function ``symbol`` of ``c/<source>.c`` beside this module, compiled once and cached, with its
+    ctypes ``argtypes`` and an int result; None without a C compiler (the callers then loop in Python)."""
+    if symbol not in _LOOPS:
+        try:
+            lib = ctypes.CDLL(str(compile_library(Path(__file__).resolve().parent / "c" / f"{source}.c", source)))
+            fn = getattr(lib, symbol)
+            fn.argtypes, fn.restype = argtypes, ctypes.c_int
+        except OSError:
+            fn = None
+        _LOOPS[symbol] = fn
+    return _LOOPS[symbol]
 
 
 def master_loop():
-    """The compiled C master loop (ctypes function), or None without a C compiler."""
-    if "fn" not in _MASTER:
-        try:
-            lib = ctypes.CDLL(str(compile_library(Path(__file__).resolve().parent / "c" / "vehicle_master.c",
-                                                  "vehicle_master")))
-            fn = lib.vehicle_run
-            dp, ip, vp = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_void_p)
-            fn.argtypes = ([ctypes.c_int] * 3 + [dp] * 9 + [ctypes.c_double] * 2 + [vp] * 5
-                           + [ctypes.POINTER(ctypes.c_uint), dp, dp, ip, ctypes.c_int, ctypes.c_double, ip, ip, ip])
-            fn.restype = ctypes.c_int
-        except OSError:
-            fn = None
-        _MASTER["fn"] = fn
-    return _MASTER["fn"]
+    """The compiled C master loop of the linear vehicle (ctypes function), or None without a C compiler."""
+    dp, ip, vp = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_void_p)
+    return compiled_loop("vehicle_master", "vehicle_run",
+                         [ctypes.c_int] * 3 + [dp] * 9 + [ctypes.c_double] * 2 + [vp] * 5
+                         + [ctypes.POINTER(ctypes.c_uint), dp, dp, ip, ctypes.c_int, ctypes.c_double, ip, ip, ip])
 
 
 def check_damper_fmu(path) -> None:

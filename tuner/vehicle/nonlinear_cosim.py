@@ -29,28 +29,17 @@ import numpy as np
 
 from campaign.vehicle import DAMPER_NAMES, N_BODIES, N_DAMPERS, N_DOF, N_STATES, WHEELSETS, VehicleParams
 from campaign.vehicle_nonlinear import N_MECH, ContactSettings, NonlinearRun, NonlinearVehicle
-from damper_fmu.native import compile_library
-from tuner.vehicle.cosim import DEFAULT_STEP, DamperInstance
+from tuner.vehicle.cosim import DEFAULT_STEP, DamperInstance, compiled_loop
 
 __all__ = ["NonlinearCosim", "nonlinear_master_loop"]
-_MASTER: dict = {}
 
 
 def nonlinear_master_loop():
-    """The compiled C master loop (ctypes function), or None without a C compiler."""
-    if "fn" not in _MASTER:
-        try:
-            lib = ctypes.CDLL(str(compile_library(Path(__file__).resolve().parent / "c" / "nonlinear_master.c",
-                                                  "nonlinear_master")))
-            fn = lib.nonlinear_vehicle_run
-            dp, ip, vp = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_void_p)
-            fn.argtypes = ([ctypes.c_int] * 6 + [dp] * 4 + [ip, dp, dp, ctypes.c_double] + [vp] * 5
-                           + [ctypes.POINTER(ctypes.c_uint), dp, dp, ip, ip])
-            fn.restype = ctypes.c_int
-        except OSError:
-            fn = None
-        _MASTER["fn"] = fn
-    return _MASTER["fn"]
+    """The compiled C master loop of the nonlinear car (ctypes function), or None without a C compiler."""
+    dp, ip, vp = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_void_p)
+    return compiled_loop("nonlinear_master", "nonlinear_vehicle_run",
+                         [ctypes.c_int] * 6 + [dp] * 4 + [ip, dp, dp, ctypes.c_double] + [vp] * 5
+                         + [ctypes.POINTER(ctypes.c_uint), dp, dp, ip, ip])
 
 
 class NonlinearCosim:
