@@ -42,7 +42,7 @@ from damper_fmu.native import compile_library
 from tuner.identification.runner import FmuRunner
 
 __all__ = ["VehicleCosim", "VehicleRun", "DamperInstance", "reference_run", "check_damper_fmu", "master_loop",
-           "compiled_loop", "N_MECH", "DEFAULT_STEP"]
+           "compiled_loop", "FmuDampers", "N_MECH", "DEFAULT_STEP"]
 
 N_MECH = 2 * N_DOF
 """Mechanical states of the vehicle: y_0..y_6, Psi_0..Psi_6 [m, rad], their rates [m/s, rad/s]."""
@@ -201,7 +201,46 @@ class DamperInstance:
         self.runner.close()
 
 
-class VehicleCosim:
+class FmuDampers:
+    """The four yaw damper FMU instances of a car's co-simulation (``DAMPER_NAMES`` order), what the linear
+    (``VehicleCosim``) and the nonlinear car (``tuner.vehicle.nonlinear_cosim``) share: opening them, closing
+    them, the context manager."""
+
+    @staticmethod
+    def damper_paths(fmus) -> list[Path]:
+        """One path (four instances of it) or four paths in ``DAMPER_NAMES`` order; ValueError otherwise."""
+        paths = [fmus] if isinstance(fmus, (str, Path)) else list(fmus)
+        if len(paths) == 1:
+            paths = paths * N_DAMPERS
+        if len(paths) != N_DAMPERS:
+            raise ValueError(f"give one damper FMU or {N_DAMPERS} ({', '.join(DAMPER_NAMES)}), got {len(paths)}")
+        return [Path(p) for p in paths]
+
+    def open_dampers(self, paths: list[Path], fmu_parameters: dict | None) -> None:
+        """An instance of each FMU of ``paths`` (all closed again if one fails)."""
+        self.paths = list(paths)
+        self.dampers: list[DamperInstance] = []
+        try:
+            for p, name in zip(self.paths, DAMPER_NAMES):
+                self.dampers.append(DamperInstance(p, name, fmu_parameters))
+        except BaseException:
+            self.close()
+            raise
+
+    def close(self):
+        """Free the FMU instances and their extracted files."""
+        for d in self.dampers:
+            d.close()
+        self.dampers = []
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class VehicleCosim(FmuDampers):
     """The vehicle with four yaw damper FMUs, stepped at the communication step ``step`` [s].
 
     ``fmus``: one path (four instances of it) or four paths in ``DAMPER_NAMES`` order (front right,
@@ -214,23 +253,12 @@ class VehicleCosim:
 
     def __init__(self, fmus, *, params: VehicleParams | None = None, step: float = DEFAULT_STEP,
                  fmu_parameters: dict | None = None, c_loop: bool = True):
-        paths = [fmus] if isinstance(fmus, (str, Path)) else list(fmus)
-        if len(paths) == 1:
-            paths = paths * N_DAMPERS
-        if len(paths) != N_DAMPERS:
-            raise ValueError(f"give one damper FMU or {N_DAMPERS} ({', '.join(DAMPER_NAMES)}), got {len(paths)}")
+        paths = self.damper_paths(fmus)
         if not (math.isfinite(step) and 0.0 < step <= 0.01):
             raise ValueError(f"communication step must be in (0, 10 ms], got {step} s")
         self.params = params if params is not None else VehicleParams()
         self.step = float(step)
-        self.paths = [Path(p) for p in paths]
-        self.dampers: list[DamperInstance] = []
-        try:
-            for p, name in zip(self.paths, DAMPER_NAMES):
-                self.dampers.append(DamperInstance(p, name, fmu_parameters))
-        except BaseException:
-            self.close()
-            raise
+        self.open_dampers(paths, fmu_parameters)
         self._loop = master_loop() if c_loop else None
         self._disc: dict = {}
 
@@ -381,18 +409,6 @@ class VehicleCosim:
             if idx.size and not np.all(np.abs(X[k + 1, idx]) <= limit):
                 return k + 1
         return n
-
-    def close(self):
-        """Free the FMU instances and their extracted files."""
-        for d in self.dampers:
-            d.close()
-        self.dampers = []
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
 
 
 def reference_run(params: VehicleParams, speed: float, track, irregularity=None, t_end: float = 10.0, *,

@@ -23,13 +23,12 @@ from __future__ import annotations
 
 import ctypes
 import math
-from pathlib import Path
 
 import numpy as np
 
-from campaign.vehicle import DAMPER_NAMES, N_BODIES, N_DAMPERS, N_DOF, N_STATES, WHEELSETS, VehicleParams
+from campaign.vehicle import N_BODIES, N_DAMPERS, N_DOF, N_STATES, WHEELSETS, VehicleParams
 from campaign.vehicle_nonlinear import N_MECH, ContactSettings, NonlinearRun, NonlinearVehicle
-from tuner.vehicle.cosim import DEFAULT_STEP, DamperInstance, compiled_loop
+from tuner.vehicle.cosim import DEFAULT_STEP, FmuDampers, compiled_loop
 
 __all__ = ["NonlinearCosim", "nonlinear_master_loop"]
 
@@ -42,7 +41,7 @@ def nonlinear_master_loop():
                          + [ctypes.POINTER(ctypes.c_uint), dp, dp, ip, ip])
 
 
-class NonlinearCosim:
+class NonlinearCosim(FmuDampers):
     """The nonlinear car ``params`` / ``settings`` with four yaw damper FMUs at the communication step
     ``step`` [s], ``substeps`` Runge-Kutta steps of the vehicle per communication step.
 
@@ -53,11 +52,7 @@ class NonlinearCosim:
     def __init__(self, fmus, *, params: VehicleParams | None = None, settings: ContactSettings | None = None,
                  step: float = DEFAULT_STEP, substeps: int = 1, fmu_parameters: dict | None = None,
                  c_loop: bool = True):
-        paths = [fmus] if isinstance(fmus, (str, Path)) else list(fmus)
-        if len(paths) == 1:
-            paths = paths * N_DAMPERS
-        if len(paths) != N_DAMPERS:
-            raise ValueError(f"give one damper FMU or {N_DAMPERS} ({', '.join(DAMPER_NAMES)}), got {len(paths)}")
+        paths = self.damper_paths(fmus)
         if not (math.isfinite(step) and 0.0 < step <= 2e-3):
             raise ValueError(f"communication step must be in (0, 2 ms], got {step} s")
         if not (isinstance(substeps, int) and substeps >= 1):
@@ -65,14 +60,8 @@ class NonlinearCosim:
         self.params = params if params is not None else VehicleParams()
         self.settings = settings
         self.step, self.substeps = float(step), substeps
-        self.dampers: list[DamperInstance] = []
         self._loop = nonlinear_master_loop() if c_loop else None
-        try:
-            for p, name in zip(paths, DAMPER_NAMES):
-                self.dampers.append(DamperInstance(p, name, fmu_parameters))
-        except BaseException:
-            self.close()
-            raise
+        self.open_dampers(paths, fmu_parameters)
 
     def run(self, speed: float, x0: np.ndarray, t_end: float) -> NonlinearRun:
         """Run at ``speed`` [m/s] on straight ideal track for ``t_end`` [s] from the state ``x0``
@@ -139,18 +128,6 @@ class NonlinearCosim:
     def runner(self):
         """This co-simulation as the ``runner(speed, x0, duration)`` of :mod:`campaign.bifurcation`."""
         return self.run
-
-    def close(self):
-        """Free the FMU instances and their extracted files."""
-        for d in self.dampers:
-            d.close()
-        self.dampers = []
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
 
 
 def _advance(model: NonlinearVehicle, x, F0, F1, h: float, m: int, dx0) -> np.ndarray:
