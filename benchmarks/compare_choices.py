@@ -68,7 +68,8 @@ def main(argv=None) -> int:
         ckpt = a.out / f"ckpt_{name.replace('+', 'p')}.json"
         ckpt.unlink(missing_ok=True)
         t0 = time.perf_counter()
-        best, hist = identify("lumped", sig, settings, par, ckpt, "compare", lambda m: None)
+        found = identify("lumped", sig, settings, par, ckpt, "compare", lambda m: None)
+        best, hist = found.values, found.history
         firefly_best = hist["firefly_best_fitness"]
         failed = sum(1 for g in hist["mean_fitness"] if g == 0.0)
         results[name] = {"history": hist["best_fitness"],

@@ -105,7 +105,7 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
         kind, values, choice, others = choose_base(result.params, result.metrics)
         try:
             diagnosis = _diagnose(identification, validation, out, diagnosis_settings(settings), values, kind, choice,
-                                  others, problem, log)
+                                  others, problem, log, settled=settled_bases(result, settings))
         except DiagnosisFailed:
             make_report(out)  # the fit's report with the failure said: the fit and its FMUs are safe
             raise
@@ -134,12 +134,21 @@ def run_diagnosis(identification: list[RigTest], validation: list[RigTest], out:
     return result
 
 
+def settled_bases(result: FitResult, settings: FitSettings) -> dict:
+    """{model: its refinement's stop text} for the fitted models whose local refinement converged, in the
+    scheme the diagnosis refines in ('improved'): on the fit's own problem the diagnosis does not refit them
+    again as its reference (``tuner.diagnosis.bases.Base.settled``)."""
+    if settings.parametrization != "improved":
+        return {}
+    return {m: h["polish_stop"] for m, h in result.histories.items() if h.get("converged")}
+
+
 def _diagnose(identification, validation, out, settings, base_params, base_model, base_choice, other_bases,
-              problem, log) -> Diagnosis:
+              problem, log, settled: dict | None = None) -> Diagnosis:
     stage(log, "diagnosis")
     log(f"\ndiagnosis: refitting the {base_model or 'base'} model extended by each candidate effect ...")
     return diagnose(identification, validation, out, settings, base_params=base_params, base_model=base_model,
-                    base_choice=base_choice, other_bases=other_bases, problem=problem, log=log)
+                    base_choice=base_choice, other_bases=other_bases, problem=problem, settled_bases=settled, log=log)
 
 
 

@@ -4,6 +4,7 @@ MSE, whether a repeat on another form can plausibly win, and the progress plan o
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 from damper_fmu.parameters import EFFECT_MODELS
@@ -15,12 +16,24 @@ from tuner.diagnosis.settings import DiagnosisSettings
 from tuner.metrics import pooled_mse
 from tuner.progress import Plan
 
-__all__ = ["BASE_MODELS", "pooled_validation_mse", "choose_base", "base_kinds", "PLAN_WEIGHTS", "progress_plan",
-           "identified_bases", "why_not_repeated"]
+__all__ = ["BASE_MODELS", "Base", "pooled_validation_mse", "choose_base", "base_kinds", "PLAN_WEIGHTS",
+           "progress_plan", "identified_bases", "why_not_repeated"]
 
 #: base forms the diagnosis chooses from (the models that carry the effect catalogue): the lumped
 #: model of the paper, and the two-chamber form of a twin-tube damper
 BASE_MODELS = EFFECT_MODELS
+
+
+@dataclass(frozen=True)
+class Base:
+    """A base form to diagnose on: its parametrization (the 'improved' scheme), its values [SI], and
+    ``settled``: how the local refinement that produced these very values on the same identification tests
+    and engine ended, when it converged there (the polish's stop text), else None. A settled base is not
+    refitted again as 'none' (the same refinement from the same point ends where it is)."""
+
+    par: Parametrization
+    values: dict
+    settled: str | None = None
 
 
 def pooled_validation_mse(kind: str, params: dict, signals: list, engine: str) -> float:
@@ -72,17 +85,19 @@ def progress_plan(log, settings: DiagnosisSettings, base_model, other_bases, giv
 
 
 def identified_bases(problem: Problem, out: Path, settings: DiagnosisSettings, base_params, base_model,
-                      base_choice, other_bases, log) -> tuple[str, dict, dict | None]:
-    """(the first base kind, {kind: (Parametrization, values)} in the order tried, how it was chosen): the
-    bases given (``base_params`` of ``base_model`` and ``other_bases``), or identified here."""
+                      base_choice, other_bases, log, settled: dict | None = None) -> tuple[str, dict, dict | None]:
+    """(the first base kind, {kind: Base} in the order tried, how it was chosen): the bases given
+    (``base_params`` of ``base_model`` and ``other_bases``; ``settled``: {kind: stop text} of those whose
+    refinement converged on this problem, ``Base.settled``), or identified here."""
     def parametrization(kind: str, given: dict | None) -> Parametrization:
         # the local solver needs monotone tables: the 'improved' scheme whatever the fit used
         return problem.parametrization(kind, fixed_from=given, scheme="improved")
 
     if base_params is not None:
         kind = base_model or "lumped"
-        bases = {kind: (parametrization(kind, base_params), base_params)}
-        bases.update({k: (parametrization(k, v), v) for k, v in (other_bases or {}).items()
+        settled = settled or {}
+        bases = {kind: Base(parametrization(kind, base_params), base_params, settled.get(kind))}
+        bases.update({k: Base(parametrization(k, v), v, settled.get(k)) for k, v in (other_bases or {}).items()
                       if k != kind and k in EFFECT_MODELS})
         return kind, bases, base_choice
     fitted = {}
@@ -92,16 +107,17 @@ def identified_bases(problem: Problem, out: Path, settings: DiagnosisSettings, b
         fs = FitSettings(models=(kind,), fit_rate_hz=settings.fit_rate_hz, warmup_s=settings.warmup_s,
                          iterations=settings.base_iterations, workers=settings.workers, seed=settings.seed,
                          engine=settings.engine, polish_jacobians=settings.base_polish_jacobians)
-        values, _ = identify(kind, problem.sig_id, fs, par_k, out / "checkpoints" / f"diagnosis_base_{kind}.json",
-                             problem.digest, log.part(f"identification of the {kind} base"))
-        fitted[kind] = (par_k, values, pooled_validation_mse(kind, values, problem.sig_val, settings.engine))
-    kind = min(fitted, key=lambda k: fitted[k][2])
-    bases = {k: fitted[k][:2] for k in sorted(fitted, key=lambda k: fitted[k][2])}
+        found = identify(kind, problem.sig_id, fs, par_k, out / "checkpoints" / f"diagnosis_base_{kind}.json",
+                         problem.digest, log.part(f"identification of the {kind} base"))
+        fitted[kind] = (Base(par_k, found.values, found.history["polish_stop"] if found.history["converged"] else None),
+                        pooled_validation_mse(kind, found.values, problem.sig_val, settings.engine))
+    kind = min(fitted, key=lambda k: fitted[k][1])
+    bases = {k: fitted[k][0] for k in sorted(fitted, key=lambda k: fitted[k][1])}
     base_choice = {"chosen": kind, "by": "held-out MSE of the identified base models (Table 3 definition)",
-                   "validation_mse": {k: v[2] for k, v in fitted.items()}}
+                   "validation_mse": {k: v[1] for k, v in fitted.items()}}
     if len(fitted) > 1:
         log("diagnosis: base form " + kind + " (held-out MSE " + ", ".join(
-            f"{k} {math.sqrt(v[2]):.1f} N rms" for k, v in fitted.items()) + ")")
+            f"{k} {math.sqrt(v[1]):.1f} N rms" for k, v in fitted.items()) + ")")
     return kind, bases, base_choice
 
 

@@ -75,7 +75,7 @@ from damper_fmu.fmu import SLAVES, build
 
 from tuner import strict_json
 from tuner.data.reading import RigTest
-from tuner.diagnosis.bases import (BASE_MODELS, choose_base, identified_bases, progress_plan,  # noqa: F401
+from tuner.diagnosis.bases import (BASE_MODELS, Base, choose_base, identified_bases, progress_plan,  # noqa: F401
                                    why_not_repeated)
 from tuner.diagnosis.refit import MIN_BLOCKS, ExtendedParametrization, search_bounds  # noqa: F401
 from tuner.diagnosis.result import Diagnosis
@@ -107,7 +107,8 @@ class DiagnosisFailed(RuntimeError):
 def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path,
              settings: DiagnosisSettings | None = None, *, base_params: dict | None = None,
              base_model: str | None = None, base_choice: dict | None = None,
-             other_bases: dict | None = None, problem: Problem | None = None, log=print) -> Diagnosis:
+             other_bases: dict | None = None, problem: Problem | None = None, settled_bases: dict | None = None,
+             log=print) -> Diagnosis:
     """Run the diagnosis, write ``diagnosis.json`` (and figures, extended FMU) into ``out`` and return the
     :class:`tuner.diagnosis.result.Diagnosis` (read-only: the record ``diagnosis.json`` holds).
 
@@ -116,7 +117,9 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     keeps the one with the lowest held-out MSE); base_choice: how the caller chose it (reported);
     other_bases: {kind: values} of the other fitted base forms (``choose_base``); problem: the tests
     prepared by the fit before (``tuner.identification.problem``: the same fit rate, abscissae and
-    force limit), built from ``settings.data()`` when not given.
+    force limit), built from ``settings.data()`` when not given; settled_bases: {kind: how the fit's local
+    refinement of the given values ended} for the bases whose refinement converged on ``problem`` in the
+    'improved' scheme (``tuner.diagnosis.bases.Base.settled``: not refitted again as 'none').
 
     The base is chosen before any effect is added; when the diagnosis on it leaves a residual above
     the floor (a large effect can make both bare bases fit badly, and then the wrong form may win),
@@ -145,7 +148,7 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     record = {"stage": "base identification", "finished": [], "partial": None, "base_choice": base_choice}
     try:
         result = _diagnose_stages(problem, out, settings, base_params, base_model, base_choice, other_bases,
-                                  record, log)
+                                  settled_bases, record, log)
     except Exception as err:  # recorded, then raised again: a failed stage is never a result
         path = _write_failure(out, record, err, settings, problem, time.perf_counter() - t_start)
         log(f"diagnosis: FAILED in its stage '{record['stage']}': {type(err).__name__}: {err}")
@@ -172,12 +175,12 @@ def _checked_problem(problem: Problem | None, identification, validation, settin
 
 
 def _diagnose_stages(problem: Problem, out: Path, settings: DiagnosisSettings, base_params, base_model, base_choice,
-                     other_bases, record: dict, log) -> dict:
+                     other_bases, settled_bases, record: dict, log) -> dict:
     """The stages of ``diagnose`` after the inputs were checked; ``record`` follows them (the stage
     running, the stages finished, what the running one has so far) for a failure report."""
     plan = progress_plan(log, settings, base_model, other_bases, base_params is not None)
     kind, bases, base_choice = identified_bases(problem, out, settings, base_params, base_model, base_choice,
-                                                 other_bases, plan)
+                                                 other_bases, plan, settled_bases)
     record["base_choice"] = base_choice
     record["finished"].append("base identification")
     runs = {kind: _checkpointed_run(kind, bases[kind], problem, settings, out, "figures", record,
@@ -185,7 +188,7 @@ def _diagnose_stages(problem: Problem, out: Path, settings: DiagnosisSettings, b
     skipped = {}
     for other in [k for k in bases if k != kind]:
         left = runs[kind]["unexplained"]
-        why = "" if left is None else why_not_repeated(kind, other, runs[kind], bases[other][1], problem, settings)
+        why = "" if left is None else why_not_repeated(kind, other, runs[kind], bases[other].values, problem, settings)
         if why is not None:
             plan.skip(f"diagnosis on the {other} base")
         if left is None:
@@ -221,14 +224,14 @@ def _diagnose_stages(problem: Problem, out: Path, settings: DiagnosisSettings, b
     return result
 
 
-def _checkpointed_run(kind: str, base: tuple, problem: Problem, settings: DiagnosisSettings, out: Path,
+def _checkpointed_run(kind: str, base: Base, problem: Problem, settings: DiagnosisSettings, out: Path,
                       figures_sub: str, record: dict, log) -> dict:
     """The diagnosis on the ``kind`` base (``diagnose_on``), or its checkpoint from an earlier call on the
     same data, settings and base values (``checkpoints/diagnosis_<kind>.json``, written when it finishes;
     one of other data or settings: ValueError)."""
     path = out / "checkpoints" / f"diagnosis_{kind}.json"
     key = _digest([problem.digest, kind, {k: v for k, v in settings.__dict__.items() if k not in ("workers", "extra")}])
-    base_key = _digest(base[1])
+    base_key = _digest(base.values)
     if path.exists():
         saved = strict_json.loads(path.read_text())
         if saved.get("key") != key:
@@ -241,7 +244,7 @@ def _checkpointed_run(kind: str, base: tuple, problem: Problem, settings: Diagno
         log(f"diagnosis: {path} holds the diagnosis of other {kind} base values (a refit since): diagnosed again")
     record["stage"] = f"diagnosis on the {kind} base"
     record["partial"] = {"base_model": kind}
-    run = diagnose_on(kind, *base, problem, settings, out, figures_sub, log, record)
+    run = diagnose_on(kind, base, problem, settings, out, figures_sub, log, record)
     tmp = path.with_suffix(".tmp")
     tmp.write_text(strict_json.dumps({"key": key, "base_key": base_key, "run": run}))
     tmp.replace(path)

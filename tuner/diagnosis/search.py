@@ -16,6 +16,7 @@ from damper_fmu.parameters import EFFECT_IDENTIFIED, EFFECT_KIND, EFFECT_PARAMET
 
 from tuner.data.noise import channel_noise
 from tuner.data.reading import RigTest
+from tuner.diagnosis.bases import Base
 from tuner.diagnosis.detection import detection_limits
 from tuner.diagnosis.effect_sizes import REFERENCE, DamperSize, meaningful_floor, typical_range
 from tuner.diagnosis.forms import FORM_LABELS, screen, settings_text, shape_grid
@@ -109,8 +110,10 @@ class CandidateSearch:
     ranking, selection steps, causes and forms tried so far (the live lists). Units SI; forces in N."""
 
     def __init__(self, kind: str, par: Parametrization, base_params: dict, data: Problem,
-                 settings: DiagnosisSettings, out: Path, figures_sub: str, log, record: dict | None = None):
+                 settings: DiagnosisSettings, out: Path, figures_sub: str, log, record: dict | None = None,
+                 settled: str | None = None):
         self.kind, self.par, self.data, self.settings, self.log = kind, par, data, settings, log
+        self.settled_by = settled  # how the refinement of base_params on these tests ended (``Base.settled``)
         self.out, self.figures_sub = out, figures_sub
         self.record = record if record is not None else {}
         self.record.setdefault("partial", {})
@@ -221,7 +224,9 @@ class CandidateSearch:
     def refit_none(self) -> None:
         """'none' is a candidate like the others: the base model refitted from the same starts (the fitted
         base and, with ``guess_start`` where the fitted base is not settled, the data-driven guess) with the
-        same local effort, so that an unfinished base fit is never credited to an effect."""
+        same local effort, so that an unfinished base fit is never credited to an effect. A settled base (its
+        refinement converged on these tests: ``Base.settled``) is its own refit: the same refinement from the
+        point where it ended would end there again."""
         sse_base = self.eid.sse_batch([self.base])[0]
         r_val = self.ev.residuals_batch([self.base])[0]
         self.mse_base = self.mse_none = float(r_val @ r_val) / sum(self.lengths)
@@ -230,7 +235,13 @@ class CandidateSearch:
         self.jac_base = base_jacobian(self.eid, self.par, self.par.from_params(self.base))  # shared
         self.starts = [(self.base, sse_base, self.jac_base)]
         self.share = max(1, self.settings.polish_jacobians // 2)  # the Jacobian budget, split between two starts
-        z_none, g_none, evals, info = self.polish_quietly(self.par, self.par.from_params(self.base), self.share)
+        if self.settled_by:  # the same refinement from the point where it converged ends there: not run again
+            z_none, g_none, evals = self.par.from_params(self.base), self.eid.n_samples / sse_base, 0
+            info = {"converged": True, "budget_spent": False, "predicted": 0.0}
+            self.log(f"  none           the fitted base is settled (its refinement on these tests: {self.settled_by}): "
+                     f"it is the base refitted alike")
+        else:
+            z_none, g_none, evals, info = self.polish_quietly(self.par, self.par.from_params(self.base), self.share)
         # the data-driven guess has absorbed no effect into the tables; it is a second start only where the
         # fitted base is not settled (its refit spent the budget still improving): from a settled base the
         # profile line search re-balances what the tables absorbed
@@ -251,10 +262,14 @@ class CandidateSearch:
 
     def screen(self, exts: dict) -> dict:
         """The better of two screens (``tuner.diagnosis.screen``) per candidate: at the base refitted alike
-        (its own Jacobian) and at the fitted base the refits start from."""
+        (its own Jacobian) and at the fitted base the refits start from (one screen when they are the same
+        point: a settled base)."""
         at_none = {**self.base, **self.par.to_params(self.z_none)}
+        points = [(self.base, self.jac_base)]
+        if not np.array_equal(self.z_none, self.par.from_params(self.base)):  # the refit moved: both points
+            points.insert(0, (at_none, base_jacobian(self.eid, self.par, self.z_none)))
         screened = {}
-        for at_point, jac in ((at_none, base_jacobian(self.eid, self.par, self.z_none)), (self.base, self.jac_base)):
+        for at_point, jac in points:
             for e, r in profile_screen(self.eid, exts, at_point, jac, self.settings.grid_points).items():
                 if e not in screened or r.share > screened[e].share:
                     screened[e] = r
@@ -686,10 +701,11 @@ class CandidateSearch:
                 "base_validation_mse": pooled_mse(base_metrics)}
 
 
-def diagnose_on(kind: str, par: Parametrization, base_params: dict, data: Problem, settings: DiagnosisSettings,
-                out: Path, figures_sub: str, log, record: dict | None = None) -> dict:
+def diagnose_on(kind: str, base: Base, data: Problem, settings: DiagnosisSettings, out: Path, figures_sub: str, log,
+                record: dict | None = None) -> dict:
     """The diagnosis on one base form: ``CandidateSearch(...).run()``."""
-    return CandidateSearch(kind, par, base_params, data, settings, out, figures_sub, log, record).run()
+    return CandidateSearch(kind, base.par, base.values, data, settings, out, figures_sub, log, record,
+                           settled=base.settled).run()
 
 
 def detection(eid: Engine, ev: Engine, par: Parametrization, z: np.ndarray, candidates: list[str], peak: float,

@@ -42,7 +42,7 @@ from tuner.data.reading import RigTest
 from tuner.identification import firefly
 from tuner.identification.engine import IDENTIFICATION_STEP, Engine, Signals, simulate_signals
 from tuner.identification.full_rate import MIN_RATE_RATIO, comparison_rate, full_rate_check
-from tuner.identification.intervals import model_intervals
+from tuner.identification.intervals import parameter_intervals, reached_ranges
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.polish import polish, resolution_stop, small_progress
 from tuner.identification.problem import DataSettings, Problem, to_signals
@@ -51,7 +51,7 @@ from tuner.metrics import error_metrics, noise_std
 from tuner.progress import advance, stage
 from tuner import strict_json
 
-__all__ = ["FitSettings", "FitResult", "fit", "initial_guess", "validation_run", "identify", "quality_gate", "QUALITY_AME_PCT",
+__all__ = ["FitSettings", "FitResult", "Identified", "fit", "initial_guess", "validation_run", "identify", "quality_gate", "QUALITY_AME_PCT",
            "RACE_RATIO", "RESTART_LADDER"]
 
 #: Log-scaled parameters whose decade decides the basin a local refinement ends in: the data-driven
@@ -155,13 +155,26 @@ def _settings_hash(settings: FitSettings, data_digest: str, model: str) -> str:
     return hashlib.sha256(json.dumps([keep, data_digest, model], sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
+@dataclass(frozen=True)
+class Identified:
+    """One model identified (``identify``): the best parameter values [SI], the history (search, refinement,
+    stop rules: ``history_<model>.json``) and, when asked, the intervals (``_intervals``: {"intervals": the
+    ``ModelIntervals`` as a dict} or {"intervals": None, "intervals_note": why}); None when not asked."""
+
+    values: dict
+    history: dict
+    intervals: dict | None = None
+
+
 def identify(model: str, signals: list[Signals], settings: FitSettings, par: Parametrization,
-              ckpt: Path, digest: str, log, *, rival: tuple[str, float] | None = None) -> tuple[dict, dict]:
-    """Run Firefly and the local refinements for one model; return (best parameters, history dict).
+              ckpt: Path, digest: str, log, *, rival: tuple[str, float] | None = None,
+              intervals: bool = False) -> Identified:
+    """Run Firefly and the local refinements for one model.
 
     rival: (model, identification RMSE [N]) of another base form already fitted to the same data;
     when the first refinement leaves more than ``RACE_RATIO`` x its RMSE, this form is clearly the
-    wrong one and gets no restart (the effort goes to the contender)."""
+    wrong one and gets no restart (the effort goes to the contender). intervals: the parameters' intervals
+    at the best point too, through the same engine's workers (d + 1 simulations in parallel)."""
     opts = firefly.FireflyOptions(population=settings.population, max_iterations=settings.iterations,
                                   stop_tol=settings.stop_tol)
     key = _settings_hash(settings, digest, model)
@@ -219,7 +232,8 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
                              callback=callback, initial=initial)
         last_failure = eng.last_failure
         ref = _refine(eng, model, par, settings, result, guess, guess_p, rival, log)
-    elapsed = time.perf_counter() - t_start
+        elapsed = time.perf_counter() - t_start
+        ivs = _intervals(eng, model, signals, par, par.to_params(ref.z), log) if intervals and ref.g > 0.0 else None
 
     def rmse(g):
         return 1.0 / math.sqrt(g) if g > 0 else math.inf
@@ -232,7 +246,7 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
     log(f"[{model}] done: Firefly {history['stop_reason']} after {result.iterations} iterations "
         f"(RMSE {rmse(result.fitness_best):.1f} N), {result.evaluations + ref.evaluations} evaluations, "
         f"{elapsed:.0f} s; identification RMSE {rmse(ref.g):.1f} N")
-    return par.to_params(ref.z), history
+    return Identified(par.to_params(ref.z), history, ivs)
 
 
 def _resumed_state(ckpt: Path, key: str, model: str, log):
@@ -434,12 +448,13 @@ class FitResult:
         (Path(out) / "metrics.json").write_text(strict_json.dumps(self.metrics, indent=2, sort_keys=True))
 
 
-def _intervals(model: str, signals: list[Signals], par: Parametrization, best: dict, engine: str, log) -> dict:
+def _intervals(eng: Engine, model: str, signals: list[Signals], par: Parametrization, best: dict, log) -> dict:
     """{"intervals": the ``tuner.identification.intervals.ModelIntervals`` of the fitted model as a dict}, or
     {"intervals": None, "intervals_note": why} when the fitted model cannot be simulated around its point
-    (the fit itself is kept). Logs the one-line summary."""
+    (the fit itself is kept); through ``eng``, the identification engine of ``model`` on ``signals``. Logs the
+    one-line summary."""
     try:
-        iv = model_intervals(model, signals, par, best, engine=engine)
+        iv = parameter_intervals(eng, par, best, reached=reached_ranges(model, best, signals))
     except (SimulationError, ConvergenceError, ValueError) as err:
         log(f"[{model}] parameter intervals not computed: {err}")
         return {"intervals": None, "intervals_note": f"not computed: {err}"}
@@ -481,13 +496,13 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
             stage(log, f"fit {model}")
             par = problem.parametrization(model)
             fitted_bases = [(m, histories[m]["identification_rmse_n"]) for m in histories if m in EFFECT_MODELS]
-            best, hist = identify(model, signals, settings, par, checkpoints / f"{model}.json", digest, log,
-                                  rival=min(fitted_bases, key=lambda r: r[1])
-                                  if model in EFFECT_MODELS and fitted_bases else None)
+            found = identify(model, signals, settings, par, checkpoints / f"{model}.json", digest, log,
+                             rival=min(fitted_bases, key=lambda r: r[1])
+                             if model in EFFECT_MODELS and fitted_bases else None, intervals=True)
+            best, hist = found.values, found.history
             params[model] = {"values": best, "units": dict(par.units),
                              "bounds": {n: list(par.bounds[n]) for n in par.names},
-                             "parametrization": settings.parametrization,
-                             **_intervals(model, signals, par, best, settings.engine, log)}
+                             "parametrization": settings.parametrization, **found.intervals}
             rmse_id = 1.0 / math.sqrt(hist["best_fitness_final"]) if hist["best_fitness_final"] > 0 else math.inf
             hist["noise_floor_n"] = noise
             hist["noise_credible"] = bool(problem.noise.get("credible", True))
