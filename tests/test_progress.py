@@ -103,3 +103,45 @@ def test_a_plan_keeps_time_for_parts_that_may_still_run_and_counts_skipped_ones_
     assert p.fraction == pytest.approx(1.0)
     with pytest.raises(KeyError):
         plan.part("vehicle")
+
+
+def test_a_stage_that_says_its_seconds_left_is_believed_and_later_stages_follow_the_measured_speed():
+    """The diagnosis forecasts its own time (its cost depends on the data more than a plan can know): the
+    display then shows what it said, less the time since, plus the later stages' plan scaled by how the
+    finished stages went against theirs; the percentages follow the same forecast."""
+    from tuner.progress import expect
+
+    clock, out = Clock(), io.StringIO()
+    p = JobProgress({"fit": 60.0, "diagnosis": 60.0, "report": 10.0}, stream=out, tty=False, clock=clock)
+    stage(p, "fit")
+    clock.t = 120.0  # the fit took twice its plan
+    stage(p, "diagnosis")
+    expect(p, 300.0)
+    assert p.remaining_s() == pytest.approx(300.0 + 2.0 * 10.0)
+    clock.t = 220.0
+    assert p.remaining_s() == pytest.approx(200.0 + 20.0)
+    assert p.stage_fraction() == pytest.approx(100.0 / 300.0)
+    assert p.completed() == pytest.approx(220.0 / 440.0)
+    clock.t = 600.0  # the forecast ran out: the stage reads 100 % only until it says more
+    assert p.remaining_s() == pytest.approx(20.0)
+    expect(p, 50.0)
+    assert p.remaining_s() == pytest.approx(70.0)
+    stage(p, "report")  # a new stage starts without a forecast: the plan again
+    assert p._said is None
+
+
+def test_a_plan_forwards_the_sum_of_its_open_parts_seconds_once_every_one_has_said():
+    from tuner.progress import Plan
+
+    clock, out = Clock(), io.StringIO()
+    p = JobProgress({"diagnosis": 100.0}, stream=out, tty=False, clock=clock)
+    stage(p, "diagnosis")
+    plan = Plan(p, {"diagnose a": 1.0, "diagnose b": 1.0})
+    plan.part("diagnose a").expect(100.0)
+    assert p._said is None  # b has not said: no forecast yet
+    plan.part("diagnose b").expect(50.0)
+    assert p.remaining_s() == pytest.approx(150.0)  # the repeat on b is counted until it is known not to run
+    plan.skip("diagnose b")
+    assert p.remaining_s() == pytest.approx(100.0)
+    advance(plan.part("diagnose a"), 1.0)
+    assert p.remaining_s() == pytest.approx(0.0)

@@ -24,6 +24,7 @@ from pathlib import Path
 from damper_fmu.fmu import SLAVES, build
 from damper_fmu.parameters import EFFECT_MODELS, MODEL_PARAMETERS
 from tuner.data.reading import RigTest
+from tuner.diagnosis.bases import BaseRefinement
 from tuner.diagnosis.diagnose import Diagnosis, DiagnosisFailed, DiagnosisSettings, choose_base, diagnose
 from tuner.identification.fit import FitResult, FitSettings, fit, full_rate_checks
 from tuner.identification.intervals import ModelIntervals
@@ -105,7 +106,7 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
         kind, values, choice, others = choose_base(result.params, result.metrics)
         try:
             diagnosis = _diagnose(identification, validation, out, diagnosis_settings(settings), values, kind, choice,
-                                  others, problem, log, settled=settled_bases(result, settings))
+                                  others, problem, log, refinements=base_refinements(result, settings))
         except DiagnosisFailed:
             make_report(out)  # the fit's report with the failure said: the fit and its FMUs are safe
             raise
@@ -134,21 +135,19 @@ def run_diagnosis(identification: list[RigTest], validation: list[RigTest], out:
     return result
 
 
-def settled_bases(result: FitResult, settings: FitSettings) -> dict:
-    """{model: its refinement's stop text} for the fitted models whose local refinement converged, in the
-    scheme the diagnosis refines in ('improved'): on the fit's own problem the diagnosis does not refit them
-    again as its reference (``tuner.diagnosis.bases.Base.settled``)."""
-    if settings.parametrization != "improved":
-        return {}
-    return {m: h["polish_stop"] for m, h in result.histories.items() if h.get("converged")}
+def base_refinements(result: FitResult, settings: FitSettings) -> dict:
+    """{model: ``tuner.diagnosis.bases.BaseRefinement``} of the fit: on the fit's own problem the diagnosis does
+    not refit a base whose refinement converged in the scheme it refines in ('improved'), and forecasts its
+    time from the fit's cost per simulation."""
+    return {m: BaseRefinement.from_history(h, settings.parametrization) for m, h in result.histories.items()}
 
 
 def _diagnose(identification, validation, out, settings, base_params, base_model, base_choice, other_bases,
-              problem, log, settled: dict | None = None) -> Diagnosis:
+              problem, log, refinements: dict | None = None) -> Diagnosis:
     stage(log, "diagnosis")
     log(f"\ndiagnosis: refitting the {base_model or 'base'} model extended by each candidate effect ...")
     return diagnose(identification, validation, out, settings, base_params=base_params, base_model=base_model,
-                    base_choice=base_choice, other_bases=other_bases, problem=problem, settled_bases=settled, log=log)
+                    base_choice=base_choice, other_bases=other_bases, problem=problem, refinements=refinements, log=log)
 
 
 

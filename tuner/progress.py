@@ -4,7 +4,10 @@ A :class:`JobProgress` is the ``log`` callable the pipeline writes its messages 
 receives where the job stands: ``stage(name)`` when a stage starts and ``advance(fraction)``
 inside it (0-1). The estimate of the time left is the elapsed time scaled by the expected cost of
 the remaining stages over that of the finished part; the expected costs are relative weights
-(seconds of the default run), so the estimate is refined as stages finish.
+(seconds of the default run), so the estimate is refined as stages finish. A stage whose cost depends on
+the data more than a plan can know (the diagnosis: how many candidates the screen passes, whether the forms
+run, the model's simulation cost on these tests) says its own seconds left as it goes (``expect``); the
+later stages are then scaled by how the finished ones went against their plan.
 
 On a terminal: a tqdm bar over the whole job, messages printed above it. Otherwise (CI, logs):
 plain lines ``[HH:MM:SS +M:SS] message`` and, at most every ``interval_s``, a progress line
@@ -19,7 +22,7 @@ from __future__ import annotations
 import sys
 import time
 
-__all__ = ["JobProgress", "SubStages", "Plan", "stage", "advance"]
+__all__ = ["JobProgress", "SubStages", "Plan", "stage", "advance", "expect"]
 
 
 def stage(log, name: str) -> None:
@@ -34,6 +37,13 @@ def advance(log, fraction: float) -> None:
     hook = getattr(log, "advance", None)
     if hook is not None:
         hook(fraction)
+
+
+def expect(log, seconds_left: float) -> None:
+    """Tell ``log`` the current stage's expected seconds left on this machine, if it keeps progress."""
+    hook = getattr(log, "expect", None)
+    if hook is not None:
+        hook(seconds_left)
 
 
 class SubStages:
@@ -66,6 +76,7 @@ class Plan:
             raise ValueError("weights must be a non-empty dict of positive expected costs")
         self.log, self.weights = log, dict(weights)
         self.fractions = {name: 0.0 for name in weights}
+        self.seconds_left: dict[str, float] = {}  # parts that said their expected seconds left (``expect``)
 
     def __call__(self, msg: str) -> None:
         self.log(msg)
@@ -83,6 +94,16 @@ class Plan:
         self.fractions[name] = min(max(float(fraction), self.fractions[name]), 1.0)
         total = sum(self.weights.values())
         advance(self.log, sum(self.weights[k] * f for k, f in self.fractions.items()) / total)
+        if self.fractions[name] >= 1.0 and name in self.seconds_left:
+            self.expect(name, 0.0)
+
+    def expect(self, name: str, seconds_left: float) -> None:
+        """Part ``name`` expects ``seconds_left`` [s] more (0 once done); when every part not done has said
+        so, the stage's seconds left (their sum) go to the job (``expect``)."""
+        self.seconds_left[name] = max(0.0, float(seconds_left))
+        open_parts = [k for k, f in self.fractions.items() if f < 1.0]
+        if all(k in self.seconds_left for k in open_parts):
+            expect(self.log, sum(self.seconds_left[k] for k in open_parts))
 
 
 class _PlanPart:
@@ -96,6 +117,9 @@ class _PlanPart:
 
     def advance(self, fraction: float) -> None:
         self.plan.set(self.name, fraction)
+
+    def expect(self, seconds_left: float) -> None:
+        self.plan.expect(self.name, seconds_left)
 
 
 class JobProgress:
@@ -113,6 +137,9 @@ class JobProgress:
         self.done: list[str] = []
         self.current: str | None = None
         self.fraction = 0.0
+        self._started = self.t0  # when the current stage started
+        self._before_current = 0.0  # seconds the finished stages took
+        self._said: tuple[float, float] | None = None  # (seconds left, when) the current stage said (``expect``)
         self._last_line = -float("inf")
         self._bar = None
         if self.tty and not quiet:
@@ -127,15 +154,34 @@ class JobProgress:
         return self.clock() - self.t0
 
     def completed(self) -> float:
-        """Share [0-1] of the job's expected cost done."""
+        """Share [0-1] of the job's expected cost done (with a stage's own forecast: of the expected time)."""
+        if self._said is not None:
+            left = self.remaining_s()
+            return self.elapsed / (self.elapsed + left) if self.elapsed + left > 0 else 0.0
         total = sum(self.weights.values())
         done = sum(self.weights[s] for s in self.done)
         if self.current is not None and self.current not in self.done:
             done += self.weights.get(self.current, 0.0) * self.fraction
         return min(done / total, 1.0)
 
+    def stage_fraction(self) -> float:
+        """Share [0-1] of the current stage done: of its expected time when it said its seconds left."""
+        if self._said is None:
+            return self.fraction
+        spent = self.clock() - self._started
+        left = max(0.0, self._said[0] - (self.clock() - self._said[1]))
+        return spent / (spent + left) if spent + left > 0 else 1.0
+
     def remaining_s(self) -> float | None:
-        """Estimated seconds left (None until some of the job is done)."""
+        """Estimated seconds left (None until some of the job is done). With the current stage's own forecast
+        (``expect``): what it said, less the time since, plus the later stages' weights scaled by how the
+        finished stages went against theirs."""
+        if self._said is not None:
+            left, at = self._said
+            planned_done = sum(self.weights[s] for s in self.done)
+            speed = self._before_current / planned_done if planned_done > 0 else 1.0
+            later = sum(w for s, w in self.weights.items() if s not in self.done and s != self.current)
+            return max(0.0, left - (self.clock() - at)) + speed * later
         c = self.completed()
         if c <= 0.02:
             return None
@@ -147,8 +193,15 @@ class JobProgress:
             self.done.append(self.current)
         if name not in self.weights:  # an unplanned stage: give it the mean weight
             self.weights[name] = sum(self.weights.values()) / len(self.weights)
-        self.current, self.fraction = name, 0.0
+        self.current, self.fraction, self._said = name, 0.0, None
+        self._started = self.clock()
+        self._before_current = self._started - self.t0
         self._show(force=True)
+
+    def expect(self, seconds_left: float) -> None:
+        """The current stage's own forecast: ``seconds_left`` [s] on this machine from now."""
+        self._said = (max(0.0, float(seconds_left)), self.clock())
+        self._show()
 
     def advance(self, fraction: float) -> None:
         self.fraction = min(max(float(fraction), self.fraction), 1.0)
@@ -182,7 +235,7 @@ class JobProgress:
         left = self.remaining_s()
         eta = "estimating time left" if left is None else (
             f"about {left / 60:.1f} min left" if left >= 60 else f"about {left:.0f} s left")
-        st = f" (stage: {self.current} {100 * self.fraction:.0f} %)" if self.current else ""
+        st = f" (stage: {self.current} {100 * self.stage_fraction():.0f} %)" if self.current else ""
         return f"progress {100 * self.completed():.0f} %{st}, {eta}"
 
     def _show(self, force: bool = False) -> None:
@@ -191,7 +244,7 @@ class JobProgress:
         if self._bar is not None:
             self._bar.n = int(1000 * self.completed())
             left = self.remaining_s()
-            self._bar.set_postfix_str(f"{self.current or ''} {100 * self.fraction:.0f} %"
+            self._bar.set_postfix_str(f"{self.current or ''} {100 * self.stage_fraction():.0f} %"
                                       + ("" if left is None else f", ~{left / 60:.1f} min left"), refresh=True)
             return
         now = self.clock()

@@ -1,7 +1,6 @@
 """The end of a run: ``summary.json`` and the summary printed once everything is written; Table 3."""
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from tuner.cli.log import log

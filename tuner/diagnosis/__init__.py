@@ -13,5 +13,6 @@
 - ``forms``: the forms beyond the catalogue (pre-yield hysteresis, bypass groove) and their shape screen;
 - ``significance``: block-sandwich statistics for correlated residuals;
 - ``effect_sizes``: typical and meaningful effect magnitudes scaled to the damper;
-- ``detection``: the smallest magnitude of each effect these tests could have named.
+- ``detection``: the smallest magnitude of each effect these tests could have named;
+- ``cost_model``: the expected simulations of each step still to come (the progress display's time left).
 """

@@ -16,7 +16,7 @@ from tuner.diagnosis.settings import DiagnosisSettings
 from tuner.metrics import pooled_mse
 from tuner.progress import Plan
 
-__all__ = ["BASE_MODELS", "Base", "pooled_validation_mse", "choose_base", "base_kinds", "PLAN_WEIGHTS",
+__all__ = ["BASE_MODELS", "Base", "BaseRefinement", "pooled_validation_mse", "choose_base", "base_kinds", "PLAN_WEIGHTS",
            "progress_plan", "identified_bases", "why_not_repeated"]
 
 #: base forms the diagnosis chooses from (the models that carry the effect catalogue): the lumped
@@ -25,15 +25,37 @@ BASE_MODELS = EFFECT_MODELS
 
 
 @dataclass(frozen=True)
+class BaseRefinement:
+    """What the identification of a base form's values on the diagnosis's own tests and engine says:
+    ``settled``, how its local refinement ended when it converged there (the polish's stop text, in the
+    'improved' scheme), else None; ``seconds_per_evaluation`` [s], its wall time per simulation with the
+    run's workers in its local refinement (simulations near the fit run their whole length, as the diagnosis's
+    do; the search's are often cut short), for the progress display's forecast (``tuner.diagnosis.cost_model``)."""
+
+    settled: str | None = None
+    seconds_per_evaluation: float | None = None
+
+    @classmethod
+    def from_history(cls, history: dict, scheme: str = "improved") -> "BaseRefinement":
+        """From an identification's history (``tuner.identification.fit.identify``) in ``scheme``."""
+        n, t = history.get("polish_evaluations") or 0, history.get("polish_elapsed_s") or 0.0
+        return cls(history.get("polish_stop") if history.get("converged") and scheme == "improved" else None,
+                   t / n if n and t > 0 else None)
+
+
+@dataclass(frozen=True)
 class Base:
-    """A base form to diagnose on: its parametrization (the 'improved' scheme), its values [SI], and
-    ``settled``: how the local refinement that produced these very values on the same identification tests
-    and engine ended, when it converged there (the polish's stop text), else None. A settled base is not
-    refitted again as 'none' (the same refinement from the same point ends where it is)."""
+    """A base form to diagnose on: its parametrization (the 'improved' scheme), its values [SI], and what its
+    identification on these tests says (``BaseRefinement``). A settled base is not refitted again as 'none'
+    (the same refinement from the same point ends where it is)."""
 
     par: Parametrization
     values: dict
-    settled: str | None = None
+    refinement: BaseRefinement = BaseRefinement()
+
+    @property
+    def settled(self) -> str | None:
+        return self.refinement.settled
 
 
 def pooled_validation_mse(kind: str, params: dict, signals: list, engine: str) -> float:
@@ -85,20 +107,20 @@ def progress_plan(log, settings: DiagnosisSettings, base_model, other_bases, giv
 
 
 def identified_bases(problem: Problem, out: Path, settings: DiagnosisSettings, base_params, base_model,
-                      base_choice, other_bases, log, settled: dict | None = None) -> tuple[str, dict, dict | None]:
+                      base_choice, other_bases, log, refinements: dict | None = None) -> tuple[str, dict, dict | None]:
     """(the first base kind, {kind: Base} in the order tried, how it was chosen): the bases given
-    (``base_params`` of ``base_model`` and ``other_bases``; ``settled``: {kind: stop text} of those whose
-    refinement converged on this problem, ``Base.settled``), or identified here."""
+    (``base_params`` of ``base_model`` and ``other_bases``; ``refinements``: {kind: BaseRefinement} of their
+    identification on this problem), or identified here."""
     def parametrization(kind: str, given: dict | None) -> Parametrization:
         # the local solver needs monotone tables: the 'improved' scheme whatever the fit used
         return problem.parametrization(kind, fixed_from=given, scheme="improved")
 
     if base_params is not None:
         kind = base_model or "lumped"
-        settled = settled or {}
-        bases = {kind: Base(parametrization(kind, base_params), base_params, settled.get(kind))}
-        bases.update({k: Base(parametrization(k, v), v, settled.get(k)) for k, v in (other_bases or {}).items()
-                      if k != kind and k in EFFECT_MODELS})
+        facts = refinements or {}
+        bases = {kind: Base(parametrization(kind, base_params), base_params, facts.get(kind, BaseRefinement()))}
+        bases.update({k: Base(parametrization(k, v), v, facts.get(k, BaseRefinement()))
+                      for k, v in (other_bases or {}).items() if k != kind and k in EFFECT_MODELS})
         return kind, bases, base_choice
     fitted = {}
     for kind in base_kinds(settings, None, None, given=False):
@@ -109,7 +131,7 @@ def identified_bases(problem: Problem, out: Path, settings: DiagnosisSettings, b
                          engine=settings.engine, polish_jacobians=settings.base_polish_jacobians)
         found = identify(kind, problem.sig_id, fs, par_k, out / "checkpoints" / f"diagnosis_base_{kind}.json",
                          problem.digest, log.part(f"identification of the {kind} base"))
-        fitted[kind] = (Base(par_k, found.values, found.history["polish_stop"] if found.history["converged"] else None),
+        fitted[kind] = (Base(par_k, found.values, BaseRefinement.from_history(found.history)),
                         pooled_validation_mse(kind, found.values, problem.sig_val, settings.engine))
     kind = min(fitted, key=lambda k: fitted[k][1])
     bases = {k: fitted[k][0] for k in sorted(fitted, key=lambda k: fitted[k][1])}

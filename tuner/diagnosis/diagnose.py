@@ -77,6 +77,7 @@ from tuner import strict_json
 from tuner.data.reading import RigTest
 from tuner.diagnosis.bases import (BASE_MODELS, Base, choose_base, identified_bases, progress_plan,  # noqa: F401
                                    why_not_repeated)
+from tuner.diagnosis.cost_model import expected_cost
 from tuner.diagnosis.refit import MIN_BLOCKS, ExtendedParametrization, search_bounds  # noqa: F401
 from tuner.diagnosis.result import Diagnosis
 from tuner.diagnosis.rules import (ACCEPT_SCORE, PENALTY_PER_PARAMETER, UNEXPLAINED_RATIO, cross_check,  # noqa: F401
@@ -107,7 +108,7 @@ class DiagnosisFailed(RuntimeError):
 def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path,
              settings: DiagnosisSettings | None = None, *, base_params: dict | None = None,
              base_model: str | None = None, base_choice: dict | None = None,
-             other_bases: dict | None = None, problem: Problem | None = None, settled_bases: dict | None = None,
+             other_bases: dict | None = None, problem: Problem | None = None, refinements: dict | None = None,
              log=print) -> Diagnosis:
     """Run the diagnosis, write ``diagnosis.json`` (and figures, extended FMU) into ``out`` and return the
     :class:`tuner.diagnosis.result.Diagnosis` (read-only: the record ``diagnosis.json`` holds).
@@ -117,9 +118,9 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     keeps the one with the lowest held-out MSE); base_choice: how the caller chose it (reported);
     other_bases: {kind: values} of the other fitted base forms (``choose_base``); problem: the tests
     prepared by the fit before (``tuner.identification.problem``: the same fit rate, abscissae and
-    force limit), built from ``settings.data()`` when not given; settled_bases: {kind: how the fit's local
-    refinement of the given values ended} for the bases whose refinement converged on ``problem`` in the
-    'improved' scheme (``tuner.diagnosis.bases.Base.settled``: not refitted again as 'none').
+    force limit), built from ``settings.data()`` when not given; refinements: {kind:
+    ``tuner.diagnosis.bases.BaseRefinement``} of the given values' identification on ``problem`` (a settled
+    base is not refitted again as 'none'; its cost per simulation forecasts the time left).
 
     The base is chosen before any effect is added; when the diagnosis on it leaves a residual above
     the floor (a large effect can make both bare bases fit badly, and then the wrong form may win),
@@ -148,7 +149,7 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     record = {"stage": "base identification", "finished": [], "partial": None, "base_choice": base_choice}
     try:
         result = _diagnose_stages(problem, out, settings, base_params, base_model, base_choice, other_bases,
-                                  settled_bases, record, log)
+                                  refinements, record, log)
     except Exception as err:  # recorded, then raised again: a failed stage is never a result
         path = _write_failure(out, record, err, settings, problem, time.perf_counter() - t_start)
         log(f"diagnosis: FAILED in its stage '{record['stage']}': {type(err).__name__}: {err}")
@@ -175,14 +176,15 @@ def _checked_problem(problem: Problem | None, identification, validation, settin
 
 
 def _diagnose_stages(problem: Problem, out: Path, settings: DiagnosisSettings, base_params, base_model, base_choice,
-                     other_bases, settled_bases, record: dict, log) -> dict:
+                     other_bases, refinements, record: dict, log) -> dict:
     """The stages of ``diagnose`` after the inputs were checked; ``record`` follows them (the stage
     running, the stages finished, what the running one has so far) for a failure report."""
     plan = progress_plan(log, settings, base_model, other_bases, base_params is not None)
     kind, bases, base_choice = identified_bases(problem, out, settings, base_params, base_model, base_choice,
-                                                 other_bases, plan, settled_bases)
+                                                 other_bases, plan, refinements)
     record["base_choice"] = base_choice
     record["finished"].append("base identification")
+    forecast_parts(plan, bases, problem, settings)
     runs = {kind: _checkpointed_run(kind, bases[kind], problem, settings, out, "figures", record,
                                     plan.part(f"diagnosis on the {kind} base"))}
     skipped = {}
@@ -222,6 +224,21 @@ def _diagnose_stages(problem: Problem, out: Path, settings: DiagnosisSettings, b
                      filename=f"{SLAVES[kind]}_{'_'.join(run['causes'])}_tuned.fmu")
         log(f"extended model exported: {path}")
     return result
+
+
+def forecast_parts(plan, bases: dict, problem: Problem, settings: DiagnosisSettings) -> None:
+    """Each base's diagnosis part of the progress ``plan`` gets its expected seconds (``tuner.diagnosis.
+    cost_model``, at the cost per simulation its identification measured; the forms counted: a repeat runs only
+    when the first base leaves a residual above the floor), so that the time left covers a repeat until it is
+    known not to run. Nothing when a base's cost per simulation is not known."""
+    share = sum(int(s.mask.sum()) for s in problem.sig_val) / sum(int(s.mask.sum()) for s in problem.sig_id)
+    for kind, base in bases.items():
+        rate = base.refinement.seconds_per_evaluation
+        if rate is None:
+            return
+        cost = expected_cost(base.par.dimension, settings, settled=base.settled is not None,
+                             forms_run=bool(settings.forms), held_out_share=share)
+        plan.part(f"diagnosis on the {kind} base").expect(cost.total * rate)
 
 
 def _checkpointed_run(kind: str, base: Base, problem: Problem, settings: DiagnosisSettings, out: Path,

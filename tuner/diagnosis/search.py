@@ -16,7 +16,8 @@ from damper_fmu.parameters import EFFECT_IDENTIFIED, EFFECT_KIND, EFFECT_PARAMET
 
 from tuner.data.noise import channel_noise
 from tuner.data.reading import RigTest
-from tuner.diagnosis.bases import Base
+from tuner.diagnosis.bases import Base, BaseRefinement
+from tuner.diagnosis.cost_model import DiagnosisCost, expected_cost, refit_cost
 from tuner.diagnosis.detection import detection_limits
 from tuner.diagnosis.effect_sizes import REFERENCE, DamperSize, meaningful_floor, typical_range
 from tuner.diagnosis.forms import FORM_LABELS, screen, settings_text, shape_grid
@@ -31,6 +32,9 @@ from tuner.diagnosis.screen import SCREEN_SHARE, profile_screen
 #: (FORM_EXCESS_SHARE), since the linear screen under-predicts what a refit realises (a rebound orifice of the
 #: twin-tube rig: 21 % predicted, 66 % realised; half the naming share there left the groove unrefitted)
 FORM_REFIT_EXCESS = 0.2 * FORM_EXCESS_SHARE
+#: the fit's cost per simulation counts as this many simulations of the diagnosis's own (``forecast``): the first
+#: batches also start the engines' workers (2-5 s), which would otherwise read as a slow model
+PRIOR_EVALUATIONS = 200
 from tuner.diagnosis.settings import DiagnosisSettings
 from tuner.diagnosis.verdict import (NOTES, UNITS, effect_parameters, interval_text, limit_text,
                                      unexplained_record, verdict_text)
@@ -41,7 +45,7 @@ from tuner.identification.parametrization import Parametrization
 from tuner.identification.polish import polish
 from tuner.identification.problem import Problem
 from tuner.metrics import pooled_mse
-from tuner.progress import advance
+from tuner.progress import advance, expect
 
 __all__ = ["CandidateSearch", "Fit", "diagnose_on"]
 
@@ -111,9 +115,12 @@ class CandidateSearch:
 
     def __init__(self, kind: str, par: Parametrization, base_params: dict, data: Problem,
                  settings: DiagnosisSettings, out: Path, figures_sub: str, log, record: dict | None = None,
-                 settled: str | None = None):
+                 refinement: BaseRefinement = BaseRefinement()):
         self.kind, self.par, self.data, self.settings, self.log = kind, par, data, settings, log
-        self.settled_by = settled  # how the refinement of base_params on these tests ended (``Base.settled``)
+        self.settled_by = refinement.settled  # how the refinement of base_params on these tests ended
+        self.rate_prior = refinement.seconds_per_evaluation  # [s per simulation], the fit's
+        self.cost: DiagnosisCost | None = None  # the steps still to come (``forecast``)
+        self.t_engines = time.perf_counter()  # when the engines opened (``run``): the live cost per simulation
         self.out, self.figures_sub = out, figures_sub
         self.record = record if record is not None else {}
         self.record.setdefault("partial", {})
@@ -134,6 +141,20 @@ class CandidateSearch:
         self.eid = self.ev = None
 
     # -- bookkeeping --------------------------------------------------------------------------------------
+    def forecast(self) -> None:
+        """The seconds this diagnosis still expects (``tuner.diagnosis.cost_model``: the simulations of the steps
+        to come, at the wall time per simulation measured so far, or the fit's before any) to the progress
+        display."""
+        if self.cost is None:
+            return
+        share = sum(self.lengths) / self.eid.n_samples
+        evaluations = self.eid.evaluations + share * self.ev.evaluations
+        spent = time.perf_counter() - self.t_engines
+        if self.rate_prior is not None:  # the fit's, worth PRIOR_EVALUATIONS (the first batch starts the workers)
+            evaluations, spent = evaluations + PRIOR_EVALUATIONS, spent + PRIOR_EVALUATIONS * self.rate_prior
+        if evaluations > 0:
+            expect(self.log, self.cost.total * spent / evaluations)
+
     def at(self, stage: str, fraction: float | None = None) -> None:
         self.record["stage"] = f"{stage} on the {self.kind} base"
         if fraction is not None:
@@ -297,6 +318,10 @@ class CandidateSearch:
         exts = {e: ExtendedParametrization(self.par, e, self.peak, self.stroke_range)
                 for e in self.settings.candidates}
         screened = self.screen(exts)
+        passed = sum(1 for e in self.settings.candidates if screened.get(e) is None or screened[e].passes)
+        self.cost.done("screen")
+        self.cost.refits = passed * refit_cost(self.par.dimension, 1, self.settings)
+        self.forecast()
         at_none = {**self.base, **self.par.to_params(self.z_none)}
         for k, effect in enumerate(self.settings.candidates):
             advance(self.log, 0.2 + 0.5 * k / len(self.settings.candidates))
@@ -310,6 +335,8 @@ class CandidateSearch:
             refitted = row is None or (row["score"] > ACCEPT_SCORE and row["resolved"])
             if refitted:
                 row = self.refit_candidate(effect, ext)
+                self.cost.refits = max(0.0, self.cost.refits - refit_cost(self.par.dimension, 1, self.settings))
+                self.forecast()
             row["refitted"], row["screen"] = refitted, scr.to_dict() if scr is not None else None
             self.ranking.append(row)
             self.log(f"  {effect:14s} " + ", ".join(f"{n} = {v:.4g} {UNITS[n]}" for n, v in row["parameters"].items())
@@ -639,7 +666,13 @@ class CandidateSearch:
         with Engine(self.kind, self.data.sig_id, **kw) as self.eid, Engine(self.kind, self.data.sig_val, **kw) as self.ev:
             self.at("candidate refits")
             self.record["partial"]["ranking"] = self.ranking
+            self.t_engines = time.perf_counter()
             self.refit_none()
+            self.cost = expected_cost(self.par.dimension, self.settings, settled=True, held_out_share=sum(
+                self.lengths) / self.eid.n_samples, forms_run=bool(self.settings.forms) and self.above_floor(
+                self.none_row["identification_rmse_n"]))
+            self.cost.done("reference")
+            self.forecast()
             advance(self.log, 0.2)
             self.candidates()
             advance(self.log, 0.7)
@@ -660,10 +693,16 @@ class CandidateSearch:
             form_step = weighed if weighed is not None and weighed.get("first") else None
             if form_step is None:
                 cause, best, form_step = self.forms_on_top(cause, causes, best)
+            self.cost.done("forms")
+            self.forecast()
             self.at("detection limits", 0.95)
             limits = detection(self.eid, self.ev, self.par, self.z_none,
                                [e for e in self.settings.candidates if e not in causes], self.peak, self.stroke_range,
                                self.mse_none, self.noise, self.lengths, [s.name for s in self.data.sig_val], self.log)
+            self.cost.done("detection")
+            self.forecast()
+            self.log(f"diagnosis on the {self.kind} base: {self.eid.evaluations} simulations of the identification "
+                     f"tests and {self.ev.evaluations} of the held-out ones in {time.perf_counter() - self.t_engines:.0f} s")
         return self.result(cause, causes, best, unresolved, selection, limits, form_step, weighed)
 
     def result(self, cause, causes, best, unresolved, selection, limits, form_step, weighed) -> dict:
@@ -705,7 +744,7 @@ def diagnose_on(kind: str, base: Base, data: Problem, settings: DiagnosisSetting
                 record: dict | None = None) -> dict:
     """The diagnosis on one base form: ``CandidateSearch(...).run()``."""
     return CandidateSearch(kind, base.par, base.values, data, settings, out, figures_sub, log, record,
-                           settled=base.settled).run()
+                           refinement=base.refinement).run()
 
 
 def detection(eid: Engine, ev: Engine, par: Parametrization, z: np.ndarray, candidates: list[str], peak: float,

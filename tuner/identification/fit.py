@@ -231,7 +231,9 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         result = firefly.run(evaluate, par.dimension, options=opts, seed=settings.seed, state=state,
                              callback=callback, initial=initial)
         last_failure = eng.last_failure
+        t_refine = time.perf_counter()
         ref = _refine(eng, model, par, settings, result, guess, guess_p, rival, log)
+        ref.elapsed_s = time.perf_counter() - t_refine
         elapsed = time.perf_counter() - t_start
         ivs = _intervals(eng, model, signals, par, par.to_params(ref.z), log) if intervals and ref.g > 0.0 else None
 
@@ -274,6 +276,7 @@ class Refinement:
     info: dict
     runs: list
     race: dict | None
+    elapsed_s: float = 0.0  # wall time of the refinements [s]
 
 
 def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result, guess: np.ndarray, guess_p: dict,
@@ -339,6 +342,7 @@ def _history(result, ref: Refinement, par: Parametrization, first_population: di
         "race": ref.race,  # None, or the restarts skipped as a clearly wrong form (RACE_RATIO)
         "converged": bool(ref.info["converged"]),
         "polish_evaluations": int(ref.evaluations),
+        "polish_elapsed_s": ref.elapsed_s,  # with polish_evaluations: the cost of a full simulation near the fit
         "evaluation_count": int(result.evaluations + ref.evaluations),
         "best_fitness_final": float(ref.g),
         "elapsed_s": elapsed,
