@@ -17,6 +17,7 @@ from tuner.metrics import error_metrics, variation_percent
 from tuner.formatting import eng
 from tuner.results.fit_figures import bound_position
 from tuner.results.report import make_report
+from tuner.results.vehicle_report import vehicle_section_html
 
 RATE = 100.0      # [Hz]
 N = 500           # samples per test
@@ -310,3 +311,75 @@ def test_vehicle_section_shows_vehicle_json_side_by_side(tmp_path):
     assert "804.1" in section and "646.9 (eig 647.0)" in section
     assert "from 647 km/h (DamperMaxwell_tuned) to 804 km/h (DamperLumped_tuned): 157 km/h" in section
     assert "9.5 / 2.1" in section  # curve entry: peak / rms damper force [kN]
+
+
+def _study_row(conicity, linear, nonlinear, fold, cycle=True):
+    """A ``conicities`` row of hunting_nonlinear.json (speeds [km/h], None: none found below the top speed)."""
+    return {"conicity": conicity, "linear_critical_speed_kmh": linear, "fold_speed_kmh": fold,
+            "fold_bracket_kmh": [fold, fold], "nonlinear_critical_speed_kmh": nonlinear, "cycle_reached": cycle,
+            "fold_below_v_min": False, "branch": {"speed_kmh": [], "amplitude_mm": []}, "plateaus": []}
+
+
+def _study(results):
+    return {"diagram_conicity": 0.25, "contact": {"friction_coefficient": 0.3, "flange_clearance": 7e-3,
+                                                  "flange_stiffness": 1.5e7},
+            "ramp": {"dv": 20.0 / 3.6, "kick": 10e-3}, "linear_kick_m": 5e-4, "step_s": 1e-3, "wall_time_s": 1.0,
+            "results": {lab: {"fmu": f"{lab}.fmu", "conicities": rows} for lab, rows in results.items()}}
+
+
+def _section(text):
+    section = text[text.index("id='vehicle'"):]
+    return section[:section.index("</section>")]
+
+
+def test_vehicle_section_shows_the_nonlinear_hunting_study(tmp_path):
+    """With only ``vehicle/hunting_nonlinear.json`` (``python -m tuner vehicle --nonlinear --out RUN``) the vehicle
+    section shows the study: linear / nonlinear (fold) per FMU and conicity, both figures, and at the largest
+    conicity the range of the nonlinear critical speeds and the FMUs with which hunting is subcritical."""
+    out = tmp_path / "fit"
+    folder = out / "vehicle"
+    folder.mkdir(parents=True)
+    data = _study({"DamperLumped_tuned": [_study_row(0.15, 800.0, 790.0, 790.0), _study_row(0.45, 372.0, 350.0, 350.0)],
+                   "DamperMaxwell_tuned": [_study_row(0.15, None, None, None, cycle=False),
+                                           _study_row(0.45, 321.0, 321.0, 330.0)]})
+    data["results"]["DamperMaxwell_tuned"]["conicities"][1]["eigenvalue_critical_speed_kmh"] = 320.6
+    (folder / "hunting_nonlinear.json").write_text(json.dumps(data))
+    for name in ("hunting_bifurcation", "critical_speed_conicity"):
+        plt = pytest.importorskip("matplotlib.pyplot")
+        plt.imsave(folder / f"{name}.png", np.zeros((240, 320)))
+    section = _section(vehicle_section_html(out))
+    assert "linear creep" not in section  # no vehicle.json: no scenario table
+    assert "<td>800 / 790 (790)</td>" in section and "<td>&gt; v_max / &gt; v_max</td>" in section
+    assert "<td>372 / 350 (350)</td>" in section and "<td>321 / 321 (330)</td>" in section
+    assert ("equivalent conicity 0.45, the largest of the study) the nonlinear critical speed ranges from 321 km/h "
+            "(DamperMaxwell_tuned) to 350 km/h (DamperLumped_tuned): 29 km/h decided by the damper model alone") in section
+    assert "subcritical there with DamperLumped_tuned (6 % below its linear 372 km/h)" in section
+    assert "DamperMaxwell_tuned (" not in section.split("subcritical there with")[1].split("</p>")[0]
+    assert "DamperMaxwell_tuned at 0.45: 321 km/h" in section  # its eigenvalue critical speed
+    assert _images(section, out) == ["vehicle/hunting_bifurcation.png", "vehicle/critical_speed_conicity.png"]
+
+
+def test_vehicle_nonlinear_command_into_a_fit_folder_rebuilds_its_report(monkeypatch, tmp_path, capsys):
+    """``python -m tuner vehicle --fmus ... --nonlinear --out RUN`` with RUN a fit output folder: the study goes to
+    RUN/vehicle/ and RUN/report.html is rebuilt with it (the study's runs replaced by a stand-in: its plumbing)."""
+    from campaign.bifurcation import BifurcationDiagram, ConicityPoint, LimitCycle
+    from damper_fmu.fmu import ensure_fmu
+    import tuner.vehicle.limit_cycles as limit_cycles
+    from tuner.__main__ import main
+
+    def point(fmu, conicity, study):  # linear 100 m/s, a branch folding 10 m/s below it
+        cycles = [LimitCycle(110.0, 8e-3, True, True, 6.0), LimitCycle(90.0, 7e-3, True, True, 6.0),
+                  LimitCycle(88.0, 1e-5, False, True, 6.0)]
+        return ConicityPoint(conicity, BifurcationDiagram(cycles, 90.0, (88.0, 90.0), 100.0))
+
+    monkeypatch.setattr(limit_cycles, "fmu_conicity_point", point)
+    run = tmp_path / "run"
+    _write_folder(run, models=("lumped", "maxwell"), histories=False, npz=False)
+    code = main(["vehicle", "--fmus", str(ensure_fmu("lumped")), "--out", str(run), "--quiet", "--nonlinear",
+                 "--conicities", "0.3", "--diagram-conicity", "0.3", "--workers", "1"])
+    assert code == 0 and "report with the vehicle section" in capsys.readouterr().out
+    assert (run / "vehicle" / "hunting_nonlinear.json").is_file() and not (run / "hunting_nonlinear.json").exists()
+    section = _section((run / "report.html").read_text(encoding="utf-8"))
+    assert "<td>360 / 324 (324)</td>" in section
+    assert "the nonlinear critical speed with DamperLumped is 324 km/h" in section and "10 % below" in section
+    assert _images(section, run) == ["vehicle/hunting_bifurcation.png", "vehicle/critical_speed_conicity.png"]

@@ -10,6 +10,10 @@ With ``--nonlinear``: hunting with nonlinear wheel-rail contact instead (:mod:`t
 per FMU and equivalent conicity the linear and nonlinear critical speeds, the bifurcation diagrams
 (``hunting_bifurcation.png``), the critical speed against conicity (``critical_speed_conicity.png``) and
 ``hunting_nonlinear.json``.
+
+``--out`` a fit output folder (``results/RUN``, with its parameters.json and metrics.json): the files go to its
+``vehicle/`` sub-folder and its report is rebuilt with them in the section "In the vehicle" (``--no-report``:
+not rebuilt).
 """
 from __future__ import annotations
 
@@ -19,10 +23,12 @@ from pathlib import Path
 from tuner.cli.folders import DEFAULT_RESULTS, free_folder
 from tuner.progress import JobProgress
 from campaign.bifurcation import RampSettings
-from tuner.vehicle.compare import SCENARIO_NAMES, compare_fmus, format_table
-from tuner.vehicle.limit_cycles import DEFAULT_CONICITIES, HuntingStudy, format_study_table, hunting_study
+from tuner.results.report import make_report
+from tuner.vehicle.compare import SCENARIO_NAMES, VEHICLE_FOLDER, compare_fmus, format_table
+from tuner.vehicle.limit_cycles import (CONICITY_FIGURE, DEFAULT_CONICITIES, DIAGRAM_FIGURE, STUDY_FILE, HuntingStudy,
+                                        format_study_table, hunting_study)
 
-__all__ = ["add_parser", "cmd_vehicle"]
+__all__ = ["add_parser", "cmd_vehicle", "is_fit_folder"]
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -32,7 +38,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--fmus", nargs="+", type=Path, required=True, metavar="PATH",
                    help="damper FMUs (inputs stroke [m], stroke_velocity [m/s], output force [N]), e.g. "
                         "results/default/fmu/*.fmu")
-    p.add_argument("--out", type=Path, default=None, help="output folder (default results/vehicle[-N])")
+    p.add_argument("--out", type=Path, default=None,
+                   help="output folder (default results/vehicle[-N]); a fit output folder: its vehicle/ sub-folder, "
+                        "and its report is rebuilt")
+    p.add_argument("--no-report", action="store_true", help="--out a fit output folder: do not rebuild its report")
     p.add_argument("--scenarios", nargs="+", choices=SCENARIO_NAMES, default=list(SCENARIO_NAMES))
     p.add_argument("--step", type=float, default=1e-3, help="communication step [s] (default 0.001)")
     p.add_argument("--seed", type=int, default=0, help="master seed of the track irregularities (default 0)")
@@ -61,8 +70,21 @@ def cmd_vehicle(args) -> int:
         if not f.is_file():
             raise FileNotFoundError(f"damper FMU not found: {f}")
     out = args.out if args.out is not None else free_folder(DEFAULT_RESULTS / "vehicle")
-    if args.nonlinear:
-        return _nonlinear(args, out)
+    run = out if is_fit_folder(out) else None
+    if run is not None:
+        out = run / VEHICLE_FOLDER
+    code = _nonlinear(args, out) if args.nonlinear else _scenarios(args, out)
+    if run is not None and not args.no_report:
+        print(f"report with the vehicle section: {make_report(run)}", flush=True)
+    return code
+
+
+def is_fit_folder(folder: Path) -> bool:
+    """``folder`` is a fit output folder (its report reads parameters.json and metrics.json)."""
+    return (Path(folder) / "parameters.json").is_file() and (Path(folder) / "metrics.json").is_file()
+
+
+def _scenarios(args, out: Path) -> int:
     weights = {f"{Path(f).stem}: {s}": (6.0 if s == "critical_speed" else 1.0) for f in args.fmus for s in args.scenarios}
     log = JobProgress(weights, quiet=args.quiet)
     try:
@@ -86,6 +108,5 @@ def _nonlinear(args, out: Path) -> int:
     log = (lambda line: None) if args.quiet else (lambda line: print(line, flush=True))
     data = hunting_study(args.fmus, out, study, log=log)
     print(format_study_table(data), flush=True)
-    print(f"written: {out / 'hunting_nonlinear.json'}, {out / 'hunting_bifurcation.png'} and "
-          f"{out / 'critical_speed_conicity.png'}", flush=True)
+    print(f"written: {out / STUDY_FILE}, {out / DIAGRAM_FIGURE} and {out / CONICITY_FIGURE}", flush=True)
     return 0

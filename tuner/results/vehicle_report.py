@@ -1,21 +1,42 @@
-"""The report's vehicle section: the tuned FMUs as the vehicle's yaw dampers, side by side (``vehicle/vehicle.json``)."""
+"""The report's vehicle section: the tuned FMUs as the vehicle's yaw dampers, side by side (``vehicle/vehicle.json``,
+``python -m tuner --vehicle``), and hunting with nonlinear wheel-rail contact (``vehicle/hunting_nonlinear.json`` and
+its figures, ``python -m tuner vehicle --nonlinear --out RUN``): linear and nonlinear critical speeds per FMU and
+conicity, the bifurcation diagrams, what the damper model changes for a worn-wheel bogie."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from tuner.results.html import esc, figure_html, table
 from tuner.vehicle.compare import VEHICLE_FOLDER, summary_rows
+from tuner.vehicle.limit_cycles import CONICITY_FIGURE, DIAGRAM_FIGURE, STUDY_FILE, study_rows
 from tuner.vehicle.propagation import INTERVALS_FILE, SKEWED
 from tuner import strict_json
 
 
-__all__ = ["vehicle_section_html"]
+__all__ = ["vehicle_section_html", "linear_vehicle_html", "nonlinear_hunting_html", "worn_wheel_sentence",
+           "intervals_html", "SUBCRITICAL"]
+
+SUBCRITICAL = 0.005
+"""Relative margin [-] by which the nonlinear critical speed must lie below the linear one to be called
+subcritical hunting in the report's sentence (the bisections' tolerance is about 2 km/h in 400)."""
+
 
 def vehicle_section_html(out_dir) -> str:
-    """HTML section for ``out_dir/vehicle/vehicle.json`` (``tuner.job.vehicle_consequences``): the tuned
-    FMUs as the vehicle's yaw dampers, side by side ('' when there is none)."""
+    """HTML section for ``out_dir/vehicle/`` (``tuner.job.vehicle_consequences``, ``python -m tuner vehicle``):
+    the tuned FMUs as the vehicle's yaw dampers side by side and, where it was run, hunting with nonlinear
+    contact ('' when there is neither)."""
     folder = Path(out_dir) / VEHICLE_FOLDER
-    path = folder / "vehicle.json"
+    parts = linear_vehicle_html(folder) + nonlinear_hunting_html(folder)
+    if not parts:
+        return ""
+    return "<section id='vehicle'><h2>In the vehicle: what the damper model changes</h2>" + parts + "</section>"
+
+
+def linear_vehicle_html(folder: Path) -> str:
+    """The scenarios of ``folder/vehicle.json`` side by side, the spread of the critical speed, the 95 %
+    intervals and the figures ('' without vehicle.json)."""
+    path = Path(folder) / "vehicle.json"
     if not path.exists():
         return ""
     data = strict_json.loads(path.read_text())
@@ -29,15 +50,87 @@ def vehicle_section_html(out_dir) -> str:
                   f"km/h ({esc(hi)}): {speeds[hi] - speeds[lo]:.0f} km/h decided by the damper model alone, "
                   "each fitted to the same rig data.</p>")
     figs = "".join(figure_html(f"{VEHICLE_FOLDER}/{name}.png", esc(desc), "")
-                   for name, desc in data["scenarios"].items() if (folder / f"{name}.png").exists())
-    return ("<section id='vehicle'><h2>In the vehicle: what the damper model changes</h2>"
-            "<p>Each tuned FMU as the four yaw dampers of the campaign's 14-degree-of-freedom vehicle (two "
+                   for name, desc in data["scenarios"].items() if (Path(folder) / f"{name}.png").exists())
+    return ("<p>Each tuned FMU as the four yaw dampers of the campaign's 14-degree-of-freedom vehicle (two "
             f"bogies, four wheelsets, linear creep), stepped at {1e3 * data['step_s']:g} ms by the vehicle as "
             "master (<code>python -m tuner vehicle</code>). Critical speed: kick runs and bisection on the growth "
             "rate of the least damped mode; for the linear Maxwell FMU also the eigenvalues of the linear vehicle "
             "(eig). Damper force: the largest of the four dampers; bogie yaw relative to the track.</p>"
             + spread + table(["quantity", *labels], [[esc(q), *(esc(c) for c in cells)] for q, cells in rows])
-            + intervals_html(folder) + figs + "</section>")
+            + intervals_html(folder) + figs)
+
+
+def nonlinear_hunting_html(folder: Path) -> str:
+    """Hunting with nonlinear contact from ``folder/hunting_nonlinear.json`` (``tuner.vehicle.limit_cycles``):
+    the method in a paragraph, the linear and nonlinear critical speeds per FMU and conicity, the sentence on
+    the worn-wheel bogie, the eigenvalue check of a Maxwell FMU and the two figures ('' without the file)."""
+    path = Path(folder) / STUDY_FILE
+    if not path.exists():
+        return ""
+    data = strict_json.loads(path.read_text())
+    contact, ramp = data["contact"], data["ramp"]
+    labels, rows = study_rows(data)
+    eig = [f"{esc(lab)} at {r['conicity']:g}: {r['eigenvalue_critical_speed_kmh']:.0f} km/h"
+           for lab, res in data["results"].items() for r in res["conicities"]
+           if r.get("eigenvalue_critical_speed_kmh") is not None]
+    captions = {DIAGRAM_FIGURE: f"Hunting bifurcation diagrams at equivalent conicity {data['diagram_conicity']:g}: the "
+                                "amplitude of the leading wheelset on the large hunting's branch against speed (ramp-"
+                                "down), one panel per FMU; straight running stable below the linear critical speed "
+                                "(dashed), hunting possible from the nonlinear one (red).",
+                CONICITY_FIGURE: "Linear and nonlinear critical speed and the fold of large hunting against "
+                                 "equivalent conicity (new wheels low, worn wheels high), every FMU."}
+    figs = "".join(figure_html(f"{VEHICLE_FOLDER}/{name}", esc(cap), "")
+                   for name, cap in captions.items() if (Path(folder) / name).exists())
+    return ("<h3>Hunting with nonlinear wheel-rail contact</h3>"
+            "<p>Each FMU as the four yaw dampers of the car with nonlinear wheel-rail contact (conical wheels, "
+            f"creep saturating at mu N with mu = {contact['friction_coefficient']:g}, flange beyond "
+            f"{1e3 * contact['flange_clearance']:g} mm; <code>python -m tuner vehicle --nonlinear</code>), per "
+            "equivalent conicity. <b>Linear</b> critical speed: the linear car, "
+            f"{1e3 * data['linear_kick_m']:g} mm kicks, bisection. <b>Nonlinear</b> critical speed: the lowest speed "
+            f"at which hunting, once started, persists: a {1e3 * ramp['kick']:g} mm kick above the linear critical "
+            f"speed, then the speed lowered in {3.6 * ramp['dv']:g} km/h steps along the large limit cycle to the "
+            "fold of its branch (in brackets), or the linear critical speed where that is lower. '&gt; v_max': "
+            "none found below the top speed.</p>"
+            + table(["equivalent conicity", *(f"{lab}: linear / nonlinear (fold) [km/h]" for lab in labels)],
+                    [[esc(c) for c in r] for r in rows])
+            + f"<p>{worn_wheel_sentence(data)}</p>"
+            + (f"<p>Eigenvalues of the linear car with the linear Maxwell FMU's stiffness and damping: "
+               f"{'; '.join(eig)}.</p>" if eig else "")
+            + figs)
+
+
+def worn_wheel_sentence(data: dict) -> str:
+    """What the damper model changes for a worn-wheel bogie, from ``hunting_nonlinear.json`` content: at the
+    study's largest equivalent conicity, the nonlinear critical speeds [km/h] of the FMUs (their range when
+    there are several) and the FMUs with which hunting is subcritical (the nonlinear critical speed more than
+    :data:`SUBCRITICAL` below the linear one). Escaped HTML text."""
+    lam = max(r["conicity"] for res in data["results"].values() for r in res["conicities"])
+    at = {lab: next(r for r in res["conicities"] if r["conicity"] == lam)
+          for lab, res in data["results"].items() if any(r["conicity"] == lam for r in res["conicities"])}
+    nl = {lab: r["nonlinear_critical_speed_kmh"] for lab, r in at.items()
+          if r["cycle_reached"] and r["nonlinear_critical_speed_kmh"] is not None}
+    head = f"For a worn-wheel bogie (equivalent conicity {lam:g}, the largest of the study)"
+    if not nl:
+        return esc(f"{head} no FMU's nonlinear critical speed was found below the top speed of the study.")
+    if len(nl) > 1:
+        lo, hi = min(nl, key=nl.get), max(nl, key=nl.get)
+        text = (f"{head} the nonlinear critical speed ranges from {nl[lo]:.0f} km/h ({lo}) to {nl[hi]:.0f} km/h "
+                f"({hi}): {nl[hi] - nl[lo]:.0f} km/h decided by the damper model alone.")
+    else:
+        (lab, v), = nl.items()
+        text = f"{head} the nonlinear critical speed with {lab} is {v:.0f} km/h."
+    sub = []
+    for lab, v in nl.items():
+        lin = at[lab]["linear_critical_speed_kmh"]
+        if lin is not None and math.isfinite(lin) and v < (1.0 - SUBCRITICAL) * lin:
+            sub.append(f"{lab} ({100.0 * (1.0 - v / lin):.0f} % below its linear {lin:.0f} km/h)")
+    if sub:
+        text += (" Hunting is subcritical there with " + ", ".join(sub) + ": once a disturbance has started it, "
+                 "it persists below the speed a linear analysis calls critical.")
+    else:
+        text += (" With no FMU does large hunting persist clearly below the linear critical speed there: the "
+                 "linear critical speed is the limit.")
+    return esc(text)
 
 
 def intervals_html(folder: Path) -> str:

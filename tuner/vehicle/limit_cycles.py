@@ -37,13 +37,20 @@ from tuner.vehicle.cosim import VehicleCosim, check_damper_fmu
 from tuner.vehicle.hunting import critical_speed_time_domain, eigen_critical_speed
 from tuner.vehicle.nonlinear_cosim import NonlinearCosim
 
-__all__ = ["HuntingStudy", "fmu_conicity_point", "hunting_study", "format_study_table", "DEFAULT_CONICITIES",
-           "LINEAR_KICK"]
+__all__ = ["HuntingStudy", "fmu_conicity_point", "hunting_study", "format_study_table", "study_rows", "speeds_cell",
+           "DEFAULT_CONICITIES", "LINEAR_KICK", "STUDY_FILE", "DIAGRAM_FIGURE",
+           "CONICITY_FIGURE"]
 
 DEFAULT_CONICITIES = (0.05, 0.15, 0.25, 0.35, 0.45)
 """Equivalent conicities [-] of the sweep: new (0.05) to worn (0.45) wheels."""
 LINEAR_KICK = 5e-4
 """Lateral kick [m] of the linear critical speed search (small: the dampers' small-amplitude behaviour)."""
+STUDY_FILE = "hunting_nonlinear.json"
+"""The study's file in its output folder (in a fit output folder: in its ``vehicle/`` sub-folder)."""
+DIAGRAM_FIGURE = "hunting_bifurcation.png"
+"""The bifurcation diagrams, one panel per FMU at the diagram conicity."""
+CONICITY_FIGURE = "critical_speed_conicity.png"
+"""Linear and nonlinear critical speed against conicity, all FMUs."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -128,7 +135,7 @@ def hunting_study(fmus, out: Path, study: HuntingStudy | None = None, *, log=pri
         if pool is not None:
             pool.shutdown(cancel_futures=True)
     data = _json(points, paths, labels, study, time.perf_counter() - t0)
-    (out / "hunting_nonlinear.json").write_text(strict_json.dumps(data, indent=1))
+    (out / STUDY_FILE).write_text(strict_json.dumps(data, indent=1))
     _figures(points, study, out)
     return data
 
@@ -182,7 +189,7 @@ def _figures(points: dict, study: HuntingStudy, out: Path) -> None:
     axes[0][0].set_ylabel("limit cycle amplitude, leading wheelset [mm]")
     fig.suptitle(f"Hunting bifurcation diagrams, equivalent conicity {study.diagram_conicity:g}")
     fig.tight_layout()
-    fig.savefig(out / "hunting_bifurcation.png", dpi=110)
+    fig.savefig(out / DIAGRAM_FIGURE, dpi=110)
     plt.close(fig)
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for i, lab in enumerate(labels):
@@ -201,7 +208,7 @@ def _figures(points: dict, study: HuntingStudy, out: Path) -> None:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(out / "critical_speed_conicity.png", dpi=110)
+    fig.savefig(out / CONICITY_FIGURE, dpi=110)
     plt.close(fig)
 
 
@@ -229,23 +236,34 @@ def _diagram_panel(ax, label: str, pt: ConicityPoint, study: HuntingStudy) -> No
     ax.legend(fontsize=6, loc="upper left")
 
 
-def format_study_table(data: dict) -> str:
-    """The study's critical speeds as a text table: one row per conicity, per FMU the linear and the
-    nonlinear critical speed [km/h] and the fold of the large cycles' branch in brackets (``> v_max`` where
-    none was found below the top speed, ``no cycle`` where the ramp's kick reached no limit cycle although
-    straight running was unstable)."""
+def speeds_cell(row: dict) -> str:
+    """One conicity's critical speeds of one FMU as text (a ``conicities`` row of ``hunting_nonlinear.json``):
+    ``linear / nonlinear (fold)`` [km/h], ``> v_max`` where none was found below the top speed, ``no cycle``
+    where the ramp's kick reached no limit cycle although straight running was unstable."""
+    f = (lambda v: "> v_max" if v is None else f"{v:.0f}")
+    nl = f(row["nonlinear_critical_speed_kmh"]) if row["cycle_reached"] or row["linear_critical_speed_kmh"] is None \
+        else "no cycle"
+    fold = f" ({f(row['fold_speed_kmh'])})" if row["cycle_reached"] else ""
+    return f"{f(row['linear_critical_speed_kmh'])} / {nl}{fold}"
+
+
+def study_rows(data: dict) -> tuple:
+    """The study's critical speeds side by side: (FMU labels, rows), one row per conicity: the conicity [-]
+    and per FMU its :func:`speeds_cell` ('-' where that FMU has no run at that conicity)."""
     labels = list(data["results"])
     lams = sorted({row["conicity"] for lab in labels for row in data["results"][lab]["conicities"]})
 
     def cell(lab, lam):
-        row = next(r for r in data["results"][lab]["conicities"] if r["conicity"] == lam)
-        f = (lambda v: "> v_max" if v is None else f"{v:.0f}")
-        nl = f(row["nonlinear_critical_speed_kmh"]) if row["cycle_reached"] or row["linear_critical_speed_kmh"] is None \
-            else "no cycle"
-        fold = f" ({f(row['fold_speed_kmh'])})" if row["cycle_reached"] else ""
-        return f"{f(row['linear_critical_speed_kmh'])} / {nl}{fold}"
+        row = next((r for r in data["results"][lab]["conicities"] if r["conicity"] == lam), None)
+        return "-" if row is None else speeds_cell(row)
 
+    return labels, [[f"{lam:.3f}", *(cell(lab, lam) for lab in labels)] for lam in lams]
+
+
+def format_study_table(data: dict) -> str:
+    """The study's critical speeds as a text table (:func:`study_rows`): one row per conicity, per FMU the
+    linear and the nonlinear critical speed [km/h] and the fold of the large cycles' branch in brackets."""
+    labels, rows = study_rows(data)
     head = ["conicity", *(f"{lab}: linear / nonlinear (fold) [km/h]" for lab in labels)]
-    rows = [[f"{lam:.3f}", *(cell(lab, lam) for lab in labels)] for lam in lams]
     w = [max(len(head[i]), *(len(r[i]) for r in rows)) for i in range(len(head))]
     return "\n".join("  ".join(c.rjust(wi) for c, wi in zip(r, w)) for r in [head, *rows])
