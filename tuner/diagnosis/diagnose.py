@@ -25,7 +25,8 @@ CandidateSearch``, the decision rules are in ``tuner.diagnosis.rules``, the word
    Levenberg-Marquardt steps on the base Jacobian, since the base fit may have absorbed part of
    the effect into its tables) and a joint least-squares polish, from two
    starts: the fitted base, and the data-driven initial guess, which has absorbed nothing (plain
-   grid there); the better identification fit wins. The leading candidate's refit is continued
+   grid there); the better identification fit wins. 'none' is the base refitted alike; a base whose
+   refinement converged on these tests (``tuner.diagnosis.bases.BaseRefinement``) is its own refit. The leading candidate's refit is continued
    (``final_jacobians``) before the decision.
    Score = -ln(MSE_ext / MSE_none) - 0.02 x (extra parameters), pooled over the validation
    tests, against 'none' (the base refitted alike). A cause is named (``decide``) when it scores
