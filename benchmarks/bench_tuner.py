@@ -212,7 +212,8 @@ def compare(args, signals, validation, force_limit) -> list[dict]:
             r = {"name": name, "evals": eng.evaluations - e0, "time": time.perf_counter() - t0}
             r["rmse"] = math.sqrt(float(sse([z])[0]) / eng.n_samples)
             e1, t1 = eng.evaluations, time.perf_counter()
-            zp, g, _, _ = polish(eng, par, z, max_jacobians=args.polish, log=lambda *_: None)
+            polished = polish(eng, par, z, max_jacobians=args.polish, log=lambda *_: None)
+            zp, g = polished.z, polished.fitness
             r.update(polish_evals=eng.evaluations - e1, polish_time=time.perf_counter() - t1,
                      rmse_polished=1.0 / math.sqrt(g) if g > 0 else math.inf)
             r["val"], r["val_polished"] = validate(par.to_params(z), validation), validate(par.to_params(zp), validation)

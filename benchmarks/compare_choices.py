@@ -30,7 +30,7 @@ from damper_fmu import simulate  # noqa: E402
 from tuner.data.preprocess import prepare  # noqa: E402
 from tuner.data.reading import load_dataset  # noqa: E402
 from tuner.identification.fit import FitSettings, identify  # noqa: E402
-from tuner.identification.problem import to_signals  # noqa: E402
+from tuner.identification.problem import DataSettings, to_signals  # noqa: E402
 from tuner.identification.parametrization import Parametrization  # noqa: E402
 
 VARIANTS = {"paper": ("paper", "random"), "+log+mono": ("improved", "random"), "+seeded": ("improved", "seeded")}
@@ -63,8 +63,8 @@ def main(argv=None) -> int:
     results = {}
     for name, (scheme, init) in VARIANTS.items():
         par = Parametrization("lumped", scheme, force_limit=float(f"{1.5 * peak:.2g}"))
-        settings = FitSettings(models=("lumped",), iterations=a.iterations, workers=a.workers, engine=a.engine,
-                               parametrization=scheme, init=init, stop_tol=None, polish_jacobians=a.polish)
+        settings = FitSettings(models=("lumped",), data=DataSettings(parametrization=scheme), iterations=a.iterations,
+                               workers=a.workers, engine=a.engine, init=init, stop_tol=None, polish_jacobians=a.polish)
         ckpt = a.out / f"ckpt_{name.replace('+', 'p')}.json"
         ckpt.unlink(missing_ok=True)
         t0 = time.perf_counter()

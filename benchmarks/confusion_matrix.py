@@ -52,7 +52,7 @@ from tuner.data.reading import load_dataset  # noqa: E402
 from tuner.identification.engine import fastest_engine  # noqa: E402
 from tuner.fleet.executors import FleetExecutor  # noqa: E402
 from tuner.results.fleet_summary import write_atomic  # noqa: E402
-from damper_fmu.parameters import FORM_EFFECTS  # noqa: E402
+from damper_fmu.effect_catalogue import FORM_EFFECTS  # noqa: E402
 from tuner.diagnosis.diagnose import CANDIDATES, DiagnosisSettings, diagnose  # noqa: E402
 
 

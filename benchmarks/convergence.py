@@ -62,7 +62,7 @@ def truth_rmse(model: str, folder: Path, settings: FitSettings, engine: str) -> 
     table abscissae are the truth's)."""
     truth = read_manifest(folder)["generator"]["parameters"]
     ident = [t for t in load_dataset(folder) if t.role == "identification"]
-    problem = Problem.build(ident, [], settings.data())
+    problem = Problem.build(ident, [], settings.data)
     signals = problem.sig_id
     fixed = model_abscissae(model, problem.axes)
     same = all(math.isclose(truth[k], v, rel_tol=1e-12) for k, v in fixed.items())
@@ -94,7 +94,7 @@ def run_one(model: str, seed: int, out: Path, engine: str, durations) -> dict:
     hist = res.histories[model]
     floor, same_axes = truth_rmse(model, data, settings, "native" if engine == "fmu" else engine)
     row = {"model": model, "seed": seed, "noise_n": gen["noise_n"], "kinds": gen["kinds"],
-           "in_band_noise_n": in_band_noise(gen["noise_n"], settings.fit_rate_hz),
+           "in_band_noise_n": in_band_noise(gen["noise_n"], settings.data.fit_rate_hz),
            "truth_rmse_n": floor, "truth_on_the_tuner_abscissae": same_axes,
            "rmse_n": hist["identification_rmse_n"], "firefly_rmse_n": 1 / math.sqrt(hist["firefly_best_fitness"]),
            "tuner_converged": hist["converged"], "polish_stop": hist["polish_stop"],

@@ -63,6 +63,9 @@ is not a multiple of the groove area; the rig's drop (above, ``quasi_static_forc
 should find, and it depends on speed. The forms are twin-tube physics only: the lumped damper
 refuses them (its hydraulics are the tuner's model).
 
+The catalogue effects' symbols, units and realistic ranges are those of their records in
+``damper_fmu.effect_catalogue`` (the one source); the defaults and where each acts are the rig's own.
+
 Effect specifications: ``friction``, ``friction=150``, ``free_play=0.4e-3``, ``hysteresis=300``
 (a bare name means the default value); several may be joined by commas.
 """
@@ -75,7 +78,7 @@ from typing import Iterable, Mapping
 import numpy as np
 
 from campaign.rig_damper import DamperConfig
-from damper_fmu.parameters import EFFECT_TYPICAL
+from damper_fmu.effect_catalogue import ALL_EFFECTS, CATALOGUE_EFFECTS
 
 
 @dataclass(frozen=True)
@@ -95,24 +98,28 @@ class EffectSpec:
     model_sign: float = 1.0
 
 
-EFFECTS: dict[str, EffectSpec] = {
-    s.name: s for s in (
-        EffectSpec("friction", "Ff", "N", *EFFECT_TYPICAL["friction_force"], 150.0,
-                   "seal/guide Coulomb friction Ff tanh(v / 0.5 mm/s) in parallel", "friction_force"),
-        EffectSpec("preload", "F0", "N", *EFFECT_TYPICAL["preload_force"], 300.0,
-                   "un-tared reservoir gas force / load-cell offset: force reads -F0 more", "preload_force", -1.0),
-        EffectSpec("free_play", "gap", "m", *EFFECT_TYPICAL["free_play"], 3e-4,
-                   "clearance (total dead band) in the actuator-side end mount", "free_play"),
-        EffectSpec("thermal_drift", "beta", "1/K", *EFFECT_TYPICAL["thermal_beta"], 1e-2,
-                   "damping x exp(-beta (T - 20 degC)); the oil heats with dissipated power", "thermal_beta"),
-        EffectSpec("valve_lag", "tau", "s", *EFFECT_TYPICAL["valve_tau"], 3e-3,
-                   "first-order lag of the blow-off valve openings", "valve_tau"),
-        EffectSpec("time_delay", "delay", "s", *EFFECT_TYPICAL["time_delay"], 3e-3,
-                   "force channel lags the stroke channel by a pure delay", "time_delay"),
-        EffectSpec("inertia", "m_eq", "kg", *EFFECT_TYPICAL["inertia_mass"], 60.0,
-                   "equivalent fluid/rod inertia seen by the load cell", "inertia_mass"),
-    )
+#: the rig's own side of each catalogue effect: (default value, where it acts, sign of the model's magnitude
+#: against the rig value); symbol, unit and realistic range are the catalogue's (``damper_fmu.effect_catalogue``)
+_RIG_SIDE = {
+    "friction": (150.0, "seal/guide Coulomb friction Ff tanh(v / 0.5 mm/s) in parallel", 1.0),
+    "preload": (300.0, "un-tared reservoir gas force / load-cell offset: force reads -F0 more", -1.0),
+    "free_play": (3e-4, "clearance (total dead band) in the actuator-side end mount", 1.0),
+    "thermal_drift": (1e-2, "damping x exp(-beta (T - 20 degC)); the oil heats with dissipated power", 1.0),
+    "valve_lag": (3e-3, "first-order lag of the blow-off valve openings", 1.0),
+    "time_delay": (3e-3, "force channel lags the stroke channel by a pure delay", 1.0),
+    "inertia": (60.0, "equivalent fluid/rod inertia seen by the load cell", 1.0),
 }
+
+
+def _catalogue_spec(name: str) -> EffectSpec:
+    """The rig's effect ``name`` with its catalogue record's symbol, unit and typical range."""
+    e = ALL_EFFECTS[name]
+    default, where, sign = _RIG_SIDE[name]
+    return EffectSpec(name, e.symbol, e.unit, *e.typical[e.magnitude], default, where, e.magnitude, sign)
+
+
+#: the effect catalogue, as the rig makes it (module docstring)
+EFFECTS: dict[str, EffectSpec] = {name: _catalogue_spec(name) for name in CATALOGUE_EFFECTS}
 
 #: model forms beyond the catalogue (module docstring); selectable like the effects
 FORMS: dict[str, EffectSpec] = {
@@ -128,8 +135,9 @@ FORMS: dict[str, EffectSpec] = {
 SPECS: dict[str, EffectSpec] = {**EFFECTS, **FORMS}
 
 DEFAULT_EFFECTS: dict[str, float] = {}  # nothing on by default (see module docstring)
-#: effects on the force channel after the damper (``apply_channel_effects``), not damper physics
-CHANNEL_EFFECTS = ("preload", "time_delay")
+#: effects on the force channel after the damper (``apply_channel_effects``), not damper physics: those of the
+#: acquisition (``Effect.acquisition``)
+CHANNEL_EFFECTS = tuple(name for name in CATALOGUE_EFFECTS if ALL_EFFECTS[name].acquisition)
 
 
 def parse_effect(text: str) -> tuple[str, float]:

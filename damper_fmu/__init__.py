@@ -4,7 +4,10 @@ SI units throughout. Sign convention: stroke x1 [m] positive in extension, strok
 velocity v1 [m/s] its time derivative, force [N] positive in tension. It imports nothing of the
 tuner or the campaign.
 
+- ``parameter_spec``: the record of one parameter (unit, default, bounds) and the rule its values are checked by;
 - ``parameters``: parameter names, units, reference presets (paper Table 2) and bounds;
+- ``effect_catalogue``: one record per effect element (parameters, typical ranges, scaling, search-bounds rule,
+  residual signature, notes): everything an effect means outside its physics;
 - ``tables``: piecewise-linear characteristics through the origin;
 - ``models``: the model equations (lumped, Maxwell, table Maxwell, two-chamber), single source for all engines;
 - ``effects``: the optional effect elements (the diagnosis's catalogue and the forms beyond it);

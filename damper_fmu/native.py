@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from .models import ConvergenceError
-from .parameters import MODEL_PARAMETERS, check_rule
+from .parameter_spec import check_rule
+from .parameters import MODEL_PARAMETERS
 
 __all__ = ["available", "reason", "library", "simulate", "parameter_header", "KINDS", "CFLAGS", "compiler",
            "compile_library"]

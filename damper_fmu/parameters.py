@@ -1,7 +1,9 @@
 """Parameter definitions, reference presets and bounds of the damper models.
 
-Every parameter carries its SI unit, a description, the reference (default) value and the
-identification bounds. Sign convention (whole package): elongation and elongation rate
+Every parameter (``damper_fmu.parameter_spec.Parameter``) carries its SI unit, a description, the
+reference (default) value and the identification bounds; the effect elements' parameters
+(``EFFECT_PARAMETERS``, the last block of the lumped and two-chamber models) come from the effect
+catalogue (``damper_fmu.effect_catalogue``). Sign convention (whole package): elongation and elongation rate
 positive in extension, element forces positive in tension.
 
 Lumped model (Isacchi, Ripamonti, Corsi 2023, section 2.1): 29 tunable parameters
@@ -23,16 +25,11 @@ twin-tube damper (docs/twin-tube-form-study.md), a plausible railway yaw damper,
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from .effect_catalogue import EFFECT_PARAMETERS
+from .parameter_spec import Parameter, check_rule
 
 __all__ = [
-    "Parameter",
     "EFFECT_PARAMETERS",
-    "EFFECT_IDENTIFIED",
-    "EFFECT_TYPICAL",
-    "EFFECT_KIND",
-    "FORM_EFFECTS",
-    "CATALOGUE_EFFECTS",
     "FK_ABSCISSAE",
     "FC_ABSCISSAE",
     "LUMPED_PARAMETERS",
@@ -45,7 +42,6 @@ __all__ = [
     "MODEL_KINDS",
     "EFFECT_MODELS",
     "EFFECTS_INSIDE",
-    "check_rule",
     "defaults",
     "tunable_names",
     "check_values",
@@ -59,41 +55,6 @@ UNIT_DEFINITIONS: dict[str, dict[str, float]] = {
     "1": {}, "K": {"K": 1}, "1/K": {"K": -1}, "J/K": {"kg": 1, "m": 2, "s": -2, "K": -1},
     "W/K": {"kg": 1, "m": 2, "s": -3, "K": -1}, "degC": {"K": 1, "offset": 273.15},
 }
-
-
-@dataclass(frozen=True)
-class Parameter:
-    """One model parameter.
-
-    ``tunable``: identified by the base fit (else a fixed setting such as a table abscissa).
-    ``log_scale``: the bounds span decades; a tuner should search this parameter in log space.
-    ``effect``: name of the optional effect element the parameter belongs to (off at its default).
-    ``check``: 'positive' or 'range' (within [low, high]) whatever the unit; None: the rule of
-    ``check_rule`` (effects in range, masses/stiffnesses/dampings and log-scaled values positive).
-    """
-
-    name: str
-    unit: str
-    description: str
-    default: float
-    low: float
-    high: float
-    tunable: bool = True
-    log_scale: bool = False
-    effect: str | None = None
-    check: str | None = None
-
-
-def check_rule(p: Parameter) -> str:
-    """How a value of ``p`` is checked before any run: 'range' (within [low, high]), 'positive' or
-    'none'. One rule for ``check_values`` and the C kernel (``native.parameter_header``)."""
-    if p.check is not None:
-        return p.check
-    if p.effect is not None:
-        return "range"
-    if p.unit in ("kg", "N/m", "N.s/m") or p.log_scale:
-        return "positive"
-    return "none"
 
 
 # Table 2 of the paper: elongation abscissae [mm] and ordinates [kN] of Fk,O (zero point omitted).
@@ -142,93 +103,6 @@ def _table_parameters(prefix: str, abscissae, ordinates_kn, xunit: str, what: st
 
 _FK = _table_parameters("Fk", FK_ABSCISSAE, _FK_KN, "m", "Elastic force Fk,O", _fk_bounds)
 _FC = _table_parameters("Fc", FC_ABSCISSAE, _FC_KN, "m/s", "Damping force Fc,O", _fc_bounds)
-
-#: Optional effect elements of the lumped model (damper_fmu.effects); every one is off at its
-#: default, so the base model is unchanged. Bounds: what the tuner may identify (wider than the
-#: typical ranges of the design notes' catalogue; force effects up to 10 % of the 2 MN the data reader
-#: accepts, so that the diagnosis can search 10 % of any plausible damper's peak force).
-EFFECT_PARAMETERS: tuple[Parameter, ...] = (
-    Parameter("friction_force", "N", "Coulomb friction in parallel (seals, guides): Ff tanh(v / v_eps)",
-              0.0, 0.0, 2e5, tunable=False, effect="friction"),
-    Parameter("friction_velocity", "m/s", "Velocity scale v_eps of the smoothed friction",
-              5e-4, 1e-5, 1e-2, tunable=False, effect="friction"),
-    Parameter("preload_force", "N", "Constant force offset (un-tared gas force, load-cell offset); tension +",
-              0.0, -2e5, 2e5, tunable=False, effect="preload"),
-    Parameter("free_play", "m", "Total clearance (dead band) in series at the actuator end",
-              0.0, 0.0, 3e-3, tunable=False, effect="free_play"),
-    Parameter("thermal_beta", "1/K", "Damping scaled by exp(-beta (T - T_ref)) with the oil temperature T",
-              0.0, 0.0, 0.05, tunable=False, effect="thermal_drift"),
-    Parameter("thermal_capacity", "J/K", "Heat capacity of the damper (internal thermal balance)",
-              4000.0, 100.0, 1e5, tunable=False, effect="thermal_drift"),
-    Parameter("thermal_conductance", "W/K", "Heat loss to ambient per kelvin (internal thermal balance)",
-              5.0, 0.1, 1000.0, tunable=False, effect="thermal_drift"),
-    Parameter("thermal_reference", "degC", "Reference (and ambient) temperature T_ref",
-              20.0, -40.0, 150.0, tunable=False, effect="thermal_drift"),
-    Parameter("valve_tau", "s", "Valve opening time constant: force lead beyond the blow-off knee",
-              0.0, 0.0, 0.05, tunable=False, effect="valve_lag"),
-    Parameter("time_delay", "s", "Pure delay of the force channel relative to the stroke channel",
-              0.0, 0.0, 0.05, tunable=False, effect="time_delay"),
-    Parameter("inertia_mass", "kg", "Equivalent inertia seen by the load cell: m_eq x1''",
-              0.0, 0.0, 500.0, tunable=False, effect="inertia"),
-    # form elements beyond the catalogue (damper_fmu.effects): tried by the diagnosis when the catalogue
-    # leaves a residual above the floor
-    Parameter("hysteresis_force", "N", "Pre-yield hysteresis (Dahl element in parallel): force it saturates at",
-              0.0, 0.0, 2e5, tunable=False, effect="hysteresis"),
-    Parameter("hysteresis_displacement", "m", "Pre-yield hysteresis: displacement scale x_h of the approach to "
-              "saturation (initial stiffness F_h / x_h)", 5e-4, 1e-6, 0.05, tunable=False, effect="hysteresis"),
-    Parameter("bypass_ratio", "1", "Position-dependent damping (bypass groove): damping force reduced by this "
-              "fraction inside the groove", 0.0, 0.0, 0.95, tunable=False, effect="bypass"),
-    Parameter("bypass_center", "m", "Bypass groove centre (stroke, extension +)", 0.0, -1.0, 1.0, tunable=False,
-              effect="bypass"),
-    Parameter("bypass_width", "m", "Bypass groove length along the stroke", 0.01, 1e-4, 1.0, tunable=False,
-              effect="bypass"),
-    Parameter("bypass_edge", "m", "Bypass groove: length of its tapered ends (tanh edges)", 1e-3, 1e-5, 0.1,
-              tunable=False, effect="bypass"),
-    Parameter("bypass_direction", "1", "Bypass groove acts in: 0 both directions, +1 extension (rebound) only, "
-              "-1 compression only (a twin-tube groove in the pressure tube bypasses the piston valve in rebound)",
-              0.0, -1.0, 1.0, tunable=False, effect="bypass"),
-    Parameter("bypass_velocity", "m/s", "Bypass groove: speed above which its share fades, 1 / (1 + (v / v_b)^2) "
-              "(the valve opens past its blow-off knee and the groove's flow becomes a small part; 0: no fade)",
-              0.0, 0.0, 10.0, tunable=False, effect="bypass"),
-)
-
-#: The effect catalogue's typical magnitudes |value| (SI) of each identified effect parameter (design
-#: notes): the one source for the virtual rig's draws (campaign.effects), the plausibility flags
-#: and the "physically meaningful" test of the diagnosis, and the search range it must cover.
-EFFECT_TYPICAL: dict[str, tuple[float, float]] = {
-    "friction_force": (50.0, 300.0), "preload_force": (30.0, 400.0), "free_play": (1e-4, 1e-3),
-    "thermal_beta": (2e-3, 2e-2), "valve_tau": (1e-3, 1e-2), "time_delay": (1e-3, 1e-2),
-    "inertia_mass": (20.0, 200.0),
-    "hysteresis_force": (50.0, 1000.0), "hysteresis_displacement": (5e-5, 2e-3), "bypass_ratio": (0.1, 0.8),
-}
-
-#: what each catalogue effect's element stands for, as the diagnosis's detection limits state it: a limit
-#: holds for that kind of effect only (a friction inside the valve law is part of the damping table)
-EFFECT_KIND: dict[str, str] = {
-    "friction": "in parallel with the damper (rod seal, guides); a friction inside the valve is part of the "
-                "damping characteristic",
-    "preload": "a constant force in parallel (un-tared gas force, load-cell offset)",
-    "free_play": "a dead band in series at the actuator end (mounts, joints)",
-    "thermal_drift": "damping that changes with the oil temperature between tests",
-    "valve_lag": "a first-order lag of the valve opening beyond the blow-off knee",
-    "time_delay": "a skew between the force and stroke channels (acquisition)",
-    "inertia": "a mass moving with the rod, seen by the load cell",
-}
-
-#: effect name -> its identified parameters (the others of the effect stay at their defaults); the first
-#: is the effect's magnitude, which switches it off at 0 (the others shape it)
-EFFECT_IDENTIFIED: dict[str, tuple[str, ...]] = {
-    "friction": ("friction_force",), "preload": ("preload_force",), "free_play": ("free_play",),
-    "thermal_drift": ("thermal_beta",), "valve_lag": ("valve_tau",), "time_delay": ("time_delay",),
-    "inertia": ("inertia_mass",),
-    "hysteresis": ("hysteresis_force", "hysteresis_displacement"),
-    "bypass": ("bypass_ratio", "bypass_center", "bypass_width"),
-}
-#: forms beyond the effect catalogue: elements real dampers show and the base forms lack (pre-yield
-#: hysteresis of MR dampers and seals, position-dependent damping of a bypass groove)
-FORM_EFFECTS = ("hysteresis", "bypass")
-#: the effect catalogue of the design notes (the diagnosis's candidate causes)
-CATALOGUE_EFFECTS = tuple(e for e in EFFECT_IDENTIFIED if e not in FORM_EFFECTS)
 
 LUMPED_PARAMETERS: tuple[Parameter, ...] = (
     Parameter("M_C", "kg", "Lumped mass C (cylinder side, next to silent block B)", 15.8, 1.0, 20.0),

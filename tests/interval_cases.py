@@ -76,7 +76,7 @@ def rig_tests(params: dict, kind: str, seed: int, durations=(10.0,), noise_n: fl
 
 
 def fitted(params: dict, tests: list[RigTest], *, jacobians: int = 20, fit_rate_hz: float = 200.0):
-    """(problem, parametrization, fitted values, ModelIntervals, refinement info) of the lumped model
+    """(problem, parametrization, fitted values, ModelIntervals, refinement: a PolishResult or None) of the lumped model
     refined from ``params`` on ``tests`` at ``fit_rate_hz`` (jacobians: the refinement's budget; 0: the
     intervals at ``params``)."""
     axes = {k: tuple(params[f"{k}_{a}{i:02d}"] for i in range(1, n + 1)) for k, a, n in (("Fc", "v", 14), ("Fk", "x", 10))}
@@ -85,13 +85,13 @@ def fitted(params: dict, tests: list[RigTest], *, jacobians: int = 20, fit_rate_
     par = problem.parametrization("lumped")
     start = par.to_params(par.from_params(params))
     with Engine("lumped", problem.sig_id, engine=fastest_engine(), workers=0) as eng:
-        info = {"stop": "not refined", "converged": None}
+        refined = None
         est = start
         if jacobians:
-            z, _, _, info = polish(eng, par, par.from_params(start), max_jacobians=jacobians, log=lambda m: None)
-            est = par.to_params(z)
+            refined = polish(eng, par, par.from_params(start), max_jacobians=jacobians, log=lambda m: None)
+            est = par.to_params(refined.z)
         iv = parameter_intervals(eng, par, est, reached=reached_ranges("lumped", est, problem.sig_id))
-    return problem, par, est, iv, info
+    return problem, par, est, iv, refined
 
 
 def run_on_truth(params: dict, candidate, seed: int, noise_n: float = 25.0) -> RigTest:

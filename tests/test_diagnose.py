@@ -420,7 +420,7 @@ def test_a_residual_is_not_judged_against_a_floor_that_is_not_credible(tmp_path)
 def test_typical_effect_sizes_scale_with_the_damper():
     """tuner.diagnosis.effect_sizes: forces and the equivalent mass with the peak force, lengths with the
     stroke range (never above the catalogue's), times unchanged; the reference damper keeps the catalogue."""
-    from damper_fmu.parameters import EFFECT_TYPICAL
+    from damper_fmu.effect_catalogue import EFFECT_TYPICAL
     from tuner.diagnosis.effect_sizes import REFERENCE, DamperSize, meaningful_floor, typical_range
 
     assert typical_range("friction_force", REFERENCE) == EFFECT_TYPICAL["friction_force"]

@@ -14,10 +14,10 @@ import pytest
 from campaign.generate import CHAMBER_TEMPERATURES_C, generate_dataset
 from campaign.synthetic import write_model_dataset
 from damper_fmu import defaults
+from damper_fmu.effect_catalogue import search_bounds
 from tuner.data.reading import load_dataset
 from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
 from tuner.diagnosis.forms import shape_grid
-from tuner.diagnosis.refit import search_bounds
 from tuner.identification.engine import fastest_engine
 
 

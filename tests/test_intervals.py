@@ -39,8 +39,8 @@ def reached_ordinates(iv):
 
 def test_a_damping_ordinate_in_the_reached_range_is_determined_and_covers_the_truth():
     known = truth()
-    _, par, _, iv, info = fitted(known, rig_tests(known, "multisine", 3, (10.0, 10.0), noise_n=25.0))
-    assert info["converged"], info["stop"]
+    _, par, _, iv, refined = fitted(known, rig_tests(known, "multisine", 3, (10.0, 10.0), noise_n=25.0))
+    assert refined.converged, refined.stop
     inside = reached_ordinates(iv)
     assert len(inside) >= 8, [p.name for p in inside]
     assert all(p.determined for p in inside), [(p.name, p.flags) for p in inside]

@@ -10,21 +10,42 @@ from damper_fmu import defaults
 from tuner import job
 from tuner.__main__ import main as cli_main
 from tuner.identification.engine import fastest_engine
+from tuner.diagnosis.settings import DiagnosisSettings
 from tuner.identification.fit import FitSettings
+from tuner.identification.problem import DataSettings
 
 
 def test_the_diagnosis_gets_the_fits_problem_definition_field_by_field():
     """Every field of the problem definition given to the fit reaches the diagnosis (its
     parametrization excepted: the local solver needs monotone tables)."""
-    fs = FitSettings(fit_rate_hz=150.0, warmup_s=0.3, diff_band_hz=33.0, force_limit_n=12345.0,
-                     damping_abscissae_m_s=tuple(0.01 * (i + 1) for i in range(14)),
-                     elastic_abscissae_m=tuple(0.001 * (i + 1) for i in range(10)),
-                     spring_reference_n_per_m=2.0e7, parametrization="paper", engine="native", seed=7, workers=0)
+    fs = FitSettings(data=DataSettings(fit_rate_hz=150.0, warmup_s=0.3, diff_band_hz=33.0, force_limit_n=12345.0,
+                                       damping_abscissae_m_s=tuple(0.01 * (i + 1) for i in range(14)),
+                                       elastic_abscissae_m=tuple(0.001 * (i + 1) for i in range(10)),
+                                       spring_reference_n_per_m=2.0e7, parametrization="paper"),
+                     engine="native", seed=7, workers=0)
     ds = job.diagnosis_settings(fs)
-    a, b = dataclasses.asdict(fs.data()), dataclasses.asdict(ds.data())
+    a, b = dataclasses.asdict(fs.data), dataclasses.asdict(ds.data)
     assert a.pop("parametrization") == "paper" and b.pop("parametrization") == "improved"
     assert a == b
     assert (ds.engine, ds.seed, ds.workers) == ("native", 7, 0)
+
+
+def test_fit_settings_are_read_back_from_their_flat_record():
+    """A run's settings record (metrics.json "settings", a fleet row) is one flat dict: read back, it gives
+    the same settings, the problem definition included; a key that is no setting is refused by name."""
+    fs = FitSettings(models=("lumped",), population=4, seed=3,
+                     data=DataSettings(fit_rate_hz=150.0, warmup_s=0.3, force_limit_n=2e4,
+                                       damping_abscissae_m_s=tuple(0.01 * (i + 1) for i in range(14))))
+    record = json.loads(json.dumps(fs.to_dict()))  # as written to a file and read again
+    assert record["fit_rate_hz"] == 150.0 and record["population"] == 4
+    assert FitSettings.from_dict(record) == fs
+    with pytest.raises(ValueError, match="'fit_rate'"):
+        FitSettings.from_dict({**record, "fit_rate": 100.0})
+
+
+def test_the_diagnosis_refuses_the_paper_parametrization():
+    with pytest.raises(ValueError, match="parametrization must be 'improved'"):
+        DiagnosisSettings(data=DataSettings(parametrization="paper"))
 
 
 def test_the_job_prepares_once_writes_each_stage_and_reports_last(tmp_path, monkeypatch, small_lumped, prepared_names):
@@ -35,7 +56,7 @@ def test_the_job_prepares_once_writes_each_stage_and_reports_last(tmp_path, monk
     monkeypatch.setattr(job, "diagnosis_settings", lambda s: dataclasses.replace(
         real_settings(s), candidates=("friction",), polish_jacobians=1, final_jacobians=1))
     settings = FitSettings(models=("lumped", "maxwell"), population=4, iterations=1, workers=0,
-                           engine=fastest_engine(), polish_jacobians=1, force_limit_n=31000.0)
+                           engine=fastest_engine(), polish_jacobians=1, data=DataSettings(force_limit_n=31000.0))
     out = tmp_path / "out"
     out.mkdir()
     res = job.run(ident, valid, out, settings, log=lambda m: None)

@@ -50,11 +50,11 @@ def test_converges_to_the_bounded_least_squares_solution():
     A, b = problem()
     ref = lsq_linear(A, b, bounds=(0.0, 1.0), tol=1e-14)
     eng = FakeEngine(lambda u: A @ u - b, A.shape[0])
-    z, g, evals, info = polish(eng, IdentityPar(A.shape[1]), np.full(A.shape[1], 0.5), log=lambda m: None)
-    assert info["converged"], info["stop"]
-    sse = A.shape[0] / g
+    res = polish(eng, IdentityPar(A.shape[1]), np.full(A.shape[1], 0.5), log=lambda m: None)
+    assert res.converged, res.stop
+    sse = A.shape[0] / res.fitness
     assert sse <= float(np.sum((A @ ref.x - b) ** 2)) * (1 + 1e-6)
-    assert np.allclose(z, ref.x, atol=1e-4)
+    assert np.allclose(res.z, ref.x, atol=1e-4)
 
 
 def rough_problem():
@@ -74,10 +74,10 @@ def rough_problem():
 
 def test_a_rough_objective_is_finished_with_coarse_differences():
     eng, d, x_ref, rmse_ref = rough_problem()
-    z, g, evals, info = polish(eng, IdentityPar(d), np.full(d, 0.5), max_jacobians=60, log=lambda m: None)
-    assert info["converged"], info["stop"]
-    assert math.sqrt(1.0 / g) <= rmse_ref * 1.001, (math.sqrt(1.0 / g), rmse_ref)
-    assert np.allclose(z, x_ref, atol=5e-3)
+    res = polish(eng, IdentityPar(d), np.full(d, 0.5), max_jacobians=60, log=lambda m: None)
+    assert res.converged, res.stop
+    assert math.sqrt(1.0 / res.fitness) <= rmse_ref * 1.001, (math.sqrt(1.0 / res.fitness), rmse_ref)
+    assert np.allclose(res.z, x_ref, atol=5e-3)
 
 
 def test_the_rough_objective_defeats_fine_differences_alone(monkeypatch):
@@ -86,8 +86,8 @@ def test_the_rough_objective_defeats_fine_differences_alone(monkeypatch):
 
     monkeypatch.setattr(module, "COARSE_STEP", STEP)
     eng, d, x_ref, rmse_ref = rough_problem()
-    z, g, evals, info = module.polish(eng, IdentityPar(d), np.full(d, 0.5), max_jacobians=60, log=lambda m: None)
-    assert math.sqrt(1.0 / g) > 1.5 * rmse_ref
+    res = module.polish(eng, IdentityPar(d), np.full(d, 0.5), max_jacobians=60, log=lambda m: None)
+    assert math.sqrt(1.0 / res.fitness) > 1.5 * rmse_ref
 
 
 def test_the_rmse_standard_error_matches_its_spread_over_many_realisations():
@@ -147,8 +147,9 @@ def test_a_slow_valley_where_no_model_reaches_the_noise_ends_on_the_resolution_r
         return form_error + basis @ (3.0 * (shifted + 20.0 * np.roll(shifted, 1) ** 2))
 
     eng, start = FakeEngine(residual, n), np.full(d, 0.95)
-    _, g, _, info = polish(eng, IdentityPar(d), start, max_jacobians=100, log=lambda m: None)
+    res = polish(eng, IdentityPar(d), start, max_jacobians=100, log=lambda m: None)
     monkeypatch.setattr(polish_module, "RESOLUTION_FRACTION", 0.0)  # the rule never holds
-    _, g_off, _, off = polish(eng, IdentityPar(d), start, max_jacobians=100, log=lambda m: None)
-    assert info["rule"] == "data resolution" and info["jacobians"] < off["jacobians"], (info["stop"], off["stop"])
+    off = polish(eng, IdentityPar(d), start, max_jacobians=100, log=lambda m: None)
+    assert res.rule == "data resolution" and res.jacobians < off.jacobians, (res.stop, off.stop)
+    g, g_off = res.fitness, off.fitness
     assert g ** -0.5 - g_off ** -0.5 <= 0.25 * rmse_standard_error(form_error), (g ** -0.5, g_off ** -0.5)

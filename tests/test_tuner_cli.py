@@ -187,12 +187,12 @@ def test_fit_and_diagnosis_share_one_problem_prepared_once(tmp_path, small_lumpe
     from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
     from tuner.identification.engine import fastest_engine
     from tuner.identification.fit import FitSettings, fit
-    from tuner.identification.problem import Problem
+    from tuner.identification.problem import DataSettings, Problem
 
     ident, valid = small_lumped
     settings = FitSettings(models=("lumped",), population=4, iterations=1, workers=0, engine=fastest_engine(),
-                           polish_jacobians=1, force_limit_n=31000.0)
-    problem = Problem.build(ident, valid, settings.data())
+                           polish_jacobians=1, data=DataSettings(force_limit_n=31000.0))
+    problem = Problem.build(ident, valid, settings.data)
     assert problem.force_limit_n == 31000.0 and problem.parametrization("lumped").force_limit == 31000.0
     fitted = fit(ident, valid, settings, problem=problem, log=lambda m: None)
     metrics, base = fitted.metrics, fitted.params["lumped"]["values"]
@@ -202,9 +202,10 @@ def test_fit_and_diagnosis_share_one_problem_prepared_once(tmp_path, small_lumpe
     assert sorted(prepared_names) == sorted(t.name for t in ident + valid)  # each test prepared once
     assert metrics["settings"]["force_limit_n_used"] == res["settings"]["problem"]["force_limit_n_used"] == 31000.0
     with pytest.raises(ValueError, match="problem"):
-        fit(ident, valid, FitSettings(models=("lumped",), fit_rate_hz=100.0), problem=problem, log=lambda m: None)
+        fit(ident, valid, FitSettings(models=("lumped",), data=DataSettings(fit_rate_hz=100.0)), problem=problem,
+            log=lambda m: None)
     with pytest.raises(ValueError, match="prepared at 200 Hz"):
-        diagnose(ident, valid, tmp_path / "diag2", DiagnosisSettings(fit_rate_hz=100.0), base_params=base,
+        diagnose(ident, valid, tmp_path / "diag2", DiagnosisSettings(data=DataSettings(fit_rate_hz=100.0)), base_params=base,
                  problem=problem, log=lambda m: None)
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 import re
 
-from damper_fmu.parameters import EFFECT_TYPICAL
+from damper_fmu.effect_catalogue import EFFECT_TYPICAL
 
 __all__ = ["eng", "sig", "unit_html", "fmt_quantity", "effect_value"]
 

@@ -18,7 +18,7 @@ setting given on the command line reaches the fit and the diagnosis alike.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from damper_fmu.fmu import SLAVES, build
@@ -54,12 +54,9 @@ class JobResult:
 def diagnosis_settings(settings: FitSettings) -> DiagnosisSettings:
     """The diagnosis's settings after a fit with ``settings``: the same problem definition (fit rate,
     warm-up, differentiator band, abscissae, force limit, spring reference; the parametrization is
-    the diagnosis's own), engine, workers and seed."""
-    return DiagnosisSettings(fit_rate_hz=settings.fit_rate_hz, warmup_s=settings.warmup_s, workers=settings.workers,
-                             engine=settings.engine, seed=settings.seed, diff_band_hz=settings.diff_band_hz,
-                             damping_abscissae_m_s=settings.damping_abscissae_m_s,
-                             elastic_abscissae_m=settings.elastic_abscissae_m, force_limit_n=settings.force_limit_n,
-                             spring_reference_n_per_m=settings.spring_reference_n_per_m)
+    the diagnosis's own, 'improved'), engine, workers and seed."""
+    return DiagnosisSettings(data=replace(settings.data, parametrization="improved"),
+                             workers=settings.workers, engine=settings.engine, seed=settings.seed)
 
 
 def wants_diagnosis(settings: FitSettings, validation: list[RigTest]) -> bool:
@@ -92,7 +89,7 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
     95 % intervals from up to ``vehicle_draws`` parameter sets per FMU (0: none) run on ``vehicle_scheduler``;
     log: a callable taking one line (or a ``tuner.progress.JobProgress``, whose stages it advances)."""
     out = Path(out)
-    problem = Problem.build(identification, validation, settings.data())  # prepared once, for every stage
+    problem = Problem.build(identification, validation, settings.data)  # prepared once, for every stage
     result = fit(identification, validation, settings, checkpoints=out / "checkpoints", provenance=provenance,
                  problem=problem, log=log)
     result.write(out)
@@ -139,7 +136,7 @@ def base_refinements(result: FitResult, settings: FitSettings) -> dict:
     """{model: ``tuner.diagnosis.bases.BaseRefinement``} of the fit: on the fit's own problem the diagnosis does
     not refit a base whose refinement converged in the scheme it refines in ('improved'), and forecasts its
     time from the fit's cost per simulation."""
-    return {m: BaseRefinement.from_history(h, settings.parametrization) for m, h in result.histories.items()}
+    return {m: BaseRefinement.from_history(h, settings.data.parametrization) for m, h in result.histories.items()}
 
 
 def _diagnose(identification, validation, out, settings, base_params, base_model, base_choice, other_bases,

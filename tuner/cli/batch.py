@@ -49,8 +49,8 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--polish", type=int, default=None, help=f"refinement cap in Jacobians (default {d.polish_jacobians})")
     g.add_argument("--seed", type=int, default=None, help=f"seed of every row without its own (default {d.seed})")
     g.add_argument("--engine", default=None, choices=["fmu", "native", "inprocess"])
-    g.add_argument("--fit-rate", type=float, default=None, help=f"[Hz] (default {d.fit_rate_hz:g})")
-    g.add_argument("--warmup", type=float, default=None, help=f"[s] (default {d.warmup_s:g})")
+    g.add_argument("--fit-rate", type=float, default=None, help=f"[Hz] (default {d.data.fit_rate_hz:g})")
+    g.add_argument("--warmup", type=float, default=None, help=f"[s] (default {d.data.warmup_s:g})")
     g.add_argument("--row-workers", type=int, default=0,
                    help="evaluation processes inside each row (default 0: in the row's process)")
     g = p.add_argument_group("fleet summary")

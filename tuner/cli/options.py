@@ -11,6 +11,7 @@ from tuner.data.reading import DEFAULT_DAMPER_CLASS, load_dataset, load_files, r
 from tuner.data.summary import format_summary
 from tuner.fleet.executors import parse_scheduler
 from tuner.identification.fit import FitSettings
+from tuner.identification.problem import DataSettings
 from tuner.vehicle.propagation import PropagationSettings
 
 __all__ = ["add_data_options", "add_fit_options", "column_options", "fit_settings", "load_tests", "fit_rate_and_band",
@@ -126,12 +127,12 @@ def add_fit_options(ap: argparse.ArgumentParser) -> None:
                    help="fmu: the built FMU through fmpy (default; the native FMU where a C compiler is "
                         "found); native: the same C kernel called once per test, without FMI (faster, "
                         "equal results); inprocess: the Python reference (slow)")
-    g.add_argument("--parametrization", default=d.parametrization, choices=["improved", "paper"])
+    g.add_argument("--parametrization", default=d.data.parametrization, choices=["improved", "paper"])
     g.add_argument("--init", default=d.init, choices=["seeded", "random"],
                    help="seeded: data-driven guess and preset in the first population (default)")
-    g.add_argument("--fit-rate", type=float, default=d.fit_rate_hz, help="resample to this rate [Hz]")
-    g.add_argument("--warmup", type=float, default=d.warmup_s, help="seconds skipped at each test start")
-    g.add_argument("--diff-band", type=float, default=d.diff_band_hz, metavar="HZ",
+    g.add_argument("--fit-rate", type=float, default=d.data.fit_rate_hz, help="resample to this rate [Hz]")
+    g.add_argument("--warmup", type=float, default=d.data.warmup_s, help="seconds skipped at each test start")
+    g.add_argument("--diff-band", type=float, default=d.data.diff_band_hz, metavar="HZ",
                    help="band up to which the stroke differentiator is accurate to 0.5 %% (default: per test, where "
                         "99 %% of the stroke velocity's power lies, 20 Hz at least; ignored with --velocity-col)")
     g.add_argument("--force-limit", type=float, default=None,
@@ -175,16 +176,16 @@ def add_fit_options(ap: argparse.ArgumentParser) -> None:
 def fit_settings(args, models: tuple | None = None) -> "object":
     """The one mapping of the command line's options to ``FitSettings`` (SI units: the abscissae are
     given in mm and mm/s); ``models``: the checked --models (default the settings' own)."""
-    return FitSettings(models=models or FitSettings().models, fit_rate_hz=args.fit_rate, warmup_s=args.warmup,
+    data = DataSettings(fit_rate_hz=args.fit_rate, warmup_s=args.warmup, diff_band_hz=args.diff_band,
+                        damping_abscissae_m_s=None if args.damping_abscissae is None else
+                        tuple(1e-3 * v for v in args.damping_abscissae),
+                        elastic_abscissae_m=None if args.elastic_abscissae is None else
+                        tuple(1e-3 * x for x in args.elastic_abscissae),
+                        force_limit_n=args.force_limit, parametrization=args.parametrization)
+    return FitSettings(models=models or FitSettings().models, data=data,
                        population=args.population, iterations=args.iterations, workers=args.workers,
-                       seed=args.seed, engine=args.engine, parametrization=args.parametrization,
-                       init=args.init, force_limit_n=args.force_limit,
-                       stop_tol=None if args.no_stop else 1e-3, polish_jacobians=args.polish,
-                       diff_band_hz=args.diff_band,
-                       damping_abscissae_m_s=None if args.damping_abscissae is None else
-                       tuple(1e-3 * v for v in args.damping_abscissae),
-                       elastic_abscissae_m=None if args.elastic_abscissae is None else
-                       tuple(1e-3 * x for x in args.elastic_abscissae))
+                       seed=args.seed, engine=args.engine, init=args.init,
+                       stop_tol=None if args.no_stop else 1e-3, polish_jacobians=args.polish)
 
 
 def vehicle_scheduler(args) -> str | None:
@@ -241,4 +242,4 @@ def load_tests(args, file_role: str | None = "identification"):
 
 def fit_rate_and_band(args) -> tuple[float, float | None]:
     """Fit rate [Hz] and differentiator band [Hz] (None: from the data) the command will use."""
-    return getattr(args, "fit_rate", None) or FitSettings().fit_rate_hz, getattr(args, "diff_band", None)
+    return getattr(args, "fit_rate", None) or DataSettings().fit_rate_hz, getattr(args, "diff_band", None)

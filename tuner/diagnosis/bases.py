@@ -126,9 +126,9 @@ def identified_bases(problem: Problem, out: Path, settings: DiagnosisSettings, b
     for kind in base_kinds(settings, None, None, given=False):
         par_k = parametrization(kind, None)
         log(f"diagnosis: identifying the base {kind} model ...")
-        fs = FitSettings(models=(kind,), fit_rate_hz=settings.fit_rate_hz, warmup_s=settings.warmup_s,
-                         iterations=settings.base_iterations, workers=settings.workers, seed=settings.seed,
-                         engine=settings.engine, polish_jacobians=settings.base_polish_jacobians)
+        fs = FitSettings(models=(kind,), data=settings.data, iterations=settings.base_iterations,
+                         workers=settings.workers, seed=settings.seed, engine=settings.engine,
+                         polish_jacobians=settings.base_polish_jacobians)
         found = identify(kind, problem.sig_id, fs, par_k, out / "checkpoints" / f"diagnosis_base_{kind}.json",
                          problem.digest, log.part(f"identification of the {kind} base"))
         fitted[kind] = (Base(par_k, found.values, BaseRefinement.from_history(found.history)),

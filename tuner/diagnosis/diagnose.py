@@ -56,10 +56,9 @@ CandidateSearch``, the decision rules are in ``tuner.diagnosis.rules``, the word
    the extended model as a tuned FMU (``fmu/<model identifier>_<causes>_tuned.fmu``, e.g.
    ``DamperLumped_friction_tuned.fmu``).
 
-Search bounds (``search_bounds``) cover twice the catalogue's typical range
-(``damper_fmu.parameters.EFFECT_TYPICAL``, the one source), force scales at least 10 % of the
-measured peak force and a free play at most the stroke range, so the procedure is not tied to one
-damper.
+Search bounds (``search_bounds``: each effect's rule in its record, ``damper_fmu.effect_catalogue``, the
+one source) cover twice the catalogue's typical range, force scales at least 10 % of the measured peak
+force and a free play at most the stroke range, so the procedure is not tied to one damper.
 """
 from __future__ import annotations
 
@@ -72,6 +71,7 @@ from pathlib import Path
 
 import numpy as np
 
+from damper_fmu.effect_catalogue import search_bounds  # noqa: F401
 from damper_fmu.fmu import SLAVES, build
 
 from tuner import strict_json
@@ -79,7 +79,7 @@ from tuner.data.reading import RigTest
 from tuner.diagnosis.bases import (BASE_MODELS, Base, choose_base, identified_bases, progress_plan,  # noqa: F401
                                    why_not_repeated)
 from tuner.diagnosis.cost_model import expected_cost
-from tuner.diagnosis.refit import MIN_BLOCKS, ExtendedParametrization, search_bounds  # noqa: F401
+from tuner.diagnosis.refit import MIN_BLOCKS, ExtendedParametrization  # noqa: F401
 from tuner.diagnosis.result import Diagnosis
 from tuner.diagnosis.rules import (ACCEPT_SCORE, PENALTY_PER_PARAMETER, UNEXPLAINED_RATIO, cross_check,  # noqa: F401
                                    decide)
@@ -119,7 +119,7 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     keeps the one with the lowest held-out MSE); base_choice: how the caller chose it (reported);
     other_bases: {kind: values} of the other fitted base forms (``choose_base``); problem: the tests
     prepared by the fit before (``tuner.identification.problem``: the same fit rate, abscissae and
-    force limit), built from ``settings.data()`` when not given; refinements: {kind:
+    force limit), built from ``settings.data`` when not given; refinements: {kind:
     ``tuner.diagnosis.bases.BaseRefinement``} of the given values' identification on ``problem`` (a settled
     base is not refitted again as 'none'; its cost per simulation forecasts the time left).
 
@@ -165,14 +165,15 @@ def _checked_problem(problem: Problem | None, identification, validation, settin
     """The prepared tests: ``problem`` when it was built from these tests at the settings' rate, else
     built here (ValueError for one of other tests or rates)."""
     if problem is None:
-        return Problem.build(identification, validation, settings.data())
+        return Problem.build(identification, validation, settings.data)
     if [t.name for t in problem.identification] != [t.name for t in identification] or \
             [t.name for t in problem.validation] != [t.name for t in validation]:
         raise ValueError("diagnose: the problem given was built from other tests")
-    if (problem.settings.fit_rate_hz, problem.settings.warmup_s) != (settings.fit_rate_hz, settings.warmup_s):
+    asked = settings.data
+    if (problem.settings.fit_rate_hz, problem.settings.warmup_s) != (asked.fit_rate_hz, asked.warmup_s):
         raise ValueError(f"diagnose: the problem was prepared at {problem.settings.fit_rate_hz:g} Hz with "
-                         f"{problem.settings.warmup_s:g} s warm-up, the settings ask for {settings.fit_rate_hz:g} Hz "
-                         f"and {settings.warmup_s:g} s")
+                         f"{problem.settings.warmup_s:g} s warm-up, the settings ask for {asked.fit_rate_hz:g} Hz "
+                         f"and {asked.warmup_s:g} s")
     return problem
 
 
@@ -248,7 +249,10 @@ def _checkpointed_run(kind: str, base: Base, problem: Problem, settings: Diagnos
     same data, settings and base values (``checkpoints/diagnosis_<kind>.json``, written when it finishes;
     one of other data or settings: ValueError)."""
     path = out / "checkpoints" / f"diagnosis_{kind}.json"
-    key = _digest([problem.digest, kind, {k: v for k, v in settings.__dict__.items() if k not in ("workers", "extra")}])
+    # the flat record without what may change on resuming; the parametrization, always 'improved', is left out so
+    # that checkpoints written before the settings held a DataSettings still match
+    key = _digest([problem.digest, kind, {k: v for k, v in settings.to_dict().items()
+                                          if k not in ("workers", "parametrization")}])
     base_key = _digest(base.values)
     if path.exists():
         saved = strict_json.loads(path.read_text())
@@ -279,10 +283,10 @@ def _digest(value) -> str:
 
 def _settings_record(settings: DiagnosisSettings, problem: Problem, elapsed_s: float) -> dict:
     """The settings block of ``diagnosis.json``: the run's settings, the decision rules, the problem."""
-    return {**{k: v for k, v in settings.__dict__.items() if k != "extra"},
+    return {**settings.to_dict(),
             "penalty_per_parameter": PENALTY_PER_PARAMETER, "accept_score": ACCEPT_SCORE,
             "unexplained_ratio": UNEXPLAINED_RATIO, "min_blocks": MIN_BLOCKS,
-            "problem": {"data_settings": problem.settings.__dict__, "force_limit_n_used": problem.force_limit_n,
+            "problem": {"data_settings": problem.settings.to_dict(), "force_limit_n_used": problem.force_limit_n,
                         "table_abscissae": problem.axes},
             "elapsed_s": elapsed_s}
 

@@ -1,6 +1,6 @@
 """Effect sizes relative to the damper tested: the typical ranges of the catalogue, scaled.
 
-The catalogue's typical magnitudes (``damper_fmu.parameters.EFFECT_TYPICAL``: friction 50-300 N, an
+The catalogue's typical magnitudes (``damper_fmu.effect_catalogue``, ``Effect.typical``: friction 50-300 N, an
 inertia of 20-200 kg, a free play of 0.1-1 mm ...) are those of a railway yaw damper: peak forces of
 about ``REFERENCE.peak_force_n`` on strokes of about ``REFERENCE.stroke_range_m``. On a damper 30 times
 smaller the same rule would refuse every cause (a 2.35 kg inertia that removed 24 % of a 600 N damper's
@@ -13,6 +13,9 @@ held-out error was refused as "below 10 kg"). So the ranges scale with the dampe
 * times (valve lag, channel delay), the thermal coefficient and the bypass ratio are not sizes of the
   damper: unchanged.
 
+Which parameter scales how is part of its effect's record (``Effect.scaling``: ``SCALES_WITH_FORCE``,
+``SCALES_WITH_STROKE``).
+
 A magnitude is physically meaningful when it reaches ``MEANINGFUL_FRACTION`` of the low end of its scaled
 range (``meaningful_floor``); the report shows the scaled range beside the fitted value.
 """
@@ -20,16 +23,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from damper_fmu.parameters import EFFECT_TYPICAL
+from damper_fmu.effect_catalogue import SCALES_WITH_FORCE, SCALES_WITH_STROKE, effect_of
 
 __all__ = ["DamperSize", "REFERENCE", "MEANINGFUL_FRACTION", "size_factor", "typical_range", "meaningful_floor"]
 
 #: a magnitude below this fraction of the low end of its (scaled) typical range is no physical cause (a 0.2
 #: ms valve lag where valves lag 1-10 ms is the refit compensating something else)
 MEANINGFUL_FRACTION = 0.5
-
-FORCE_LIKE = ("friction_force", "preload_force", "hysteresis_force", "inertia_mass")
-LENGTH_LIKE = ("free_play", "hysteresis_displacement")
 
 
 @dataclass(frozen=True)
@@ -50,9 +50,10 @@ def size_factor(name: str, size: DamperSize | None) -> float:
     docstring); 1 for the reference damper, for no size given, and for parameters that are no size."""
     if size is None:
         return 1.0
-    if name in FORCE_LIKE:
+    scaling = effect_of(name).scaling.get(name)
+    if scaling == SCALES_WITH_FORCE:
         return size.peak_force_n / REFERENCE.peak_force_n
-    if name in LENGTH_LIKE:
+    if scaling == SCALES_WITH_STROKE:
         return min(1.0, size.stroke_range_m / REFERENCE.stroke_range_m)
     return 1.0
 
@@ -60,7 +61,7 @@ def size_factor(name: str, size: DamperSize | None) -> float:
 def typical_range(name: str, size: DamperSize | None = None) -> tuple[float, float]:
     """Typical |value| (SI) of effect parameter ``name`` on a damper of ``size`` (the catalogue's range
     scaled, ``size_factor``)."""
-    lo, hi = EFFECT_TYPICAL[name]
+    lo, hi = effect_of(name).typical[name]
     k = size_factor(name, size)
     return lo * k, hi * k
 

@@ -1,7 +1,7 @@
 """Form candidates beyond the effect catalogue: elements real dampers show and the base forms lack.
 
 When the catalogue leaves a residual above the floor on a converged fit, the diagnosis
-(``tuner.diagnosis.diagnose``) tries each form of ``damper_fmu.parameters.FORM_EFFECTS`` on top of
+(``tuner.diagnosis.diagnose``) tries each form of ``damper_fmu.effect_catalogue.FORM_EFFECTS`` on top of
 the model it has (the base, or the base with the causes named): pre-yield hysteresis (a Dahl
 element: MR fluid below yield, seals that stick before they slide) and position-dependent damping
 (a bypass groove). A form has a magnitude (its first identified parameter, off at 0) and shape
@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from damper_fmu.parameters import EFFECT_IDENTIFIED
+from damper_fmu.effect_catalogue import ALL_EFFECTS, FORM_EFFECTS
 
 from tuner.diagnosis.refit import ExtendedParametrization
 from tuner.diagnosis.screen import off_span
@@ -27,8 +27,8 @@ from tuner.identification.engine import Engine
 
 __all__ = ["FORM_LABELS", "shape_grid", "screen", "settings_text", "PROBE_FRACTION"]
 
-#: how the verdict names each form
-FORM_LABELS = {"hysteresis": "pre-yield hysteresis", "bypass": "position-dependent damping (bypass groove)"}
+#: how the verdict names each form (``Effect.label``)
+FORM_LABELS = {f: ALL_EFFECTS[f].label for f in FORM_EFFECTS}
 #: the probe magnitude of the screen, as a fraction of the magnitude's search range (the form's force
 #: is close to linear in its magnitude there: exactly for the hysteresis, to first order for the bypass)
 PROBE_FRACTION = 0.25
@@ -80,7 +80,7 @@ def screen(eid: Engine, ext: ExtendedParametrization, form: str, current: dict, 
     "held_magnitude": the same regression with the current model held as it is (no re-balance: where a
     shape that is not refitted is ranked, since its "magnitude" wins only with the model re-balanced)}],
     best first (shapes whose force cannot be simulated are skipped)."""
-    magnitude = EFFECT_IDENTIFIED[form][0]
+    magnitude = ALL_EFFECTS[form].magnitude
     bounds = dict(zip(ext.extra, ext.extra_bounds))
     lo, hi = bounds[magnitude]
     probe = lo + PROBE_FRACTION * (hi - lo)

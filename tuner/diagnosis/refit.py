@@ -1,8 +1,9 @@
 """Refits of a base model extended by effect elements (the diagnosis's workhorse).
 
 ``ExtendedParametrization``: the base design vector plus effect parameters, linear within their
-search bounds (``search_bounds``); ``refit``: a profile line search on the effect parameter(s) with
-the base re-balanced, then a joint least-squares polish; ``base_jacobian``: the SVD of the
+search bounds (``damper_fmu.effect_catalogue.search_bounds``: each effect's rule); ``refit``: a profile
+line search on the effect parameter(s) with the base re-balanced, then a joint least-squares polish
+(a ``RefitResult``); ``base_jacobian``: the SVD of the
 residual's Jacobian that re-balances the base; ``effect_intervals``: 95 % intervals of the effect
 parameters (block sandwich: residuals are correlated in time). Units: SI; residuals in N.
 """
@@ -10,10 +11,11 @@ from __future__ import annotations
 
 import copy
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from damper_fmu.parameters import EFFECT_IDENTIFIED, EFFECT_PARAMETERS, EFFECT_TYPICAL
+from damper_fmu.effect_catalogue import ALL_EFFECTS, EFFECT_PARAMETERS, effect_of, search_bounds
 
 from tuner.diagnosis.effect_sizes import REFERENCE, DamperSize, meaningful_floor
 from tuner.diagnosis.significance import block_sandwich, correlation_time, interval
@@ -21,8 +23,8 @@ from tuner.identification.engine import Engine
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.polish import polish
 
-__all__ = ["search_bounds", "ExtendedParametrization", "grid", "base_jacobian", "refit", "effect_intervals",
-           "MIN_BLOCKS"]
+__all__ = ["ExtendedParametrization", "grid", "base_jacobian", "refit", "RefitResult",
+           "effect_intervals", "MIN_BLOCKS"]
 
 #: fewest independent residual blocks for a confidence interval to be trusted
 MIN_BLOCKS = 10
@@ -32,34 +34,6 @@ PROFILE_SHARE = 0.02
 #: Jacobians of the joint polish that must win PROFILE_SHARE when the profile did not, for the rest to follow
 PROBE_JACOBIANS = 2
 DEFAULTS = {p.name: p.default for p in EFFECT_PARAMETERS}
-
-
-def search_bounds(name: str, peak_force: float, stroke_range_m: float | None = None,
-                  stroke_limits: tuple[float, float] | None = None) -> tuple[float, float]:
-    """Refit bounds of an effect parameter (SI): twice the top of the catalogue's typical range, so
-    that every documented magnitude is reachable; force scales at least 10 % of the measured peak
-    force [N] (a larger damper may have more) and at most the peak force itself; a free play at
-    most the data's stroke range [m] (a wider gap would leave the damper unloaded all along);
-    within the parameter's model bounds. Form shapes: a hysteresis displacement up to half the
-    stroke range; a bypass groove centred within the stroke's limits [m] (min, max; default centred
-    on zero) and 5-80 % of the stroke range long (a longer one is a change of the whole
-    characteristic, which the base absorbs)."""
-    span = stroke_range_m if stroke_range_m and stroke_range_m > 0 else 0.02
-    if name == "hysteresis_displacement":
-        return (1e-5, max(1e-4, min(4e-3, 0.5 * span)))
-    if name == "bypass_center":
-        return tuple(stroke_limits) if stroke_limits is not None else (-0.5 * span, 0.5 * span)
-    if name == "bypass_width":
-        return (max(2e-3, 0.05 * span), max(4e-3, 0.8 * span))
-    if name == "bypass_ratio":
-        return (0.0, 0.9)
-    top = 2.0 * EFFECT_TYPICAL[name][1]
-    if name in ("friction_force", "preload_force", "hysteresis_force"):
-        top = min(max(top, 0.1 * peak_force), peak_force)
-    if name == "free_play" and stroke_range_m is not None and stroke_range_m > 0:
-        top = min(top, stroke_range_m)
-    top = min(top, next(p.high for p in EFFECT_PARAMETERS if p.name == name))  # what the model accepts
-    return (-top, top) if name == "preload_force" else (0.0, top)
 
 
 class ExtendedParametrization:
@@ -73,11 +47,11 @@ class ExtendedParametrization:
         self.fixed = dict(fixed or {})
         self.peak_force, self.stroke_limits = peak_force, stroke_limits
         self.effects = effect.split("+")
-        self.extra = [n for e in self.effects for n in EFFECT_IDENTIFIED[e]]
+        self.extra = [n for e in self.effects for n in ALL_EFFECTS[e].identified]
         self.extra_bounds = [search_bounds(n, peak_force, stroke_range_m, stroke_limits) for n in self.extra]
         size = DamperSize(peak_force, stroke_range_m or REFERENCE.stroke_range_m)
         #: the smallest magnitude of each extra parameter that is a cause on this damper (None: a shape)
-        self.floors = [meaningful_floor(n, size) if n in EFFECT_TYPICAL else None for n in self.extra]
+        self.floors = [meaningful_floor(n, size) if n in effect_of(n).typical else None for n in self.extra]
         self.dimension = base.dimension + len(self.extra)
         self.names = base.names + self.extra
 
@@ -131,13 +105,24 @@ def base_jacobian(eid: Engine, par, z0: np.ndarray, step: float = 1e-4, dims: in
     return np.linalg.svd(np.column_stack(cols), full_matrices=False)
 
 
+@dataclass(frozen=True)
+class RefitResult:
+    """The best point of one ``refit`` of an extended model."""
+
+    #: the point, in the search coordinates of the ``ExtendedParametrization`` refitted (each in [0, 1])
+    z: np.ndarray
+    #: its fitness G = N / SSE [1/N^2] on the identification data (N samples, SSE [N^2])
+    fitness: float
+    #: simulations run (line search, profile steps and joint polish)
+    evaluations: int
+
+
 def refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: float, jac_svd,
-           settings, jacobians: int, profile=None) -> tuple[np.ndarray, float, int]:
+           settings, jacobians: int, profile=None) -> RefitResult:
     """Profile line search on the effect parameters of ``ext.extra`` at the indices ``profile``
     (default all; the others, e.g. effects already selected or a form's shape, are kept at their
     values in z0) from z0 (identification SSE sse0 [N^2]),
-    then a joint polish of at most ``jacobians`` Jacobians; returns (z, fitness G = N / SSE,
-    evaluations).
+    then a joint polish of at most ``jacobians`` Jacobians; returns the best point as a ``RefitResult``.
 
     Line search: for each grid value, the effect parameter is set with the base fixed, then the
     current model is re-balanced (what it had absorbed of the effect) by Levenberg-Marquardt steps
@@ -198,13 +183,13 @@ def refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: float
         # the profile, the base re-balanced, did not win PROFILE_SHARE of the SSE: the joint polish (most of
         # the refit's cost) goes on only if its first PROBE_JACOBIANS win it (a joint move the profile's
         # fixed Jacobian cannot make, e.g. a preload between two grid values with the tables shifted back)
-        z, g, n, _ = polish(eid, ext, z_start, max_jacobians=min(PROBE_JACOBIANS, jacobians), log=lambda m: None)
-        evals += n
-        if jacobians <= PROBE_JACOBIANS or not eid.n_samples / g < (1.0 - PROFILE_SHARE) * sse0:
-            return z, g, evals
-        z_start, jacobians = z, jacobians - PROBE_JACOBIANS
-    z, g, n, _ = polish(eid, ext, z_start, max_jacobians=jacobians, log=lambda m: None)
-    return z, g, evals + n
+        probe = polish(eid, ext, z_start, max_jacobians=min(PROBE_JACOBIANS, jacobians), log=lambda m: None)
+        evals += probe.evaluations
+        if jacobians <= PROBE_JACOBIANS or not eid.n_samples / probe.fitness < (1.0 - PROFILE_SHARE) * sse0:
+            return RefitResult(probe.z, probe.fitness, evals)
+        z_start, jacobians = probe.z, jacobians - PROBE_JACOBIANS
+    joint = polish(eid, ext, z_start, max_jacobians=jacobians, log=lambda m: None)
+    return RefitResult(joint.z, joint.fitness, evals + joint.evaluations)
 
 
 def effect_intervals(eid: Engine, ext: ExtendedParametrization, z: np.ndarray, step: float = 1e-4) -> dict:

@@ -2,7 +2,8 @@
 
 Residual r = measured - simulated force [N]; stroke [m] + in extension, force [N] + in tension,
 time [s], temperature [degC]. Catalogue and signatures: design.md, "Effects a real damper shows
-that the base model lacks". ``evidence`` fits r (masked samples, identification and validation
+that the base model lacks"; each effect's record (``damper_fmu.effect_catalogue``) names its signature,
+the symbol and unit of its magnitude and whether the coefficient must be positive. ``evidence`` fits r (masked samples, identification and validation
 pooled, and per test) by one signature regressor g per effect, least squares without intercept;
 the explained fraction is the uncentred R^2 = (g.r)^2 / (g.g r.r), i.e. the share of residual
 power (mean square) the term removes (for ``preload`` that is mean(r)^2 / mean(r^2)).
@@ -31,9 +32,13 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from scipy import optimize, signal
 
+from damper_fmu.effect_catalogue import ALL_EFFECTS
+
 __all__ = ["TestResidual", "evidence", "joint_screen", "residual_figures", "EFFECTS"]
 
-EFFECTS = ("friction", "preload", "free_play", "thermal_drift", "valve_lag", "time_delay", "inertia")
+#: the effects with a residual signature (``Effect.signature``): the catalogue's; their regressors are
+#: ``_signature`` and ``_signatures`` here
+EFFECTS = tuple(e.name for e in ALL_EFFECTS.values() if e.signature)
 ROLES = ("identification", "validation")
 V_EPS = 0.5e-3                   # friction regressor velocity scale [m/s]
 DIFF_WINDOW_S = 0.020            # Savitzky-Golay window [s]
@@ -267,10 +272,6 @@ def _effects(preps, knee):
     return {**one, "free_play": _free_play(preps), "thermal_drift": _thermal(preps)}
 
 
-UNITS = {"friction": ("Ff", "N"), "preload": ("F0", "N"), "free_play": ("gap", "m"),
-         "valve_lag": ("tau", "s"), "time_delay": ("delay", "s"), "inertia": ("m_eq", "kg")}
-
-
 def _sentence(e, d):
     """One line of evidence for effect e from its pooled numbers."""
     x = f"explains {100 * d['r2']:.0f} % of the residual power"
@@ -297,14 +298,12 @@ def _sentence(e, d):
             }[e]() + _against_physics(e, d) + f"; {x}"
 
 
-#: effects whose regression coefficient has a physical sign (> 0 for the effect itself)
-_SIGNED = {"friction": "a friction", "inertia": "an inertia", "time_delay": "a delay", "valve_lag": "a valve lag"}
-
-
 def _against_physics(e, d) -> str:
-    """A word when a signed effect's coefficient came out negative: not that effect."""
-    if e in _SIGNED and d.get("value") is not None and d["value"] < 0:
-        return f" (negative: opposite to {_SIGNED[e]}, so this correlation is not evidence for it)"
+    """A word when the coefficient of an effect with a physical sign (``Effect.positive``) came out
+    negative: not that effect."""
+    noun = ALL_EFFECTS[e].positive
+    if noun and d.get("value") is not None and d["value"] < 0:
+        return f" (negative: opposite to {noun}, so this correlation is not evidence for it)"
     return ""
 
 
@@ -393,10 +392,6 @@ def _clean(v):
 
 # --------------------------------------------------------------------------- joint screen
 
-#: effects whose screen coefficient must be positive to count (the signature's sign is the effect's)
-_POSITIVE = ("friction", "inertia", "time_delay", "valve_lag", "free_play")
-
-
 def _signatures(p, knee, gap_span, use_temperature: bool):
     """Linearised signature of every catalogue effect for one test (columns in EFFECTS order):
     the regressors of the single-effect evidence, free play as -F_sim within ``gap_span`` [s] after
@@ -445,7 +440,8 @@ def joint_screen(preps, knee, gap_span: float, threshold_n: float) -> dict:
     for _ in range(len(EFFECTS)):
         coef, r2 = solve(keep)
         contrib = np.abs(coef) * scale
-        wrong = np.array([e in _POSITIVE and c < 0 for e, c in zip(EFFECTS, coef)])
+        # a coefficient must be positive to count when the signature's sign is the effect's (Effect.positive)
+        wrong = np.array([bool(ALL_EFFECTS[e].positive) and c < 0 for e, c in zip(EFFECTS, coef)])
         new = keep & (contrib >= threshold_n) & ~wrong
         if (new == keep).all():
             break
@@ -481,7 +477,8 @@ def evidence(tests: list[TestResidual], noise_n: float | None = None) -> dict:
     effects = {}
     for e in EFFECTS:
         d = pooled[e]
-        q, u = UNITS.get(e) or (("beta", "1/K") if d["beta"] is not None else ("gain_change_per_100s", "1/(100 s)"))
+        q, u = ((ALL_EFFECTS[e].symbol, ALL_EFFECTS[e].unit) if e != "thermal_drift" or d["beta"] is not None
+                else ("gain_change_per_100s", "1/(100 s)"))
         effects[e] = {"quantity": q, "unit": u, **{k: _clean(v) for k, v in d.items()},
                       "sentence": _sentence(e, d),
                       "per_test": {n: {k: _clean(v) for k, v in per[n][e].items()} for n in per}}

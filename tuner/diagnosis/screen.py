@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from damper_fmu.parameters import EFFECT_IDENTIFIED
+from damper_fmu.effect_catalogue import ALL_EFFECTS
 
 from tuner.diagnosis.refit import ExtendedParametrization, grid
 from tuner.identification.engine import Engine
@@ -111,7 +111,7 @@ def profile_screen(eid: Engine, exts: dict[str, ExtendedParametrization], curren
     out, and so are all when the current model cannot be simulated."""
     points, owners = [current], []
     for effect, ext in exts.items():
-        (name,) = EFFECT_IDENTIFIED[effect]
+        (name,) = ALL_EFFECTS[effect].identified
         k = ext.extra.index(name)
         lo, hi = ext.extra_bounds[k]
         for m in grid(lo, hi, grid_points, ext.floors[k]):

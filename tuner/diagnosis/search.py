@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from damper_fmu.fmu import ensure_fmu
-from damper_fmu.parameters import EFFECT_IDENTIFIED, EFFECT_KIND, EFFECT_PARAMETERS, EFFECT_TYPICAL, defaults
+from damper_fmu.effect_catalogue import EFFECT_IDENTIFIED, EFFECT_KIND, EFFECT_PARAMETERS, EFFECT_TYPICAL, search_bounds
+from damper_fmu.parameters import defaults
 
 from tuner.data.noise import channel_noise
 from tuner.data.reading import RigTest
@@ -21,7 +22,7 @@ from tuner.diagnosis.cost_model import DiagnosisCost, expected_cost, refit_cost
 from tuner.diagnosis.detection import detection_limits
 from tuner.diagnosis.effect_sizes import REFERENCE, DamperSize, meaningful_floor, typical_range
 from tuner.diagnosis.forms import FORM_LABELS, screen, settings_text, shape_grid
-from tuner.diagnosis.refit import ExtendedParametrization, base_jacobian, effect_intervals, refit, search_bounds
+from tuner.diagnosis.refit import ExtendedParametrization, base_jacobian, effect_intervals, refit
 from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidence, residual_figures
 from tuner.diagnosis.rules import (ACCEPT_SCORE, FORM_EXCESS_SHARE, PENALTY_PER_PARAMETER, UNEXPLAINED_RATIO,
                                    cross_check, decide, earned, excess_explained, rescore, score, within_bounds)
@@ -42,7 +43,7 @@ from tuner.formatting import fmt_quantity
 from tuner.identification.engine import Engine
 from tuner.identification.fit import initial_guess, validation_run
 from tuner.identification.parametrization import Parametrization
-from tuner.identification.polish import polish
+from tuner.identification.polish import PolishResult, polish
 from tuner.identification.problem import Problem
 from tuner.metrics import pooled_mse
 from tuner.progress import advance, expect
@@ -59,7 +60,7 @@ def stroke_noise_force(kind: str, params: dict, tests: list[RigTest], signals: l
     rng = np.random.default_rng(0)
     se = n = 0.0
     for t, s in zip(tests, signals):
-        sigma = channel_noise(t, settings.fit_rate_hz, "stroke")
+        sigma = channel_noise(t, settings.data.fit_rate_hz, "stroke")
         noisy = dataclasses.replace(s, stroke=s.stroke + rng.normal(0.0, sigma, s.stroke.size))
         d = (validation_run(kind, params, noisy, settings.engine)[0] - validation_run(kind, params, s, settings.engine)[0])
         se, n = se + float(np.sum(d[s.mask] ** 2)), n + int(s.mask.sum())
@@ -217,12 +218,12 @@ class CandidateSearch:
                 "validation": {s.name: {"mse": m, "ame": a} for s, (m, a) in zip(self.data.sig_val, per_test)},
                 "evaluations": int(evals)}
 
-    def settled(self, info: dict, g: float) -> bool:
+    def settled(self, pol: PolishResult, g: float) -> bool:
         """A refit settled: it met its first-order test, or stalled (no damped step helps) where the gain its
         Gauss-Newton step still predicts cannot bring it within UNEXPLAINED_RATIO x the floor; a spent
-        budget never settles (``info`` of ``polish``, ``g`` its fitness N / SSE)."""
-        reachable = math.sqrt(max(0.0, 1.0 - info["predicted"]) / g) if g > 0 else math.inf
-        return bool(info["converged"] or (self.credible and not info["budget_spent"]
+        budget never settles (``pol`` of ``polish``, ``g`` its fitness N / SSE)."""
+        reachable = math.sqrt(max(0.0, 1.0 - pol.predicted) / g) if g > 0 else math.inf
+        return bool(pol.converged or (self.credible and not pol.budget_spent
                                           and reachable > UNEXPLAINED_RATIO * self.floor))
 
     def set_none(self, z: np.ndarray, g: float, evaluations: int, rescore_ranking: bool = True) -> None:
@@ -238,7 +239,7 @@ class CandidateSearch:
             rescore([r for r in self.ranking if r["effect"] != "none"], self.mse_none)
         self.ranking[:] = [self.none_row if r["effect"] == "none" else r for r in self.ranking]
 
-    def polish_quietly(self, par, z: np.ndarray, jacobians: int):
+    def polish_quietly(self, par, z: np.ndarray, jacobians: int) -> PolishResult:
         return polish(self.eid, par, z, max_jacobians=jacobians, log=lambda m: None)
 
     # -- the steps ----------------------------------------------------------------------------------------
@@ -257,24 +258,26 @@ class CandidateSearch:
         self.starts = [(self.base, sse_base, self.jac_base)]
         self.share = max(1, self.settings.polish_jacobians // 2)  # the Jacobian budget, split between two starts
         if self.settled_by:  # the same refinement from the point where it converged ends there: not run again
-            z_none, g_none, evals = self.par.from_params(self.base), self.eid.n_samples / sse_base, 0
-            info = {"converged": True, "budget_spent": False, "predicted": 0.0}
+            pol = PolishResult(z=self.par.from_params(self.base), fitness=self.eid.n_samples / sse_base, evaluations=0,
+                               stop=f"settled: {self.settled_by}", converged=True, rule="settled", jacobians=0,
+                               predicted=0.0, budget_spent=False)
             self.log(f"  none           the fitted base is settled (its refinement on these tests: {self.settled_by}): "
                      f"it is the base refitted alike")
         else:
-            z_none, g_none, evals, info = self.polish_quietly(self.par, self.par.from_params(self.base), self.share)
+            pol = self.polish_quietly(self.par, self.par.from_params(self.base), self.share)
+        z_none, g_none, evals = pol.z, pol.fitness, pol.evaluations
         # the data-driven guess has absorbed no effect into the tables; it is a second start only where the
         # fitted base is not settled (its refit spent the budget still improving): from a settled base the
         # profile line search re-balances what the tables absorbed
-        self.one_start = bool(info["converged"]) or not self.settings.guess_start
-        if info["converged"]:  # the base refit met its rule: an 'unexplained' can rest on it
-            self.converged[""] = self.settled(info, g_none)
+        self.one_start = bool(pol.converged) or not self.settings.guess_start
+        if pol.converged:  # the base refit met its rule: an 'unexplained' can rest on it
+            self.converged[""] = self.settled(pol, g_none)
         if not self.one_start:
             self.starts.append((self.guess, math.inf, None))
-            z, g, n, _ = self.polish_quietly(self.par, self.par.from_params(self.guess), self.share)
-            evals += n
-            if g > g_none:
-                z_none, g_none = z, g
+            pol = self.polish_quietly(self.par, self.par.from_params(self.guess), self.share)
+            evals += pol.evaluations
+            if pol.fitness > g_none:
+                z_none, g_none = pol.z, pol.fitness
         self.set_none(z_none, g_none, evals)
         self.log(f"  {'none':14s} (base refitted alike)  identification RMSE "
                  f"{self.none_row['identification_rmse_n']:.1f} N, validation MSE "
@@ -305,10 +308,10 @@ class CandidateSearch:
         polish; the better identification fit wins. Returns its ranking row."""
         best_z, g, evals = None, -math.inf, 0
         for start, sse_start, svd in self.starts:
-            z, g_s, n = refit(self.eid, ext, ext.from_params(start), sse_start, svd, self.settings, self.share)
-            evals += n
-            if g_s > g:
-                best_z, g = z, g_s
+            fit = refit(self.eid, ext, ext.from_params(start), sse_start, svd, self.settings, self.share)
+            evals += fit.evaluations
+            if fit.fitness > g:
+                best_z, g = fit.z, fit.fitness
         self.refits[effect] = Fit(ext, best_z, evals)
         return self.held_out(effect, ext.to_params(best_z), ext.extra, g, evals, self.mse_none)
 
@@ -372,13 +375,14 @@ class CandidateSearch:
         lead = max(self.ranking, key=lambda r: r["score"] if r["resolved"] else -math.inf, default=None)
         if not (lead and lead["score"] > ACCEPT_SCORE and lead["resolved"] and self.settings.final_jacobians > 0):
             return
-        z, g, n, info = self.polish_quietly(self.par, self.z_none, self.settings.final_jacobians)
-        self.converged[""] = self.settled(info, g)
-        self.set_none(z, g, self.none_row["evaluations"] + n, rescore_ranking=False)
+        pol = self.polish_quietly(self.par, self.z_none, self.settings.final_jacobians)
+        self.converged[""] = self.settled(pol, pol.fitness)
+        self.set_none(pol.z, pol.fitness, self.none_row["evaluations"] + pol.evaluations, rescore_ranking=False)
         fit = self.refits[lead["effect"]]
-        z, g, n, info = self.polish_quietly(fit.ext, fit.z, self.settings.final_jacobians)
-        fit = self.refits[lead["effect"]] = Fit(fit.ext, z, fit.evaluations + n)
-        self.converged[lead["effect"]] = self.settled(info, g)
+        pol = self.polish_quietly(fit.ext, fit.z, self.settings.final_jacobians)
+        g = pol.fitness
+        fit = self.refits[lead["effect"]] = Fit(fit.ext, pol.z, fit.evaluations + pol.evaluations)
+        self.converged[lead["effect"]] = self.settled(pol, g)
         row = self.held_out(lead["effect"], fit.params(), fit.ext.extra, g, fit.evaluations, self.mse_none)
         row.update({k: lead[k] for k in ("refitted", "screen") if k in lead})
         self.ranking[self.ranking.index(lead)] = row
@@ -446,12 +450,12 @@ class CandidateSearch:
             if best is not None and not cand["gain_n2"] > sse_cur - self.eid.n_samples / g:
                 continue  # predicted to win less than the refit already realised
             z0 = ext_c.from_params({**current, **cand["shape"], magnitude: 0.0})
-            z, g_s, n = refit(self.eid, ext_c, z0, sse_cur, jac, self.settings, self.share,
-                              profile=[ext.extra.index(magnitude)])
-            evals += n
+            fit = refit(self.eid, ext_c, z0, sse_cur, jac, self.settings, self.share,
+                        profile=[ext.extra.index(magnitude)])
+            evals += fit.evaluations
             cand["refitted"] = True
-            if g_s > g:
-                best, g = Fit(ext_c, z, 0), g_s
+            if fit.fitness > g:
+                best, g = Fit(ext_c, fit.z, 0), fit.fitness
         if best is not None:
             best.evaluations = evals
         return best, g, shapes, bool(to_refit)
@@ -509,12 +513,12 @@ class CandidateSearch:
         lead = max(rows, key=lambda r: r["score"] if r["resolved"] else -math.inf)
         form = lead["added"]
         fit = fits[form]
-        info = {"converged": False, "budget_spent": True, "predicted": 0.0}
+        pol = None  # not continued: not settled
         if lead["score"] > ACCEPT_SCORE and lead["resolved"]:
             if self.settings.final_jacobians > 0:
-                z, g, n, info = self.polish_quietly(fit.ext, fit.z, self.settings.final_jacobians)
-                fit = fits[form] = Fit(fit.ext, z, fit.evaluations + n)
-                row = self.form_row(form, fit, g, current_row)
+                pol = self.polish_quietly(fit.ext, fit.z, self.settings.final_jacobians)
+                fit = fits[form] = Fit(fit.ext, pol.z, fit.evaluations + pol.evaluations)
+                row = self.form_row(form, fit, pol.fitness, current_row)
                 row.update({k: lead[k] for k in ("screen", "refitted", "elapsed_s")})
                 rows[rows.index(lead)] = lead = row
             attach_interval(lead, effect_intervals(self.eid, fit.ext, fit.z), fit.ext, EFFECT_IDENTIFIED[form][:1])
@@ -522,7 +526,7 @@ class CandidateSearch:
             self.log(f"  form earns its parameters: {FORM_LABELS[form]} (" + interval_text(lead, EFFECT_IDENTIFIED[form])
                      + f"), validation MSE {lead['validation_mse_change_pct']:+.0f} %, score {lead['score']:+.3f}")
             return {"form": form, "tried": rows, "row": lead, "refit": fit,
-                    "settled": self.settled(info, lead["identification_rmse_n"] ** -2)}
+                    "settled": pol is not None and self.settled(pol, lead["identification_rmse_n"] ** -2)}
         self.log("  no form beyond the catalogue earns its parameters" + (
             f" (the best, {form}, removes {100 * lead['excess_explained']:.0f} % of the held-out residual above the "
             f"floor)" if lead["score"] > ACCEPT_SCORE and earned(lead) else ""))
@@ -548,10 +552,11 @@ class CandidateSearch:
             z0 = ext.from_params({**params_cur, **{n: 0.0 for n in EFFECT_IDENTIFIED[e]}})
             if jac is None:  # the new effect is off at z0: the current model's Jacobian, shared
                 jac = base_jacobian(self.eid, ext, z0, dims=self.par.dimension)
-            z, g, n = refit(self.eid, ext, z0, sse_cur, jac, self.settings, self.share,
-                            profile=range(len(current.ext.extra), len(ext.extra)))
-            fits[ext.effect] = Fit(ext, z, n)
-            row = self.held_out(ext.effect, ext.to_params(z), ext.extra, g, n, current_row["validation_mse"],
+            fit = refit(self.eid, ext, z0, sse_cur, jac, self.settings, self.share,
+                        profile=range(len(current.ext.extra), len(ext.extra)))
+            fits[ext.effect] = Fit(ext, fit.z, fit.evaluations)
+            row = self.held_out(ext.effect, ext.to_params(fit.z), ext.extra, fit.fitness, fit.evaluations,
+                                current_row["validation_mse"],
                                 new=EFFECT_IDENTIFIED[e])
             row["added"] = e
             rows.append(row)
@@ -566,9 +571,9 @@ class CandidateSearch:
         lead = max(rows, key=lambda r: r["score"] if r["resolved"] else -math.inf)
         if lead["score"] > ACCEPT_SCORE and lead["resolved"] and self.settings.final_jacobians > 0:
             fit = fits[lead["effect"]]
-            z, g, n, _ = self.polish_quietly(fit.ext, fit.z, self.settings.final_jacobians)
-            fit = fits[lead["effect"]] = Fit(fit.ext, z, fit.evaluations + n)
-            row = self.held_out(fit.ext.effect, fit.params(), fit.ext.extra, g, fit.evaluations,
+            pol = self.polish_quietly(fit.ext, fit.z, self.settings.final_jacobians)
+            fit = fits[lead["effect"]] = Fit(fit.ext, pol.z, fit.evaluations + pol.evaluations)
+            row = self.held_out(fit.ext.effect, fit.params(), fit.ext.extra, pol.fitness, fit.evaluations,
                                 current_row["validation_mse"], new=EFFECT_IDENTIFIED[lead["added"]])
             row["added"] = lead["added"]
             rows[rows.index(lead)] = row
@@ -628,12 +633,12 @@ class CandidateSearch:
                 and "" not in self.converged):
             return
         self.at("base refit continued")
-        z, g, n, info = self.polish_quietly(self.par, self.z_none, self.settings.final_jacobians)
-        self.converged[""] = self.settled(info, g)
+        pol = self.polish_quietly(self.par, self.z_none, self.settings.final_jacobians)
+        self.converged[""] = self.settled(pol, pol.fitness)
         self.log(f"  none           base refit continued before any 'unexplained': identification RMSE "
-                 f"{self.none_row['identification_rmse_n']:.1f} -> {1 / math.sqrt(g):.1f} N, {info['stop']}")
-        if g > self.g_none:
-            self.set_none(z, g, self.none_row["evaluations"] + n)
+                 f"{self.none_row['identification_rmse_n']:.1f} -> {1 / math.sqrt(pol.fitness):.1f} N, {pol.stop}")
+        if pol.fitness > self.g_none:
+            self.set_none(pol.z, pol.fitness, self.none_row["evaluations"] + pol.evaluations)
 
     def forms_on_top(self, cause: str, causes: list[str], best: dict):
         """The forms beyond the catalogue on top of what the catalogue found, when that leaves a residual above

@@ -1,25 +1,29 @@
 """The settings of a diagnosis run and its candidate causes."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
-from damper_fmu.parameters import CATALOGUE_EFFECTS, FK_REFERENCE_STIFFNESS, FORM_EFFECTS
+from damper_fmu.effect_catalogue import CATALOGUE_EFFECTS, FORM_EFFECTS
 
 from tuner.identification.problem import DataSettings
 
 __all__ = ["CANDIDATES", "DiagnosisSettings"]
 
-#: the candidate causes: the effect catalogue of the design notes (parameters.CATALOGUE_EFFECTS); the forms
-#: beyond it (parameters.FORM_EFFECTS) are tried after them, when a residual above the floor remains
+#: the candidate causes: the effect catalogue of the design notes (effect_catalogue.CATALOGUE_EFFECTS); the
+#: forms beyond it (effect_catalogue.FORM_EFFECTS) are tried after them, when a residual above the floor remains
 CANDIDATES = CATALOGUE_EFFECTS
 
 
 @dataclass
 class DiagnosisSettings:
-    """Settings of a diagnosis run (units in the names)."""
+    """Settings of a diagnosis run (units in the names).
 
-    fit_rate_hz: float = 200.0
-    warmup_s: float = 0.5
+    data: the problem definition when the diagnosis prepares the tests itself (no fit's problem given):
+    fit rate [Hz], warm-up [s], differentiator band [Hz], table abscissae [m/s, m] (without a base fit
+    given), force limit [N], spring reference [N/m] (``DataSettings``); its parametrization must be
+    'improved' (the local solver needs monotone tables)."""
+
+    data: DataSettings = field(default_factory=DataSettings)
     workers: int = 2
     engine: str = "fmu"
     seed: int = 0
@@ -36,17 +40,15 @@ class DiagnosisSettings:
     forms: tuple = FORM_EFFECTS
     #: base model: 'auto' (identify every one of BASE_MODELS, keep the lowest held-out MSE), or a kind
     base_model: str = "auto"
-    diff_band_hz: float | None = None  # as tuner.identification.problem.DataSettings
-    damping_abscissae_m_s: tuple | None = None  # as DataSettings (without a base fit given)
-    elastic_abscissae_m: tuple | None = None
-    force_limit_n: float | None = None  # as DataSettings
-    spring_reference_n_per_m: float = FK_REFERENCE_STIFFNESS  # as DataSettings
     extra: dict = field(default_factory=dict)
 
-    def data(self) -> DataSettings:
-        """The problem definition when the diagnosis prepares the tests itself (no fit's problem given);
-        the parametrization is always 'improved' (the local solver needs monotone tables)."""
-        return DataSettings(fit_rate_hz=self.fit_rate_hz, warmup_s=self.warmup_s, diff_band_hz=self.diff_band_hz,
-                            damping_abscissae_m_s=self.damping_abscissae_m_s,
-                            elastic_abscissae_m=self.elastic_abscissae_m, force_limit_n=self.force_limit_n,
-                            spring_reference_n_per_m=self.spring_reference_n_per_m, parametrization="improved")
+    def __post_init__(self):
+        if self.data.parametrization != "improved":
+            raise ValueError(f"DiagnosisSettings: data.parametrization must be 'improved' (the local solver needs "
+                             f"monotone tables), got {self.data.parametrization!r}; pass "
+                             f"dataclasses.replace(data, parametrization='improved')")
+
+    def to_dict(self) -> dict:
+        """One flat record (the problem definition's fields beside the run's), ``extra`` left out."""
+        run = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("data", "extra")}
+        return {**run, **self.data.to_dict()}

@@ -3,10 +3,10 @@ unexplained and the named causes' magnitudes with their ranges (SI units, stated
 """
 from __future__ import annotations
 
-from damper_fmu.parameters import EFFECT_IDENTIFIED, EFFECT_PARAMETERS, EFFECT_TYPICAL
+from damper_fmu.effect_catalogue import ALL_EFFECTS, EFFECT_PARAMETERS, effect_of
 
 from tuner.diagnosis.effect_sizes import DamperSize, typical_range
-from tuner.diagnosis.forms import FORM_LABELS, settings_text
+from tuner.diagnosis.forms import settings_text
 from tuner.diagnosis.rules import ACCEPT_SCORE, FORM_EXCESS_SHARE, earned
 from tuner.formatting import fmt_quantity
 
@@ -16,14 +16,13 @@ __all__ = ["UNITS", "NOTES", "ACQUISITION_CAUSES", "unexplained_record", "effect
 UNITS = {p.name: p.unit for p in EFFECT_PARAMETERS}
 
 
-NOTES = {"time_delay": "a skew between the force and stroke channels (DAQ, filters): fix the acquisition; "
-                       "the exported co-simulation model should not contain it",
-         "preload": "an un-tared gas force or load-cell offset: check the rig's zero before the test"}
+#: what the verdict adds when it names an effect (``Effect.note``)
+NOTES = {e.name: e.note for e in ALL_EFFECTS.values() if e.note}
 
 
 #: named causes that belong to the acquisition (the rig's channels and zero), not to the damper (NOTES): the
-#: model to use in a co-simulation is the base without them (``tuner.results.recommendation``)
-ACQUISITION_CAUSES = ("time_delay", "preload")
+#: model to use in a co-simulation is the base without them (``tuner.results.recommendation``; ``Effect.acquisition``)
+ACQUISITION_CAUSES = tuple(e.name for e in ALL_EFFECTS.values() if e.acquisition)
 
 
 def unexplained_record(final_rmse: float, noise: float, floor: float, stroke_noise_n: float, evidence: dict,
@@ -50,7 +49,7 @@ def effect_parameters(best: dict, size: DamperSize) -> dict:
     out = {}
     for n, v in best["parameters"].items():
         out[n] = {"value": v, "unit": UNITS[n], "interval_95": best["interval"][n]}
-        if n in EFFECT_TYPICAL:  # a form's shape (a groove's centre and length) has no typical size
+        if n in effect_of(n).typical:  # a form's shape (a groove's centre and length) has no typical size
             lo, hi = typical_range(n, size)
             out[n].update({"plausible_range": [lo, hi], "plausible": bool(lo <= abs(v) <= hi)})
     return out
@@ -83,14 +82,14 @@ def verdict_text(causes: list[str], best: dict, none_row: dict, rejected: list[d
         first = bool(form_step.get("first"))
         step = (form_step["row"] if first else best)["validation_mse_change_pct"]
         how = settings_text(form_step["row"].get("settings") or {})
-        text = (f"form beyond the catalogue: {FORM_LABELS[form]} ({interval_text(best, EFFECT_IDENTIFIED[form])}"
+        text = (f"form beyond the catalogue: {ALL_EFFECTS[form].label} ({interval_text(best, ALL_EFFECTS[form].identified)}"
                 + (f"; {how}" if how else "") + "): "
                 f"held-out MSE {step:+.0f} %" + (f" on top of {' + '.join(found)}" if found and not first else "")
                 + (" on the base, weighed against the catalogue's causes and scoring above them" if first else "")
                 + f"; {change:+.0f} % against the base refitted alike")
         if found:
             text = (f"cause{'s' if len(found) > 1 else ''}: {' + '.join(found)} ("
-                    + interval_text(best, [n for c in found for n in EFFECT_IDENTIFIED[c]]) + "); " + text)
+                    + interval_text(best, [n for c in found for n in ALL_EFFECTS[c].identified]) + "); " + text)
     elif causes:
         change = 100 * (best["validation_mse"] / none_row["validation_mse"] - 1)
         text = (f"cause{'s' if len(causes) > 1 else ''}: {' + '.join(causes)} ({interval_text(best)}); "

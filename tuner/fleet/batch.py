@@ -134,9 +134,7 @@ def run_row(task: dict) -> dict:
         for t in ident + valid:
             for w in t.metadata.get("warnings", []):
                 log(f"warning: {w}")
-        s = dict(task["settings"])
-        s["models"] = tuple(s["models"])
-        settings = FitSettings(**s, workers=task["workers"])
+        settings = FitSettings.from_dict({**task["settings"], "workers": task["workers"]})
         provenance = {"files": {t.name: str(t.source) for t in ident + valid},
                       "command": f"python -m tuner batch ({task['where']})", "batch_row": task["id"]}
         if task["diagnose"]:

@@ -28,14 +28,14 @@ import json
 import math
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
 
 from damper_fmu.fmu import ensure_fmu
 from damper_fmu.models import ConvergenceError
-from damper_fmu.parameters import EFFECT_MODELS, FK_REFERENCE_STIFFNESS, defaults
+from damper_fmu.parameters import EFFECT_MODELS, defaults
 
 from tuner.data.preprocess import prepare
 from tuner.data.reading import RigTest
@@ -44,8 +44,8 @@ from tuner.identification.engine import IDENTIFICATION_STEP, Engine, Signals, si
 from tuner.identification.full_rate import MIN_RATE_RATIO, comparison_rate, full_rate_check
 from tuner.identification.intervals import parameter_intervals, reached_ranges
 from tuner.identification.parametrization import Parametrization
-from tuner.identification.polish import polish, resolution_stop, small_progress
-from tuner.identification.problem import DataSettings, Problem, to_signals
+from tuner.identification.polish import PolishResult, polish, resolution_stop, small_progress
+from tuner.identification.problem import DataSettings, Problem, split_data_settings, to_signals
 from tuner.identification.runner import SimulationError
 from tuner.metrics import error_metrics, noise_std
 from tuner.progress import advance, stage
@@ -70,41 +70,42 @@ QUALITY_AME_PCT = 10.0
 
 @dataclass
 class FitSettings:
-    """Run settings (units in the names). Defaults: the paper's Firefly budget."""
+    """Run settings (units in the names). Defaults: the paper's Firefly budget.
+
+    data: the problem definition (fit rate [Hz], warm-up [s], differentiator band [Hz], table abscissae
+    [m/s, m], force limit [N], spring reference [N/m], parametrization: ``DataSettings``)."""
 
     models: tuple = ("lumped", "maxwell", "twochamber")
-    fit_rate_hz: float = 200.0
-    warmup_s: float = 0.5
+    data: DataSettings = field(default_factory=DataSettings)
     population: int = 20
     iterations: int = 150
     workers: int = 2
     seed: int = 0
     engine: str = "fmu"
-    parametrization: str = "improved"
     init: str = "seeded"
-    force_limit_n: float | None = None
-    spring_reference_n_per_m: float = FK_REFERENCE_STIFFNESS
     stop_tol: float | None = 1e-3
     polish_jacobians: int = 100  # a safety cap: the refinement stops when converged
-    #: band [Hz] within which the stroke differentiator is accurate to 0.5 % (None: from each test's
-    #: stroke spectrum, tuner.data.preprocess.stroke_band_hz)
-    diff_band_hz: float | None = None
-    damping_abscissae_m_s: tuple | None = None  # Fc,O rates [m/s], 14 sorted nonzero; None: from the data
-    elastic_abscissae_m: tuple | None = None  # Fk,O elongations [m], 10 sorted nonzero; None: from the data
     extra: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        d = dict(self.__dict__)
+        """One flat record (the problem definition's fields beside the run's; ``from_dict`` reads it back)."""
+        d = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "data"}
         d["models"] = list(self.models)
-        return d
+        return {**d, **self.data.to_dict()}
 
-    def data(self) -> DataSettings:
-        """The settings that define the identification problem (``tuner.identification.problem``)."""
-        return DataSettings(fit_rate_hz=self.fit_rate_hz, warmup_s=self.warmup_s, diff_band_hz=self.diff_band_hz,
-                            damping_abscissae_m_s=self.damping_abscissae_m_s,
-                            elastic_abscissae_m=self.elastic_abscissae_m, force_limit_n=self.force_limit_n,
-                            spring_reference_n_per_m=self.spring_reference_n_per_m,
-                            parametrization=self.parametrization)
+    @classmethod
+    def from_dict(cls, flat: dict) -> "FitSettings":
+        """The settings of a flat record (``to_dict``, a fleet row's, metrics.json "settings" of a run: keys
+        that are no setting, such as the run's provenance, are refused by name)."""
+        data, rest = split_data_settings(flat)
+        known = {f.name for f in fields(cls)} - {"data"}
+        unknown = sorted(set(rest) - known)
+        if unknown:
+            raise ValueError(f"unknown fit setting(s) {', '.join(map(repr, unknown))}; known: "
+                             f"{', '.join(sorted(known | set(data.to_dict())))}")
+        if "models" in rest:
+            rest["models"] = tuple(rest["models"])
+        return cls(**rest, data=data)
 
 
 def initial_guess(model: str, tests: list[Signals], par: Parametrization) -> dict:
@@ -267,13 +268,13 @@ def _resumed_state(ckpt: Path, key: str, model: str, log):
 @dataclass
 class Refinement:
     """The local refinements after the Firefly search: the best point (scaled ``z``, fitness ``g`` = N / SSE
-    [1/N^2]), the evaluations they took, the winning refinement's ``info`` (``polish``), every run, and the
-    restarts skipped as a clearly wrong form (``race``, or None)."""
+    [1/N^2]), the evaluations they took, the winning refinement (``polished``, a ``PolishResult``), every run,
+    and the restarts skipped as a clearly wrong form (``race``, or None)."""
 
     z: np.ndarray
     g: float
     evaluations: int
-    info: dict
+    polished: PolishResult
     runs: list
     race: dict | None
     elapsed_s: float = 0.0  # wall time of the refinements [s]
@@ -286,8 +287,9 @@ def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result
     sometimes a degenerate one (silent blocks as pure dashpots, 2.2x the floor) that the data-driven start
     avoids; the best refinement wins (benchmarks/convergence.py). A form ``RACE_RATIO`` x worse than its
     ``rival`` after the first gets no restart."""
-    ref = Refinement(result.x_best, result.fitness_best, 0, {"fitness": [], "stop": "no local refinement "
-                     "(--polish 0)", "converged": False, "jacobians": 0, "rule": "not started"}, [], None)
+    none = PolishResult(result.x_best, result.fitness_best, 0, stop="no local refinement (--polish 0)",
+                        converged=False, rule="not started", jacobians=0, predicted=1.0, budget_spent=False)
+    ref = Refinement(result.x_best, result.fitness_best, 0, none, [], None)
     if settings.polish_jacobians <= 0:
         return ref
     starts = [("Firefly best", result.x_best)]
@@ -307,14 +309,14 @@ def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result
             break
         log(f"[{model}] local refinement from the {label} (projected Levenberg-Marquardt until converged, "
             f"at most {settings.polish_jacobians} Jacobians of {par.dimension} parallel simulations)")
-        z, g, n_ev, info = polish(eng, par, z0, max_jacobians=settings.polish_jacobians, log=log)
-        ref.evaluations += n_ev
+        pol = polish(eng, par, z0, max_jacobians=settings.polish_jacobians, log=log)
+        ref.evaluations += pol.evaluations
+        g = pol.fitness
         ref.runs.append({"start": label, "rmse_n": 1.0 / math.sqrt(g) if g > 0 else math.inf,
-                         "converged": info["converged"], "rule": info["rule"], "jacobians": info["jacobians"],
-                         "stop": info["stop"]})
-        log(f"[{model}] local refinement from the {label}: RMSE {ref.runs[-1]['rmse_n']:.2f} N, {info['stop']}")
+                         "converged": pol.converged, "rule": pol.rule, "jacobians": pol.jacobians, "stop": pol.stop})
+        log(f"[{model}] local refinement from the {label}: RMSE {ref.runs[-1]['rmse_n']:.2f} N, {pol.stop}")
         if len(ref.runs) == 1 or g > ref.g:  # polish never returns a point worse than its start
-            ref.z, ref.g, ref.info = z, g, info
+            ref.z, ref.g, ref.polished = pol.z, g, pol
     return ref
 
 
@@ -334,13 +336,13 @@ def _history(result, ref: Refinement, par: Parametrization, first_population: di
         "iterations": int(result.iterations),
         "firefly_evaluations": int(result.evaluations),
         "firefly_best_fitness": float(result.fitness_best),
-        "polish_fitness": list(map(float, ref.info["fitness"])),
-        "polish_stop": ref.info["stop"],
-        "polish_rule": ref.info.get("rule", "not started"),  # tuner.identification.polish: what ended it
-        "polish_jacobians": int(ref.info["jacobians"]),
+        "polish_fitness": list(map(float, ref.polished.history)),
+        "polish_stop": ref.polished.stop,
+        "polish_rule": ref.polished.rule,  # tuner.identification.polish: what ended it
+        "polish_jacobians": int(ref.polished.jacobians),
         "local_refinements": ref.runs,
         "race": ref.race,  # None, or the restarts skipped as a clearly wrong form (RACE_RATIO)
-        "converged": bool(ref.info["converged"]),
+        "converged": bool(ref.polished.converged),
         "polish_evaluations": int(ref.evaluations),
         "polish_elapsed_s": ref.elapsed_s,  # with polish_evaluations: the cost of a full simulation near the fit
         "evaluation_count": int(result.evaluations + ref.evaluations),
@@ -368,14 +370,14 @@ def full_rate_checks(tests: list[RigTest], params: dict, settings: FitSettings, 
     Logs the line."""
     rows = {m: {} for m in settings.models}
     for t in tests:
-        rate = comparison_rate(t.sample_rate, settings.fit_rate_hz)
+        rate = comparison_rate(t.sample_rate, settings.data.fit_rate_hz)
         if rate is None:
             continue
         # the velocity accurate over the compared band (stroke_band_hz at the comparison rate)
-        s = to_signals(prepare(t, rate, diff_band_hz=settings.diff_band_hz), settings.warmup_s)
+        s = to_signals(prepare(t, rate, diff_band_hz=settings.data.diff_band_hz), settings.data.warmup_s)
         sigma = noise_std(t.force, t.sample_rate)
         for model in settings.models:
-            rows[model][t.name] = full_rate_check(model, params[model]["values"], s, settings.fit_rate_hz,
+            rows[model][t.name] = full_rate_check(model, params[model]["values"], s, settings.data.fit_rate_hz,
                                                   t.sample_rate, sigma)
     out = {}
     for model, r in rows.items():
@@ -473,16 +475,16 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
 
     Returns a :class:`FitResult` and writes nothing but the Firefly checkpoints: into
     ``checkpoints`` (a folder; resumed when they are there), none when it is None. ``problem``: the
-    tests already prepared (``Problem.build(identification, validation, settings.data())``), so
+    tests already prepared (``Problem.build(identification, validation, settings.data)``), so
     that a diagnosis after the fit works on the same problem; built here when not given.
     """
     if not identification:
         raise ValueError("no identification test given")
     if problem is None:
-        problem = Problem.build(identification, validation, settings.data())
-    elif problem.settings != settings.data():
+        problem = Problem.build(identification, validation, settings.data)
+    elif problem.settings != settings.data:
         raise ValueError(f"fit: the problem was built with {problem.settings}, the fit settings ask for "
-                         f"{settings.data()}")
+                         f"{settings.data}")
     scratch = None
     if checkpoints is None:
         scratch = tempfile.TemporaryDirectory(prefix="tuner-fit-")
@@ -506,7 +508,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
             best, hist = found.values, found.history
             params[model] = {"values": best, "units": dict(par.units),
                              "bounds": {n: list(par.bounds[n]) for n in par.names},
-                             "parametrization": settings.parametrization, **found.intervals}
+                             "parametrization": settings.data.parametrization, **found.intervals}
             rmse_id = 1.0 / math.sqrt(hist["best_fitness_final"]) if hist["best_fitness_final"] > 0 else math.inf
             hist["noise_floor_n"] = noise
             hist["noise_credible"] = bool(problem.noise.get("credible", True))
@@ -522,7 +524,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
 
     # every result is checked through the FMU the user gets, whatever engine identified it
     stage(log, "validate and export")
-    log(f"validating through the FMU (forces compared in the {settings.fit_rate_hz / 2:g} Hz fit band) ...")
+    log(f"validating through the FMU (forces compared in the {settings.data.fit_rate_hz / 2:g} Hz fit band) ...")
     tests_out, arrays = _validated(identification, validation, problem, params, settings.models)
     table3 = _table3(tests_out, validation) if "lumped" in settings.models and "maxwell" in settings.models else {}
     quality = quality_gate(tests_out, settings.models)

@@ -44,13 +44,14 @@ seen is returned; the start is never lost.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from tuner.metrics import rmse_standard_error
 from tuner.progress import advance
 
-__all__ = ["polish", "resolution_stop", "small_progress", "RTOL", "STALL_RTOL", "STEP", "COARSE_STEP", "FTOL",
+__all__ = ["polish", "PolishResult", "resolution_stop", "small_progress", "RTOL", "STALL_RTOL", "STEP", "COARSE_STEP", "FTOL",
            "RESOLUTION_WINDOW", "RESOLUTION_FRACTION"]
 
 #: Converged when the Gauss-Newton step predicts less than this share of the SSE.
@@ -70,16 +71,40 @@ STEP = 1e-5
 COARSE_STEP = 1e-3
 
 
-def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print):
-    """Refine the search-space point z0 of ``par``; return (z_best, fitness_best, evaluations_used, info).
+@dataclass(frozen=True)
+class PolishResult:
+    """What one refinement (``polish``) reached and why it stopped."""
+
+    #: the best point seen, in the search coordinates of the ``par`` refined (each in [0, 1])
+    z: np.ndarray
+    #: its fitness G = N / SSE [1/N^2] (N: residual samples, SSE [N^2]); 0 when the start cannot be simulated
+    fitness: float
+    #: simulations run (the start, finite differences and damping trials)
+    evaluations: int
+    #: why it stopped, for people
+    stop: str
+    #: whether it met a convergence rule (module docstring)
+    converged: bool
+    #: what ended it: 'first-order', 'data resolution', 'stationary' (no damped step helps), 'budget',
+    #: 'not started'
+    rule: str
+    #: Jacobians computed
+    jacobians: int
+    #: share (0-1) of the SSE the last Gauss-Newton step predicted it would remove (the locally reachable
+    #: gain; 1.0 before any Jacobian)
+    predicted: float
+    #: stopped by ``max_jacobians`` while still improving
+    budget_spent: bool
+    #: fitness G = N / SSE [1/N^2] at the start and after every accepted step
+    history: list = field(default_factory=list)
+
+
+def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print) -> PolishResult:
+    """Refine the search-space point z0 of ``par``: a ``PolishResult`` (the best point seen, its fitness
+    G = N / SSE [1/N^2], the simulations used, why it stopped).
 
     engine: tuner.identification.engine.Engine; par: a tuner.identification.parametrization.Parametrization
     (or the diagnosis' extension of one), refined in the coordinates of its ``local_space()``.
-    info: {"fitness": G = N / SSE at the start and after every accepted step, "stop": why it
-    stopped, "converged": bool (module docstring), "rule": what ended it ('first-order', 'data
-    resolution', 'stationary': no damped step helps, 'budget', 'not started'), "jacobians": int,
-    "predicted": the share of the SSE the last Gauss-Newton step predicted it would remove (the locally
-    reachable gain; 1.0 before any Jacobian), "budget_spent": bool (stopped by ``max_jacobians`` while still improving)}.
     """
     space = par.local_space()
     n = engine.n_samples
@@ -92,9 +117,8 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print):
     u = space.from_params(par.to_params(z0))
     r = residuals([u])[0]
     if r is None:
-        return np.asarray(z0, float), 0.0, used["evals"], {
-            "fitness": [], "stop": "start point cannot be simulated", "converged": False, "jacobians": 0,
-            "predicted": 1.0, "budget_spent": False, "rule": "not started"}
+        return PolishResult(np.asarray(z0, float), 0.0, used["evals"], stop="start point cannot be simulated",
+                            converged=False, rule="not started", jacobians=0, predicted=1.0, budget_spent=False)
     cost = float(r @ r)
     fitness = [n / cost]
     lam, jacobians, step, predicted = 1e-3, 0, STEP, 1.0
@@ -139,10 +163,8 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print):
             stop, converged, rule = resolved, True, "data resolution"
             break
     z = par.from_params(space.to_params(u))
-    return z, n / cost, used["evals"], {"fitness": fitness, "stop": stop, "converged": converged,
-                                        "rule": rule,
-                                        "jacobians": jacobians, "predicted": predicted,
-                                        "budget_spent": stop.startswith("budget")}
+    return PolishResult(z, n / cost, used["evals"], stop=stop, converged=converged, rule=rule, jacobians=jacobians,
+                        predicted=predicted, budget_spent=stop.startswith("budget"), history=fitness)
 
 
 def _damped_step(residuals, u: np.ndarray, free: np.ndarray, Jf: np.ndarray, gf: np.ndarray, cost: float,

@@ -11,7 +11,7 @@ diagnosis each prepared the tests, and the diagnosis ignored ``--force-limit``).
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -24,7 +24,7 @@ from tuner.data.reading import RigTest
 from tuner.identification.engine import Signals, oversampling
 from tuner.identification.parametrization import Parametrization
 
-__all__ = ["DataSettings", "Problem", "to_signals", "table_abscissae", "model_abscissae",
+__all__ = ["DataSettings", "split_data_settings", "Problem", "to_signals", "table_abscissae", "model_abscissae",
            "default_force_limit", "data_digest", "STRETCH_BEYOND"]
 
 #: The tables keep the paper's Table 2 abscissae until the data reach this many times the last one.
@@ -50,6 +50,22 @@ class DataSettings:
     force_limit_n: float | None = None
     spring_reference_n_per_m: float = FK_REFERENCE_STIFFNESS
     parametrization: str = "improved"
+
+    def to_dict(self) -> dict:
+        """The fields by name (SI values as given; the abscissae as tuples or None)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+def split_data_settings(flat: dict) -> tuple[DataSettings, dict]:
+    """(the ``DataSettings`` of the problem-definition keys of ``flat``, a new dict of the other keys): a
+    flat settings record read back (``FitSettings.to_dict``, a fleet row, metrics.json "settings" of any
+    run). The abscissae come back as tuples (JSON gives lists)."""
+    names = {f.name for f in fields(DataSettings)}
+    data = {k: v for k, v in flat.items() if k in names}
+    for k in ("damping_abscissae_m_s", "elastic_abscissae_m"):
+        if data.get(k) is not None:
+            data[k] = tuple(data[k])
+    return DataSettings(**data), {k: v for k, v in flat.items() if k not in names}
 
 
 def to_signals(p, warmup_s: float, oversample: int | None = None) -> Signals:
