@@ -13,11 +13,11 @@ Z95 sqrt(std^2 + shift^2)), the median width against the bound range, and how ma
 The truth's force is integrated finely (``--truth fine``: the model itself) or as the identification
 engine integrates (``--truth identification``: what the fit can represent exactly), and the tuner
 differentiates the stroke (as for a rig without a velocity channel) or reads the exact velocity
-(``--velocity measured``). The differences show the identification's own discretisation and
-differentiation bias, which no statistical interval covers.
+(``--velocity measured``). ``--truth exact``: the fit sees the identification's own simulated force at
+the truth plus the same resampled noise (data it represents exactly: the intervals' statistics alone).
 
     python benchmarks/interval_coverage.py [--seeds 20] [--noise 25] [--durations 10,10] [--kind multisine]
-                                           [--truth fine|identification] [--velocity differentiated|measured]
+                                           [--truth fine|identification|exact] [--velocity differentiated|measured]
                                            [--slow-amp 0.015] [--fit-rate 200]
 """
 from __future__ import annotations
@@ -49,8 +49,11 @@ def group(p) -> str:
 def rows_of(seed: int, a) -> list[dict]:
     """One row per identified parameter of one seed's fit."""
     known = truth()
-    tests = rig_tests(known, a.kind, seed, a.durations, a.noise, a.slow_amp, a.truth, a.velocity == "measured")
-    _, par, _, iv, _ = fitted(known, tests, fit_rate_hz=a.fit_rate)
+    steps = "fine" if a.truth == "exact" else a.truth
+    tests = rig_tests(known, a.kind, seed, a.durations, a.noise, a.slow_amp, steps, a.velocity == "measured")
+    clean = (rig_tests(known, a.kind, seed, a.durations, 0.0, a.slow_amp, steps, a.velocity == "measured")
+             if a.truth == "exact" else None)
+    _, par, _, iv, _ = fitted(known, tests, fit_rate_hz=a.fit_rate, noise_free=clean)
     exact = par.to_params(par.from_params(known))
     out = []
     for p in iv.parameters:
@@ -70,7 +73,7 @@ def main(argv=None) -> int:
     ap.add_argument("--durations", default="10,10", help="identification test lengths [s], comma-separated")
     ap.add_argument("--kind", choices=KINDS, default="multisine")
     ap.add_argument("--slow-amp", type=float, default=0.015, help="slow stroke amplitude [m]")
-    ap.add_argument("--truth", choices=tuple(TRUTH_STEPS), default="fine")
+    ap.add_argument("--truth", choices=(*TRUTH_STEPS, "exact"), default="fine")
     ap.add_argument("--fit-rate", type=float, default=200.0)
     ap.add_argument("--velocity", choices=("differentiated", "measured"), default="differentiated",
                     help="the tuner differentiates the stroke, or reads the exact velocity as the rig's channel")
