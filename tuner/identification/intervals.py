@@ -14,9 +14,9 @@ At the fitted point of a model (``parameter_intervals``):
   used (and said);
 * the covariance of the physical parameters by the delta method, Cov_theta = G Cov_u G^T with
   G = d theta / d u (the mapping is linear in the table ordinates: exact there);
-* the representation shift (``representation_shift``): the identification simulates the model with
+* the representation shift (``representation_difference``): the identification simulates the model with
   fixed 1 ms internal steps on a stroke that went through the fit band's resampler, whose passband gain
-  departs from 1 by up to ~2e-4 at 2-8 Hz; the measured force was made from the unfiltered stroke with
+  departs from 1 by up to 1.6e-4 at 2-8 Hz; the measured force was made from the unfiltered stroke with
   no step error. On known truth this misfit (about 1e-4 of the force) biased k_B and c_B by about 0.9
   and M_P by 0.6 standard errors on multisine strokes, and the masses by 7 under 12-20 Hz strokes (docs/
   identification.md). The fit is simulated once more with internal steps ``REFERENCE_STEP_DIVISOR`` times
@@ -67,7 +67,7 @@ __all__ = ["ParameterInterval", "ReachedRange", "LocalCovariance", "ModelInterva
            "residual_jacobian",
            "reached_ranges", "classify", "STEP", "DETERMINED_WIDTH", "BOUND_FRACTION", "TIE_CORRELATION",
            "NULL_RCOND", "BLOCK_CORRELATION_TIMES", "MIN_BLOCKS_PER_PARAMETER", "MIN_BLOCKS", "CONFIDENCE",
-           "REFERENCE_STEP_DIVISOR", "representation_shift", "resampling_compensated"]
+           "REFERENCE_STEP_DIVISOR", "representation_difference", "resampling_compensated"]
 
 #: forward-difference step in the local coordinates (each spans its parameter's bounds): the diagnosis's
 #: effect intervals' step; the polish's fine step (1e-5) sees the two-chamber model's rough objective
