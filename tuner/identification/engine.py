@@ -241,6 +241,7 @@ class Engine:
             raise ValueError("workers must be >= 0")
         self.model, self.engine, self.workers = model, engine, int(workers)
         self.tests = tests
+        self.fmu_path = fmu_path  # the FMU of engine 'fmu' (None: the built one), for runs at other steps
         self.n_samples = int(sum(int(s.mask.sum()) for s in tests))
         self.evaluations = 0
         self.failures = 0  # candidates that could not be simulated

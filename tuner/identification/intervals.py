@@ -14,8 +14,18 @@ At the fitted point of a model (``parameter_intervals``):
   used (and said);
 * the covariance of the physical parameters by the delta method, Cov_theta = G Cov_u G^T with
   G = d theta / d u (the mapping is linear in the table ordinates: exact there);
-* 95 % intervals value +- Z95 std; for log-scaled parameters (``Parameter.log_scale``) symmetric in
-  the logarithm, so they stay positive; correlations from Cov_theta.
+* the representation shift (``representation_difference``): the identification simulates the model with
+  fixed 1 ms internal steps on a stroke that went through the fit band's resampler, whose passband gain
+  departs from 1 by up to 1.6e-4 at 2-8 Hz; the measured force was made from the unfiltered stroke with
+  no step error. On known truth this misfit (about 1e-4 of the force) biased k_B and c_B by about 0.9
+  and M_P by 0.6 standard errors on multisine strokes, and the masses by 7 under 12-20 Hz strokes (docs/
+  identification.md). The fit is simulated once more with internal steps ``REFERENCE_STEP_DIVISOR`` times
+  finer and the stroke's resampling undone to first order (``resampling_compensated``); the force
+  difference d [N], projected as a Gauss-Newton step, is the shift s each parameter would take with
+  the better representation (the fitted value lies about -s from the truth);
+* 95 % intervals value +- Z95 sqrt(std^2 + s^2) (the shift as an error of known size and unknown
+  sign: at least 95 % coverage for any shift); for log-scaled parameters (``Parameter.log_scale``)
+  symmetric in the logarithm, so they stay positive; correlations from Cov_theta (statistical only).
 
 Directions of u the force does not depend on at all (singular values of the Jacobian below
 ``NULL_RCOND`` of the largest; e.g. a table segment the tests never enter) have no finite variance: the
@@ -45,16 +55,19 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from damper_fmu.fmu import ensure_fmu
+from damper_fmu.models import ConvergenceError
 from damper_fmu.parameters import MODEL_PARAMETERS
-from tuner.identification.engine import IDENTIFICATION_STEP, IDENTIFICATION_TOLERANCE, Engine, Signals
+from tuner.identification.engine import (IDENTIFICATION_STEP, IDENTIFICATION_TOLERANCE, Engine, Signals,
+                                         simulate_signals)
 from tuner.identification.parametrization import Parametrization
-from tuner.identification.runner import FmuRunner
+from tuner.identification.runner import FmuRunner, SimulationError
 from tuner.metrics import Z95, block_sandwich, correlation_time
 
 __all__ = ["ParameterInterval", "ReachedRange", "LocalCovariance", "ModelIntervals", "parameter_intervals", "model_intervals",
            "residual_jacobian",
            "reached_ranges", "classify", "STEP", "DETERMINED_WIDTH", "BOUND_FRACTION", "TIE_CORRELATION",
-           "NULL_RCOND", "BLOCK_CORRELATION_TIMES", "MIN_BLOCKS_PER_PARAMETER", "MIN_BLOCKS", "CONFIDENCE"]
+           "NULL_RCOND", "BLOCK_CORRELATION_TIMES", "MIN_BLOCKS_PER_PARAMETER", "MIN_BLOCKS", "CONFIDENCE",
+           "REFERENCE_STEP_DIVISOR", "representation_difference", "resampling_compensated"]
 
 #: forward-difference step in the local coordinates (each spans its parameter's bounds): the diagnosis's
 #: effect intervals' step; the polish's fine step (1e-5) sees the two-chamber model's rough objective
@@ -75,6 +88,8 @@ BLOCK_CORRELATION_TIMES = 3.0
 MIN_BLOCKS_PER_PARAMETER = 2
 MIN_BLOCKS = 10
 CONFIDENCE = 0.95
+#: the representation shift's reference run: internal steps this many times finer than the identification's
+REFERENCE_STEP_DIVISOR = 10
 
 _TABLE_ABSCISSA = {"Fc_": "Fc_v", "Fk_": "Fk_x"}
 
@@ -157,7 +172,9 @@ class ParameterInterval:
     tests reach; abscissa: the table point's abscissa [m/s or m] (None for other parameters); reason: one
     sentence on why; offset: the Gauss-Newton step [unit] from the fit towards the local optimum that the
     Jacobian predicts (coordinates at a bound held; None without finite variance): well under ``std`` when
-    the refinement ended at the optimum, and the interval is centred on the fit, not on the optimum."""
+    the refinement ended at the optimum, and the interval is centred on the fit, not on the optimum;
+    systematic: the representation shift [unit] (module docstring; None when not computed), in the
+    interval's half-width Z95 sqrt(std^2 + systematic^2)."""
 
     name: str
     unit: str
@@ -176,6 +193,7 @@ class ParameterInterval:
     abscissa: float | None = None
     reason: str = ""
     offset: float | None = None
+    systematic: float | None = None
 
     @property
     def flags(self) -> list[str]:
@@ -212,7 +230,8 @@ class ParameterInterval:
                 "width_fraction": self.width_fraction, "status": self.status, "at_bound": self.at_bound,
                 "tied_to": [{"name": n, "correlation": c} for n, c in self.tied_to],
                 "extrapolated": self.extrapolated, "abscissa": self.abscissa, "flags": self.flags,
-                "reason": self.reason, "offset": self.offset, "text": self.range_text()}
+                "reason": self.reason, "offset": self.offset, "systematic": self.systematic,
+                "text": self.range_text()}
 
     @classmethod
     def from_dict(cls, name: str, d: dict) -> "ParameterInterval":
@@ -221,7 +240,7 @@ class ParameterInterval:
                    width_fraction=d["width_fraction"], status=d["status"], at_bound=d["at_bound"],
                    tied_to=tuple((t["name"], t["correlation"]) for t in d["tied_to"]),
                    extrapolated=d["extrapolated"], abscissa=d["abscissa"], reason=d["reason"],
-                   offset=d.get("offset"))
+                   offset=d.get("offset"), systematic=d.get("systematic"))
 
 
 @dataclass
@@ -234,7 +253,8 @@ class ModelIntervals:
     residual blocks; block_length_s, correlation_time_s [s]: of the residual at the fit rate; samples:
     counted residual samples; residual_rms_n [N]; reached: the ``ReachedRange`` of each table; local: the
     same covariance in the local solver's coordinates (``LocalCovariance``; None in results written before
-    it was stored)."""
+    it was stored); representation_rms_n [N]: rms of the force difference behind the representation
+    shifts (None: not computed, e.g. the reference run failed)."""
 
     model: str
     parameters: list
@@ -248,6 +268,7 @@ class ModelIntervals:
     residual_rms_n: float
     reached: list = field(default_factory=list)
     local: LocalCovariance | None = None
+    representation_rms_n: float | None = None
 
     def get(self, name: str) -> ParameterInterval:
         for p in self.parameters:
@@ -279,6 +300,7 @@ class ModelIntervals:
         return {"confidence": CONFIDENCE, "method": self.method, "blocks": self.blocks,
                 "block_length_s": self.block_length_s, "correlation_time_s": self.correlation_time_s,
                 "samples": self.samples, "residual_rms_n": self.residual_rms_n,
+                "representation_rms_n": self.representation_rms_n,
                 "determined_width": DETERMINED_WIDTH, "tie_correlation": TIE_CORRELATION,
                 "reached": {r.table: r.to_dict() for r in self.reached},
                 "order": [p.name for p in self.parameters],  # the JSON object's keys may be sorted
@@ -298,7 +320,8 @@ class ModelIntervals:
                    correlation_time_s=d["correlation_time_s"], samples=d["samples"],
                    residual_rms_n=d["residual_rms_n"],
                    reached=[ReachedRange(**r) for r in d.get("reached", {}).values()],
-                   local=LocalCovariance.from_dict(d["local_covariance"]) if d.get("local_covariance") else None)
+                   local=LocalCovariance.from_dict(d["local_covariance"]) if d.get("local_covariance") else None,
+                   representation_rms_n=d.get("representation_rms_n"))
 
 
 # -- the statistics ----------------------------------------------------------------------------------
@@ -362,10 +385,11 @@ def _covariance_u(J: np.ndarray, r: np.ndarray, lengths: list[int], keep: list[i
 
 
 def classify(name: str, unit: str, value: float, std: float | None, bounds: tuple[float, float],
-             log_scale: bool, why_none: str | None = None) -> ParameterInterval:
+             log_scale: bool, why_none: str | None = None, systematic: float | None = None) -> ParameterInterval:
     """The interval and status of one parameter from its value and standard error [unit] (module
     docstring); tied_to, extrapolated and abscissa are filled by the caller. why_none: the reason when std
-    is None (default: the tests do not move the force along it)."""
+    is None (default: the tests do not move the force along it). systematic: the representation shift
+    [unit], combined with std in the half-width Z95 sqrt(std^2 + systematic^2) (None: std alone)."""
     lo_b, hi_b = bounds
     position = _position(value, lo_b, hi_b, log_scale)
     at_bound = position <= BOUND_FRACTION or position >= 1.0 - BOUND_FRACTION
@@ -374,10 +398,11 @@ def classify(name: str, unit: str, value: float, std: float | None, bounds: tupl
                                  "not determined", at_bound, reason=why_none or (
                                      "the identification tests do not move the force along this parameter (no "
                                      "finite variance): any value within the bounds fits as well"))
+    spread = math.hypot(std, systematic) if systematic is not None and math.isfinite(systematic) else std
     if log_scale and value > 0:
-        low, high = value * math.exp(-Z95 * std / value), value * math.exp(Z95 * std / value)
+        low, high = value * math.exp(-Z95 * spread / value), value * math.exp(Z95 * spread / value)
     else:
-        low, high = value - Z95 * std, value + Z95 * std
+        low, high = value - Z95 * spread, value + Z95 * spread
     beyond = low < lo_b or high > hi_b
     low_c, high_c = max(low, lo_b), min(high, hi_b)
     width = _position(high_c, lo_b, hi_b, log_scale) - _position(low_c, lo_b, hi_b, log_scale)
@@ -391,7 +416,7 @@ def classify(name: str, unit: str, value: float, std: float | None, bounds: tupl
         status, reason = "determined", (f"the 95 % interval lies inside the bounds and spans {100 * width:.2g} % "
                                         f"of their range")
     return ParameterInterval(name, unit, value, std, low_c, high_c, beyond, bounds, log_scale, width, status,
-                             at_bound, reason=reason)
+                             at_bound, reason=reason, systematic=systematic)
 
 
 def _position(value: float, lo: float, hi: float, log_scale: bool) -> float:
@@ -418,7 +443,9 @@ def parameter_intervals(engine, par: Parametrization, params: dict, *, reached: 
     dropped = _unresolved(J, set(failed))
     keep = [i for i in range(J.shape[1]) if i not in dropped]
     cov_u, method, blocks, block, tau = _covariance_u(J, r, lengths, keep)
-    offset = _gauss_newton_offset(J, r, G, u, keep)
+    offset = _gauss_newton_step(J, -r, G, u, keep)
+    d = representation_difference(engine, params)
+    shift = None if d is None else _gauss_newton_step(J, d, G, u, keep)
     # a parameter moved by a coordinate without finite variance has none either
     scale = np.maximum(np.abs(G).max(axis=1, keepdims=True), 1e-300)
 
@@ -436,8 +463,9 @@ def parameter_intervals(engine, par: Parametrization, params: dict, *, reached: 
     for i, n in enumerate(names):
         why = ("the model could not be simulated next to the fit along this parameter: no interval"
                if moved_by(failed, i) else None)
+        sys_i = None if shift is None or infinite[i] else float(shift[i])
         iv = classify(n, par.units.get(n, ""), float(params[n]), std.get(n), tuple(par.bounds[n]),
-                      bool(spec[n].log_scale), why)
+                      bool(spec[n].log_scale), why, sys_i)
         iv = _with_context(iv, n, finite, names, cov, params, reached or [])
         out.append(_with_offset(iv, None if infinite[i] else float(offset[i])))
     local = LocalCovariance(coordinates=list(space.names), u=u, resolved=[space.names[i] for i in keep],
@@ -447,19 +475,56 @@ def parameter_intervals(engine, par: Parametrization, params: dict, *, reached: 
                           covariance=cov, method=method, blocks=blocks, block_length_s=block / rate,
                           correlation_time_s=tau / rate, samples=int(r.size),
                           residual_rms_n=math.sqrt(float(r @ r) / r.size), reached=list(reached or []),
-                          local=local)
+                          local=local, representation_rms_n=None if d is None else math.sqrt(float(d @ d) / d.size))
 
 
-def _gauss_newton_offset(J: np.ndarray, r: np.ndarray, G: np.ndarray, u: np.ndarray, keep: list[int]) -> np.ndarray:
-    """The Gauss-Newton step of the parameters [their units] from u towards the optimum the Jacobian
-    predicts, on the coordinates ``keep`` that are not at a bound (those at a bound are held there, as the
-    refinement holds them)."""
+def _gauss_newton_step(J: np.ndarray, rhs: np.ndarray, G: np.ndarray, u: np.ndarray, keep: list[int]) -> np.ndarray:
+    """The parameters' Gauss-Newton step [their units] that J du = rhs [N] asks for, on the coordinates
+    ``keep`` that are not at a bound (those at a bound are held there, as the refinement holds them): with
+    rhs = -r the step from u towards the optimum the Jacobian predicts (the offset), with rhs = the
+    representation difference the representation shift."""
     free = [i for i in keep if 1e-9 < u[i] < 1.0 - 1e-9]
     if not free:
         return np.zeros(G.shape[0])
     norms = np.linalg.norm(J[:, free], axis=0)
-    step = np.linalg.lstsq(J[:, free] / norms, -r, rcond=NULL_RCOND)[0] / norms
+    step = np.linalg.lstsq(J[:, free] / norms, rhs, rcond=NULL_RCOND)[0] / norms
     return G[:, free] @ step
+
+
+def resampling_compensated(s: Signals) -> Signals:
+    """``s`` with its stroke [m] and stroke velocity [m/s] passed once more through the fit band's
+    resampler and the difference added back (x + (x - H x), to first order the stroke before the
+    resampler: a passband gain 1 + e becomes 1 - e^2), on the samples the resampler covers. The
+    identification's resampler (``Signals.low_pass``: the same band edges and attenuation in Hz as the
+    data's, ``tuner.data.preprocess.Resampler``) stands for the data's. Unchanged when not oversampled."""
+    if s.oversample == 1:
+        return s
+    _, x_fine, v_fine, _ = s.fine
+    k0, n = s.band_limited_span()
+    x, v = np.array(s.stroke, dtype=float), np.array(s.stroke_velocity, dtype=float)
+    x[k0:k0 + n] += x[k0:k0 + n] - s.low_pass.apply(x_fine)
+    v[k0:k0 + n] += v[k0:k0 + n] - s.low_pass.apply(v_fine)
+    return replace(s, stroke=x, stroke_velocity=v)
+
+
+def representation_difference(engine, params: dict) -> np.ndarray | None:
+    """Force [N] over the counted samples of ``engine``'s tests: the model at ``params`` (SI) with internal
+    steps ``REFERENCE_STEP_DIVISOR`` times finer on the ``resampling_compensated`` stroke, minus the
+    identification's own simulation of it (as the residual is measured minus simulated, J du = d moves
+    the parameters to what the better representation would fit). None when that run fails."""
+    try:
+        out = []
+        for s in engine.tests:
+            used = simulate_signals(engine.model, params, s, engine=engine.engine,
+                                    fmu_path=getattr(engine, "fmu_path", None))
+            ref = simulate_signals(engine.model, params, resampling_compensated(s), engine=engine.engine,
+                                   fmu_path=getattr(engine, "fmu_path", None),
+                                   max_internal_step=IDENTIFICATION_STEP / REFERENCE_STEP_DIVISOR)
+            out.append((ref - used)[s.mask])
+    except (SimulationError, ConvergenceError, ValueError, FloatingPointError):
+        return None
+    d = np.concatenate(out)
+    return d if np.all(np.isfinite(d)) else None
 
 
 def _with_offset(iv: ParameterInterval, offset: float | None) -> ParameterInterval:
