@@ -232,24 +232,23 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         result = firefly.run(evaluate, par.dimension, options=opts, seed=settings.seed, state=state,
                              callback=callback, initial=initial)
         last_failure = eng.last_failure
-        t_refine = time.perf_counter()
         ref = _refine(eng, model, par, settings, result, guess, guess_p, rival, log)
-        ref.elapsed_s = time.perf_counter() - t_refine
         elapsed = time.perf_counter() - t_start
         ivs = _intervals(eng, model, signals, par, par.to_params(ref.z), log) if intervals and ref.g > 0.0 else None
-
-    def rmse(g):
-        return 1.0 / math.sqrt(g) if g > 0 else math.inf
-
     if ref.g <= 0.0:
         raise ValueError(f"[{model}] no candidate could be simulated; the last failure: {last_failure or 'none'}. "
                          f"Check the units of the input files (a stroke in mm read as m exceeds the FMU's "
                          f"stroke_limit) or use --parametrization improved")
     history = _history(result, ref, par, first_population, search_stop, elapsed)
     log(f"[{model}] done: Firefly {history['stop_reason']} after {result.iterations} iterations "
-        f"(RMSE {rmse(result.fitness_best):.1f} N), {result.evaluations + ref.evaluations} evaluations, "
-        f"{elapsed:.0f} s; identification RMSE {rmse(ref.g):.1f} N")
+        f"(RMSE {_rmse(result.fitness_best):.1f} N), {result.evaluations + ref.evaluations} evaluations, "
+        f"{elapsed:.0f} s; identification RMSE {_rmse(ref.g):.1f} N")
     return Identified(par.to_params(ref.z), history, ivs)
+
+
+def _rmse(g: float) -> float:
+    """RMSE [N] of a fitness G = N / SSE [1/N^2] (inf for 0)."""
+    return 1.0 / math.sqrt(g) if g > 0 else math.inf
 
 
 def _resumed_state(ckpt: Path, key: str, model: str, log):
@@ -292,6 +291,7 @@ def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result
     ref = Refinement(result.x_best, result.fitness_best, 0, none, [], None)
     if settings.polish_jacobians <= 0:
         return ref
+    t0 = time.perf_counter()
     starts = [("Firefly best", result.x_best)]
     if not np.allclose(guess, result.x_best):
         starts.append(("data-driven start", guess))
@@ -317,6 +317,7 @@ def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result
         log(f"[{model}] local refinement from the {label}: RMSE {ref.runs[-1]['rmse_n']:.2f} N, {pol.stop}")
         if len(ref.runs) == 1 or g > ref.g:  # polish never returns a point worse than its start
             ref.z, ref.g, ref.polished = pol.z, g, pol
+    ref.elapsed_s = time.perf_counter() - t0
     return ref
 
 
