@@ -18,14 +18,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["EXPECTED_REFITS", "SHAPES", "DiagnosisCost", "expected_cost"]
+from tuner.diagnosis.forms import shape_grid
+
+__all__ = ["EXPECTED_REFITS", "DiagnosisCost", "shapes", "refit_cost", "expected_cost"]
 
 #: catalogue candidates refitted after the screen, assumed before it (measured: 0 on clean data, 2 on the
 #: real MR damper, 1 where an effect is hidden)
 EXPECTED_REFITS = 2
-#: shapes a form's screen simulates (``tuner.diagnosis.forms.shape_grid``: eight hysteresis displacements;
-#: bypass grooves at 9 centres x 3 lengths x 3 directions x 2 fades)
-SHAPES = {"hysteresis": 8, "bypass": 162}
 
 
 @dataclass
@@ -48,6 +47,13 @@ class DiagnosisCost:
         setattr(self, step, 0.0)
 
 
+def shapes(form: str) -> int:
+    """Shapes the screen of ``form`` simulates (``tuner.diagnosis.forms.shape_grid``, with a fade: its count
+    depends on neither the bounds nor the knee's value)."""
+    bounds = {"hysteresis_displacement": (1e-5, 1e-3), "bypass_center": (-0.01, 0.01), "bypass_width": (2e-3, 8e-3)}
+    return len(shape_grid(form, bounds, knee_m_s=0.1))
+
+
 def refit_cost(d: int, extra: int, settings) -> float:
     """Simulations of one candidate's refit: the profile and the joint polish of a model of d base and
     ``extra`` effect coordinates."""
@@ -66,7 +72,7 @@ def expected_cost(d: int, settings, *, settled: bool, forms_run: bool, held_out_
     screen = n * settings.grid_points + (0 if settled else jac)
     forms = 0.0
     if forms_run:
-        forms = jac + sum(SHAPES.get(f, 10) for f in settings.forms) + refit_cost(d, 3, settings)
+        forms = jac + sum(shapes(f) for f in settings.forms) + refit_cost(d, 3, settings)
     detection = jac * (1 + held_out_share) + 6 * n * (1 + held_out_share)
     return DiagnosisCost(float(reference), float(screen), float(refits * refit_cost(d, 1, settings)), float(forms),
                          float(detection))
