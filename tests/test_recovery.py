@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from campaign.synthetic import random_stroke, write_model_dataset
-from damper_fmu import defaults, make_model, simulate
+from damper_fmu import defaults, make_model
 from tuner.data.reading import load_dataset
 from tuner.identification.engine import fastest_engine
 from tuner.identification.fit import FitSettings, fit

@@ -2,7 +2,6 @@
 Maxwell yaw dampers of campaign.vehicle, and the eigenvalues of its linear model."""
 import dataclasses
 import math
-import shutil
 import zipfile
 
 import numpy as np
