@@ -57,13 +57,13 @@ import numpy as np
 from damper_fmu.fmu import ensure_fmu
 from damper_fmu.models import ConvergenceError
 from damper_fmu.parameters import MODEL_PARAMETERS
-from tuner.identification.engine import (IDENTIFICATION_STEP, IDENTIFICATION_TOLERANCE, Engine, Signals,
+from tuner.identification.engine import (IDENTIFICATION_STEP, IDENTIFICATION_TOLERANCE, Signals,
                                          simulate_signals)
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.runner import FmuRunner, SimulationError
 from tuner.metrics import Z95, block_sandwich, correlation_time
 
-__all__ = ["ParameterInterval", "ReachedRange", "LocalCovariance", "ModelIntervals", "parameter_intervals", "model_intervals",
+__all__ = ["ParameterInterval", "ReachedRange", "LocalCovariance", "ModelIntervals", "parameter_intervals",
            "residual_jacobian",
            "reached_ranges", "classify", "STEP", "DETERMINED_WIDTH", "BOUND_FRACTION", "TIE_CORRELATION",
            "NULL_RCOND", "BLOCK_CORRELATION_TIMES", "MIN_BLOCKS_PER_PARAMETER", "MIN_BLOCKS", "CONFIDENCE",
@@ -589,11 +589,3 @@ def reached_ranges(model: str, params: dict, signals: list[Signals], fmu_path=No
     return [ReachedRange("Fc", "piston-valve rate (rebound), foot-valve rate / (1 - area_ratio) (compression)",
                          "m/s", -float(max(b.max(), 0.0)) / ratio, float(max(a.max(), 0.0)))]
 
-
-def model_intervals(model: str, signals: list[Signals], par: Parametrization, params: dict, *,
-                    engine: str = "fmu") -> ModelIntervals:
-    """``parameter_intervals`` of ``model`` fitted at ``params`` on the identification ``signals``, through
-    the identification engine ``engine`` (in this process: d + 1 simulations) with the ``reached_ranges``."""
-    fmu_path = ensure_fmu(model) if engine == "fmu" else None
-    with Engine(model, signals, engine=engine, workers=0, fmu_path=fmu_path) as eng:
-        return parameter_intervals(eng, par, params, reached=reached_ranges(model, params, signals))
