@@ -116,7 +116,10 @@ class Effect:
     evidence (``tuner.diagnosis.residuals``; None: none, as for the forms); positive: the noun of the
     effect when its signature's coefficient must be positive to be evidence for it ('a friction'; None:
     either sign); note: what the verdict adds when it names the effect; acquisition: a property of the
-    rig's channels or zero, not of the damper (the co-simulation model leaves it out).
+    rig's channels or zero, not of the damper (the co-simulation model leaves it out); nonsmooth: its force
+    has no gradient with respect to the magnitude at zero and the base absorbs part of it (a free play: a
+    soft elastic table stands in for a dead band), so the refit's profile re-fits the model at every grid value
+    of the magnitude (``tuner.diagnosis.refit``) instead of re-balancing it on the base's Jacobian.
     """
 
     name: str
@@ -133,6 +136,7 @@ class Effect:
     positive: str | None = None
     note: str | None = None
     acquisition: bool = False
+    nonsmooth: bool = False
 
     def __post_init__(self):
         names = [p.name for p in self.parameters]
@@ -191,7 +195,7 @@ _RECORDS = (
             0.0, 0.0, 3e-3),),
         ("free_play",), {"free_play": (1e-4, 1e-3)}, {"free_play": gap}, "gap",
         scaling={"free_play": SCALES_WITH_STROKE}, signature="-F_sim in the apparent gap after velocity reversals",
-        positive="a free play"),
+        positive="a free play", nonsmooth=True),
     Effect(
         "thermal_drift", "thermal drift of the damping",
         "damping that changes with the oil temperature between tests",

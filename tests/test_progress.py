@@ -145,3 +145,25 @@ def test_a_plan_forwards_the_sum_of_its_open_parts_seconds_once_every_one_has_sa
     assert p.remaining_s() == pytest.approx(100.0)
     advance(plan.part("diagnose a"), 1.0)
     assert p.remaining_s() == pytest.approx(0.0)
+
+
+def test_the_diagnosis_forecast_counts_the_steps_a_leading_cause_brings_and_none_that_will_not_run():
+    """Once the candidates are ranked, a leading cause brings its continuation, its interval, the forward
+    selection over the other scoring candidates and a second pass of the forms (weighed with it, then on top);
+    with nothing scoring and the residual at the floor none of those steps is counted."""
+    from tuner.diagnosis.cost_model import after_ranking, expected_cost, form_pass_cost
+    from tuner.diagnosis.settings import DiagnosisSettings
+
+    s, d = DiagnosisSettings(), 29
+    clean = expected_cost(d, s, settled=True, forms_run=False, held_out_share=0.5)
+    after_ranking(clean, d, s, scoring=0, forms_run=False)
+    assert clean.continuation == clean.intervals == clean.selection == clean.forms == 0.0
+    hidden = expected_cost(d, s, settled=True, forms_run=True, held_out_share=0.5)
+    after_ranking(hidden, d, s, scoring=2, forms_run=True)
+    assert hidden.forms == pytest.approx(2 * form_pass_cost(d, s))
+    assert hidden.continuation >= 2 * (d + 2)  # at least a Jacobian of the base and of the lead
+    assert hidden.intervals == pytest.approx(2 * (d + 2))
+    assert hidden.selection > 0.0
+    one = expected_cost(d, s, settled=True, forms_run=True, held_out_share=0.5)
+    after_ranking(one, d, s, scoring=1, forms_run=True)
+    assert one.selection == 0.0 and one.total < hidden.total

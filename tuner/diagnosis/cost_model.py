@@ -8,23 +8,33 @@ coordinates is d + 1 simulations; a candidate's refit is its profile (``grid_poi
 by up to ``profile_steps`` batches: half of them on average, measured) and a joint polish of at most
 ``polish_jacobians / 2`` Jacobians; the screen is one batch of ``grid_points`` values per candidate; the
 forms screen their shapes (``tuner.diagnosis.forms.shape_grid``) and refit one shape; the detection limits
-take the Jacobian on both test sets and up to three signatures per candidate on each. Unknown before the step
-that decides it (how many candidates the screen passes, whether the forms run), the count assumes
-``EXPECTED_REFITS`` refits and forms that run when the base leaves a residual above the floor; the search
-replaces each assumption by what happened as it goes, so the estimate is a forecast that is corrected at
-every step, never a share that stays at "100 %".
+take the Jacobian on both test sets and up to three signatures per candidate on each. Once the candidates are
+ranked (``after_ranking``), what a leading candidate brings follows: its continuation and the base's
+(``CONTINUATION_JACOBIANS`` each), an interval (one Jacobian) per candidate that scores, the forward
+selection (each other scoring candidate refitted on top of the first, the best continued), and the forms
+twice (weighed with the cause on the base, then on top of the causes) when the base leaves a residual above
+the floor, each pass with the best form's continuation. Unknown before the step that decides it (how many
+candidates the screen passes, whether the forms run), the count assumes ``EXPECTED_REFITS`` refits, no
+cause, and forms that run when the base leaves a residual above the floor; the search replaces each
+assumption by what happened as it goes, so the estimate is a forecast that is corrected at every step, never
+a share that stays at "100 %".
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 from tuner.diagnosis.forms import shape_grid
+from tuner.diagnosis.refit import HELD_PROFILE_JACOBIANS
 
-__all__ = ["EXPECTED_REFITS", "DiagnosisCost", "shapes", "refit_cost", "expected_cost"]
+__all__ = ["EXPECTED_REFITS", "CONTINUATION_JACOBIANS", "DiagnosisCost", "shapes", "refit_cost", "form_pass_cost",
+           "expected_cost", "after_ranking"]
 
 #: catalogue candidates refitted after the screen, assumed before it (measured: 0 on clean data, 2 on the
 #: real MR damper, 1 where an effect is hidden)
 EXPECTED_REFITS = 2
+#: Jacobians a continuation (``final_jacobians`` cap) takes until its rule holds, assumed (measured on blind free
+#: plays: 4-5 on the lumped base, 6-7 on the two-chamber base)
+CONTINUATION_JACOBIANS = 5
 
 
 @dataclass
@@ -35,12 +45,16 @@ class DiagnosisCost:
     reference: float  # the base refitted alike ('none'), its Jacobian
     screen: float
     refits: float
-    forms: float
+    forms: float  # every pass of the forms still to come
     detection: float
+    continuation: float = 0.0  # the leading candidate's and the base's continuation
+    intervals: float = 0.0  # the intervals of the candidates that score
+    selection: float = 0.0  # the forward selection on top of the first cause
 
     @property
     def total(self) -> float:
-        return self.reference + self.screen + self.refits + self.forms + self.detection
+        return (self.reference + self.screen + self.refits + self.forms + self.detection + self.continuation
+                + self.intervals + self.selection)
 
     def done(self, step: str) -> None:
         """Step ``step`` (a field name) is finished: nothing of it is left."""
@@ -54,11 +68,20 @@ def shapes(form: str) -> int:
     return len(shape_grid(form, bounds, knee_m_s=0.1))
 
 
-def refit_cost(d: int, extra: int, settings) -> float:
+def refit_cost(d: int, extra: int, settings, nonsmooth: bool = False) -> float:
     """Simulations of one candidate's refit: the profile and the joint polish of a model of d base and
-    ``extra`` effect coordinates."""
+    ``extra`` effect coordinates; a ``nonsmooth`` effect's held profile besides (``tuner.diagnosis.refit.
+    held_profile``: half the grid re-fitted, a Jacobian and two trial steps each)."""
     profile = settings.grid_points * (1 + settings.profile_steps / 2)
-    return profile + max(1, settings.polish_jacobians // 2) * (d + extra + 1)
+    held = settings.grid_points / 2 * HELD_PROFILE_JACOBIANS * (d + extra + 3) if nonsmooth else 0.0
+    return profile + held + max(1, settings.polish_jacobians // 2) * (d + extra + 1)
+
+
+def form_pass_cost(d: int, settings) -> float:
+    """Simulations of one pass of the forms on a model of d coordinates: the current model's Jacobian, every
+    form's shape screen, one shape refitted, the best form continued."""
+    screen = d + 1 + sum(shapes(f) for f in settings.forms)
+    return screen + refit_cost(d, 3, settings) + CONTINUATION_JACOBIANS * (d + 4)
 
 
 def expected_cost(d: int, settings, *, settled: bool, forms_run: bool, held_out_share: float,
@@ -70,9 +93,20 @@ def expected_cost(d: int, settings, *, settled: bool, forms_run: bool, held_out_
     jac = d + 1
     reference = jac if settled else jac + max(1, settings.polish_jacobians // 2) * (jac + 2)
     screen = n * settings.grid_points + (0 if settled else jac)
-    forms = 0.0
-    if forms_run:
-        forms = jac + sum(shapes(f) for f in settings.forms) + refit_cost(d, 3, settings)
+    forms = form_pass_cost(d, settings) if forms_run and settings.forms else 0.0
     detection = jac * (1 + held_out_share) + 6 * n * (1 + held_out_share)
     return DiagnosisCost(float(reference), float(screen), float(refits * refit_cost(d, 1, settings)), float(forms),
                          float(detection))
+
+
+def after_ranking(cost: DiagnosisCost, d: int, settings, *, scoring: int, forms_run: bool) -> None:
+    """``cost`` once the candidates are ranked (module docstring): ``scoring`` candidates score above the
+    acceptance line with a resolved force (the first of them leads); ``forms_run``: the base leaves a residual
+    above the floor."""
+    cost.continuation = 2.0 * CONTINUATION_JACOBIANS * (d + 2) if scoring and settings.final_jacobians > 0 else 0.0
+    cost.intervals = float(scoring * (d + 2))
+    others = max(0, min(scoring, settings.max_causes) - 1)
+    cost.selection = float(others * refit_cost(d, 2, settings)
+                           + (CONTINUATION_JACOBIANS * (d + 3) + d + 3 if others else 0))
+    passes = (2 if scoring else 1) if forms_run and settings.forms else 0
+    cost.forms = passes * form_pass_cost(d, settings)

@@ -12,13 +12,13 @@ from pathlib import Path
 import numpy as np
 
 from damper_fmu.fmu import ensure_fmu
-from damper_fmu.effect_catalogue import EFFECT_IDENTIFIED, EFFECT_KIND, EFFECT_PARAMETERS, EFFECT_TYPICAL, search_bounds
+from damper_fmu.effect_catalogue import ALL_EFFECTS, EFFECT_IDENTIFIED, EFFECT_KIND, EFFECT_PARAMETERS, EFFECT_TYPICAL, search_bounds
 from damper_fmu.parameters import defaults
 
 from tuner.data.noise import channel_noise
 from tuner.data.reading import RigTest
 from tuner.diagnosis.bases import Base, BaseRefinement
-from tuner.diagnosis.cost_model import DiagnosisCost, expected_cost, refit_cost
+from tuner.diagnosis.cost_model import DiagnosisCost, after_ranking, expected_cost, form_pass_cost, refit_cost
 from tuner.diagnosis.detection import detection_limits
 from tuner.diagnosis.effect_sizes import REFERENCE, DamperSize, meaningful_floor, typical_range
 from tuner.diagnosis.forms import FORM_LABELS, screen, settings_text, shape_grid
@@ -155,6 +155,19 @@ class CandidateSearch:
             evaluations, spent = evaluations + PRIOR_EVALUATIONS, spent + PRIOR_EVALUATIONS * self.rate_prior
         if evaluations > 0:
             expect(self.log, self.cost.total * spent / evaluations)
+
+    def step_done(self, step: str) -> None:
+        """Step ``step`` of the cost model (a ``DiagnosisCost`` field) is finished: the time left said again."""
+        self.cost.done(step)
+        self.forecast()
+
+    def expect_after_ranking(self) -> None:
+        """The cost of the steps the ranking decides (``tuner.diagnosis.cost_model.after_ranking``): a leading
+        candidate's continuation, the intervals, the forward selection, the passes of the forms."""
+        scoring = sum(1 for r in self.ranking if r["effect"] != "none" and r["score"] > ACCEPT_SCORE and r["resolved"])
+        after_ranking(self.cost, self.par.dimension, self.settings, scoring=scoring,
+                      forms_run=self.above_floor(self.none_row["identification_rmse_n"]))
+        self.forecast()
 
     def at(self, stage: str, fraction: float | None = None) -> None:
         self.record["stage"] = f"{stage} on the {self.kind} base"
@@ -321,9 +334,10 @@ class CandidateSearch:
         exts = {e: ExtendedParametrization(self.par, e, self.peak, self.stroke_range)
                 for e in self.settings.candidates}
         screened = self.screen(exts)
-        passed = sum(1 for e in self.settings.candidates if screened.get(e) is None or screened[e].passes)
+        passed = [e for e in self.settings.candidates if screened.get(e) is None or screened[e].passes]
         self.cost.done("screen")
-        self.cost.refits = passed * refit_cost(self.par.dimension, 1, self.settings)
+        self.cost.refits = sum(refit_cost(self.par.dimension, 1, self.settings, ALL_EFFECTS[e].nonsmooth)
+                               for e in passed)
         self.forecast()
         at_none = {**self.base, **self.par.to_params(self.z_none)}
         for k, effect in enumerate(self.settings.candidates):
@@ -338,7 +352,8 @@ class CandidateSearch:
             refitted = row is None or (row["score"] > ACCEPT_SCORE and row["resolved"])
             if refitted:
                 row = self.refit_candidate(effect, ext)
-                self.cost.refits = max(0.0, self.cost.refits - refit_cost(self.par.dimension, 1, self.settings))
+                self.cost.refits = max(0.0, self.cost.refits - refit_cost(self.par.dimension, 1, self.settings,
+                                                                          ALL_EFFECTS[effect].nonsmooth))
                 self.forecast()
             row["refitted"], row["screen"] = refitted, scr.to_dict() if scr is not None else None
             self.ranking.append(row)
@@ -682,30 +697,34 @@ class CandidateSearch:
             self.candidates()
             advance(self.log, 0.7)
             self.promote([r["effect"] for r in self.ranking if r["refitted"]])
+            self.expect_after_ranking()
             self.continue_lead()
+            self.step_done("continuation")
             self.at("intervals of the candidates", 0.8)
             self.intervals()
+            self.step_done("intervals")
             self.ranking.sort(key=lambda r: -r["score"])
             self.ranking.append(self.none_row)
             cause, best, unresolved = decide(self.ranking)
             cause, best, weighed = self.weigh_forms(cause, best)
+            if weighed is not None:  # one pass of the forms done
+                self.cost.forms = max(0.0, self.cost.forms - form_pass_cost(self.par.dimension, self.settings))
             causes, selection = ([cause] if cause != "none" else []), []
             self.at("forward selection", 0.85)
             self.record["partial"].update(causes=causes, selection=selection)
             best = self.select(causes, best, selection)
+            self.step_done("selection")
             if not causes:
                 self.continue_base()
             form_step = weighed if weighed is not None and weighed.get("first") else None
             if form_step is None:
                 cause, best, form_step = self.forms_on_top(cause, causes, best)
-            self.cost.done("forms")
-            self.forecast()
+            self.step_done("forms")
             self.at("detection limits", 0.95)
             limits = detection(self.eid, self.ev, self.par, self.z_none,
                                [e for e in self.settings.candidates if e not in causes], self.peak, self.stroke_range,
                                self.mse_none, self.noise, self.lengths, [s.name for s in self.data.sig_val], self.log)
-            self.cost.done("detection")
-            self.forecast()
+            self.step_done("detection")
             self.log(f"diagnosis on the {self.kind} base: {self.eid.evaluations} simulations of the identification "
                      f"tests and {self.ev.evaluations} of the held-out ones in {time.perf_counter() - self.t_engines:.0f} s")
         return self.result(cause, causes, best, unresolved, selection, limits, form_step, weighed)
