@@ -71,8 +71,10 @@ def test_the_combined_shift_is_the_stacked_gauss_newton_projection():
     assert np.allclose(got, expected, rtol=1e-7, atol=1e-12)
 
 
-def test_held_at_a_bound_unless_the_fit_left_it_there_undetermined_and_the_candidate_determines_it():
-    u = np.array([0.5, 1.0, 1.0, 0.0, 0.0])
-    before = np.diag([1e-6, 1e-6, 1.0, 1.0, 1.0])  # coordinate 1 determined at its bound by the fit
-    after = np.diag([1e-6, 1e-6, 1e-6, 1.0, 1e-6])  # 2 and 4 determined by the candidate, 3 not
-    assert held_coordinates(u, before, after) == [1, 3]
+def test_held_at_a_bound_unless_the_candidate_decides_and_inside_when_it_says_nothing():
+    u = np.array([0.5, 1.0, 1.0, 0.0, 0.0, 0.3, 0.7])
+    before = np.diag([1e-6, 1e-6, 1.0, 1.0, 1.0, 1.0, 1.0])  # coordinate 1 determined at its bound by the fit
+    # 2 and 4 (at a bound) determined by the candidate, 3 not; inside: 5 placed (interval 0.78 of the range),
+    # 6 not (1.18 of it)
+    after = np.diag([1e-6, 1e-6, 1e-6, 1.0, 1e-6, 0.2 ** 2, 0.3 ** 2])
+    assert held_coordinates(u, before, after) == [1, 3, 6]

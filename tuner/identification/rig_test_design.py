@@ -27,10 +27,11 @@ were run on the rig and added to the identification:
   prepared stroke); the fit's shift s_0 in u (``LocalCovariance.shift``); the combined fit's shift
   (``combined_shift``) is the Gauss-Newton projection of the stacked differences [d_0; d_c] on the stacked
   Jacobians, weighted per sample by 1/(s^2 tau) as the information is: s' = (I_0 + I_c)^-1 (I_0 s_0 +
-  J_c^T d_c / (s^2 tau)) on the coordinates not held at a bound (``held_coordinates``: those at a bound,
-  except one the fit leaves there undetermined and the candidate determines: it moves where the candidate
-  puts it; I_0 s_0 stands for J_0^T d_0 / (s^2 tau), exact where the fit's covariance is the textbook one,
-  the block sandwich differing from it by the residual's colour);
+  J_c^T d_c / (s^2 tau)) on the coordinates not held (``held_coordinates``: those at a bound, except one
+  the fit leaves there undetermined and the candidate determines, which moves where the candidate puts it;
+  and those the candidate leaves without information, an interval wider than the bounds; I_0 s_0 stands for
+  J_0^T d_0 / (s^2 tau), exact where the fit's covariance is the textbook one, the block sandwich
+  differing from it by the residual's colour);
 * after: Sigma' = (I_0 + I_c)^-1; each parameter's standard error std' and shift s' by the delta method
   (G = d theta / d u); the expected 95 % interval width before and after as the intervals make it
   (``classify``: 2 Z95 sqrt(std^2 + s^2), log-scaled in the logarithm, clipped to the bounds), each
@@ -266,18 +267,24 @@ def _candidate_differences(eng, values: dict) -> tuple[np.ndarray | None, str]:
 
 
 def held_coordinates(u: np.ndarray, cov_before: np.ndarray, cov_after: np.ndarray) -> list[int]:
-    """The coordinates the fit with a candidate added would still hold at a bound of [0, 1]: every one at a
-    bound except those the fit leaves undetermined there and the candidate determines (Z95 std_u at most
-    ``DETERMINED_WIDTH`` of the range, the intervals' 'determined' in u; ``cov_before``/``cov_after`` [u^2] the
-    covariance on every coordinate without and with the candidate). Such a coordinate sits at the bound for
-    want of information, and the candidate decides where the refit puts it, usually inside (a mass fitted at
-    20 kg whose truth is 9 kg); one the fit determines at the bound stays held by it, and one the candidate
-    does not determine either stays where the fit left it."""
+    """The coordinates the combined shift holds (``combined_shift``), from the covariance on every coordinate
+    without and with the candidate (``cov_before``/``cov_after`` [u^2]; 'determined': Z95 std_u at most
+    ``DETERMINED_WIDTH`` of the range, the intervals' rule in u):
+
+    * at a bound of [0, 1]: held, as the refinement holds it, except when the fit leaves it undetermined
+      there and the candidate determines it: it sits at the bound for want of information, and the candidate
+      decides where the refit puts it, usually inside (a mass fitted at 20 kg whose truth is 9 kg);
+    * inside: held when its 95 % interval with the candidate is still wider than its bound range (2 Z95
+      std_u >= 1): the tests do not place it (the refinement leaves it where it drifts, at a bound in the
+      known-truth refits), and its linear shift, many times its range (-540 kg on a 1-20 kg mass), would
+      only move the others through their correlation with it."""
     def determined(cov, i):
         return Z95 * math.sqrt(max(cov[i, i], 0.0)) <= DETERMINED_WIDTH
 
     free = set(free_coordinates(u, range(u.size)))
-    return [i for i in range(u.size) if i not in free and (determined(cov_before, i) or not determined(cov_after, i))]
+    return [i for i in range(u.size)
+            if (i in free and 2.0 * Z95 * math.sqrt(max(cov_after[i, i], 0.0)) >= 1.0)
+            or (i not in free and (determined(cov_before, i) or not determined(cov_after, i)))]
 
 
 def combined_shift(info0: np.ndarray, shift0: np.ndarray, Jc: np.ndarray, dc: np.ndarray | None, weight: float,
