@@ -75,7 +75,8 @@ from tuner.progress import advance, stage
 
 __all__ = ["RigLimits", "Candidate", "CandidateGain", "ModelDesign", "candidate_tests", "rank_candidates",
            "combined_shift", "held_coordinates",
-           "design_from_folder", "limits_from_tests", "EASE_IN_S", "PRIOR_UNSEEN", "DESIGN_FOLDER"]
+           "design_from_folder", "limits_from_tests", "EASE_IN_S", "PRIOR_UNSEEN", "DESIGN_FOLDER", "NO_FIT_SHIFT",
+           "NO_CANDIDATE_SHIFT"]
 
 #: sub-folder of a fit output folder for the designed tests (``design_from_folder``)
 DESIGN_FOLDER = "design"
@@ -84,6 +85,11 @@ DESIGN_FOLDER = "design"
 EASE_IN_S = 1.0
 #: information [1/u^2] of a coordinate the fit does not see at all: a uniform distribution over its bounds
 PRIOR_UNSEEN = 12.0
+#: the candidates' notes when the promise cannot hold the representation shift in full
+NO_FIT_SHIFT = ("parameters.json holds no representation shift in the identification's coordinates (written by an "
+                "earlier version): the promised widths leave the fit's own shift out; refit to include it")
+NO_CANDIDATE_SHIFT = ("the model's reference run (finer internal steps) failed on the candidates: their "
+                      "representation shift is left out of the promise")
 
 
 @dataclass(frozen=True)
@@ -245,25 +251,11 @@ def _widths(cov_u: np.ndarray, shift_u: np.ndarray, G: np.ndarray, names: list, 
     return out
 
 
-def _fit_shift(iv: ModelIntervals) -> tuple[np.ndarray, str]:
-    """(the fit's representation shift in u [u], a note): ``LocalCovariance.shift``, or zeros and the note
-    saying so when parameters.json predates it (the promise then leaves the fit's own shift out)."""
+def _fit_shift(iv: ModelIntervals) -> np.ndarray:
+    """The fit's representation shift in u [u]: ``LocalCovariance.shift``, or zeros when parameters.json
+    predates it (the promise then leaves the fit's own shift out, ``NO_FIT_SHIFT`` says so)."""
     local = iv.local
-    if local.shift is not None:
-        return np.asarray(local.shift, dtype=float), ""
-    return np.zeros(len(local.coordinates)), (
-        "parameters.json holds no representation shift in the identification's coordinates (written by an "
-        "earlier version): the promised widths leave the fit's own shift out; refit to include it")
-
-
-def _candidate_differences(eng, values: dict) -> tuple[np.ndarray | None, str]:
-    """(the candidates' representation difference [N] over their counted samples, in ``eng``'s order, or
-    None; a note when None): ``representation_difference``, the fit's own definition."""
-    d = representation_difference(eng, values)
-    if d is None:
-        return None, ("the model's reference run (finer internal steps) failed on the candidates: their "
-                      "representation shift is left out of the promise")
-    return d, ""
+    return np.zeros(len(local.coordinates)) if local.shift is None else np.asarray(local.shift, dtype=float)
 
 
 def held_coordinates(u: np.ndarray, cov_before: np.ndarray, cov_after: np.ndarray) -> list[int]:
@@ -293,9 +285,9 @@ def combined_shift(info0: np.ndarray, shift0: np.ndarray, Jc: np.ndarray, dc: np
     stacked differences [d_0; d_c] [N] on the stacked Jacobians [J_0; J_c] [N/u], each sample weighted by
     ``weight`` = 1/(s^2 tau) [1/N^2] as the information is. The fit's part enters through its information
     I_0 [1/u^2] and shift s_0 [u] (J_0^T W J_0 = I_0 and J_0^T W d_0 = I_0 s_0 on the coordinates its step
-    moved): s' = (I_0 + W J_c^T J_c)^-1 (I_0 s_0 + W J_c^T d_c) on the coordinates not ``held`` at a bound
-    (``held_coordinates``; 0 on those, as ``gauss_newton_step`` holds them). dc None: the candidate's
-    difference unknown, taken as 0."""
+    moved): s' = (I_0 + W J_c^T J_c)^-1 (I_0 s_0 + W J_c^T d_c) on the coordinates not ``held``
+    (``held_coordinates``; 0 on those, as ``gauss_newton_step`` holds a coordinate at a bound). dc None: the
+    candidate's difference unknown, taken as 0."""
     out = np.zeros(shift0.size)
     free = [i for i in range(shift0.size) if i not in set(held)]
     if not free:
@@ -332,14 +324,15 @@ def rank_candidates(model: str, values: dict, iv: ModelIntervals, candidates: li
     u0 = np.asarray(iv.local.u, dtype=float)
     info0 = _prior_information(iv)
     cov0 = _inverse(info0)
-    shift0, note = _fit_shift(iv)
+    shift0 = _fit_shift(iv)
     signals = [to_signals(prepare(c.rig_test(), fit_rate_hz), warmup_s) for c in candidates]
     with Engine(model, signals, engine=engine or fastest_engine(), workers=0) as eng:
         r, J, G, failed = residual_jacobian(eng, space, u0, names)
-        d, why = _candidate_differences(eng, space.to_params(u0))
+        d = representation_difference(eng, space.to_params(u0))  # the candidates' d_c, the fit's definition
     if failed:
         raise ValueError(f"{model}: the fitted model could not be simulated on the candidates next to the fit")
-    note = "; ".join(t for t in (note, why) if t)
+    note = "; ".join(t for t, missing in ((NO_FIT_SHIFT, iv.local.shift is None), (NO_CANDIDATE_SHIFT, d is None))
+                     if missing)
     before = _widths(cov0, shift0, G, names, targets, iv)
     weight = 1.0 / (iv.residual_rms_n ** 2 * max(iv.correlation_time_s * fit_rate_hz, 1.0))
     T = [names.index(n) for n in targets]
