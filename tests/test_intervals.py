@@ -221,6 +221,13 @@ def test_results_round_trip_through_strict_json():
                           for n in back.covariance_names] for i in keep])
     cov = G @ back.local.matrix @ G.T
     assert np.allclose(np.sqrt(np.diag(cov)), np.sqrt(np.diag(back.covariance)), rtol=1e-3)
+    # the representation shift in u (what the draws and the test design use) maps to each parameter's
+    # systematic shift by the same Jacobian
+    shift = G @ back.local.shift[keep]
+    assert np.allclose(back.local.shift, iv.local.shift) and np.any(back.local.shift != 0.0)
+    for n, s in zip(back.covariance_names, shift):
+        p = back.get(n)
+        assert abs(s - p.systematic) <= 1e-3 * abs(p.systematic) + 1e-6 * p.std, (n, s, p.systematic)
 
 
 def test_fit_writes_the_intervals_and_the_report_shows_them(small_lumped, tmp_path):

@@ -8,7 +8,11 @@ from the drawing code:
 (c) a coordinate fitted at a bound is drawn as the half-Gaussian on the inside (mean sigma sqrt(2/pi));
 (d) a coordinate without finite variance is uniform over its bounds (mean 1/2, variance 1/12);
 (e) every draw is a valid model: inside the bounds, the tables monotone (damper_fmu.parameters.check_values);
-(f) draws depend on (seed, model, index) alone: the first n of 2n are the same.
+(f) draws depend on (seed, model, index) alone: the first n of 2n are the same;
+(g) the representation shift s_u is drawn as a rank-one term: the draws' covariance in u is Sigma + s_u s_u^T,
+    so a parameter linear in its coordinate has the marginal variance (std^2 + s^2) and two shifted ones the
+    covariance s_a s_b; checked against the sampling distribution of the estimates (a sample variance of N
+    normal draws has relative standard error sqrt(2 / (N - 1)), a sample correlation (1 - rho^2) / sqrt(N)).
 """
 import math
 
@@ -24,10 +28,12 @@ from tuner.identification.parametrization import Parametrization
 N = 4000
 
 
-def lumped_entry(sigma: dict, at_bound: str | None = None, unresolved=(), corr: tuple | None = None):
+def lumped_entry(sigma: dict, at_bound: str | None = None, unresolved=(), corr: tuple | None = None,
+                 shift: dict | None = None):
     """A parameters.json entry of the lumped model at its preset, with the local covariance diagonal
     (``sigma``: coordinate -> standard deviation in u; others 1e-6), the coordinate ``at_bound`` moved to
-    its upper bound, ``unresolved`` coordinates without finite variance, ``corr`` = (a, b, rho)."""
+    its upper bound, ``unresolved`` coordinates without finite variance, ``corr`` = (a, b, rho), ``shift``:
+    coordinate -> representation shift in u (None: none stored, as a file written before it was)."""
     values = defaults("lumped")
     par = Parametrization("lumped", force_limit=3.0e4, spring_reference=1.5e7,
                           fixed={k: v for k, v in values.items() if k.startswith(("Fc_v", "Fk_x"))})
@@ -43,7 +49,8 @@ def lumped_entry(sigma: dict, at_bound: str | None = None, unresolved=(), corr: 
         a, b, rho = resolved.index(corr[0]), resolved.index(corr[1]), corr[2]
         cov[a, b] = cov[b, a] = rho * s[a] * s[b]
     local = LocalCovariance(coordinates=list(space.names), u=u, resolved=resolved, matrix=cov, scheme="improved",
-                            force_limit_n=3.0e4, spring_reference_n_per_m=1.5e7)
+                            force_limit_n=3.0e4, spring_reference_n_per_m=1.5e7,
+                            shift=None if shift is None else np.array([shift.get(c, 0.0) for c in space.names]))
     iv = ModelIntervals(model="lumped", parameters=[], covariance_names=[], covariance=np.zeros((0, 0)),
                         method="block sandwich", blocks=0, block_length_s=1.0, correlation_time_s=1.0, samples=0,
                         residual_rms_n=0.0, local=local)
@@ -121,6 +128,32 @@ def test_f_draws_depend_on_seed_model_and_index_alone():
     c = draw_parameter_sets("lumped", entry, 5, seed=8).matrix()
     assert np.array_equal(a, b[:5])
     assert not np.allclose(a, c)
+
+
+def test_g_the_representation_shift_is_drawn_as_a_rank_one_term():
+    sig, shift = {"M_P": 0.01, "M_O": 0.015, "M_C": 0.01}, {"M_P": 0.02, "M_O": -0.01}
+    entry, par, _ = lumped_entry(sig, shift=shift)
+    draws = draw_parameter_sets("lumped", entry, N, seed=6)
+    m = draws.matrix()
+    width = {n: par.bounds[n][1] - par.bounds[n][0] for n in sig}  # the masses are linear in their coordinate
+    col = {n: m[:, draws.names.index(n)] for n in sig}
+    var = {n: (sig[n] ** 2 + shift.get(n, 0.0) ** 2) * width[n] ** 2 for n in sig}  # std^2 + s^2
+    tol = 4.0 * math.sqrt(2.0 / (N - 1))  # four standard errors of a sample variance, relative
+    for n in sig:
+        assert np.var(col[n], ddof=1) / var[n] == pytest.approx(1.0, abs=tol), n
+    rho = shift["M_P"] * shift["M_O"] * width["M_P"] * width["M_O"] / math.sqrt(var["M_P"] * var["M_O"])
+    got = np.corrcoef(col["M_P"], col["M_O"])[0, 1]
+    assert got == pytest.approx(rho, abs=4.0 * (1 - rho ** 2) / math.sqrt(N))
+    assert draws.shift and "with the representation shift" in draws.describe()
+    # a file written before the shift was stored: the statistical covariance alone, said
+    old = {**entry, "intervals": {**entry["intervals"], "local_covariance": {
+        k: v for k, v in entry["intervals"]["local_covariance"].items() if k != "shift"}}}
+    n_old = N // 4  # variance sigma^2 against the 5 sigma^2 with the shift: fewer draws tell them apart
+    stat = draw_parameter_sets("lumped", old, n_old, seed=6)
+    m_p = stat.matrix()[:, stat.names.index("M_P")]
+    tol_old = 4.0 * math.sqrt(2.0 / (n_old - 1))
+    assert np.var(m_p, ddof=1) / (sig["M_P"] * width["M_P"]) ** 2 == pytest.approx(1.0, abs=tol_old)
+    assert not stat.shift and "without the representation shift" in stat.describe()
 
 
 def test_reflection_and_bad_input():

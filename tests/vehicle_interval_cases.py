@@ -19,6 +19,8 @@ from tuner.vehicle.hunting import eigen_critical_speed
 KS, C = 1.0e7, 1.0e5  # N/m, N s/m: critical speed about 380 km/h with the campaign's vehicle
 SIGMA_LOG = np.array([0.06, 0.04])  # standard deviations of ln k_s, ln c
 RHO = 0.3  # their correlation
+#: a representation shift of (ln k_s, ln c): the draws add it as a rank-one term (cov_log + s s^T)
+SHIFT_LOG = np.array([0.05, 0.03])
 
 
 def cov_log(sigma_log=SIGMA_LOG, rho: float = RHO) -> np.ndarray:
@@ -28,11 +30,11 @@ def cov_log(sigma_log=SIGMA_LOG, rho: float = RHO) -> np.ndarray:
     return cov
 
 
-def maxwell_folder(folder: Path, sigma_log=SIGMA_LOG, rho: float = RHO) -> dict:
+def maxwell_folder(folder: Path, sigma_log=SIGMA_LOG, rho: float = RHO, shift_log=None) -> dict:
     """Write into ``folder`` the Maxwell model at (KS, C) as a fit would leave it for the vehicle intervals:
     ``fmu/DamperMaxwell_tuned.fmu`` and ``parameters.json`` with the covariance of (ln k_s, ln c) given, in
-    the identification's coordinates (each logarithm scaled by its bound range). Returns parameters.json's
-    content."""
+    the identification's coordinates (each logarithm scaled by its bound range), and the representation
+    shift ``shift_log`` of (ln k_s, ln c) (None: none stored). Returns parameters.json's content."""
     par = Parametrization("maxwell")
     space = par.local_space()
     values = {"k_s": KS, "c": C}
@@ -41,7 +43,8 @@ def maxwell_folder(folder: Path, sigma_log=SIGMA_LOG, rho: float = RHO) -> dict:
     order = [["k_s", "c"].index(n) for n in space.names]
     local = LocalCovariance(coordinates=list(space.names), u=space.from_params(values), resolved=list(space.names),
                             matrix=cov[np.ix_(order, order)], scheme="improved", force_limit_n=par.force_limit,
-                            spring_reference_n_per_m=par.spring_reference)
+                            spring_reference_n_per_m=par.spring_reference,
+                            shift=None if shift_log is None else (np.asarray(shift_log) / scale)[order])
     iv = ModelIntervals(model="maxwell", parameters=[], covariance_names=[], covariance=np.zeros((0, 0)),
                         method="block sandwich", blocks=0, block_length_s=1.0, correlation_time_s=1.0, samples=0,
                         residual_rms_n=0.0, local=local)

@@ -22,7 +22,10 @@ At the fitted point of a model (``parameter_intervals``):
   identification.md). The fit is simulated once more with internal steps ``REFERENCE_STEP_DIVISOR`` times
   finer and the stroke's resampling undone to first order (``resampling_compensated``); the force
   difference d [N], projected as a Gauss-Newton step, is the shift s each parameter would take with
-  the better representation (the fitted value lies about -s from the truth);
+  the better representation (the fitted value lies about -s from the truth); kept in u as well
+  (``LocalCovariance.shift``), where the draws carried to the vehicle add it as a rank-one term
+  (``tuner.identification.parameter_draws``) and the test design combines it with a candidate's
+  (``tuner.identification.rig_test_design``);
 * 95 % intervals value +- Z95 sqrt(std^2 + s^2) (the shift as an error of known size and unknown
   sign: at least 95 % coverage for any shift); for log-scaled parameters (``Parameter.log_scale``)
   symmetric in the logarithm, so they stay positive; correlations from Cov_theta (statistical only).
@@ -67,7 +70,8 @@ __all__ = ["ParameterInterval", "ReachedRange", "LocalCovariance", "ModelInterva
            "residual_jacobian",
            "reached_ranges", "classify", "STEP", "DETERMINED_WIDTH", "BOUND_FRACTION", "TIE_CORRELATION",
            "NULL_RCOND", "BLOCK_CORRELATION_TIMES", "MIN_BLOCKS_PER_PARAMETER", "MIN_BLOCKS", "CONFIDENCE",
-           "REFERENCE_STEP_DIVISOR", "representation_difference", "resampling_compensated"]
+           "REFERENCE_STEP_DIVISOR", "representation_difference", "resampling_compensated", "gauss_newton_step",
+           "free_coordinates"]
 
 #: forward-difference step in the local coordinates (each spans its parameter's bounds): the diagnosis's
 #: effect intervals' step; the polish's fine step (1e-5) sees the two-chamber model's rough objective
@@ -126,7 +130,11 @@ class LocalCovariance:
     coordinate in [0, 1] across its bounds); resolved: the coordinates with a finite variance, in
     ``coordinates``' order; matrix: their covariance [coordinate units^2]; scheme, force_limit_n [N],
     spring_reference_n_per_m [N/m]: the Parametrization the coordinates belong to (with the fitted
-    model's fixed values it is rebuilt by ``parametrization``)."""
+    model's fixed values it is rebuilt by ``parametrization``); shift: the representation shift in u
+    [coordinate units], one entry per coordinate of ``coordinates`` (0 where held at a bound or without
+    finite variance; the parameters' ``systematic`` is G shift, G = d theta / d u), None when it was not
+    computed or the file predates it. The draws add it as a rank-one term shift shift^T to ``matrix``, and
+    the test design combines it with a candidate's (``tuner.identification.rig_test_design``)."""
 
     coordinates: list
     u: np.ndarray
@@ -135,6 +143,7 @@ class LocalCovariance:
     scheme: str
     force_limit_n: float
     spring_reference_n_per_m: float
+    shift: np.ndarray | None = None
 
     def parametrization(self, model: str, values: dict) -> Parametrization:
         """The Parametrization of ``model`` these coordinates belong to, its fixed values (the abscissae)
@@ -148,14 +157,19 @@ class LocalCovariance:
         return {"coordinates": list(self.coordinates), "u": np.asarray(self.u, dtype=float).tolist(),
                 "resolved": list(self.resolved), "matrix": np.asarray(self.matrix, dtype=float).tolist(),
                 "scheme": self.scheme, "force_limit_n": self.force_limit_n,
-                "spring_reference_n_per_m": self.spring_reference_n_per_m}
+                "spring_reference_n_per_m": self.spring_reference_n_per_m,
+                "shift": None if self.shift is None else np.asarray(self.shift, dtype=float).tolist()}
 
     @classmethod
     def from_dict(cls, d: dict) -> "LocalCovariance":
+        """From ``to_dict``'s form; a file written before the shift was stored has none (shift None)."""
         k = len(d["resolved"])
+        shift = d.get("shift")
         return cls(coordinates=list(d["coordinates"]), u=np.asarray(d["u"], dtype=float), resolved=list(d["resolved"]),
                    matrix=np.asarray(d["matrix"], dtype=float).reshape(k, k), scheme=d["scheme"],
-                   force_limit_n=float(d["force_limit_n"]), spring_reference_n_per_m=float(d["spring_reference_n_per_m"]))
+                   force_limit_n=float(d["force_limit_n"]),
+                   spring_reference_n_per_m=float(d["spring_reference_n_per_m"]),
+                   shift=None if shift is None else np.asarray(shift, dtype=float).reshape(len(d["coordinates"])))
 
 
 @dataclass(frozen=True)
@@ -443,9 +457,10 @@ def parameter_intervals(engine, par: Parametrization, params: dict, *, reached: 
     dropped = _unresolved(J, set(failed))
     keep = [i for i in range(J.shape[1]) if i not in dropped]
     cov_u, method, blocks, block, tau = _covariance_u(J, r, lengths, keep)
-    offset = _gauss_newton_step(J, -r, G, u, keep)
+    offset = G @ gauss_newton_step(J, -r, u, keep)
     d = representation_difference(engine, params)
-    shift = None if d is None else _gauss_newton_step(J, d, G, u, keep)
+    shift_u = None if d is None else gauss_newton_step(J, d, u, keep)
+    shift = None if shift_u is None else G @ shift_u
     # a parameter moved by a coordinate without finite variance has none either
     scale = np.maximum(np.abs(G).max(axis=1, keepdims=True), 1e-300)
 
@@ -470,7 +485,7 @@ def parameter_intervals(engine, par: Parametrization, params: dict, *, reached: 
         out.append(_with_offset(iv, None if infinite[i] else float(offset[i])))
     local = LocalCovariance(coordinates=list(space.names), u=u, resolved=[space.names[i] for i in keep],
                             matrix=cov_u, scheme=par.scheme, force_limit_n=par.force_limit,
-                            spring_reference_n_per_m=par.spring_reference)
+                            spring_reference_n_per_m=par.spring_reference, shift=shift_u)
     return ModelIntervals(model=par.model, parameters=out, covariance_names=[names[i] for i in finite],
                           covariance=cov, method=method, blocks=blocks, block_length_s=block / rate,
                           correlation_time_s=tau / rate, samples=int(r.size),
@@ -478,17 +493,25 @@ def parameter_intervals(engine, par: Parametrization, params: dict, *, reached: 
                           local=local, representation_rms_n=None if d is None else math.sqrt(float(d @ d) / d.size))
 
 
-def _gauss_newton_step(J: np.ndarray, rhs: np.ndarray, G: np.ndarray, u: np.ndarray, keep: list[int]) -> np.ndarray:
-    """The parameters' Gauss-Newton step [their units] that J du = rhs [N] asks for, on the coordinates
-    ``keep`` that are not at a bound (those at a bound are held there, as the refinement holds them): with
-    rhs = -r the step from u towards the optimum the Jacobian predicts (the offset), with rhs = the
-    representation difference the representation shift."""
-    free = [i for i in keep if 1e-9 < u[i] < 1.0 - 1e-9]
+def free_coordinates(u: np.ndarray, keep) -> list[int]:
+    """The coordinates of ``keep`` not at a bound of [0, 1] (within 1e-9): those a Gauss-Newton step moves
+    (the refinement holds the others at their bound)."""
+    return [i for i in keep if 1e-9 < u[i] < 1.0 - 1e-9]
+
+
+def gauss_newton_step(J: np.ndarray, rhs: np.ndarray, u: np.ndarray, keep: list[int]) -> np.ndarray:
+    """The Gauss-Newton step du [coordinate units, one per coordinate of u] that J du = rhs [N] asks for, on
+    the ``free_coordinates`` of ``keep`` (the others 0: held at a bound, as the refinement holds them, or
+    without finite variance): with rhs = -r the step from u towards the optimum the Jacobian predicts (the
+    offset), with rhs = the representation difference the representation shift. The parameters' step
+    [their units] is G du."""
+    du = np.zeros(u.size)
+    free = free_coordinates(u, keep)
     if not free:
-        return np.zeros(G.shape[0])
+        return du
     norms = np.linalg.norm(J[:, free], axis=0)
-    step = np.linalg.lstsq(J[:, free] / norms, rhs, rcond=NULL_RCOND)[0] / norms
-    return G[:, free] @ step
+    du[free] = np.linalg.lstsq(J[:, free] / norms, rhs, rcond=NULL_RCOND)[0] / norms
+    return du
 
 
 def resampling_compensated(s: Signals) -> Signals:

@@ -5,8 +5,14 @@ solver's coordinates u (``Parametrization.local_space()``: table ordinates by th
 from zero, log-scaled parameters by their logarithm, each coordinate spanning its bounds as [0, 1]); the
 estimate is Gaussian there, with the covariance ``LocalCovariance.matrix``. A draw (``draw_parameter_sets``):
 
-* the coordinates with a finite variance: u_fit + L z, z standard normal, L L^T the covariance (from its
-  eigen-decomposition, so a covariance that is only semi-definite is drawn too);
+* the coordinates with a finite variance: u_fit + L z + s_u z_s, z and z_s standard normal, L L^T the
+  covariance (from its eigen-decomposition, so a covariance that is only semi-definite is drawn too) and
+  s_u the representation shift in u (``LocalCovariance.shift``: what the fit would move by with the
+  model's finer representation, an error of known size and unknown sign) as a rank-one term: the draws'
+  covariance is Sigma + s_u s_u^T, so each parameter's marginal spread is std^2 + s^2 (in the logarithm
+  for a log-scaled one), the square of its interval's half-width over Z95, and the shift moves every
+  parameter together, along the one direction the representation moves the fit. A parameters.json
+  written before the shift was stored draws from Sigma alone and says so (``ParameterDraws.describe``);
 * bounds: a coordinate that leaves [0, 1] is reflected back into it (u -> -u, 2 - u, repeatedly). For a
   coordinate fitted at a bound this is the half-Gaussian on the inside, i.e. the likelihood restricted to
   the bounds; one whose standard deviation spans the range several times tends to uniform over the
@@ -41,7 +47,8 @@ class ParameterDraws:
     model: the model kind; names: the identified parameters (SI, units ``units``); fitted: their fitted
     values; sets: one dict name -> value per draw; uniform: the coordinates drawn uniformly over their
     bounds (no finite variance); reflected: per coordinate with a finite variance, the share of draws in
-    which it was reflected at a bound; seed: the master seed."""
+    which it was reflected at a bound; seed: the master seed; shift: whether the representation shift was
+    drawn (False: parameters.json predates it, the statistical covariance alone)."""
 
     model: str
     names: list
@@ -51,6 +58,7 @@ class ParameterDraws:
     uniform: list = field(default_factory=list)
     reflected: dict = field(default_factory=dict)
     seed: int = 0
+    shift: bool = True
 
     def matrix(self) -> np.ndarray:
         """The draws as an array (n, len(names)) [SI units of each parameter]."""
@@ -59,7 +67,9 @@ class ParameterDraws:
     def describe(self) -> str:
         """One sentence on how the draws were made, naming the coordinates at their bounds or drawn uniformly."""
         text = (f"{len(self.sets)} parameter sets of the {self.model} model drawn from the fitted covariance in the "
-                "identification's coordinates (Gaussian there; reflected at the bounds)")
+                "identification's coordinates (Gaussian there; reflected at the bounds), "
+                + ("with the representation shift as a rank-one term" if self.shift else
+                   "without the representation shift (parameters.json predates it: refit to include it)"))
         often = [n for n, share in self.reflected.items() if share >= 0.05]
         if often:
             text += f"; reflected at a bound in 5 % of the draws or more: {', '.join(often)}"
@@ -70,7 +80,7 @@ class ParameterDraws:
 
     def to_dict(self) -> dict:
         return {"model": self.model, "seed": self.seed, "draws": len(self.sets), "uniform": list(self.uniform),
-                "reflected_share": dict(self.reflected), "text": self.describe()}
+                "reflected_share": dict(self.reflected), "representation_shift": self.shift, "text": self.describe()}
 
 
 def reflect_into_unit_interval(u: np.ndarray) -> np.ndarray:
@@ -108,15 +118,19 @@ def draw_parameter_sets(model: str, entry: dict, n: int, seed: int = 0) -> Param
     free = [i for i in range(len(local.coordinates)) if i not in resolved]
     w, V = np.linalg.eigh(0.5 * (local.matrix + local.matrix.T)) if resolved else (np.zeros(0), np.zeros((0, 0)))
     L = V * np.sqrt(np.clip(w, 0.0, None))
+    shift = np.zeros(len(local.coordinates)) if local.shift is None else np.asarray(local.shift, dtype=float)
+    shift[free] = 0.0  # the fit's shift has none there; drawn uniformly anyway
     raw = np.tile(np.asarray(local.u, dtype=float), (n, 1))
     for i in range(n):
         rng = _draw_rng(seed, model, i)
         raw[i, resolved] += L @ rng.standard_normal(len(resolved))
         raw[i, free] = rng.uniform(0.0, 1.0, len(free))
+        raw[i] += shift * rng.standard_normal()
     u = reflect_into_unit_interval(raw)
     names = list(par.names)
     sets = [{k: float(v) for k, v in space.to_params(row).items() if k in names} for row in u]
     reflected = {local.coordinates[i]: float(np.mean((raw[:, i] < 0.0) | (raw[:, i] > 1.0))) for i in resolved}
     fitted = {k: float(entry["values"][k]) for k in names}
     return ParameterDraws(model=model, names=names, units={k: par.units.get(k, "") for k in names}, fitted=fitted,
-                          sets=sets, uniform=[local.coordinates[i] for i in free], reflected=reflected, seed=seed)
+                          sets=sets, uniform=[local.coordinates[i] for i in free], reflected=reflected, seed=seed,
+                          shift=local.shift is not None)

@@ -20,12 +20,30 @@ were run on the rig and added to the identification:
 * the information the fit has: the inverse of its covariance in u on the resolved coordinates; a
   coordinate without finite variance gets 12, that of a uniform distribution over its bounds (variance
   1/12), so "before" is the bounds and "after" is finite;
-* after: Sigma' = (I_0 + I_c)^-1; each parameter's standard error by the delta method (G = d theta / d u);
-  the expected 95 % interval width before and after, each target's shrink factor; the score (D-optimal on
-  the targets): 1/2 ln det Sigma_T - 1/2 ln det Sigma'_T, the logarithm of the factor by which the targets'
-  joint confidence region shrinks in volume. Candidates are ranked by the score; each also states the
-  largest-eigen-direction gain (the worst-determined combination of targets: the largest eigenvalue of
-  Sigma_T over that of Sigma'_T).
+* the representation shift (``tuner.identification.intervals``: the force of the model with 10x finer
+  internal steps on the stroke with the resampler's ripple undone, minus the identification's, projected
+  on the parameters by a Gauss-Newton step), which the intervals hold beside the statistical error: d_c,
+  the candidate's difference (``representation_difference``, the fit's own definition, on the candidate's
+  prepared stroke); the fit's shift s_0 in u (``LocalCovariance.shift``); the combined fit's shift
+  (``combined_shift``) is the Gauss-Newton projection of the stacked differences [d_0; d_c] on the stacked
+  Jacobians, weighted per sample by 1/(s^2 tau) as the information is: s' = (I_0 + I_c)^-1 (I_0 s_0 +
+  J_c^T d_c / (s^2 tau)) on the coordinates not held (``held_coordinates``: those at a bound, except one
+  the fit leaves there undetermined and the candidate determines, which moves where the candidate puts it;
+  and those the candidate leaves without information, an interval wider than the bounds; I_0 s_0 stands for
+  J_0^T d_0 / (s^2 tau), exact where the fit's covariance is the textbook one, the block sandwich
+  differing from it by the residual's colour);
+* after: Sigma' = (I_0 + I_c)^-1; each parameter's standard error std' and shift s' by the delta method
+  (G = d theta / d u); the expected 95 % interval width before and after as the intervals make it
+  (``classify``: 2 Z95 sqrt(std^2 + s^2), log-scaled in the logarithm, clipped to the bounds), each
+  target's shrink factor; the score (D-optimal on the targets) on the total covariance Sigma + s s^T (the
+  shift as a rank-one term: each target's variance std^2 + s^2, the interval's half-width over Z95, and the
+  covariance the draws carried to the vehicle use): 1/2 ln det C_T - 1/2 ln det C'_T, the logarithm of the
+  factor by which the targets' joint region shrinks in volume. The shift is in the score, not only in the
+  widths, because a candidate the 1 ms internal steps represent poorly (a fast sine moves the masses by
+  several standard errors, docs/identification.md) buys a statistical width its shift then undoes: ranked
+  on the statistical covariance alone it would win on a promise the refit does not keep. Candidates are
+  ranked by the score; each also states the largest-eigen-direction gain (the worst-determined combination
+  of targets: the largest eigenvalue of C_T over that of C'_T).
 
 The prediction is linear (at the fit, with the fit's residual level): a parameter the new test pins down
 moves the fit, and with it the Jacobian. Units: SI inside; parameters in their units of
@@ -48,14 +66,17 @@ from tuner import strict_json
 from tuner.data.preprocess import prepare
 from tuner.data.reading import RigTest
 from tuner.identification.engine import IDENTIFICATION_STEP, IDENTIFICATION_TOLERANCE, Engine, fastest_engine
-from tuner.identification.intervals import ModelIntervals, residual_jacobian
+from tuner.identification.intervals import (DETERMINED_WIDTH, ModelIntervals, classify, free_coordinates,
+                                             representation_difference, residual_jacobian)
 from tuner.identification.problem import to_signals
 from tuner.identification.runner import FmuRunner
 from tuner.metrics import Z95
 from tuner.progress import advance, stage
 
 __all__ = ["RigLimits", "Candidate", "CandidateGain", "ModelDesign", "candidate_tests", "rank_candidates",
-           "design_from_folder", "limits_from_tests", "EASE_IN_S", "PRIOR_UNSEEN", "DESIGN_FOLDER"]
+           "combined_shift", "held_coordinates",
+           "design_from_folder", "limits_from_tests", "EASE_IN_S", "PRIOR_UNSEEN", "DESIGN_FOLDER", "NO_FIT_SHIFT",
+           "NO_CANDIDATE_SHIFT"]
 
 #: sub-folder of a fit output folder for the designed tests (``design_from_folder``)
 DESIGN_FOLDER = "design"
@@ -64,6 +85,11 @@ DESIGN_FOLDER = "design"
 EASE_IN_S = 1.0
 #: information [1/u^2] of a coordinate the fit does not see at all: a uniform distribution over its bounds
 PRIOR_UNSEEN = 12.0
+#: the candidates' notes when the promise cannot hold the representation shift in full
+NO_FIT_SHIFT = ("parameters.json holds no representation shift in the identification's coordinates (written by an "
+                "earlier version): the promised widths leave the fit's own shift out; refit to include it")
+NO_CANDIDATE_SHIFT = ("the model's reference run (finer internal steps) failed on the candidates: their "
+                      "representation shift is left out of the promise")
 
 
 @dataclass(frozen=True)
@@ -109,7 +135,8 @@ class CandidateGain:
     """A candidate's expected effect on a fitted model's intervals (module docstring): score [nats] (D-optimal
     on the targets), eigen_gain (the worst-determined target combination's variance before over after),
     widths_before/after: expected 95 % interval width per target [its unit] (before: the fit's; the bound
-    range when it has no finite interval), peak_force_n: the fitted model's peak |force| on it [N]."""
+    range when it has no finite interval; both with the representation shift), peak_force_n: the fitted
+    model's peak |force| on it [N]; note: what the promise leaves out, if anything ('' when nothing)."""
 
     candidate: Candidate
     score: float
@@ -117,6 +144,7 @@ class CandidateGain:
     widths_before: dict = field(default_factory=dict)
     widths_after: dict = field(default_factory=dict)
     peak_force_n: float = 0.0
+    note: str = ""
 
     def shrink(self, name: str) -> float:
         """Expected width after over before, for the target ``name``."""
@@ -125,7 +153,7 @@ class CandidateGain:
     def to_dict(self) -> dict:
         return {"name": self.candidate.name, "kind": self.candidate.kind, "description": self.candidate.description,
                 "score_nats": self.score, "volume_shrink_factor": math.exp(-self.score), "eigen_gain": self.eigen_gain,
-                "peak_force_n": self.peak_force_n,
+                "peak_force_n": self.peak_force_n, "note": self.note,
                 "peak_stroke_m": float(np.max(np.abs(self.candidate.stroke))),
                 "peak_velocity_m_s": self.candidate.peak_velocity,
                 "targets": {n: {"width_before": self.widths_before[n], "width_after": self.widths_after[n],
@@ -207,22 +235,73 @@ def _prior_information(iv: ModelIntervals) -> np.ndarray:
     return info
 
 
-def _widths(cov_u: np.ndarray, G: np.ndarray, names: list, targets: list, iv: ModelIntervals) -> dict:
-    """Expected 95 % widths [unit] of the targets from a covariance in u (delta method; log-scaled: in the
-    logarithm, as the intervals), capped at the bound range."""
-    cov = G @ cov_u @ G.T
+def _widths(cov_u: np.ndarray, shift_u: np.ndarray, G: np.ndarray, names: list, targets: list,
+            iv: ModelIntervals) -> dict:
+    """Expected 95 % widths [unit] of the targets from a covariance [u^2] and a representation shift [u] in u:
+    the interval ``classify`` makes of the standard error and shift the delta method gives (G = d theta / d u;
+    half-width Z95 sqrt(std^2 + s^2), log-scaled in the logarithm), clipped to the bounds."""
+    cov, shift = G @ cov_u @ G.T, G @ shift_u
     out = {}
     for n in targets:
         i = names.index(n)
         p = iv.get(n)
-        sd = math.sqrt(max(cov[i, i], 0.0))
-        lo_b, hi_b = p.bounds
-        if p.log_scale and p.value > 0:
-            lo, hi = p.value * math.exp(-Z95 * sd / p.value), p.value * math.exp(Z95 * sd / p.value)
-        else:
-            lo, hi = p.value - Z95 * sd, p.value + Z95 * sd
-        out[n] = min(hi, hi_b) - max(lo, lo_b)
+        w = classify(n, p.unit, p.value, math.sqrt(max(cov[i, i], 0.0)), p.bounds, p.log_scale,
+                     systematic=float(shift[i]))
+        out[n] = w.high - w.low
     return out
+
+
+def _fit_shift(iv: ModelIntervals) -> np.ndarray:
+    """The fit's representation shift in u [u]: ``LocalCovariance.shift``, or zeros when parameters.json
+    predates it (the promise then leaves the fit's own shift out, ``NO_FIT_SHIFT`` says so)."""
+    local = iv.local
+    return np.zeros(len(local.coordinates)) if local.shift is None else np.asarray(local.shift, dtype=float)
+
+
+def held_coordinates(u: np.ndarray, cov_before: np.ndarray, cov_after: np.ndarray) -> list[int]:
+    """The coordinates the combined shift holds (``combined_shift``), from the covariance on every coordinate
+    without and with the candidate (``cov_before``/``cov_after`` [u^2]; 'determined': Z95 std_u at most
+    ``DETERMINED_WIDTH`` of the range, the intervals' rule in u):
+
+    * at a bound of [0, 1]: held, as the refinement holds it, except when the fit leaves it undetermined
+      there and the candidate determines it: it sits at the bound for want of information, and the candidate
+      decides where the refit puts it, usually inside (a mass fitted at 20 kg whose truth is 9 kg);
+    * inside: held when its 95 % interval with the candidate is still wider than its bound range (2 Z95
+      std_u >= 1): the tests do not place it (the refinement leaves it where it drifts, at a bound in the
+      known-truth refits), and its linear shift, many times its range (-540 kg on a 1-20 kg mass), would
+      only move the others through their correlation with it."""
+    def determined(cov, i):
+        return Z95 * math.sqrt(max(cov[i, i], 0.0)) <= DETERMINED_WIDTH
+
+    free = set(free_coordinates(u, range(u.size)))
+    return [i for i in range(u.size)
+            if (i in free and 2.0 * Z95 * math.sqrt(max(cov_after[i, i], 0.0)) >= 1.0)
+            or (i not in free and (determined(cov_before, i) or not determined(cov_after, i)))]
+
+
+def combined_shift(info0: np.ndarray, shift0: np.ndarray, Jc: np.ndarray, dc: np.ndarray | None, weight: float,
+                   held: list) -> np.ndarray:
+    """The representation shift [u] of the fit with a candidate added: the Gauss-Newton projection of the
+    stacked differences [d_0; d_c] [N] on the stacked Jacobians [J_0; J_c] [N/u], each sample weighted by
+    ``weight`` = 1/(s^2 tau) [1/N^2] as the information is. The fit's part enters through its information
+    I_0 [1/u^2] and shift s_0 [u] (J_0^T W J_0 = I_0 and J_0^T W d_0 = I_0 s_0 on the coordinates its step
+    moved): s' = (I_0 + W J_c^T J_c)^-1 (I_0 s_0 + W J_c^T d_c) on the coordinates not ``held``
+    (``held_coordinates``; 0 on those, as ``gauss_newton_step`` holds a coordinate at a bound). dc None: the
+    candidate's difference unknown, taken as 0."""
+    out = np.zeros(shift0.size)
+    free = [i for i in range(shift0.size) if i not in set(held)]
+    if not free:
+        return out
+    info = info0 + weight * Jc.T @ Jc
+    rhs = info0 @ shift0 + (0.0 if dc is None else weight * Jc.T @ dc)
+    out[free] = _inverse(info[np.ix_(free, free)]) @ rhs[free]
+    return out
+
+
+def _total(cov_u: np.ndarray, shift_u: np.ndarray) -> np.ndarray:
+    """The total covariance in u [u^2]: the statistical one plus the shift as a rank-one term s s^T (each
+    coordinate's variance std^2 + s^2, the intervals' half-width over Z95; the draws' covariance)."""
+    return cov_u + np.outer(shift_u, shift_u)
 
 
 def rank_candidates(model: str, values: dict, iv: ModelIntervals, candidates: list[Candidate], *, fit_rate_hz: float,
@@ -245,29 +324,35 @@ def rank_candidates(model: str, values: dict, iv: ModelIntervals, candidates: li
     u0 = np.asarray(iv.local.u, dtype=float)
     info0 = _prior_information(iv)
     cov0 = _inverse(info0)
+    shift0 = _fit_shift(iv)
     signals = [to_signals(prepare(c.rig_test(), fit_rate_hz), warmup_s) for c in candidates]
     with Engine(model, signals, engine=engine or fastest_engine(), workers=0) as eng:
         r, J, G, failed = residual_jacobian(eng, space, u0, names)
+        d = representation_difference(eng, space.to_params(u0))  # the candidates' d_c, the fit's definition
     if failed:
         raise ValueError(f"{model}: the fitted model could not be simulated on the candidates next to the fit")
-    before = _widths(cov0, G, names, targets, iv)
-    tau = max(iv.correlation_time_s * fit_rate_hz, 1.0)
-    s2 = iv.residual_rms_n ** 2
+    note = "; ".join(t for t, missing in ((NO_FIT_SHIFT, iv.local.shift is None), (NO_CANDIDATE_SHIFT, d is None))
+                     if missing)
+    before = _widths(cov0, shift0, G, names, targets, iv)
+    weight = 1.0 / (iv.residual_rms_n ** 2 * max(iv.correlation_time_s * fit_rate_hz, 1.0))
     T = [names.index(n) for n in targets]
+    a0 = (G @ _total(cov0, shift0) @ G.T)[np.ix_(T, T)]
     gains, start = [], 0
     for k, (c, sig) in enumerate(zip(candidates, signals)):
         n = int(sig.mask.sum())
-        Jc, rc = J[start:start + n], r[start:start + n]
+        span = slice(start, start + n)
         start += n
-        peak = float(np.max(np.abs(rc)))
+        peak = float(np.max(np.abs(r[span])))
         if limits is not None and peak > limits.force_n:
             continue
-        cov1 = _inverse(info0 + Jc.T @ Jc / (s2 * tau))
-        ct0, ct1 = (G @ c_ @ G.T for c_ in (cov0, cov1))
-        a0, a1 = ct0[np.ix_(T, T)], ct1[np.ix_(T, T)]
+        cov1 = _inverse(info0 + weight * J[span].T @ J[span])
+        shift1 = combined_shift(info0, shift0, J[span], None if d is None else d[span], weight,
+                                held_coordinates(u0, cov0, cov1))
+        a1 = (G @ _total(cov1, shift1) @ G.T)[np.ix_(T, T)]
         score = 0.5 * (np.linalg.slogdet(a0)[1] - np.linalg.slogdet(a1)[1])
         eigen = float(np.linalg.eigvalsh(a0)[-1] / max(np.linalg.eigvalsh(a1)[-1], 1e-300))
-        gains.append(CandidateGain(c, float(score), eigen, before, _widths(cov1, G, names, targets, iv), peak))
+        gains.append(CandidateGain(c, float(score), eigen, before, _widths(cov1, shift1, G, names, targets, iv), peak,
+                                   note))
         if progress is not None:
             progress((k + 1) / len(candidates))
     if not gains:
@@ -346,6 +431,8 @@ def design_from_folder(folder, out=None, *, limits: RigLimits | None = None, top
         ranked = rank_candidates(model, entry["values"], iv, candidates, fit_rate_hz=settings["fit_rate_hz"],
                                  warmup_s=settings["warmup_s"], limits=limits, engine=fastest_engine(),
                                  progress=lambda share: advance(log, share))
+        if ranked[0].note:
+            log(f"design: {model}: {ranked[0].note}")
         designs.append(ModelDesign(model, targets, ranked))
     return _write_design(folder, Path(out) if out else folder / DESIGN_FOLDER, designs, limits, top, log)
 

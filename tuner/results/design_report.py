@@ -28,8 +28,9 @@ def design_section_html(out_dir) -> str:
              f"{1e3 * lim['velocity_m_s']:.3g} mm/s, force {lim['force_n']:.0f} N), ranked by how much they are "
              "expected to shrink the 95 % intervals of the parameters each model leaves not determined "
              "(D-optimal on those parameters: the factor by which their joint confidence region shrinks; the "
-             "prediction is linear, at the fit, with the fit's residual level). The best are written as stroke "
-             f"files in the dataset format in <code>{DESIGN_FOLDER}/</code> (the force column is the fitted "
+             "expected widths, as the intervals, hold the representation shift of the fit with the candidate "
+             "added; the prediction is linear, at the fit, with the fit's residual level). The best are written "
+             f"as stroke files in the dataset format in <code>{DESIGN_FOLDER}/</code> (the force column is the fitted "
              "model's prediction; the rig records the measured force in its place).</p>"]
     for model, d in data["models"].items():
         rows = []
@@ -38,7 +39,9 @@ def design_section_html(out_dir) -> str:
             written = "yes" if f"{g['name']}.csv" in d["written"] else ""
             rows.append([esc(g["name"]), esc(g["description"]), f"{math.exp(g['score_nats']):.3g}",
                          f"{g['eigen_gain']:.3g}", gains, f"{g['peak_force_n'] / 1e3:.3g}", written])
+        note = d["ranked"][0].get("note", "") if d["ranked"] else ""
         parts.append(f"<h3>{model_label(model)}: not determined {esc(', '.join(d['targets']))}</h3>"
+                     + (f"<p>{esc(note)}</p>" if note else "")
                      + table(["test", "stroke", "volume shrink 1/x", "worst direction variance ratio",
                               "expected 95 % width after / before", "peak force [kN]", "file written"], rows))
     return ("<section id='design'><h2>The tests that would pin down the rest</h2>" + "".join(parts)

@@ -159,7 +159,9 @@ def intervals_html(folder: Path) -> str:
     errors = "".join(f"<li>{esc(k)}: no interval ({esc(v)})</li>" for k, v in data.get("errors", {}).items())
     return ("<h3>What the identification's uncertainty means in the vehicle</h3>"
             "<p>Parameter sets drawn from each fitted model's covariance (in the identification's coordinates, "
-            "where the estimate is Gaussian; reflected at the bounds; parameters the rig tests do not see drawn "
+            "where the estimate is Gaussian, with the representation shift as a rank-one term so that each "
+            "parameter spreads as its interval says; reflected at the bounds; parameters the rig tests do not see "
+            "drawn "
             "uniformly within their bounds), each run as the four yaw dampers: the critical speed by the robust "
             "search from the fitted FMU's (its zero extrapolated from the decaying side), the curve entry's peak "
             "damper force on the same track. The nominal value is the fitted set's by the same search; 95 %: the "

@@ -4,8 +4,9 @@ speed and of the curve entry's peak yaw-damper force, for each tuned FMU.
 Per tuned FMU of a fit output folder (``fmu/<Model>_tuned.fmu``, its model's entry in ``parameters.json``):
 
 * parameter sets drawn from the fitted covariance in the identification's coordinates, where it is
-  Gaussian (``tuner.identification.parameter_draws``: reflected at the bounds; the coordinates the tests
-  do not see drawn uniformly within their bounds);
+  Gaussian, with the representation shift as a rank-one term, so each parameter spreads as its interval
+  says (std^2 + s^2; ``tuner.identification.parameter_draws``: reflected at the bounds; the coordinates
+  the tests do not see drawn uniformly within their bounds);
 * each set is the four yaw dampers of the vehicle (``VehicleCosim.set_fmu_parameters``: the tuned FMU with
   those parameter values, not re-exported): the critical speed from the same kick runs as
   ``tuner.vehicle.compare`` (kick, growth rate of the least damped mode), found by
