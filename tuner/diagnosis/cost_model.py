@@ -71,9 +71,10 @@ def shapes(form: str) -> int:
 def refit_cost(d: int, extra: int, settings, nonsmooth: bool = False) -> float:
     """Simulations of one candidate's refit: the profile and the joint polish of a model of d base and
     ``extra`` effect coordinates; a ``nonsmooth`` effect's held profile besides (``tuner.diagnosis.refit.
-    held_profile``: half the grid re-fitted, a Jacobian and two trial steps each)."""
+    held_profile``: as many values as the grid has, measured 7-9 on blind free plays, each its Jacobians with
+    two trial steps)."""
     profile = settings.grid_points * (1 + settings.profile_steps / 2)
-    held = settings.grid_points / 2 * HELD_PROFILE_JACOBIANS * (d + extra + 3) if nonsmooth else 0.0
+    held = settings.grid_points * HELD_PROFILE_JACOBIANS * (d + extra + 3) if nonsmooth else 0.0
     return profile + held + max(1, settings.polish_jacobians // 2) * (d + extra + 1)
 
 

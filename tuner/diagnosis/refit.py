@@ -25,7 +25,8 @@ from tuner.identification.parametrization import Parametrization
 from tuner.identification.polish import polish
 
 __all__ = ["ExtendedParametrization", "grid", "base_jacobian", "refit", "RefitResult", "HeldProfile",
-           "held_profile", "nonsmooth_profiles", "effect_intervals", "MIN_BLOCKS", "HELD_PROFILE_JACOBIANS"]
+           "held_profile", "nonsmooth_profiles", "effect_intervals", "MIN_BLOCKS", "HELD_PROFILE_JACOBIANS",
+           "HELD_PATIENCE"]
 
 #: fewest independent residual blocks for a confidence interval to be trusted
 MIN_BLOCKS = 10
@@ -39,6 +40,8 @@ PROBE_JACOBIANS = 2
 #: values 0.15, 0.28, 0.55, 1.05 mm the RMSE after 2 Jacobians 604, 568, 404, 2139 N; after 3: 589, 546, 221,
 #: 1477 N, as after 4 (588, 543, 210, 1456 N))
 HELD_PROFILE_JACOBIANS = 3
+#: values in a row that fit worse than the best so far after which the held profile's upward sweep stops
+HELD_PATIENCE = 3
 DEFAULTS = {p.name: p.default for p in EFFECT_PARAMETERS}
 
 
@@ -196,7 +199,7 @@ def refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: float
             if not active:
                 break
     sse = [float(r @ r) if r is not None else math.inf for r in res]
-    held = nonsmooth_profiles(eid, ext, pts, sse, profile)
+    held = nonsmooth_profiles(eid, ext, z0, pts, sse, profile)
     evals += held.evaluations
     pts, sse = pts + held.points, sse + held.sse
     k = int(np.argmin(sse))
@@ -224,70 +227,78 @@ class HeldProfile:
     evaluations: int
 
 
-def nonsmooth_profiles(eid: Engine, ext: ExtendedParametrization, pts: list, sse: list, profile=None) -> HeldProfile:
+def nonsmooth_profiles(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, pts: list, sse: list,
+                       profile=None) -> HeldProfile:
     """The ``held_profile`` of every nonsmooth effect's magnitude among the extra parameters profiled (``profile``:
-    their indices, default all) of the refit whose profile points ``pts`` (search coordinates) have the SSE
-    ``sse`` [N^2]: from the grid value below the best point's up (the base absorbs a nonsmooth effect as a
-    smaller one; the value below brackets the best), each value started from the refit's start with that
-    value (the same base for every value, so that the values are compared on equal terms: one re-balanced by
-    the profile's steps is not); then the vertex of the parabola through the best value and its neighbours."""
+    their indices, default all) of the refit from ``z0`` whose profile points ``pts`` (search coordinates) have
+    the SSE ``sse`` [N^2]. Its values: the profile's grid from the value below the best point's up (the base
+    absorbs a nonsmooth effect as a smaller one; the value below brackets the best) with the geometric mean
+    of each two neighbours between them (the profile's minimum is narrow: a 0.40 mm gap between the grid
+    values 0.28 and 0.54 mm was missed), swept upward until ``HELD_PATIENCE`` values in a row fit worse than
+    the best so far; each value from ``z0`` (the same base for every value, so that the values are compared on
+    equal terms); then the vertex of the parabola through the best value and its neighbours."""
     dim, out = ext.base.dimension, HeldProfile([], [], 0)
     for i in (profile if profile is not None else range(len(ext.extra))):
         effect = effect_of(ext.extra[i])
         if not (effect.nonsmooth and ext.extra[i] == effect.magnitude):
             continue
+        values = sorted({float(z[dim + i]) for z in pts if float(z[dim + i]) > 0.0})
+        if not values:
+            continue
         best = float(pts[int(np.argmin(sse))][dim + i])
-        below = [float(z[dim + i]) for z in pts if float(z[dim + i]) < best]
-        lowest = max(below) if below else best  # one grid value below the best: the parabola's left point
-        starts: dict = {}  # grid value -> its first point (the start of the refit with that value: the same base)
-        for z in pts:
-            if float(z[dim + i]) >= lowest:
-                starts.setdefault(float(z[dim + i]), z)
-        held = held_profile(eid, ext, list(starts.values()), i)
-        vertex = _vertex_start(held, list(starts.values()), dim + i)
-        if vertex is not None:  # between two grid values: the parabola's vertex through the best and its neighbours
-            more = held_profile(eid, ext, [vertex], i)
+        k = max(0, max((j for j, v in enumerate(values) if v <= best), default=0) - 1)
+        sweep = []
+        for lo, hi in zip(values[k:], values[k + 1:]):
+            sweep += [lo, math.sqrt(lo * hi)]
+        held = held_profile(eid, ext, z0, i, sweep + values[-1:])
+        vertex = _vertex_value(held, dim + i)
+        if vertex is not None:  # between two values: the parabola's vertex through the best and its neighbours
+            more = held_profile(eid, ext, z0, i, [vertex])
             held = HeldProfile(held.points + more.points, held.sse + more.sse, held.evaluations + more.evaluations)
         out = HeldProfile(out.points + held.points, out.sse + held.sse, out.evaluations + held.evaluations)
     return out
 
 
-def _vertex_start(held: HeldProfile, starts: list, k: int):
-    """The start at the vertex of the parabola through the held profile's best point and its two neighbours
-    (in the logarithm of the magnitude at coordinate ``k``: the grid is geometric), or None when the best is at
-    an end of the profile, a value is zero or the parabola opens downward. ``starts``: the profile's starts, in
-    the order of ``held.points``."""
-    order = sorted(range(len(starts)), key=lambda j: float(starts[j][k]))
+def _vertex_value(held: HeldProfile, k: int) -> float | None:
+    """The search coordinate ``k``'s value at the vertex of the parabola through the held profile's best point and
+    its two neighbours (in the logarithm of the magnitude: the values are geometric), or None when the best is
+    at an end of the profile or the parabola opens downward."""
+    order = sorted(range(len(held.points)), key=lambda j: float(held.points[j][k]))
     b = min(range(len(order)), key=lambda j: held.sse[order[j]])
     if not 0 < b < len(order) - 1:
         return None
     js = order[b - 1:b + 2]
-    x = [float(starts[j][k]) for j in js]
+    x = [float(held.points[j][k]) for j in js]
     y = [held.sse[j] for j in js]
     if min(x) <= 0.0 or not all(math.isfinite(v) for v in y):
         return None
     a, bb, _ = np.polyfit(np.log(x), y, 2)
-    if not a > 0.0:
-        return None
-    z = np.array(starts[js[1]], dtype=float)
-    z[k] = float(np.clip(math.exp(-bb / (2.0 * a)), x[0], x[2]))
-    return z
+    return float(np.clip(math.exp(-bb / (2.0 * a)), x[0], x[2])) if a > 0.0 else None
 
 
-def held_profile(eid: Engine, ext: ExtendedParametrization, starts: list, i: int) -> HeldProfile:
-    """The profile of the extra parameter ``i`` of ``ext`` (a nonsmooth effect's magnitude): each point of
-    ``starts`` (search coordinates; one per grid value of it) re-fitted with that value held
+def held_profile(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, i: int, values: list) -> HeldProfile:
+    """The profile of the extra parameter ``i`` of ``ext`` (a nonsmooth effect's magnitude) at ``values`` (its
+    search coordinate, swept in their order): ``z0`` with each value re-fitted with it held
     (``HELD_PROFILE_JACOBIANS`` Jacobians of the local refinement over every other coordinate), so that what the
-    base absorbed of the effect (a soft elastic table in place of a dead band) is given back at each value."""
-    name = ext.extra[i]
-    points, sse, evals = [], [], 0
-    for z in starts:
+    base absorbed of the effect (a soft elastic table in place of a dead band) is given back at each value;
+    the sweep stops once ``HELD_PATIENCE`` values in a row fit worse than the best so far."""
+    name, dim = ext.extra[i], ext.base.dimension
+    points, sse, evals, worse = [], [], 0, 0
+    for v in values:
+        z = np.array(z0, dtype=float)
+        z[dim + i] = v
         held = ext.holding({name: ext.to_params(z)[name]})
         pol = polish(eid, held, held.from_params(ext.to_params(z)), max_jacobians=HELD_PROFILE_JACOBIANS,
                      log=lambda m: None)
         evals += pol.evaluations
-        points.append(ext.from_params(held.to_params(pol.z)))
-        sse.append(eid.n_samples / pol.fitness if pol.fitness > 0 else math.inf)
+        point = ext.from_params(held.to_params(pol.z))
+        point[dim + i] = v  # exactly the value held
+        e = eid.n_samples / pol.fitness if pol.fitness > 0 else math.inf
+        worse = worse + 1 if sse and e >= min(sse) else 0
+        points.append(point)
+        sse.append(e)
+        if worse >= HELD_PATIENCE:
+            break
     return HeldProfile(points, sse, evals)
 
 
