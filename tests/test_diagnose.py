@@ -420,17 +420,17 @@ def test_a_residual_is_not_judged_against_a_floor_that_is_not_credible(tmp_path)
 def test_typical_effect_sizes_scale_with_the_damper():
     """tuner.diagnosis.effect_sizes: forces and the equivalent mass with the peak force, lengths with the
     stroke range (never above the catalogue's), times unchanged; the reference damper keeps the catalogue."""
-    from damper_fmu.effect_catalogue import EFFECT_TYPICAL
+    from damper_fmu.effect_catalogue import effect_of
     from tuner.diagnosis.effect_sizes import REFERENCE, DamperSize, meaningful_floor, typical_range
 
-    assert typical_range("friction_force", REFERENCE) == EFFECT_TYPICAL["friction_force"]
+    assert typical_range("friction_force", REFERENCE) == effect_of("friction_force").typical["friction_force"]
     small = DamperSize(peak_force_n=REFERENCE.peak_force_n / 30, stroke_range_m=REFERENCE.stroke_range_m / 4)
     assert typical_range("friction_force", small) == pytest.approx((50 / 30, 300 / 30))
     assert typical_range("inertia_mass", small) == pytest.approx((20 / 30, 200 / 30))
     assert typical_range("free_play", small) == pytest.approx((1e-4 / 4, 1e-3 / 4))
-    assert typical_range("valve_tau", small) == EFFECT_TYPICAL["valve_tau"]
+    assert typical_range("valve_tau", small) == effect_of("valve_tau").typical["valve_tau"]
     big = DamperSize(peak_force_n=REFERENCE.peak_force_n, stroke_range_m=10 * REFERENCE.stroke_range_m)
-    assert typical_range("free_play", big) == EFFECT_TYPICAL["free_play"]  # a clearance does not grow with the stroke
+    assert typical_range("free_play", big) == effect_of("free_play").typical["free_play"]  # a clearance does not grow with the stroke
     assert meaningful_floor("inertia_mass", small) == pytest.approx(0.5 * 20 / 30)
 
 

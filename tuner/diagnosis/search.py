@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from damper_fmu.fmu import ensure_fmu
-from damper_fmu.effect_catalogue import EFFECT_IDENTIFIED, EFFECT_KIND, EFFECT_PARAMETERS, EFFECT_TYPICAL, search_bounds
+from damper_fmu.effect_catalogue import ALL_EFFECTS, EFFECT_PARAMETERS, effect_of, search_bounds
 from damper_fmu.parameters import defaults
 
 from tuner.data.noise import channel_noise
@@ -89,7 +89,7 @@ def attach_interval(row: dict, ci: dict, ext: ExtendedParametrization, new) -> N
     row["significant"] = all(ci[n]["excludes_zero"] for n in new)
     row["interval_blocks"] = ci["_blocks"]
     nearest = {n: 0.0 if ci[n]["low"] <= 0.0 <= ci[n]["high"] else min(abs(ci[n]["low"]), abs(ci[n]["high"]))
-               for n in new if n in EFFECT_TYPICAL}
+               for n in new if n in effect_of(n).typical}
     row["plausible"] = all(v <= typical_range(n, size)[1] for n, v in nearest.items())
 
 
@@ -429,7 +429,7 @@ class CandidateSearch:
         With none predicted to win SCREEN_SHARE, the form is ranked at its best screened point. Returns
         (Fit or None, fitness, screen rows, whether a shape was refitted); each screen row says whether it
         was refitted."""
-        magnitude = EFFECT_IDENTIFIED[form][0]
+        magnitude = ALL_EFFECTS[form].identified[0]
         knee = self.evidence.get("knee_velocity")
         shapes = screen(self.eid, ext, form, current, jac, knee_m_s=knee)
         for cand in shapes:
@@ -477,8 +477,8 @@ class CandidateSearch:
             ext = ExtendedParametrization(self.par, "+".join([*causes, form]), self.peak, self.stroke_range,
                                           self.stroke_limits)
             if jac is None:  # the current model's Jacobian (its causes included), shared by the forms
-                z_off = ext.from_params({**current, EFFECT_IDENTIFIED[form][0]: 0.0})
-                jac = base_jacobian(self.eid, ext, z_off, dims=ext.dimension - len(EFFECT_IDENTIFIED[form]))
+                z_off = ext.from_params({**current, ALL_EFFECTS[form].identified[0]: 0.0})
+                jac = base_jacobian(self.eid, ext, z_off, dims=ext.dimension - len(ALL_EFFECTS[form].identified))
             fit, g, shapes, refitted = self.fit_form(form, ext, jac, current, sse_cur)
             if fit is None:
                 self.log(f"  form {form:10s} cannot be simulated on these tests")
@@ -487,7 +487,7 @@ class CandidateSearch:
             row["screen"], row["refitted"], row["elapsed_s"] = shapes, refitted, time.perf_counter() - t0
             fits[form] = fit
             rows.append(row)
-            names = EFFECT_IDENTIFIED[form]
+            names = ALL_EFFECTS[form].identified
             self.log(f"  form {form:10s} " + ", ".join(f"{n} = {fmt_quantity(row['parameters'][n], UNITS[n])}"
                                                        for n in names)
                      + (f" ({settings_text(fit.ext.fixed)})" if fit.ext.fixed else "")
@@ -502,8 +502,8 @@ class CandidateSearch:
         """The ranking row of a form's refit against the current model's row (its magnitude is what is new;
         the score is penalised for all its parameters)."""
         row = self.held_out(fit.ext.effect, fit.params(), fit.ext.extra, g, fit.evaluations,
-                            current_row["validation_mse"], new=EFFECT_IDENTIFIED[form][:1],
-                            n_params=len(EFFECT_IDENTIFIED[form]))
+                            current_row["validation_mse"], new=ALL_EFFECTS[form].identified[:1],
+                            n_params=len(ALL_EFFECTS[form].identified))
         row["added"], row["form"], row["settings"] = form, FORM_LABELS[form], dict(fit.ext.fixed)
         row["excess_explained"] = excess_explained(row, current_row, self.floor)
         return row
@@ -521,9 +521,9 @@ class CandidateSearch:
                 row = self.form_row(form, fit, pol.fitness, current_row)
                 row.update({k: lead[k] for k in ("screen", "refitted", "elapsed_s")})
                 rows[rows.index(lead)] = lead = row
-            attach_interval(lead, effect_intervals(self.eid, fit.ext, fit.z), fit.ext, EFFECT_IDENTIFIED[form][:1])
+            attach_interval(lead, effect_intervals(self.eid, fit.ext, fit.z), fit.ext, ALL_EFFECTS[form].identified[:1])
         if lead["score"] > ACCEPT_SCORE and earned(lead) and lead["excess_explained"] >= FORM_EXCESS_SHARE:
-            self.log(f"  form earns its parameters: {FORM_LABELS[form]} (" + interval_text(lead, EFFECT_IDENTIFIED[form])
+            self.log(f"  form earns its parameters: {FORM_LABELS[form]} (" + interval_text(lead, ALL_EFFECTS[form].identified)
                      + f"), validation MSE {lead['validation_mse_change_pct']:+.0f} %, score {lead['score']:+.3f}")
             return {"form": form, "tried": rows, "row": lead, "refit": fit,
                     "settled": pol is not None and self.settled(pol, lead["identification_rmse_n"] ** -2)}
@@ -549,7 +549,7 @@ class CandidateSearch:
         for e in others:
             ext = ExtendedParametrization(self.par, f"{current.ext.effect}+{e}", self.peak, current.ext.stroke_range_m,
                                           current.ext.stroke_limits, fixed=current.ext.fixed)
-            z0 = ext.from_params({**params_cur, **{n: 0.0 for n in EFFECT_IDENTIFIED[e]}})
+            z0 = ext.from_params({**params_cur, **{n: 0.0 for n in ALL_EFFECTS[e].identified}})
             if jac is None:  # the new effect is off at z0: the current model's Jacobian, shared
                 jac = base_jacobian(self.eid, ext, z0, dims=self.par.dimension)
             fit = refit(self.eid, ext, z0, sse_cur, jac, self.settings, self.share,
@@ -557,11 +557,11 @@ class CandidateSearch:
             fits[ext.effect] = Fit(ext, fit.z, fit.evaluations)
             row = self.held_out(ext.effect, ext.to_params(fit.z), ext.extra, fit.fitness, fit.evaluations,
                                 current_row["validation_mse"],
-                                new=EFFECT_IDENTIFIED[e])
+                                new=ALL_EFFECTS[e].identified)
             row["added"] = e
             rows.append(row)
             self.log(f"  + {e:12s} on {current.ext.effect}: " + ", ".join(
-                f"{k} = {row['parameters'][k]:.4g} {UNITS[k]}" for k in EFFECT_IDENTIFIED[e])
+                f"{k} = {row['parameters'][k]:.4g} {UNITS[k]}" for k in ALL_EFFECTS[e].identified)
                 + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
                 + f"  effect {row['effect_rms_n']:.3g} N rms{'' if row['resolved'] else ' (below the noise)'}")
         return self.name_next(rows, fits, current_row)
@@ -574,7 +574,7 @@ class CandidateSearch:
             pol = self.polish_quietly(fit.ext, fit.z, self.settings.final_jacobians)
             fit = fits[lead["effect"]] = Fit(fit.ext, pol.z, fit.evaluations + pol.evaluations)
             row = self.held_out(fit.ext.effect, fit.params(), fit.ext.extra, pol.fitness, fit.evaluations,
-                                current_row["validation_mse"], new=EFFECT_IDENTIFIED[lead["added"]])
+                                current_row["validation_mse"], new=ALL_EFFECTS[lead["added"]].identified)
             row["added"] = lead["added"]
             rows[rows.index(lead)] = row
         cross_check(rows, self.evidence)
@@ -582,7 +582,7 @@ class CandidateSearch:
             if row["score"] > ACCEPT_SCORE and row["resolved"]:
                 fit = fits[row["effect"]]
                 attach_interval(row, effect_intervals(self.eid, fit.ext, fit.z), fit.ext,
-                                EFFECT_IDENTIFIED[row["added"]])
+                                ALL_EFFECTS[row["added"]].identified)
         named = [r for r in sorted(rows, key=lambda r: -r["score"]) if r["score"] > ACCEPT_SCORE and earned(r)]
         if not named:
             self.log(f"  no further cause on top of {current_row['effect']}")
@@ -756,14 +756,14 @@ def detection(eid: Engine, ev: Engine, par: Parametrization, z: np.ndarray, cand
                stroke_range: float, mse_ref: float, noise: float, lengths: list[int], tests: list[str], log) -> dict:
     """``tuner.diagnosis.detection.detection_limits`` of ``candidates`` at the base refit ``z`` with the
     diagnosis's rules (acceptance score, penalty, search bounds, physical range); logged, units added."""
-    names = {e: EFFECT_IDENTIFIED[e][0] for e in candidates}
+    names = {e: ALL_EFFECTS[e].identified[0] for e in candidates}
     size = DamperSize(peak, stroke_range)
     limits = detection_limits(eid, ev, par, z, names, {n: typical_range(n, size)[0] for n in names.values()},
                               {n: search_bounds(n, peak, stroke_range) for n in names.values()},
                               {n: meaningful_floor(n, size) for n in names.values()}, mse_ref, noise,
                               ACCEPT_SCORE, PENALTY_PER_PARAMETER, lengths, tests)
     for e, r in limits.items():
-        r["unit"], r["covers"] = UNITS[r["parameter"]], EFFECT_KIND[e]
+        r["unit"], r["covers"] = UNITS[r["parameter"]], ALL_EFFECTS[e].kind
     if limits:
         log("diagnosis: detection limits on these tests (the smallest magnitude that would have been named): "
             + ", ".join(f"{e} {limit_text(r)}" for e, r in limits.items()))
