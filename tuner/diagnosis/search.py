@@ -7,7 +7,6 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -23,7 +22,7 @@ from tuner.diagnosis.detection import detection_limits
 from tuner.diagnosis.effect_sizes import REFERENCE, DamperSize, meaningful_floor, typical_range
 from tuner.diagnosis.forms import FORM_LABELS, screen, settings_text, shape_grid
 from tuner.diagnosis.refit import ExtendedParametrization, base_jacobian, effect_intervals, refit
-from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidence, residual_figures
+from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidence, figure_files
 from tuner.diagnosis.rules import (ACCEPT_SCORE, FORM_EXCESS_SHARE, PENALTY_PER_PARAMETER, UNEXPLAINED_RATIO,
                                    cross_check, decide, earned, excess_explained, rescore, score, within_bounds)
 from tuner.diagnosis.screen import SCREEN_SHARE, profile_screen
@@ -48,7 +47,26 @@ from tuner.identification.problem import Problem
 from tuner.metrics import pooled_mse
 from tuner.progress import advance, expect
 
-__all__ = ["CandidateSearch", "Fit", "diagnose_on"]
+__all__ = ["CandidateSearch", "Fit", "BaseRun", "diagnose_on", "base_point", "base_residuals"]
+
+
+def base_point(kind: str, values: dict) -> dict:
+    """The base model's full parameter point (SI): the preset of ``kind`` with ``values`` (the identified
+    base, keys of other models ignored) and every effect element off."""
+    point = defaults(kind)
+    point.update({k: v for k, v in values.items() if k in point})
+    point.update({p.name: p.default for p in EFFECT_PARAMETERS})
+    return point
+
+
+def base_residuals(kind: str, values: dict, data: Problem, settings) -> list[TestResidual]:
+    """The base model's residual (measured - simulated force [N]) on every test of ``data``, identification
+    then validation, simulated as the validation does (``validation_run``: the FMU at its own steps) at
+    ``base_point(kind, values)``: the evidence's and the figures' series."""
+    point = base_point(kind, values)
+    return [TestResidual(p.name, p.role or "", p.time, p.stroke, p.stroke_velocity, p.force,
+                         validation_run(kind, point, s, settings.engine)[0], s.mask, s.temperature)
+            for p, s in zip([*data.prep_id, *data.prep_val], [*data.sig_id, *data.sig_val])]
 
 
 def stroke_noise_force(kind: str, params: dict, tests: list[RigTest], signals: list, settings) -> float:
@@ -115,25 +133,24 @@ class CandidateSearch:
     ranking, selection steps, causes and forms tried so far (the live lists). Units SI; forces in N."""
 
     def __init__(self, kind: str, par: Parametrization, base_params: dict, data: Problem,
-                 settings: DiagnosisSettings, out: Path, figures_sub: str, log, record: dict | None = None,
+                 settings: DiagnosisSettings, figures: str, log, record: dict | None = None,
                  refinement: BaseRefinement = BaseRefinement()):
         self.kind, self.par, self.data, self.settings, self.log = kind, par, data, settings, log
         self.settled_by = refinement.settled  # how the refinement of base_params on these tests ended
         self.rate_prior = refinement.seconds_per_evaluation  # [s per simulation], the fit's
         self.cost: DiagnosisCost | None = None  # the steps still to come (``forecast``)
         self.t_engines = time.perf_counter()  # when the engines opened (``run``): the live cost per simulation
-        self.out, self.figures_sub = out, figures_sub
+        self.figures_folder = figures  # where the job draws the figures, relative to the output folder
         self.record = record if record is not None else {}
         self.record.setdefault("partial", {})
         self.peak, self.stroke_range, self.noise = data.peak_n, data.stroke_range_m, data.noise_n
         self.size = DamperSize(self.peak, self.stroke_range)  # typical effect sizes scale with it
         self.stroke_limits = (min(float(s.stroke[s.mask].min()) for s in data.sig_id),
                               max(float(s.stroke[s.mask].max()) for s in data.sig_id))  # [m]
-        self.base = defaults(kind)
-        self.base.update({k: v for k, v in base_params.items() if k in self.base})
+        self.base = base_point(kind, base_params)  # the base model has every effect off
         self.guess = {**defaults(kind), **initial_guess(kind, data.sig_id, par)}
-        for p in EFFECT_PARAMETERS:  # the base model has every effect off
-            self.base[p.name] = self.guess[p.name] = p.default
+        for p in EFFECT_PARAMETERS:
+            self.guess[p.name] = p.default
         self.lengths = [int(s.mask.sum()) for s in data.sig_val]
         self.ranking: list[dict] = []
         self.refits: dict[str, Fit] = {}
@@ -176,13 +193,11 @@ class CandidateSearch:
                                                                      f"{self.not_credible}"))
 
     def residual_evidence(self) -> None:
-        """Residual analysis of the base model: evidence numbers, the joint screen and the figures."""
-        d, kind = self.data, self.kind
-        tr = [TestResidual(p.name, p.role or "", p.time, p.stroke, p.stroke_velocity, p.force,
-                           validation_run(kind, self.base, s, self.settings.engine)[0], s.mask, s.temperature)
-              for p, s in zip([*d.prep_id, *d.prep_val], [*d.sig_id, *d.sig_val])]
-        self.evidence = residual_evidence(tr, noise_n=self.noise)
-        self.figures = [str(Path(f).relative_to(self.out)) for f in residual_figures(tr, self.out / self.figures_sub)]
+        """Residual analysis of the base model: evidence numbers, the joint screen, and the series and file names
+        of the figures (the job draws them, ``tuner.results.diagnosis_figures``)."""
+        self.residuals = base_residuals(self.kind, self.base, self.data, self.settings)
+        self.evidence = residual_evidence(self.residuals, noise_n=self.noise)
+        self.figures = figure_files(self.figures_folder)
         scr = self.evidence["joint_screen"]
         self.log("diagnosis: joint screen of the residual on all catalogue signatures: "
                  + (" + ".join(f"{e} ({scr['terms'][e]['contribution_n']:.3g} N)" for e in scr["kept"]) or "nothing")
@@ -745,11 +760,25 @@ class CandidateSearch:
                 "base_validation_mse": pooled_mse(base_metrics)}
 
 
-def diagnose_on(kind: str, base: Base, data: Problem, settings: DiagnosisSettings, out: Path, figures_sub: str, log,
-                record: dict | None = None) -> dict:
-    """The diagnosis on one base form: ``CandidateSearch(...).run()``."""
-    return CandidateSearch(kind, base.par, base.values, data, settings, out, figures_sub, log, record,
-                           refinement=base.refinement).run()
+@dataclass
+class BaseRun:
+    """The diagnosis on one base form: ``run``, the result fields of ``diagnosis.json`` for this base plus
+    ``after_params``, ``final_validation_mse`` and ``base_validation_mse`` (``CandidateSearch``); ``figures``,
+    the folder of its figures (relative to the output folder; ``run['figures']`` names the files); ``residuals``,
+    the base model's residual on every test (``base_residuals``), which they show."""
+
+    run: dict
+    figures: str
+    residuals: list[TestResidual]
+
+
+def diagnose_on(kind: str, base: Base, data: Problem, settings: DiagnosisSettings, figures: str, log,
+                record: dict | None = None) -> BaseRun:
+    """The diagnosis on one base form (``CandidateSearch(...).run()``), its figures named in the folder
+    ``figures``."""
+    search = CandidateSearch(kind, base.par, base.values, data, settings, figures, log, record,
+                             refinement=base.refinement)
+    return BaseRun(search.run(), figures, search.residuals)
 
 
 def detection(eid: Engine, ev: Engine, par: Parametrization, z: np.ndarray, candidates: list[str], peak: float,
