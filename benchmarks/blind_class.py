@@ -72,7 +72,7 @@ def run_case(case: dict) -> dict:
                                    sample_rate=500.0, hidden=case["hidden"])
         tests = load_dataset(data)
         res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
-                       Path(tmp) / "out", DiagnosisSettings(engine=fastest_engine(), workers=case["workers"]),
+                       DiagnosisSettings(engine=fastest_engine(), workers=case["workers"]),
                        log=lambda m: None)
     name = MAGNITUDE[case["case"]]
     fitted = (res["effect_parameters"].get(name) or {}).get("value") if name else None

@@ -85,7 +85,7 @@ def run_case(case: dict) -> dict:
                 oil_temperatures=CHAMBER_TEMPERATURES_C if case["chamber"] else None, log=lambda m: None))
             effect_force = {r: effect_force_n(tests, clean, r) for r in ("identification", "validation")}
         res = diagnose([t for t in tests if t.role == "identification"],
-                       [t for t in tests if t.role == "validation"], tmp / "out",
+                       [t for t in tests if t.role == "validation"],
                        DiagnosisSettings(engine=fastest_engine(), workers=case["workers"], base_iterations=0),
                        log=lambda m: None)
     finally:

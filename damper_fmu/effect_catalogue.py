@@ -22,8 +22,7 @@ from typing import Callable, Mapping
 from .parameter_spec import Parameter
 
 __all__ = ["Effect", "DataExtent", "ALL_EFFECTS", "CATALOGUE_EFFECTS", "FORM_EFFECTS", "EFFECT_PARAMETERS",
-           "EFFECT_TYPICAL", "EFFECT_IDENTIFIED", "EFFECT_KIND", "effect_of", "search_bounds",
-           "SCALES_WITH_FORCE", "SCALES_WITH_STROKE"]
+           "effect_of", "search_bounds", "SCALES_WITH_FORCE", "SCALES_WITH_STROKE"]
 
 #: ``Effect.scaling`` values: the typical magnitude scales with the damper's peak force, or with its stroke
 #: range (never above the catalogue's; ``tuner.diagnosis.effect_sizes``); other parameters do not scale
@@ -271,13 +270,6 @@ FORM_EFFECTS = tuple(e.name for e in _RECORDS if e.form)
 #: carries this block, ``damper_fmu.parameters``)
 EFFECT_PARAMETERS: tuple[Parameter, ...] = tuple(p for e in _RECORDS for p in e.parameters)
 
-# lookups by name, derived from the records
-#: identified parameter -> its typical |value| range (SI)
-EFFECT_TYPICAL: dict[str, tuple[float, float]] = {n: r for e in _RECORDS for n, r in e.typical.items()}
-#: effect -> its identified parameters, magnitude first
-EFFECT_IDENTIFIED: dict[str, tuple[str, ...]] = {e.name: e.identified for e in _RECORDS}
-#: effect -> what its element stands for
-EFFECT_KIND: dict[str, str] = {e.name: e.kind for e in _RECORDS}
 _OF_PARAMETER = {p.name: e for e in _RECORDS for p in e.parameters}
 
 

@@ -61,8 +61,7 @@ def test_the_held_out_score_crosses_the_threshold_where_the_limit_says(tmp_path)
         valid = [t for t in tests if t.role == "validation"]
         fitted = fit(ident, valid, FitSettings(models=("lumped",), iterations=0, workers=2, engine="native"),
                      log=lambda m: None)
-        return diagnose(ident, valid, tmp_path / f"o_{tag}", DiagnosisSettings(engine="native", workers=2,
-                                                                                 candidates=("friction",)),
+        return diagnose(ident, valid, DiagnosisSettings(engine="native", workers=2, candidates=("friction",)),
                         base_params=fitted.params["lumped"]["values"], base_model="lumped", log=lambda m: None)
 
     limit = run("clean", 0.0)["detection_limits"]["friction"]["by_score"]

@@ -28,6 +28,7 @@ from tuner.__main__ import main
 from tuner.data.reading import load_dataset
 from tuner.diagnosis.diagnose import CANDIDATES, DiagnosisSettings, ExtendedParametrization, cross_check, decide, diagnose
 from tuner.identification.engine import fastest_engine
+from tuner.job import write_diagnosis
 from tuner.identification.parametrization import Parametrization
 
 
@@ -73,9 +74,11 @@ def run_diagnosis(tmp_path, effects, seed, damper="lumped", base_model="auto", c
     data = generate_dataset(tmp_path / "data", seed=seed, effects=effects, t_end=6.0, damper=damper,
                             oil_temperatures=CHAMBER_TEMPERATURES_C, log=lambda m: None)
     tests = load_dataset(data)
-    return diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
-                    tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), base_iterations=0, base_model=base_model,
-                                                       candidates=candidates), log=lambda m: None)
+    res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
+                   DiagnosisSettings(engine=fastest_engine(), base_iterations=0, base_model=base_model,
+                                     candidates=candidates), log=lambda m: None)
+    write_diagnosis(res, tmp_path / "out", log=lambda m: None)  # the job's files: diagnosis.json, figures, FMU
+    return res
 
 
 @pytest.mark.slow
@@ -287,8 +290,8 @@ def test_a_free_play_in_a_damper_unlike_the_preset_is_named_on_the_base_that_mad
                                sample_rate=500.0, durations=(8.0,) * 6)
     tests = load_dataset(data)
     res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
-                   tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), base_model="lumped", base_iterations=0,
-                                                       candidates=("friction", "free_play"), forms=()),
+                   DiagnosisSettings(engine=fastest_engine(), base_model="lumped", base_iterations=0,
+                                     candidates=("friction", "free_play"), forms=()),
                    log=lambda m: None)
     assert res["base_model"] == "lumped" and res["causes"] == ["free_play"], res["verdict"]
     assert res["effect_parameters"]["free_play"]["value"] == pytest.approx(0.6e-3, rel=0.1)
@@ -353,12 +356,12 @@ def test_the_diagnosis_is_not_repeated_on_a_base_that_cannot_plausibly_win(tmp_p
     ident, val = _two_chamber_data(tmp_path)
     tc = defaults("twochamber")
     tc = {**tc, **{k: 8 * v for k, v in tc.items() if k.startswith("Fc_") and not k.startswith("Fc_v")}}
-    res = diagnose(ident, val, tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), candidates=("preload",)),
+    res = diagnose(ident, val, DiagnosisSettings(engine=fastest_engine(), candidates=("preload",)),
                    base_params=defaults("lumped"), base_model="lumped", other_bases={"twochamber": tc},
                    log=lambda m: None)
     assert res["base_model"] == "lumped" and res["cause"] == "unexplained", res["verdict"]
     assert "cannot plausibly win" in res["base_choice"]["not_repeated_on"]["twochamber"]
-    assert not (tmp_path / "out" / "figures" / "base_twochamber").exists()
+    assert list(res.residuals) == ["figures"]  # the lumped base's figures only: no figures/base_twochamber
 
 
 def test_an_unfinished_fit_is_not_called_a_form_error_nor_a_reason_to_switch_base(tmp_path):
@@ -376,8 +379,8 @@ def test_an_unfinished_fit_is_not_called_a_form_error_nor_a_reason_to_switch_bas
     start = defaults("lumped")
     start.update({k: 0.5 * v for k, v in start.items() if k.startswith("Fc_") and not k.startswith("Fc_v")})
     res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
-                   tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), candidates=("preload",),
-                                                      polish_jacobians=2, final_jacobians=1, guess_start=False),
+                   DiagnosisSettings(engine=fastest_engine(), candidates=("preload",),
+                                     polish_jacobians=2, final_jacobians=1, guess_start=False),
                    base_params=start, base_model="lumped", other_bases={"twochamber": defaults("twochamber")},
                    log=lambda m: None)
     u = res["unexplained"]
@@ -409,9 +412,10 @@ def test_a_residual_is_not_judged_against_a_floor_that_is_not_credible(tmp_path)
     start = defaults("lumped")
     start.update({k: 0.5 * v for k, v in start.items() if k.startswith("Fc_") and not k.startswith("Fc_v")})
     res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
-                   tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), candidates=("preload",),
-                                                      polish_jacobians=2, final_jacobians=1, guess_start=False),
+                   DiagnosisSettings(engine=fastest_engine(), candidates=("preload",),
+                                     polish_jacobians=2, final_jacobians=1, guess_start=False),
                    base_params=start, base_model="lumped", log=lambda m: None)
+    write_diagnosis(res, tmp_path / "out", log=lambda m: None)
     assert res["residual_floor_credible"] is False and res["noise"]["credible"] is False
     assert res["unexplained"] is None and res["cause"] != "unexplained", res["verdict"]
     assert "x the residual floor" not in res["verdict"] and "noise estimate not credible" in res["verdict"]
@@ -422,17 +426,17 @@ def test_a_residual_is_not_judged_against_a_floor_that_is_not_credible(tmp_path)
 def test_typical_effect_sizes_scale_with_the_damper():
     """tuner.diagnosis.effect_sizes: forces and the equivalent mass with the peak force, lengths with the
     stroke range (never above the catalogue's), times unchanged; the reference damper keeps the catalogue."""
-    from damper_fmu.effect_catalogue import EFFECT_TYPICAL
+    from damper_fmu.effect_catalogue import effect_of
     from tuner.diagnosis.effect_sizes import REFERENCE, DamperSize, meaningful_floor, typical_range
 
-    assert typical_range("friction_force", REFERENCE) == EFFECT_TYPICAL["friction_force"]
+    assert typical_range("friction_force", REFERENCE) == effect_of("friction_force").typical["friction_force"]
     small = DamperSize(peak_force_n=REFERENCE.peak_force_n / 30, stroke_range_m=REFERENCE.stroke_range_m / 4)
     assert typical_range("friction_force", small) == pytest.approx((50 / 30, 300 / 30))
     assert typical_range("inertia_mass", small) == pytest.approx((20 / 30, 200 / 30))
     assert typical_range("free_play", small) == pytest.approx((1e-4 / 4, 1e-3 / 4))
-    assert typical_range("valve_tau", small) == EFFECT_TYPICAL["valve_tau"]
+    assert typical_range("valve_tau", small) == effect_of("valve_tau").typical["valve_tau"]
     big = DamperSize(peak_force_n=REFERENCE.peak_force_n, stroke_range_m=10 * REFERENCE.stroke_range_m)
-    assert typical_range("free_play", big) == EFFECT_TYPICAL["free_play"]  # a clearance does not grow with the stroke
+    assert typical_range("free_play", big) == effect_of("free_play").typical["free_play"]  # a clearance does not grow with the stroke
     assert meaningful_floor("inertia_mass", small) == pytest.approx(0.5 * 20 / 30)
 
 
@@ -451,8 +455,8 @@ def test_a_cause_on_a_damper_30_times_smaller_is_named_at_its_own_scale(tmp_path
                                noise_n=0.3)
     tests = load_dataset(path, check_plausible=False)
     res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
-                   tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), base_iterations=0, base_model="lumped",
-                                                      candidates=("friction",)),
+                   DiagnosisSettings(engine=fastest_engine(), base_iterations=0, base_model="lumped",
+                                     candidates=("friction",)),
                    base_params=small, base_model="lumped", log=lambda m: None)
     assert res["causes"] == ["friction"], res["verdict"]
     p = res["effect_parameters"]["friction_force"]

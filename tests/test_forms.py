@@ -19,6 +19,7 @@ from tuner.data.reading import load_dataset
 from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
 from tuner.diagnosis.forms import shape_grid
 from tuner.identification.engine import fastest_engine
+from tuner.job import write_diagnosis
 
 
 def test_shape_grid_stays_inside_the_search_bounds():
@@ -55,8 +56,8 @@ def _diagnose(tmp_path, model: str, extra: dict, seed: int = 3):
                                durations=(6.0, 6.0, 6.0, 6.0), noise_n=10.0)
     tests = load_dataset(data)
     return diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
-                    tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), base_iterations=0, base_model="lumped",
-                                                       candidates=("friction",)),
+                    DiagnosisSettings(engine=fastest_engine(), base_iterations=0, base_model="lumped",
+                                      candidates=("friction",)),
                     base_params=defaults("lumped"), base_model="lumped", log=lambda m: None)
 
 
@@ -69,6 +70,7 @@ def test_a_hidden_pre_yield_hysteresis_is_named_with_its_parameters(tmp_path):
     assert res["verdict"].startswith("form beyond the catalogue: pre-yield hysteresis")
     assert "held-out MSE -" in res["verdict"]
     assert res["unexplained"] is None  # down to the floor
+    write_diagnosis(res, tmp_path / "out", log=lambda m: None)  # the job's export, under the form's name
     assert (tmp_path / "out" / "fmu" / "DamperLumped_hysteresis_tuned.fmu").exists()
 
 
@@ -108,7 +110,7 @@ def _blind(tmp_path, effects: dict, seed: int):
                             oil_temperatures=CHAMBER_TEMPERATURES_C, log=lambda m: None)
     tests = load_dataset(data)
     return diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
-                    tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), base_iterations=0), log=lambda m: None)
+                    DiagnosisSettings(engine=fastest_engine(), base_iterations=0), log=lambda m: None)
 
 
 @pytest.mark.slow
@@ -142,9 +144,11 @@ def _diagnose_with(tmp_path, model: str, extra: dict, candidates: tuple, base: s
     data = write_model_dataset(tmp_path / "data", model, {**defaults(model), **extra}, seed=seed,
                                durations=durations, noise_n=10.0)
     tests = load_dataset(data)
-    return diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
-                    tmp_path / "out", DiagnosisSettings(engine=fastest_engine(), base_iterations=0, candidates=candidates),
-                    base_params=defaults(base), base_model=base, other_bases=other_bases, log=lambda m: None)
+    res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
+                   DiagnosisSettings(engine=fastest_engine(), base_iterations=0, candidates=candidates),
+                   base_params=defaults(base), base_model=base, other_bases=other_bases, log=lambda m: None)
+    write_diagnosis(res, tmp_path / "out", log=lambda m: None)  # the job's files: the extended FMU among them
+    return res
 
 
 def test_a_form_on_top_of_two_named_causes_is_fitted_with_them_and_exported(tmp_path):

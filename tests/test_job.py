@@ -7,7 +7,7 @@ import pytest
 
 from campaign.synthetic import write_model_dataset
 from damper_fmu import defaults
-from tuner import job
+from tuner import job, strict_json
 from tuner.__main__ import main as cli_main
 from tuner.identification.engine import fastest_engine
 from tuner.diagnosis.settings import DiagnosisSettings
@@ -67,7 +67,8 @@ def test_the_job_prepares_once_writes_each_stage_and_reports_last(tmp_path, monk
     assert metrics["settings"]["force_limit_n_used"] == diagnosis["settings"]["problem"]["force_limit_n_used"] == 31000.0
     assert json.loads((out / "parameters.json").read_text()) == json.loads(json.dumps(res.fit.params))
     assert {p.name for p in res.fmus} >= {"DamperLumped_tuned.fmu", "DamperMaxwell_tuned.fmu"}
-    assert res.diagnosis["verdict"] == diagnosis["verdict"]
+    assert json.loads(strict_json.dumps(res.diagnosis.to_dict())) == diagnosis  # the job wrote its record, figures
+    assert diagnosis["figures"] and all((out / f).is_file() for f in diagnosis["figures"])
     assert "id='diagnosis'" in res.report.read_text(encoding="utf-8")
     assert res.report.stat().st_mtime >= (out / "diagnosis.json").stat().st_mtime
     written = sorted(out.rglob("*.json"))
@@ -89,3 +90,34 @@ def test_a_force_limit_on_the_command_line_reaches_the_diagnosis(tmp_path):
     d = json.loads((out / "diagnosis.json").read_text())
     assert d["settings"]["problem"]["force_limit_n_used"] == pytest.approx(29000.0)
     assert d["settings"]["problem"]["data_settings"]["fit_rate_hz"] == 100.0
+
+
+def test_a_failed_export_of_the_extended_fmu_is_recorded_as_the_diagnosis_failed_stage(tmp_path, monkeypatch):
+    """The job writes the diagnosis's files (``write_diagnosis``); the extended model's export is the diagnosis's
+    last stage: when it raises, diagnosis.json holds that failure (no verdict, the stages the diagnosis
+    finished), an earlier diagnosis.json is kept as diagnosis.previous.json, and ``DiagnosisFailed`` names the
+    file and chains the error (the command line then exits 1 and --resume exports again)."""
+    from tuner.diagnosis.result import Diagnosis, DiagnosisFailed
+
+    record = {"cause": "friction", "causes": ["friction"], "verdict": "causes: friction", "base_model": "lumped",
+              "figures": [], "settings": {"elapsed_s": 1.0}}
+    stages = {"finished": ["base identification", "diagnosis on the lumped base"], "partial": None,
+              "base_choice": {"chosen": "lumped"}}
+    diagnosis = Diagnosis(record, final_values=defaults("lumped"), stages=stages)
+
+    def no_space(*args, **kwargs):
+        raise OSError("no space left on device")
+
+    monkeypatch.setattr(job, "build", no_space)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "diagnosis.json").write_text('{"cause": "none"}')
+    with pytest.raises(DiagnosisFailed, match="export of the extended FMU") as failed:
+        job.write_diagnosis(diagnosis, out, log=lambda m: None)
+    assert failed.value.path == out / "diagnosis.json" and str(out / "diagnosis.json") in str(failed.value)
+    assert isinstance(failed.value.__cause__, OSError)
+    written = json.loads((out / "diagnosis.json").read_text(), parse_constant=lambda c: pytest.fail(c))
+    assert written["failed_stage"] == "export of the extended FMU" and written["cause"] is None
+    assert written["error"] == "OSError: no space left on device" and written["verdict"].startswith("no verdict")
+    assert written["finished_stages"] == stages["finished"] and written["base_choice"] == {"chosen": "lumped"}
+    assert json.loads((out / "diagnosis.previous.json").read_text()) == {"cause": "none"}

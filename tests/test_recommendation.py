@@ -345,7 +345,8 @@ def test_a_failed_diagnosis_still_ends_with_the_summary_and_keeps_its_checkpoint
     write_run(out, {"lumped": 2.0, "maxwell": 8.0}, diagnosis=failed_diagnosis)
     (out / "checkpoints").mkdir()
     (out / "checkpoints" / "diagnosis_lumped.json").write_text("{}")
-    failed = DiagnosisFailed("forms beyond the catalogue on the lumped base", out / "diagnosis.json", RuntimeError("boom"))
+    failed = DiagnosisFailed("forms beyond the catalogue on the lumped base", failed_diagnosis(None), RuntimeError("boom"))
+    failed.path = out / "diagnosis.json"  # as the job's write_diagnosis_failure leaves it
     with pytest.raises(DiagnosisFailed):
         _end(out, Namespace(keep_checkpoints=False), 0.0, failed)
     assert (out / "checkpoints" / "diagnosis_lumped.json").exists()

@@ -18,6 +18,7 @@ def report(tmp_path_factory):
     from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
     from tuner.identification.engine import fastest_engine
     from tuner.identification.fit import FitSettings, fit
+    from tuner.job import write_diagnosis
     from tuner.results.report import make_report
 
     tmp = tmp_path_factory.mktemp("rep")
@@ -29,9 +30,10 @@ def report(tmp_path_factory):
     fit(ident, valid, FitSettings(models=("lumped", "maxwell"), population=4, iterations=1, workers=0,
                                   engine=fastest_engine(), polish_jacobians=1), log=lambda m: None).write(out)
     base = json.loads((out / "parameters.json").read_text())["lumped"]["values"]
-    diagnose(ident, valid, out, DiagnosisSettings(engine=fastest_engine(), workers=0, candidates=("friction", "inertia"),
-                                                  polish_jacobians=2, final_jacobians=2),
-             base_params=base, log=lambda m: None)
+    res = diagnose(ident, valid, DiagnosisSettings(engine=fastest_engine(), workers=0, candidates=("friction", "inertia"),
+                                                   polish_jacobians=2, final_jacobians=2),
+                   base_params=base, log=lambda m: None)
+    write_diagnosis(res, out, log=lambda m: None)
     path = make_report(out)
     return out, path.read_text(encoding="utf-8")
 

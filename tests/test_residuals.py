@@ -7,7 +7,8 @@ filters), so each estimate is checked against the injected value.
 import numpy as np
 import pytest
 
-from tuner.diagnosis.residuals import EFFECTS, TestResidual, evidence, knee_velocity, residual_figures, _Prep
+from tuner.diagnosis.residuals import EFFECTS, PreparedTest, TestResidual, evidence, figure_files, knee_velocity
+from tuner.results.diagnosis_figures import residual_figures
 
 FS, DUR = 500.0, 40.0                       # sample rate [Hz], test length [s]
 C0, C1, VK = 8e5, 5e4, 0.012                # low-speed / high-speed damping [N s/m], knee scale [m/s]
@@ -102,7 +103,7 @@ def test_drift_in_time_without_temperature():
 
 
 def test_knee_matches_analytic_slope_third():
-    preps = [_Prep(t) for t in pair("friction")]
+    preps = [PreparedTest(t) for t in pair("friction")]
     v = np.concatenate([np.abs(p.t.velocity[p.use]) for p in preps])
     bin_width = np.percentile(v, 98) / 20
     # slope C1 + (C0 - C1) sech^2(v/VK) = C0/3
@@ -145,6 +146,7 @@ def test_figures_are_png(tmp_path):
     tests = pair("thermal_drift") + [make("free_play", "validation", 3)]
     paths = residual_figures(tests, tmp_path / "fig", prefix="diag")
     assert len(paths) == 5 and len(set(paths)) == 5
+    assert [str(p) for p in paths] == figure_files(tmp_path / "fig")  # the names the diagnosis's record lists
     import matplotlib.image as mpimg
     for p in paths:
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -175,7 +177,7 @@ def test_linear_share_tells_a_missing_linear_element_from_a_nonlinear_error():
 
 def test_where_in_the_loop_the_residual_lies():
     """A residual only at speeds below the knee lands there; extension/compression split by sign."""
-    knee = knee_velocity([_Prep(_with_residual(lambda t, x, v: 0 * t))])
+    knee = knee_velocity([PreparedTest(_with_residual(lambda t, x, v: 0 * t))])
     ev = evidence([_with_residual(lambda t, x, v: np.where((np.abs(v) < 0.5 * knee) & (v > 0), 300.0, 0.0))])
     loop = ev["general"]["pooled"]["loop"]
     assert loop["below_knee_extension"]["power_share"] > 0.99

@@ -171,9 +171,11 @@ def test_diagnosis_before_is_the_table3_figure_of_the_same_model(tmp_path, small
     fitted = fit(ident, valid, FitSettings(models=("lumped",), population=4, iterations=1, workers=0,
                                            engine=fastest_engine(), polish_jacobians=1), log=lambda m: None)
     metrics, base = fitted.metrics, fitted.params["lumped"]["values"]
-    res = diagnose(ident, valid, tmp_path / "diag", DiagnosisSettings(engine=fastest_engine(), workers=0,
-                                                                      candidates=(), polish_jacobians=1),
+    before = sorted(tmp_path.rglob("*"))
+    res = diagnose(ident, valid, DiagnosisSettings(engine=fastest_engine(), workers=0, candidates=(),
+                                                   polish_jacobians=1),
                    base_params=base, log=lambda m: None)
+    assert sorted(tmp_path.rglob("*")) == before  # like the fit, the diagnosis returns its result and writes nothing
     for t in valid:
         table3 = metrics["tests"][t.name]["models"]["lumped"]
         assert res["validation"][t.name]["mse_before"] == pytest.approx(table3["mse"], rel=1e-9)
@@ -196,8 +198,8 @@ def test_fit_and_diagnosis_share_one_problem_prepared_once(tmp_path, small_lumpe
     assert problem.force_limit_n == 31000.0 and problem.parametrization("lumped").force_limit == 31000.0
     fitted = fit(ident, valid, settings, problem=problem, log=lambda m: None)
     metrics, base = fitted.metrics, fitted.params["lumped"]["values"]
-    res = diagnose(ident, valid, tmp_path / "diag", DiagnosisSettings(engine=fastest_engine(), workers=0,
-                                                                      candidates=(), polish_jacobians=1),
+    res = diagnose(ident, valid, DiagnosisSettings(engine=fastest_engine(), workers=0, candidates=(),
+                                                   polish_jacobians=1),
                    base_params=base, problem=problem, log=lambda m: None)
     assert sorted(prepared_names) == sorted(t.name for t in ident + valid)  # each test prepared once
     assert metrics["settings"]["force_limit_n_used"] == res["settings"]["problem"]["force_limit_n_used"] == 31000.0
@@ -205,7 +207,7 @@ def test_fit_and_diagnosis_share_one_problem_prepared_once(tmp_path, small_lumpe
         fit(ident, valid, FitSettings(models=("lumped",), data=DataSettings(fit_rate_hz=100.0)), problem=problem,
             log=lambda m: None)
     with pytest.raises(ValueError, match="prepared at 200 Hz"):
-        diagnose(ident, valid, tmp_path / "diag2", DiagnosisSettings(data=DataSettings(fit_rate_hz=100.0)), base_params=base,
+        diagnose(ident, valid, DiagnosisSettings(data=DataSettings(fit_rate_hz=100.0)), base_params=base,
                  problem=problem, log=lambda m: None)
 
 

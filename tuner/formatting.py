@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 import re
 
-from damper_fmu.effect_catalogue import EFFECT_TYPICAL
+from damper_fmu.effect_catalogue import ALL_EFFECTS
 
 __all__ = ["eng", "sig", "unit_html", "fmt_quantity", "effect_value"]
 
@@ -74,11 +74,12 @@ def fmt_quantity(v: float, unit: str) -> str:
 def effect_value(name: str, v: float, unit: str) -> str:
     """A fitted effect magnitude; one below 1/1000 of the low end of its typical range prints as 0
     (the refit switched the effect off; 5e-15 mm is not a measurement)."""
-    if name in EFFECT_TYPICAL and abs(v) < 1e-3 * EFFECT_TYPICAL[name][0]:
+    typical = next((e.typical[name] for e in ALL_EFFECTS.values() if name in e.typical), None)  # its record's
+    if typical is not None and abs(v) < 1e-3 * typical[0]:
         return "0 (off)"
     text = fmt_quantity(v, unit)
-    if name in EFFECT_TYPICAL:
-        lo, hi = EFFECT_TYPICAL[name]
+    if typical is not None:
+        lo, hi = typical
         if abs(v) > hi:
             text += f" (above its typical {fmt_quantity(lo, unit)} - {fmt_quantity(hi, unit)})"
         elif abs(v) < lo:

@@ -2,12 +2,15 @@
 
 ``run`` is what ``python -m tuner fit`` and every row of ``python -m tuner batch`` do; ``run_diagnosis``
 what ``python -m tuner diagnose`` does. The stages hand their results on in memory (the prepared
-``Problem``, the ``FitResult``); each output file is written once (metrics.json a second time with the
-full-rate check, which runs after the results are safe on disk):
+``Problem``, the ``FitResult``, the ``Diagnosis``); the fit and the diagnosis write nothing but their
+checkpoints, the job writes their files; each output file is written once (metrics.json a second time with
+the full-rate check, which runs after the results are safe on disk):
 
     parameters.json, metrics.json, history_<model>.json, simulations.npz   the fit (FitResult.write)
-    fmu/<Model>_tuned.fmu                                                   the tuned FMUs
-    diagnosis.json, figures/, fmu/<Model>_<causes>_tuned.fmu                the diagnosis
+    fmu/<Model>_tuned.fmu                                                   the tuned FMUs (export_fmus)
+    diagnosis.json, figures/ (diag_residual_*), fmu/<Model>_<causes>_tuned.fmu
+                                                                            the diagnosis (write_diagnosis; a
+                                                                            failed one: write_diagnosis_failure)
     vehicle/vehicle.json, vehicle/<scenario>.png                            the vehicle (``vehicle=True``)
     vehicle/intervals.json                                                  its 95 % intervals (``vehicle_draws``)
     report.html, figures/                                                   the report (last)
@@ -24,19 +27,24 @@ from pathlib import Path
 from damper_fmu.fmu import SLAVES, build
 from damper_fmu.parameters import EFFECT_MODELS, MODEL_PARAMETERS
 from tuner.data.reading import RigTest
+from tuner import strict_json
 from tuner.diagnosis.bases import BaseRefinement
 from tuner.diagnosis.diagnose import Diagnosis, DiagnosisFailed, DiagnosisSettings, choose_base, diagnose
 from tuner.identification.fit import FitResult, FitSettings, fit, full_rate_checks
 from tuner.identification.intervals import ModelIntervals
 from tuner.identification.problem import Problem
 from tuner.progress import SubStages, stage
+from tuner.results.diagnosis_figures import diagnosis_figures
 from tuner.results.diagnosis_report import make_diagnosis_report
 from tuner.results.report import make_report
 from tuner.vehicle.compare import SCENARIO_NAMES, VEHICLE_FOLDER, compare_fmus
 from tuner.vehicle.propagation import PropagationSettings, propagate
 
 __all__ = ["JobResult", "run", "run_diagnosis", "diagnosis_settings", "export_fmus", "wants_diagnosis",
-           "vehicle_consequences"]
+           "write_diagnosis", "write_diagnosis_failure", "export_extended_fmu", "vehicle_consequences"]
+
+#: the diagnosis's stage that the job runs: the extended model's export (a failure is recorded as the diagnosis's)
+EXPORT_STAGE = "export of the extended FMU"
 
 
 @dataclass
@@ -118,9 +126,10 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
 
 def run_diagnosis(identification: list[RigTest], validation: list[RigTest], out: Path,
                   settings: DiagnosisSettings, *, base_params: dict | None = None, base_model: str | None = None,
-                  base_choice: dict | None = None, other_bases: dict | None = None, log=print) -> dict:
-    """A diagnosis on its own into ``out`` (the base from an earlier fit, or identified here), then
-    the report: the full one when ``out`` holds that fit's files, the diagnosis alone otherwise."""
+                  base_choice: dict | None = None, other_bases: dict | None = None, log=print) -> Diagnosis:
+    """A diagnosis on its own into ``out`` (the base from an earlier fit, or identified here; its files by
+    ``write_diagnosis``), then the report: the full one when ``out`` holds that fit's files, the diagnosis
+    alone otherwise."""
     out = Path(out)
     try:
         result = _diagnose(identification, validation, out, settings, base_params, base_model, base_choice,
@@ -141,11 +150,67 @@ def base_refinements(result: FitResult, settings: FitSettings) -> dict:
 
 def _diagnose(identification, validation, out, settings, base_params, base_model, base_choice, other_bases,
               problem, log, refinements: dict | None = None) -> Diagnosis:
+    """The diagnosis into ``out`` (its checkpoints in ``out/checkpoints``), then its files (``write_diagnosis``);
+    a failed stage's record is written (``write_diagnosis_failure``) before ``DiagnosisFailed`` goes on."""
     stage(log, "diagnosis")
     log(f"\ndiagnosis: refitting the {base_model or 'base'} model extended by each candidate effect ...")
-    return diagnose(identification, validation, out, settings, base_params=base_params, base_model=base_model,
-                    base_choice=base_choice, other_bases=other_bases, problem=problem, refinements=refinements, log=log)
+    try:
+        diagnosis = diagnose(identification, validation, settings, checkpoints=Path(out) / "checkpoints",
+                             base_params=base_params, base_model=base_model, base_choice=base_choice,
+                             other_bases=other_bases, problem=problem, refinements=refinements, log=log)
+    except DiagnosisFailed as failed:
+        write_diagnosis_failure(failed, out)
+        raise
+    write_diagnosis(diagnosis, out, log)
+    return diagnosis
 
+
+def write_diagnosis(diagnosis: Diagnosis, out: Path, log=print) -> list[Path]:
+    """The files of ``diagnosis`` into the output folder ``out``: the residual figures its record lists
+    (``tuner.results.diagnosis_figures``), the extended model as a tuned FMU when a cause was named
+    (``export_extended_fmu``) and ``diagnosis.json`` (the record, strict JSON). Returns the paths written.
+    The export is the diagnosis's last stage: when it raises, ``diagnosis.json`` holds that failure
+    (``write_diagnosis_failure``) and ``DiagnosisFailed`` is raised."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = diagnosis_figures(diagnosis, out)
+    if diagnosis.causes:
+        try:
+            paths.append(export_extended_fmu(diagnosis, out))
+        except Exception as err:  # recorded as the diagnosis's failed stage: --resume exports again
+            log(f"diagnosis: FAILED in its stage '{EXPORT_STAGE}': {type(err).__name__}: {err}")
+            failed = diagnosis.failed(EXPORT_STAGE, err)
+            write_diagnosis_failure(failed, out)
+            raise failed from err
+        log(f"extended model exported: {paths[-1]}")
+    path = out / "diagnosis.json"
+    path.write_text(strict_json.dumps(diagnosis.to_dict(), indent=2))
+    return [*paths, path]
+
+
+def export_extended_fmu(diagnosis: Diagnosis, out: Path) -> Path:
+    """``out/fmu/<Model>_<causes>_tuned.fmu``: the base model of ``diagnosis`` extended by the causes it named,
+    its final values as start values (e.g. ``DamperLumped_friction_tuned.fmu``); ValueError without a cause."""
+    kind, causes = diagnosis.base_model, diagnosis.causes
+    if not causes:
+        raise ValueError("export_extended_fmu: the diagnosis named no cause, so there is no extended model "
+                         "(the base model's FMU is the fit's, export_fmus)")
+    return build(kind, Path(out) / "fmu", start_values=diagnosis.final_values,
+                 filename=f"{SLAVES[kind]}_{'_'.join(causes)}_tuned.fmu")
+
+
+def write_diagnosis_failure(failed: DiagnosisFailed, out: Path) -> Path:
+    """``out/diagnosis.json`` of a diagnosis that failed (``failed.record``: no verdict, the failing stage, the
+    error, what was finished); an earlier diagnosis.json is kept as ``diagnosis.previous.json`` (nothing is
+    lost). Sets ``failed.path``, which its message names."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "diagnosis.json"
+    if path.exists():
+        path.replace(out / "diagnosis.previous.json")
+    path.write_text(strict_json.dumps(failed.record, indent=2))
+    failed.path = path
+    return path
 
 
 def vehicle_consequences(fmus: list[Path], out: Path, seed: int = 0, log=print, *, draws: int = 0,

@@ -1,13 +1,14 @@
 """What the fitted model gets wrong and why (SI units; forces in N).
 
-- ``diagnose``: the procedure's entry (``diagnose``): stages, checkpoints, the failure record, the export;
-- ``result``: the result of a diagnosis (``Diagnosis``: the causes, the verdict, the record of ``diagnosis.json``);
+- ``diagnose``: the procedure's entry (``diagnose``): stages, checkpoints; returns a ``Diagnosis``, writes no output;
+- ``result``: the result of a diagnosis (``Diagnosis``: the causes, the verdict, the record of ``diagnosis.json``, the
+  final values and residual series the job writes from) and of a failed stage (``DiagnosisFailed``, its record);
 - ``settings``: the settings of a diagnosis run (``DiagnosisSettings``) and its candidate causes;
 - ``bases``: the base forms: which, their identification, the choice by held-out MSE, the repeat rule;
 - ``search``: the diagnosis on one base form (``CandidateSearch``: one method per step of the procedure);
 - ``rules``: the decision rules, pure functions of ranking rows (score, decide, cross-check, bounds);
 - ``verdict``: the verdict's words and the records of causes and of what stays unexplained;
-- ``residuals``: the base model's residual as evidence (signatures, loops, spectra) and its figures;
+- ``residuals``: the base model's residual as evidence (signatures, loops, spectra) and its figures' file names;
 - ``screen``: one batch that predicts what each candidate's refit could win (its profile over the magnitude);
 - ``refit``: refits of a base model extended by effect elements, and their intervals;
 - ``forms``: the forms beyond the catalogue (pre-yield hysteresis, bypass groove) and their shape screen;

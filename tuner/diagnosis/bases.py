@@ -106,11 +106,12 @@ def progress_plan(log, settings: DiagnosisSettings, base_model, other_bases, giv
     return Plan(log, weights)
 
 
-def identified_bases(problem: Problem, out: Path, settings: DiagnosisSettings, base_params, base_model,
+def identified_bases(problem: Problem, checkpoints: Path, settings: DiagnosisSettings, base_params, base_model,
                       base_choice, other_bases, log, refinements: dict | None = None) -> tuple[str, dict, dict | None]:
     """(the first base kind, {kind: Base} in the order tried, how it was chosen): the bases given
     (``base_params`` of ``base_model`` and ``other_bases``; ``refinements``: {kind: BaseRefinement} of their
-    identification on this problem), or identified here."""
+    identification on this problem), or identified here (Firefly state checkpointed in the folder
+    ``checkpoints``: ``diagnosis_base_<kind>.json``)."""
     def parametrization(kind: str, given: dict | None) -> Parametrization:
         # the local solver needs monotone tables: the 'improved' scheme whatever the fit used
         return problem.parametrization(kind, fixed_from=given, scheme="improved")
@@ -129,7 +130,7 @@ def identified_bases(problem: Problem, out: Path, settings: DiagnosisSettings, b
         fs = FitSettings(models=(kind,), data=settings.data, iterations=settings.base_iterations,
                          workers=settings.workers, seed=settings.seed, engine=settings.engine,
                          polish_jacobians=settings.base_polish_jacobians)
-        found = identify(kind, problem.sig_id, fs, par_k, out / "checkpoints" / f"diagnosis_base_{kind}.json",
+        found = identify(kind, problem.sig_id, fs, par_k, checkpoints / f"diagnosis_base_{kind}.json",
                          problem.digest, log.part(f"identification of the {kind} base"))
         fitted[kind] = (Base(par_k, found.values, BaseRefinement.from_history(found.history)),
                         pooled_validation_mse(kind, found.values, problem.sig_val, settings.engine))

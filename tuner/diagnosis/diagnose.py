@@ -14,9 +14,10 @@ CandidateSearch``, the decision rules are in ``tuner.diagnosis.rules``, the word
    bases fit badly, and then the wrong form may validate better) - but only when the other form can
    plausibly win (its bare fit validates within ``RACE_RATIO`` x the first's RMSE) and the first
    base's refit converged (an unfinished fit is no evidence of a wrong form).
-2. Residuals (measured - simulated force) of the base model on every test: evidence numbers and
-   figures (``tuner.diagnosis.residuals``): in time, against velocity and stroke, around velocity reversals,
-   against frequency, drift over the test and against the temperature channel.
+2. Residuals (measured - simulated force) of the base model on every test: evidence numbers
+   (``tuner.diagnosis.residuals``), and the series of the figures the job draws from them
+   (``tuner.results.diagnosis_figures``): in time, against velocity and stroke, around velocity
+   reversals, against frequency, drift over the test and against the temperature channel.
 3. For every candidate of the catalogue (``damper_fmu.effects``): a screen (``tuner.diagnosis.screen``)
    predicts from one batch what its refit could win; those predicted to win 2 % of the identification
    SSE are extended by that effect, refitted on the identification tests, and their validation MSE
@@ -50,11 +51,16 @@ CandidateSearch``, the decision rules are in ``tuner.diagnosis.rules``, the word
    periodic tests, else the quiet band of the force's spectrum); when that estimate is not credible
    (filtered data, too few samples) the residual is not compared with the floor at all: no
    'unexplained', no "N x the floor", and the verdict says why (``residual_floor_credible``).
-6. Output: ``diagnosis.json`` (cause, causes, selection steps, unexplained, ranking, noise (the
-   estimate used and every one made), effect parameters with units, intervals and typical ranges,
-   validation MSE/AME before and after per test in the Table 3 definition, evidence), figures, and
-   the extended model as a tuned FMU (``fmu/<model identifier>_<causes>_tuned.fmu``, e.g.
-   ``DamperLumped_friction_tuned.fmu``).
+6. Output: a ``Diagnosis`` (``tuner.diagnosis.result``), as the fit returns a ``FitResult``: the record
+   of ``diagnosis.json`` (cause, causes, selection steps, unexplained, ranking, noise (the estimate used
+   and every one made), effect parameters with units, intervals and typical ranges, validation MSE/AME
+   before and after per test in the Table 3 definition, evidence, the figures' file names), the final
+   model's values and the base model's residual series. ``diagnose`` writes nothing but its checkpoints;
+   the job (``tuner.job.write_diagnosis``) writes ``diagnosis.json``, the figures
+   (``tuner.results.diagnosis_figures``) and the extended model as a tuned FMU
+   (``fmu/<model identifier>_<causes>_tuned.fmu``, e.g. ``DamperLumped_friction_tuned.fmu``). A stage
+   that fails raises ``DiagnosisFailed`` with the record of the failure, which the job writes as
+   ``diagnosis.json`` (``tuner.job.write_diagnosis_failure``).
 
 Search bounds (``search_bounds``: each effect's rule in its record, ``damper_fmu.effect_catalogue``, the
 one source) cover twice the catalogue's typical range, force scales at least 10 % of the measured peak
@@ -65,14 +71,13 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import tempfile
 import time
-import traceback
 from pathlib import Path
 
 import numpy as np
 
 from damper_fmu.effect_catalogue import search_bounds  # noqa: F401
-from damper_fmu.fmu import SLAVES, build
 
 from tuner import strict_json
 from tuner.data.reading import RigTest
@@ -80,10 +85,10 @@ from tuner.diagnosis.bases import (BASE_MODELS, Base, choose_base, identified_ba
                                    why_not_repeated)
 from tuner.diagnosis.cost_model import expected_cost
 from tuner.diagnosis.refit import MIN_BLOCKS, ExtendedParametrization  # noqa: F401
-from tuner.diagnosis.result import Diagnosis
+from tuner.diagnosis.result import Diagnosis, DiagnosisFailed, failure_record
 from tuner.diagnosis.rules import (ACCEPT_SCORE, PENALTY_PER_PARAMETER, UNEXPLAINED_RATIO, cross_check,  # noqa: F401
                                    decide)
-from tuner.diagnosis.search import diagnose_on
+from tuner.diagnosis.search import BaseRun, base_residuals, diagnose_on
 from tuner.diagnosis.settings import CANDIDATES, DiagnosisSettings
 from tuner.diagnosis.verdict import ACQUISITION_CAUSES, NOTES  # noqa: F401
 from tuner.identification.problem import Problem
@@ -93,26 +98,14 @@ __all__ = ["Diagnosis", "DiagnosisSettings", "DiagnosisFailed", "diagnose", "dec
            "BASE_MODELS", "ExtendedParametrization", "search_bounds", "ACQUISITION_CAUSES", "NOTES", "ACCEPT_SCORE"]
 
 
-class DiagnosisFailed(RuntimeError):
-    """A stage of the diagnosis raised. ``stage`` names it (e.g. 'forms beyond the catalogue on the lumped
-    base'); ``path`` is the ``diagnosis.json`` written with what was finished (``failed_stage``, the error,
-    the ranking so far); the original exception is chained (``__cause__``). ``--resume`` continues from
-    the last finished stage."""
-
-    def __init__(self, stage: str, path: Path, error: BaseException):
-        super().__init__(f"the diagnosis failed in its stage '{stage}': {type(error).__name__}: {error}. What it "
-                         f"had finished is in {path}; run the same command with --resume to continue from the last "
-                         f"finished stage")
-        self.stage, self.path = stage, path
-
-
-def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path,
-             settings: DiagnosisSettings | None = None, *, base_params: dict | None = None,
-             base_model: str | None = None, base_choice: dict | None = None,
-             other_bases: dict | None = None, problem: Problem | None = None, refinements: dict | None = None,
-             log=print) -> Diagnosis:
-    """Run the diagnosis, write ``diagnosis.json`` (and figures, extended FMU) into ``out`` and return the
-    :class:`tuner.diagnosis.result.Diagnosis` (read-only: the record ``diagnosis.json`` holds).
+def diagnose(identification: list[RigTest], validation: list[RigTest], settings: DiagnosisSettings | None = None, *,
+             checkpoints: Path | None = None, base_params: dict | None = None, base_model: str | None = None,
+             base_choice: dict | None = None, other_bases: dict | None = None, problem: Problem | None = None,
+             refinements: dict | None = None, log=print) -> Diagnosis:
+    """Run the diagnosis and return the :class:`tuner.diagnosis.result.Diagnosis` (read-only: the record
+    ``diagnosis.json`` holds, the final model's values, the residual series of the figures). Writes nothing
+    but its checkpoints, into the folder ``checkpoints`` (resumed when they are there; none kept when it is
+    None); ``tuner.job.write_diagnosis`` writes ``diagnosis.json``, the figures and the extended FMU.
 
     base_params: the values of an earlier fit of ``base_model`` (default 'lumped'); without them the
     base is identified here (``settings.base_model``: 'auto' identifies every one of BASE_MODELS and
@@ -129,16 +122,22 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     ``RACE_RATIO`` x the first's; not at all when the first base's refit did not converge) and the
     final model with the lowest held-out MSE is kept; ``base_choice['not_repeated_on']`` says why not.
 
-    Stages: the base identification (its Firefly state checkpointed every iteration), the diagnosis on
-    each base form (checkpointed when finished: ``checkpoints/diagnosis_<kind>.json``), the export. A
-    stage that raises leaves ``diagnosis.json`` with ``failed_stage``, the error and what was finished,
-    and raises ``DiagnosisFailed``; called again on the same folder, finished stages are taken from
-    their checkpoints (checkpoints of other data or settings are refused: ValueError)."""
+    Stages: the base identification (its Firefly state checkpointed every iteration,
+    ``diagnosis_base_<kind>.json``), the diagnosis on each base form (checkpointed when finished:
+    ``diagnosis_<kind>.json``); the job's export of the extended FMU follows (``Diagnosis.failed``). A stage
+    that raises raises ``DiagnosisFailed`` with the record of what was finished (``failed_stage``, the
+    error, the ranking so far); called again with the same checkpoints, finished stages are taken from
+    them (checkpoints of other data or settings are refused: ValueError)."""
     settings = settings or DiagnosisSettings()
+    if not isinstance(settings, DiagnosisSettings):
+        raise TypeError(f"diagnose: settings must be a DiagnosisSettings, got {type(settings).__name__}; the "
+                        f"diagnosis writes no output folder (it returns a Diagnosis: tuner.job.write_diagnosis "
+                        f"writes its files), its checkpoints folder is the keyword 'checkpoints'")
     if not identification or not validation:
         raise ValueError("the diagnosis needs identification AND validation tests (the decision is held-out gain)")
-    out = Path(out)
-    (out / "checkpoints").mkdir(parents=True, exist_ok=True)
+    scratch = tempfile.TemporaryDirectory(prefix="tuner-diagnosis-") if checkpoints is None else None
+    checkpoints = Path(scratch.name if scratch is not None else checkpoints)
+    checkpoints.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
     problem = _checked_problem(problem, identification, validation, settings)
     # force noise in the fit band (``tuner.data.noise``: the cycle-to-cycle scatter of periodic tests,
@@ -149,16 +148,18 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], out: Path
     log(f"diagnosis: force measurement noise: {problem.noise.get('text') or f'{problem.noise_n:.3g} N rms'}")
     record = {"stage": "base identification", "finished": [], "partial": None, "base_choice": base_choice}
     try:
-        result = _diagnose_stages(problem, out, settings, base_params, base_model, base_choice, other_bases,
-                                  refinements, record, log)
+        result = _diagnose_stages(problem, checkpoints, settings, base_params, base_model, base_choice, other_bases,
+                                  refinements, record, log, t_start)
     except Exception as err:  # recorded, then raised again: a failed stage is never a result
-        path = _write_failure(out, record, err, settings, problem, time.perf_counter() - t_start)
         log(f"diagnosis: FAILED in its stage '{record['stage']}': {type(err).__name__}: {err}")
-        raise DiagnosisFailed(record["stage"], path, err) from err
-    result["settings"] = _settings_record(settings, problem, time.perf_counter() - t_start)
-    (out / "diagnosis.json").write_text(strict_json.dumps(result, indent=2))
-    log(result["verdict"])
-    return Diagnosis(result)
+        settings_block = _settings_record(settings, problem, time.perf_counter() - t_start)
+        raise DiagnosisFailed(record["stage"], failure_record(record["stage"], err, record, settings_block),
+                              err) from err
+    finally:
+        if scratch is not None:
+            scratch.cleanup()
+    log(result.verdict)
+    return result
 
 
 def _checked_problem(problem: Problem | None, identification, validation, settings) -> Problem:
@@ -177,22 +178,24 @@ def _checked_problem(problem: Problem | None, identification, validation, settin
     return problem
 
 
-def _diagnose_stages(problem: Problem, out: Path, settings: DiagnosisSettings, base_params, base_model, base_choice,
-                     other_bases, refinements, record: dict, log) -> dict:
+def _diagnose_stages(problem: Problem, checkpoints: Path, settings: DiagnosisSettings, base_params, base_model,
+                     base_choice, other_bases, refinements, record: dict, log, t_start: float) -> Diagnosis:
     """The stages of ``diagnose`` after the inputs were checked; ``record`` follows them (the stage
-    running, the stages finished, what the running one has so far) for a failure report."""
+    running, the stages finished, what the running one has so far) for a failure report. The first base's
+    figures go to ``figures/``, a repeat's to ``figures/base_<kind>/``."""
     plan = progress_plan(log, settings, base_model, other_bases, base_params is not None)
-    kind, bases, base_choice = identified_bases(problem, out, settings, base_params, base_model, base_choice,
+    kind, bases, base_choice = identified_bases(problem, checkpoints, settings, base_params, base_model, base_choice,
                                                  other_bases, plan, refinements)
     record["base_choice"] = base_choice
     record["finished"].append("base identification")
     forecast_parts(plan, bases, problem, settings)
-    runs = {kind: _checkpointed_run(kind, bases[kind], problem, settings, out, "figures", record,
+    runs = {kind: _checkpointed_run(kind, bases[kind], problem, settings, checkpoints, "figures", record,
                                     plan.part(f"diagnosis on the {kind} base"))}
     skipped = {}
     for other in [k for k in bases if k != kind]:
-        left = runs[kind]["unexplained"]
-        why = "" if left is None else why_not_repeated(kind, other, runs[kind], bases[other].values, problem, settings)
+        left = runs[kind].run["unexplained"]
+        why = "" if left is None else why_not_repeated(kind, other, runs[kind].run, bases[other].values, problem,
+                                                      settings)
         if why is not None:
             plan.skip(f"diagnosis on the {other} base")
         if left is None:
@@ -204,28 +207,25 @@ def _diagnose_stages(problem: Problem, out: Path, settings: DiagnosisSettings, b
             continue
         log(f"diagnosis: the {kind} base leaves {left['ratio']:.1f} x the residual floor: "
             f"repeated on the {other} base (the base is chosen again by the final models' held-out MSE)")
-        runs[other] = _checkpointed_run(other, bases[other], problem, settings, out, f"figures/base_{other}", record,
-                                        plan.part(f"diagnosis on the {other} base"))
+        runs[other] = _checkpointed_run(other, bases[other], problem, settings, checkpoints, f"figures/base_{other}",
+                                        record, plan.part(f"diagnosis on the {other} base"))
     if skipped:
         base_choice = {**(base_choice or {}), "not_repeated_on": skipped}
     if len(runs) > 1:
-        final = {k: r["final_validation_mse"] for k, r in runs.items()}
+        final = {k: r.run["final_validation_mse"] for k, r in runs.items()}
         first, kind = kind, min(final, key=final.get)
         base_choice = {**(base_choice or {}), "chosen": kind, "first_choice": first,
-                       "after_diagnosis": {k: {"causes": r["causes"], "validation_mse": final[k]}
+                       "after_diagnosis": {k: {"causes": r.run["causes"], "validation_mse": final[k]}
                                            for k, r in runs.items()},
                        "by": "held-out MSE of the final models (the first choice left a residual above the floor)"}
         log("diagnosis: final base form " + kind + " (held-out MSE of the final models " + ", ".join(
             f"{k} {math.sqrt(v):.1f} N rms" for k, v in final.items()) + ")")
-    run = runs[kind]
+    run = runs[kind].run
     result = {k: v for k, v in run.items() if k not in ("after_params", "final_validation_mse", "base_validation_mse")}
     result["base_choice"] = base_choice
-    if run["causes"]:
-        record["stage"] = "export of the extended FMU"
-        path = build(kind, out / "fmu", start_values=run["after_params"],
-                     filename=f"{SLAVES[kind]}_{'_'.join(run['causes'])}_tuned.fmu")
-        log(f"extended model exported: {path}")
-    return result
+    result["settings"] = _settings_record(settings, problem, time.perf_counter() - t_start)
+    return Diagnosis(result, final_values=run["after_params"], stages=record,
+                     residuals={r.figures: r.residuals for r in runs.values()})
 
 
 def forecast_parts(plan, bases: dict, problem: Problem, settings: DiagnosisSettings) -> None:
@@ -243,12 +243,13 @@ def forecast_parts(plan, bases: dict, problem: Problem, settings: DiagnosisSetti
         plan.part(f"diagnosis on the {kind} base").expect(cost.total * rate)
 
 
-def _checkpointed_run(kind: str, base: Base, problem: Problem, settings: DiagnosisSettings, out: Path,
-                      figures_sub: str, record: dict, log) -> dict:
-    """The diagnosis on the ``kind`` base (``diagnose_on``), or its checkpoint from an earlier call on the
-    same data, settings and base values (``checkpoints/diagnosis_<kind>.json``, written when it finishes;
-    one of other data or settings: ValueError)."""
-    path = out / "checkpoints" / f"diagnosis_{kind}.json"
+def _checkpointed_run(kind: str, base: Base, problem: Problem, settings: DiagnosisSettings, checkpoints: Path,
+                      figures: str, record: dict, log) -> BaseRun:
+    """The diagnosis on the ``kind`` base (``diagnose_on``; its figures named in the folder ``figures``), or its
+    checkpoint from an earlier call on the same data, settings and base values (``diagnosis_<kind>.json`` in
+    ``checkpoints``, written when it finishes; one of other data or settings: ValueError) with the base
+    model's residual series simulated again (the checkpoint holds numbers, not series)."""
+    path = checkpoints / f"diagnosis_{kind}.json"
     # the flat record without what may change on resuming; the parametrization, always 'improved', is left out so
     # that checkpoints written before the settings held a DataSettings still match
     key = _digest([problem.digest, kind, {k: v for k, v in settings.to_dict().items()
@@ -262,18 +263,19 @@ def _checkpointed_run(kind: str, base: Base, problem: Problem, settings: Diagnos
             log(f"diagnosis: the {kind} base's diagnosis was finished before: taken from {path}")
             record["finished"].append(f"diagnosis on the {kind} base")
             advance(log, 1.0)
-            return saved["run"]
+            return BaseRun(saved["run"], figures, base_residuals(kind, base.values, problem, settings))
         log(f"diagnosis: {path} holds the diagnosis of other {kind} base values (a refit since): diagnosed again")
     record["stage"] = f"diagnosis on the {kind} base"
     record["partial"] = {"base_model": kind}
-    run = diagnose_on(kind, base, problem, settings, out, figures_sub, log, record)
+    done = diagnose_on(kind, base, problem, settings, figures, log, record)
     tmp = path.with_suffix(".tmp")
-    tmp.write_text(strict_json.dumps({"key": key, "base_key": base_key, "run": run}))
+    tmp.write_text(strict_json.dumps({"key": key, "base_key": base_key, "run": done.run}))
     tmp.replace(path)
     record["finished"].append(f"diagnosis on the {kind} base")
     record["partial"] = None
     advance(log, 1.0)
-    return strict_json.loads(path.read_text())["run"]  # the same values as a resumed run gets
+    # the same values as a resumed run gets
+    return BaseRun(strict_json.loads(path.read_text())["run"], figures, done.residuals)
 
 
 def _digest(value) -> str:
@@ -289,28 +291,6 @@ def _settings_record(settings: DiagnosisSettings, problem: Problem, elapsed_s: f
             "problem": {"data_settings": problem.settings.to_dict(), "force_limit_n_used": problem.force_limit_n,
                         "table_abscissae": problem.axes},
             "elapsed_s": elapsed_s}
-
-
-def _write_failure(out: Path, record: dict, err: BaseException, settings: DiagnosisSettings, problem: Problem,
-                   elapsed_s: float) -> Path:
-    """``diagnosis.json`` of a diagnosis that failed in ``record['stage']``: no verdict, the error and its
-    traceback, the stages finished, and what the failing stage had (the ranking so far, the causes named so
-    far); an earlier diagnosis.json is kept as ``diagnosis.previous.json`` (nothing is lost)."""
-    partial = record.get("partial") or {}
-    failure = {"failed_stage": record["stage"], "error": f"{type(err).__name__}: {err}",
-               "traceback": traceback.format_exception(err), "finished_stages": record["finished"],
-               "cause": None, "causes": list(partial.get("causes") or []),
-               "verdict": (f"no verdict: the diagnosis failed in its stage '{record['stage']}' "
-                           f"({type(err).__name__}: {err}); run the same command with --resume to continue"),
-               "base_model": partial.get("base_model"), "base_choice": record.get("base_choice"),
-               "ranking": list(partial.get("ranking") or []), "selection": list(partial.get("selection") or []),
-               "forms_tried": partial.get("forms_tried"),
-               "settings": _settings_record(settings, problem, elapsed_s)}
-    path = out / "diagnosis.json"
-    if path.exists():
-        path.replace(out / "diagnosis.previous.json")
-    path.write_text(strict_json.dumps(failure, indent=2))
-    return path
 
 
 def _json_default(o):

@@ -1,4 +1,6 @@
-"""Residual analysis for the diagnosis: evidence numbers per catalogue effect, and figures.
+"""Residual analysis for the diagnosis: evidence numbers per catalogue effect (pure computation; the
+figures that show the residual are drawn by ``tuner.results.diagnosis_figures``, into the files named here,
+``figure_files``, which the diagnosis's record lists).
 
 Residual r = measured - simulated force [N]; stroke [m] + in extension, force [N] + in tension,
 time [s], temperature [degC]. Catalogue and signatures: design.md, "Effects a real damper shows
@@ -28,13 +30,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 from scipy import optimize, signal
 
 from damper_fmu.effect_catalogue import ALL_EFFECTS
 
-__all__ = ["TestResidual", "evidence", "joint_screen", "residual_figures", "EFFECTS"]
+__all__ = ["TestResidual", "PreparedTest", "evidence", "joint_screen", "residual_summary", "spectra", "true_runs",
+           "figure_files", "dot", "EFFECTS", "FIGURE_TOPICS"]
 
 #: the effects with a residual signature (``Effect.signature``): the catalogue's; their regressors are
 #: ``_signature`` and ``_signatures`` here
@@ -44,11 +45,19 @@ V_EPS = 0.5e-3                   # friction regressor velocity scale [m/s]
 DIFF_WINDOW_S = 0.020            # Savitzky-Golay window [s]
 KNEE_FALLBACK = 0.015            # blow-off knee velocity when the F-v scatter shows none [m/s]
 GAP_WINDOW_S = 0.050             # free-play window after a velocity reversal [s]
-REVERSAL_SPAN_S = (-0.100, 0.200)  # reversal-average figure span [s]
 REVERSAL_ACC = 0.2               # reversal counts if |a| > 0.2 x rms acceleration
 BANDS_HZ = {"<1 Hz": (0.0, 1.0), "1-5 Hz": (1.0, 5.0), "5-20 Hz": (5.0, 20.0), ">20 Hz": (20.0, np.inf)}
-DRIFT_WINDOW_S = 1.0             # windows of the drift figure [s]
 MIN_T_SPAN_K = 0.5               # temperature span needed for the beta regression [K]
+#: the figures of a base model's residual, one file each (``figure_files``; drawn by
+#: ``tuner.results.diagnosis_figures``): in time, against velocity and stroke, around velocity reversals,
+#: spectra, drift against time and temperature
+FIGURE_TOPICS = ("time", "loops", "reversals", "spectra", "drift")
+
+
+def figure_files(folder: str | Path, prefix: str = "diag") -> list[str]:
+    """The residual figures' files in ``folder`` (``<folder>/<prefix>_residual_<topic>.png``, one per
+    ``FIGURE_TOPICS``): the names the diagnosis's record lists and the figures are drawn into."""
+    return [str(Path(folder) / f"{prefix}_residual_{topic}.png") for topic in FIGURE_TOPICS]
 
 
 @dataclass
@@ -97,7 +106,7 @@ class TestResidual:
             bad("mask selects fewer than 10 samples")
 
 
-class _Prep:
+class PreparedTest:
     """Derived signals of one test: residual r [N], acceleration [m/s^2], dF_sim/dt [N/s],
     usable samples (mask without the filter edges), velocity reversals."""
 
@@ -134,7 +143,8 @@ class _Prep:
         return idx[ok], self.rev_sign[ok]
 
 
-def _dot(a, b) -> float:
+def dot(a, b) -> float:
+    """The dot product of two 1-D arrays, not through BLAS."""
     return float(np.einsum("i,i", a, b))   # not BLAS: its threads stall on a loaded machine
 
 
@@ -145,7 +155,7 @@ def _cat(preps, fn):
 
 def _fit(y, g):
     """y ~ c g without intercept: (c, uncentred R^2 in [0, 1])."""
-    gg, yy, gy = _dot(g, g), _dot(y, y), _dot(g, y)
+    gg, yy, gy = dot(g, g), dot(y, y), dot(g, y)
     return (gy / gg, gy * gy / (gg * yy)) if gg > 0 and yy > 0 else (0.0, 0.0)
 
 
@@ -168,7 +178,7 @@ def knee_velocity(preps) -> float:
     med = np.array([np.median(f[b == j]) if np.sum(b == j) >= 10 else np.nan for j in range(20)])
     if np.isnan(med).any():
         return KNEE_FALLBACK
-    low = _dot(c[:3], med[:3]) / _dot(c[:3], c[:3])
+    low = dot(c[:3], med[:3]) / dot(c[:3], c[:3])
     slope = np.convolve(np.gradient(med, c), np.ones(3) / 3, mode="same")
     j = np.flatnonzero(slope[3:-1] < low / 3)
     return float(c[3 + j[0]]) if low > 0 and j.size else KNEE_FALLBACK
@@ -189,8 +199,8 @@ def _free_play(preps):
         np.add.at(win, p.rev, 1.0)
         np.add.at(win, np.minimum(p.rev + int(round(GAP_WINDOW_S * p.fs)), p.r.size), -1.0)
         el = p.use & (np.cumsum(win)[:-1] <= 0)
-        num_e -= _dot(p.r[el], p.t.simulated[el])
-        den_e += _dot(p.t.simulated[el], p.t.simulated[el])
+        num_e -= dot(p.r[el], p.t.simulated[el])
+        den_e += dot(p.t.simulated[el], p.t.simulated[el])
     n_rev = sum(len(a) for a in vabs)
     ok = den > 1e-9 * den.max(initial=0.0)
     if n_rev == 0 or not ok.any():
@@ -209,12 +219,12 @@ def _free_play(preps):
 def _gain_law(m, f, x):
     """Fit m ~ g exp(-b x) f (variable projection: g in closed form, b by bounded Brent):
     (b [1/unit of x], R^2 of the law, R^2 of a constant gain alone), R^2 relative to r = m - f."""
-    xs, rr = max(float(np.ptp(x)), 1e-12), _dot(m - f, m - f) or 1.0
+    xs, rr = max(float(np.ptp(x)), 1e-12), dot(m - f, m - f) or 1.0
 
     def sse(b):
         e = np.exp(-b * x) * f
-        res = m - _dot(e, m) / _dot(e, e) * e
-        return _dot(res, res)
+        res = m - dot(e, m) / dot(e, e) * e
+        return dot(res, res)
     b = optimize.minimize_scalar(sse, bounds=(-3 / xs, 3 / xs), method="bounded",
                                  options={"xatol": 1e-7 / xs}).x
     return float(b), max(1 - sse(b) / rr, 0.0), max(1 - sse(0.0) / rr, 0.0)
@@ -231,7 +241,7 @@ def _thermal(preps):
     for h in (0, 1):
         ii = [np.array_split(np.flatnonzero(p.use), 2)[h] for p in preps]
         mm, ff = (np.concatenate([getattr(p.t, k)[i] for p, i in zip(preps, ii)]) for k in ("measured", "simulated"))
-        gains.append(_dot(mm, ff) / _dot(ff, ff))
+        gains.append(dot(mm, ff) / dot(ff, ff))
     out["half_gain_change"] = gains[1] / gains[0] - 1
     hot = [p for p in preps if p.t.temperature is not None]
     if hot:
@@ -307,16 +317,16 @@ def _against_physics(e, d) -> str:
     return ""
 
 
-def _runs(b):
+def true_runs(b):
     """(start, stop) index pairs of the True runs of a boolean array."""
     d = np.diff(np.concatenate([[0], b.astype(np.int8), [0]]))
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
 
 
-def _spectra(p):
+def spectra(p):
     """Welch PSDs [N^2/Hz] of residual and measured force on the longest usable run (4 s Hann
     segments, no detrending, so a mean offset counts below 1 Hz): (f [Hz], P_r, P_F) or None."""
-    a, b = max(_runs(p.use), key=lambda ab: ab[1] - ab[0])
+    a, b = max(true_runs(p.use), key=lambda ab: ab[1] - ab[0])
     if b - a < 16:
         return None
     kw = dict(fs=p.fs, nperseg=min(b - a, int(round(4 * p.fs))), detrend=False)
@@ -328,7 +338,7 @@ def _linear_share(p):
     coherence is the share of residual power at f that some linear time-invariant filter of the
     stroke explains: a missing linear branch (spring, Maxwell element, delay) shows near 1, a
     nonlinear or time-varying error low."""
-    a, b = max(_runs(p.use), key=lambda ab: ab[1] - ab[0])
+    a, b = max(true_runs(p.use), key=lambda ab: ab[1] - ab[0])
     n = min(b - a, int(round(4 * p.fs)))
     if b - a < 4 * n // 2 or n < 16:  # coherence needs several segments
         n = (b - a) // 4
@@ -353,7 +363,7 @@ def _where_in_loop(ps, knee: float) -> dict:
     return out
 
 
-def _summary(ps):
+def residual_summary(ps):
     """rms and mean residual [N], % of force rms, band shares of residual power and residual / force
     power per band (band powers of several tests weighted by their sample counts), and the share
     of residual power linear in the stroke (pooled and per band; see ``_linear_share``)."""
@@ -362,7 +372,7 @@ def _summary(ps):
          "rms_measured": float(np.sqrt(np.mean(m ** 2))), "mean_residual": float(r.mean())}
     d["residual_pct"] = 100 * d["rms_residual"] / d["rms_measured"] if d["rms_measured"] > 0 else None
     pw = np.zeros((2, len(BANDS_HZ)))
-    for p, s in ((p, _spectra(p)) for p in ps):
+    for p, s in ((p, spectra(p)) for p in ps):
         if s is not None:
             pw += p.use.sum() * np.array([[P[(s[0] >= lo) & (s[0] < hi)].sum() * s[0][1]
                                            for lo, hi in BANDS_HZ.values()] for P in s[1:]])
@@ -423,7 +433,7 @@ def joint_screen(preps, knee, gap_span: float, threshold_n: float) -> dict:
     r = np.concatenate([p.r[p.use] for p in preps])
     scale = np.sqrt(np.mean(X ** 2, axis=0))
     live = scale > 0
-    rr = _dot(r, r) or 1.0
+    rr = dot(r, r) or 1.0
 
     def solve(cols):
         if not cols.any():
@@ -433,7 +443,7 @@ def joint_screen(preps, knee, gap_span: float, threshold_n: float) -> dict:
         full = np.zeros(X.shape[1])
         full[cols] = b / scale[cols]
         e = r - Z @ b
-        return full, 1.0 - _dot(e, e) / rr
+        return full, 1.0 - dot(e, e) / rr
 
     _, r2_all = solve(live)
     keep = live.copy()
@@ -471,7 +481,7 @@ def evidence(tests: list[TestResidual], noise_n: float | None = None) -> dict:
     names = [t.name for t in tests]
     if len(set(names)) != len(names):
         raise ValueError(f"test names must be unique, got {names}")
-    preps = [_Prep(t) for t in tests]
+    preps = [PreparedTest(t) for t in tests]
     knee = knee_velocity(preps)
     pooled, per = _effects(preps, knee), {p.t.name: _effects([p], knee) for p in preps}
     effects = {}
@@ -485,142 +495,7 @@ def evidence(tests: list[TestResidual], noise_n: float | None = None) -> dict:
     rms = float(np.sqrt(np.mean(np.concatenate([p.r[p.use] for p in preps]) ** 2)))
     screen = joint_screen(preps, knee, max(pooled["free_play"]["gap_time"], 1e-3),
                           noise_n if noise_n is not None else 0.05 * rms)
+    general = {"per_test": {p.t.name: {"role": p.t.role, **residual_summary([p])} for p in preps},
+               "pooled": {**residual_summary(preps), "loop": _where_in_loop(preps, knee)}}
     return {"effects": effects, "ranking_by_r2": sorted(EFFECTS, key=lambda e: -effects[e]["r2"]),
-            "joint_screen": screen, "knee_velocity": knee, "general": {"per_test": {p.t.name: {"role": p.t.role, **_summary([p])}
-                                                            for p in preps},
-                                               "pooled": {**_summary(preps), "loop": _where_in_loop(preps, knee)}}}
-
-
-# --------------------------------------------------------------------------- figures
-
-def _finish(ax, xlabel, ylabel, title="", legend=False):
-    ax.set(xlabel=xlabel, ylabel=ylabel)
-    ax.set_title(title, fontsize=10)
-    ax.grid(alpha=0.3, which="both")
-    if legend:
-        ax.legend(fontsize=7)
-
-
-def _drift_windows(p):
-    """Per DRIFT_WINDOW_S window (>= half usable): mid time [s], rms r [N], gain m/F_sim, mean T [degC]."""
-    k, t, rows = max(1, int(round(DRIFT_WINDOW_S * p.fs))), p.t, []
-    for a in range(0, t.time.size, k):
-        u = np.flatnonzero(p.use[a:a + k]) + a
-        ff = t.simulated[u]
-        if u.size >= k / 2 and _dot(ff, ff) > 0:
-            rows.append((t.time[u].mean(), np.sqrt(np.mean(p.r[u] ** 2)), _dot(t.measured[u], ff) / _dot(ff, ff),
-                         np.mean(t.temperature[u]) if t.temperature is not None else np.nan))
-    return np.array(rows).reshape(-1, 4).T
-
-
-def residual_figures(tests: list[TestResidual], out_dir: Path, prefix: str = "diag") -> list[Path]:
-    """Write five PNGs to ``out_dir`` (identification solid, validation dashed) and return their
-    paths: residual [N] in time over the measured force (grey: outside the mask); residual vs
-    velocity and stroke; residual x sign(v after) averaged around velocity reversals with -F_sim;
-    Welch spectra of residual and force; windowed rms residual and gain vs time and temperature."""
-    if not tests:
-        raise ValueError("no tests given")
-    preps, out_dir, paths = [_Prep(t) for t in tests], Path(out_dir), []
-    out_dir.mkdir(parents=True, exist_ok=True)
-    sty = [{"color": f"C{i % 10}", "ls": "-" if p.t.role == "identification" else "--",
-            "label": f"{p.t.name} ({p.t.role[:5]}.)"} for i, p in enumerate(preps)]
-
-    for topic, draw in (("time", _figure_time), ("loops", _figure_loops), ("reversals", _figure_reversals),
-                        ("spectra", _figure_spectra), ("drift", _figure_drift)):
-        fig = draw(preps, sty)
-        FigureCanvasAgg(fig)
-        paths.append(out_dir / f"{prefix}_residual_{topic}.png")
-        fig.savefig(paths[-1], dpi=110)
-    return paths
-
-
-def _figure_time(preps: list, sty: list) -> Figure:
-    """Residual [N] in time over the measured force (grey: outside the mask), one panel per test."""
-    fig = Figure(figsize=(10, 1.2 + 2.0 * len(preps)), layout="constrained")
-    for p, st, ax in zip(preps, sty, fig.subplots(len(preps), 1, squeeze=False)[:, 0]):
-        t, g, bx = p.t, _summary([p]), ax.twinx()
-        bx.plot(t.time, t.measured / 1e3, color="0.75", lw=0.6)
-        bx.set_ylabel("measured [kN]", color="0.6", fontsize=8)
-        ax.set_zorder(bx.get_zorder() + 1)
-        ax.patch.set_visible(False)
-        ax.plot(t.time, p.r, lw=0.7, **st)
-        for a, b in _runs(~t.mask):
-            ax.axvspan(t.time[a], t.time[b - 1], color="0.9", lw=0, zorder=0)
-        _finish(ax, "time [s]", "residual [N]", f"{t.name} ({t.role}): rms residual {g['rms_residual']:.0f} N "
-                f"= {g['residual_pct'] or 0:.1f} % of the force rms")
-    return fig
-
-
-def _figure_loops(preps: list, sty: list) -> Figure:
-    """Residual [N] against velocity and stroke (the residual loops)."""
-    fig = Figure(figsize=(11, 4.5), layout="constrained")
-    axs = fig.subplots(1, 2, sharey=True)
-    for p, st in zip(preps, sty):
-        for ax, x in zip(axs, (p.t.velocity, p.t.stroke)):
-            ax.plot(np.where(p.use, x, np.nan) * 1e3, p.r, lw=0.4, alpha=0.8, **st)
-    _finish(axs[0], "damper velocity [mm/s] (+ extension)", "residual measured - simulated [N] (+ tension)",
-            "residual vs velocity (F-v residual loop)", legend=True)
-    _finish(axs[1], "stroke [mm] (+ extension)", "", "residual vs stroke (F-x residual loop)")
-    return fig
-
-
-def _figure_reversals(preps: list, sty: list) -> Figure:
-    """Residual x sign(v after) averaged around velocity reversals, with -F_sim."""
-    tau = np.arange(*np.rint(np.array(REVERSAL_SPAN_S) * 1e3 + [0, 1]).astype(int)) * 1e-3
-    fig = Figure(figsize=(9, 4.8), layout="constrained")
-    ax, rr, ff = fig.subplots(), [], []
-    for p, st in zip(preps, sty):
-        idx, s = p.stack(tau)
-        if len(idx):
-            rr.append(s[:, None] * p.r[idx])
-            ff.append(-s[:, None] * p.t.simulated[idx])
-            ax.plot(tau * 1e3, rr[-1].mean(0), lw=1.0, **{**st, "label": st["label"] + f", {len(idx)} reversals"})
-    if rr:
-        ax.plot(tau * 1e3, np.concatenate(rr).mean(0), color="k", lw=2, label="residual, all tests")
-        ax.plot(tau * 1e3, np.concatenate(ff).mean(0), color="0.5", lw=2, ls=":",
-                label="-F_sim, all tests (free play: the residual follows it)")
-        ax.set_ylim(np.array([-1.4, 1.4]) * max(np.abs(r.mean(0)).max() for r in rr) + [-1, 1])
-    ax.axvspan(0, GAP_WINDOW_S * 1e3, color="tab:blue", alpha=0.07, lw=0)
-    _finish(ax, "time from velocity reversal [ms]", "force x sign(v after reversal) [N]",
-            "residual averaged around velocity reversals (shaded: free-play window)"
-            + ("" if rr else ": no reversals in the masked samples"), legend=bool(rr))
-    return fig
-
-
-def _figure_spectra(preps: list, sty: list) -> Figure:
-    """Welch spectra of residual and force, and their ratio."""
-    fig = Figure(figsize=(11, 4.5), layout="constrained")
-    a1, a2 = fig.subplots(1, 2, sharex=True)
-    top = 0.0
-    for p, st in zip(preps, sty):
-        if (s := _spectra(p)) is not None:
-            f, pr, pf = (x[1:] for x in s)
-            a1.loglog(f, pr, lw=0.9, **st)
-            a1.loglog(f, pf, lw=0.6, alpha=0.3, color=st["color"])
-            a2.loglog(f, pr / np.maximum(pf, 1e-300), lw=0.9, **st)
-            top = max(top, pr.max(), pf.max())
-    for ax in (a1, a2):
-        for lo, _ in list(BANDS_HZ.values())[1:]:
-            ax.axvline(lo, color="k", lw=0.6, ls=":")
-    if top > 0:
-        a1.set_ylim(1e-9 * top, 3 * top)
-    _finish(a1, "frequency [Hz]", "PSD [N^2/Hz]", "residual (lines) and measured force (faint), Welch", True)
-    _finish(a2, "frequency [Hz]", "residual / force PSD [-]", "residual-to-force spectral ratio")
-    return fig
-
-
-def _figure_drift(preps: list, sty: list) -> Figure:
-    """Windowed rms residual and force gain against time and temperature."""
-    hot = any(p.t.temperature is not None for p in preps)
-    fig = Figure(figsize=(5 + 4 * hot, 6), layout="constrained")
-    axs = fig.subplots(2, 1 + hot, squeeze=False)
-    for p, st in zip(preps, sty):
-        w = _drift_windows(p)
-        for j in range(1 + (p.t.temperature is not None)):
-            for i in (0, 1):
-                axs[i, j].plot(w[3 * j], w[1 + i], marker=".", ms=3, lw=0.8, **st)
-    for j, xl in enumerate(["time [s]", "temperature [degC]"][:1 + hot]):
-        _finish(axs[0, j], "", f"rms residual per {DRIFT_WINDOW_S:g} s [N]",
-                "drift (thermal signature)" if j == 0 else "", legend=j == 0)
-        _finish(axs[1, j], xl, "force gain measured / simulated [-]")
-    return fig
+            "joint_screen": screen, "knee_velocity": knee, "general": general}

@@ -7,12 +7,11 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from damper_fmu.fmu import ensure_fmu
-from damper_fmu.effect_catalogue import ALL_EFFECTS, EFFECT_IDENTIFIED, EFFECT_KIND, EFFECT_PARAMETERS, EFFECT_TYPICAL, search_bounds
+from damper_fmu.effect_catalogue import ALL_EFFECTS, EFFECT_PARAMETERS, effect_of, search_bounds
 from damper_fmu.parameters import defaults
 
 from tuner.data.noise import channel_noise
@@ -23,7 +22,7 @@ from tuner.diagnosis.detection import detection_limits
 from tuner.diagnosis.effect_sizes import REFERENCE, DamperSize, meaningful_floor, typical_range
 from tuner.diagnosis.forms import FORM_LABELS, screen, settings_text, shape_grid
 from tuner.diagnosis.refit import ExtendedParametrization, base_jacobian, effect_intervals, refit
-from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidence, residual_figures
+from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidence, figure_files
 from tuner.diagnosis.rules import (ACCEPT_SCORE, FORM_EXCESS_SHARE, PENALTY_PER_PARAMETER, UNEXPLAINED_RATIO,
                                    cross_check, decide, earned, excess_explained, rescore, score, within_bounds)
 from tuner.diagnosis.screen import SCREEN_SHARE, profile_screen
@@ -48,7 +47,26 @@ from tuner.identification.problem import Problem
 from tuner.metrics import pooled_mse
 from tuner.progress import advance, expect
 
-__all__ = ["CandidateSearch", "Fit", "diagnose_on"]
+__all__ = ["CandidateSearch", "Fit", "BaseRun", "diagnose_on", "base_point", "base_residuals"]
+
+
+def base_point(kind: str, values: dict) -> dict:
+    """The base model's full parameter point (SI): the preset of ``kind`` with ``values`` (the identified
+    base, keys of other models ignored) and every effect element off."""
+    point = defaults(kind)
+    point.update({k: v for k, v in values.items() if k in point})
+    point.update({p.name: p.default for p in EFFECT_PARAMETERS})
+    return point
+
+
+def base_residuals(kind: str, values: dict, data: Problem, settings) -> list[TestResidual]:
+    """The base model's residual (measured - simulated force [N]) on every test of ``data``, identification
+    then validation, simulated as the validation does (``validation_run``: the FMU at its own steps) at
+    ``base_point(kind, values)``: the evidence's and the figures' series."""
+    point = base_point(kind, values)
+    return [TestResidual(p.name, p.role or "", p.time, p.stroke, p.stroke_velocity, p.force,
+                         validation_run(kind, point, s, settings.engine)[0], s.mask, s.temperature)
+            for p, s in zip([*data.prep_id, *data.prep_val], [*data.sig_id, *data.sig_val])]
 
 
 def stroke_noise_force(kind: str, params: dict, tests: list[RigTest], signals: list, settings) -> float:
@@ -89,7 +107,7 @@ def attach_interval(row: dict, ci: dict, ext: ExtendedParametrization, new) -> N
     row["significant"] = all(ci[n]["excludes_zero"] for n in new)
     row["interval_blocks"] = ci["_blocks"]
     nearest = {n: 0.0 if ci[n]["low"] <= 0.0 <= ci[n]["high"] else min(abs(ci[n]["low"]), abs(ci[n]["high"]))
-               for n in new if n in EFFECT_TYPICAL}
+               for n in new if n in effect_of(n).typical}
     row["plausible"] = all(v <= typical_range(n, size)[1] for n, v in nearest.items())
 
 
@@ -115,25 +133,24 @@ class CandidateSearch:
     ranking, selection steps, causes and forms tried so far (the live lists). Units SI; forces in N."""
 
     def __init__(self, kind: str, par: Parametrization, base_params: dict, data: Problem,
-                 settings: DiagnosisSettings, out: Path, figures_sub: str, log, record: dict | None = None,
+                 settings: DiagnosisSettings, figures: str, log, record: dict | None = None,
                  refinement: BaseRefinement = BaseRefinement()):
         self.kind, self.par, self.data, self.settings, self.log = kind, par, data, settings, log
         self.settled_by = refinement.settled  # how the refinement of base_params on these tests ended
         self.rate_prior = refinement.seconds_per_evaluation  # [s per simulation], the fit's
         self.cost: DiagnosisCost | None = None  # the steps still to come (``forecast``)
         self.t_engines = time.perf_counter()  # when the engines opened (``run``): the live cost per simulation
-        self.out, self.figures_sub = out, figures_sub
+        self.figures_folder = figures  # where the job draws the figures, relative to the output folder
         self.record = record if record is not None else {}
         self.record.setdefault("partial", {})
         self.peak, self.stroke_range, self.noise = data.peak_n, data.stroke_range_m, data.noise_n
         self.size = DamperSize(self.peak, self.stroke_range)  # typical effect sizes scale with it
         self.stroke_limits = (min(float(s.stroke[s.mask].min()) for s in data.sig_id),
                               max(float(s.stroke[s.mask].max()) for s in data.sig_id))  # [m]
-        self.base = defaults(kind)
-        self.base.update({k: v for k, v in base_params.items() if k in self.base})
+        self.base = base_point(kind, base_params)  # the base model has every effect off
         self.guess = {**defaults(kind), **initial_guess(kind, data.sig_id, par)}
-        for p in EFFECT_PARAMETERS:  # the base model has every effect off
-            self.base[p.name] = self.guess[p.name] = p.default
+        for p in EFFECT_PARAMETERS:
+            self.guess[p.name] = p.default
         self.lengths = [int(s.mask.sum()) for s in data.sig_val]
         self.ranking: list[dict] = []
         self.refits: dict[str, Fit] = {}
@@ -189,13 +206,11 @@ class CandidateSearch:
                                                                      f"{self.not_credible}"))
 
     def residual_evidence(self) -> None:
-        """Residual analysis of the base model: evidence numbers, the joint screen and the figures."""
-        d, kind = self.data, self.kind
-        tr = [TestResidual(p.name, p.role or "", p.time, p.stroke, p.stroke_velocity, p.force,
-                           validation_run(kind, self.base, s, self.settings.engine)[0], s.mask, s.temperature)
-              for p, s in zip([*d.prep_id, *d.prep_val], [*d.sig_id, *d.sig_val])]
-        self.evidence = residual_evidence(tr, noise_n=self.noise)
-        self.figures = [str(Path(f).relative_to(self.out)) for f in residual_figures(tr, self.out / self.figures_sub)]
+        """Residual analysis of the base model: evidence numbers, the joint screen, and the series and file names
+        of the figures (the job draws them, ``tuner.results.diagnosis_figures``)."""
+        self.residuals = base_residuals(self.kind, self.base, self.data, self.settings)
+        self.evidence = residual_evidence(self.residuals, noise_n=self.noise)
+        self.figures = figure_files(self.figures_folder)
         scr = self.evidence["joint_screen"]
         self.log("diagnosis: joint screen of the residual on all catalogue signatures: "
                  + (" + ".join(f"{e} ({scr['terms'][e]['contribution_n']:.3g} N)" for e in scr["kept"]) or "nothing")
@@ -444,7 +459,7 @@ class CandidateSearch:
         With none predicted to win SCREEN_SHARE, the form is ranked at its best screened point. Returns
         (Fit or None, fitness, screen rows, whether a shape was refitted); each screen row says whether it
         was refitted."""
-        magnitude = EFFECT_IDENTIFIED[form][0]
+        magnitude = ALL_EFFECTS[form].identified[0]
         knee = self.evidence.get("knee_velocity")
         shapes = screen(self.eid, ext, form, current, jac, knee_m_s=knee)
         for cand in shapes:
@@ -492,8 +507,8 @@ class CandidateSearch:
             ext = ExtendedParametrization(self.par, "+".join([*causes, form]), self.peak, self.stroke_range,
                                           self.stroke_limits)
             if jac is None:  # the current model's Jacobian (its causes included), shared by the forms
-                z_off = ext.from_params({**current, EFFECT_IDENTIFIED[form][0]: 0.0})
-                jac = base_jacobian(self.eid, ext, z_off, dims=ext.dimension - len(EFFECT_IDENTIFIED[form]))
+                z_off = ext.from_params({**current, ALL_EFFECTS[form].identified[0]: 0.0})
+                jac = base_jacobian(self.eid, ext, z_off, dims=ext.dimension - len(ALL_EFFECTS[form].identified))
             fit, g, shapes, refitted = self.fit_form(form, ext, jac, current, sse_cur)
             if fit is None:
                 self.log(f"  form {form:10s} cannot be simulated on these tests")
@@ -502,7 +517,7 @@ class CandidateSearch:
             row["screen"], row["refitted"], row["elapsed_s"] = shapes, refitted, time.perf_counter() - t0
             fits[form] = fit
             rows.append(row)
-            names = EFFECT_IDENTIFIED[form]
+            names = ALL_EFFECTS[form].identified
             self.log(f"  form {form:10s} " + ", ".join(f"{n} = {fmt_quantity(row['parameters'][n], UNITS[n])}"
                                                        for n in names)
                      + (f" ({settings_text(fit.ext.fixed)})" if fit.ext.fixed else "")
@@ -517,8 +532,8 @@ class CandidateSearch:
         """The ranking row of a form's refit against the current model's row (its magnitude is what is new;
         the score is penalised for all its parameters)."""
         row = self.held_out(fit.ext.effect, fit.params(), fit.ext.extra, g, fit.evaluations,
-                            current_row["validation_mse"], new=EFFECT_IDENTIFIED[form][:1],
-                            n_params=len(EFFECT_IDENTIFIED[form]))
+                            current_row["validation_mse"], new=ALL_EFFECTS[form].identified[:1],
+                            n_params=len(ALL_EFFECTS[form].identified))
         row["added"], row["form"], row["settings"] = form, FORM_LABELS[form], dict(fit.ext.fixed)
         row["excess_explained"] = excess_explained(row, current_row, self.floor)
         return row
@@ -536,9 +551,9 @@ class CandidateSearch:
                 row = self.form_row(form, fit, pol.fitness, current_row)
                 row.update({k: lead[k] for k in ("screen", "refitted", "elapsed_s")})
                 rows[rows.index(lead)] = lead = row
-            attach_interval(lead, effect_intervals(self.eid, fit.ext, fit.z), fit.ext, EFFECT_IDENTIFIED[form][:1])
+            attach_interval(lead, effect_intervals(self.eid, fit.ext, fit.z), fit.ext, ALL_EFFECTS[form].identified[:1])
         if lead["score"] > ACCEPT_SCORE and earned(lead) and lead["excess_explained"] >= FORM_EXCESS_SHARE:
-            self.log(f"  form earns its parameters: {FORM_LABELS[form]} (" + interval_text(lead, EFFECT_IDENTIFIED[form])
+            self.log(f"  form earns its parameters: {FORM_LABELS[form]} (" + interval_text(lead, ALL_EFFECTS[form].identified)
                      + f"), validation MSE {lead['validation_mse_change_pct']:+.0f} %, score {lead['score']:+.3f}")
             return {"form": form, "tried": rows, "row": lead, "refit": fit,
                     "settled": pol is not None and self.settled(pol, lead["identification_rmse_n"] ** -2)}
@@ -564,7 +579,7 @@ class CandidateSearch:
         for e in others:
             ext = ExtendedParametrization(self.par, f"{current.ext.effect}+{e}", self.peak, current.ext.stroke_range_m,
                                           current.ext.stroke_limits, fixed=current.ext.fixed)
-            z0 = ext.from_params({**params_cur, **{n: 0.0 for n in EFFECT_IDENTIFIED[e]}})
+            z0 = ext.from_params({**params_cur, **{n: 0.0 for n in ALL_EFFECTS[e].identified}})
             if jac is None:  # the new effect is off at z0: the current model's Jacobian, shared
                 jac = base_jacobian(self.eid, ext, z0, dims=self.par.dimension)
             fit = refit(self.eid, ext, z0, sse_cur, jac, self.settings, self.share,
@@ -572,11 +587,11 @@ class CandidateSearch:
             fits[ext.effect] = Fit(ext, fit.z, fit.evaluations)
             row = self.held_out(ext.effect, ext.to_params(fit.z), ext.extra, fit.fitness, fit.evaluations,
                                 current_row["validation_mse"],
-                                new=EFFECT_IDENTIFIED[e])
+                                new=ALL_EFFECTS[e].identified)
             row["added"] = e
             rows.append(row)
             self.log(f"  + {e:12s} on {current.ext.effect}: " + ", ".join(
-                f"{k} = {row['parameters'][k]:.4g} {UNITS[k]}" for k in EFFECT_IDENTIFIED[e])
+                f"{k} = {row['parameters'][k]:.4g} {UNITS[k]}" for k in ALL_EFFECTS[e].identified)
                 + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
                 + f"  effect {row['effect_rms_n']:.3g} N rms{'' if row['resolved'] else ' (below the noise)'}")
         return self.name_next(rows, fits, current_row)
@@ -589,7 +604,7 @@ class CandidateSearch:
             pol = self.polish_quietly(fit.ext, fit.z, self.settings.final_jacobians)
             fit = fits[lead["effect"]] = Fit(fit.ext, pol.z, fit.evaluations + pol.evaluations)
             row = self.held_out(fit.ext.effect, fit.params(), fit.ext.extra, pol.fitness, fit.evaluations,
-                                current_row["validation_mse"], new=EFFECT_IDENTIFIED[lead["added"]])
+                                current_row["validation_mse"], new=ALL_EFFECTS[lead["added"]].identified)
             row["added"] = lead["added"]
             rows[rows.index(lead)] = row
         cross_check(rows, self.evidence)
@@ -597,7 +612,7 @@ class CandidateSearch:
             if row["score"] > ACCEPT_SCORE and row["resolved"]:
                 fit = fits[row["effect"]]
                 attach_interval(row, effect_intervals(self.eid, fit.ext, fit.z), fit.ext,
-                                EFFECT_IDENTIFIED[row["added"]])
+                                ALL_EFFECTS[row["added"]].identified)
         named = [r for r in sorted(rows, key=lambda r: -r["score"]) if r["score"] > ACCEPT_SCORE and earned(r)]
         if not named:
             self.log(f"  no further cause on top of {current_row['effect']}")
@@ -764,25 +779,39 @@ class CandidateSearch:
                 "base_validation_mse": pooled_mse(base_metrics)}
 
 
-def diagnose_on(kind: str, base: Base, data: Problem, settings: DiagnosisSettings, out: Path, figures_sub: str, log,
-                record: dict | None = None) -> dict:
-    """The diagnosis on one base form: ``CandidateSearch(...).run()``."""
-    return CandidateSearch(kind, base.par, base.values, data, settings, out, figures_sub, log, record,
-                           refinement=base.refinement).run()
+@dataclass
+class BaseRun:
+    """The diagnosis on one base form: ``run``, the result fields of ``diagnosis.json`` for this base plus
+    ``after_params``, ``final_validation_mse`` and ``base_validation_mse`` (``CandidateSearch``); ``figures``,
+    the folder of its figures (relative to the output folder; ``run['figures']`` names the files); ``residuals``,
+    the base model's residual on every test (``base_residuals``), which they show."""
+
+    run: dict
+    figures: str
+    residuals: list[TestResidual]
+
+
+def diagnose_on(kind: str, base: Base, data: Problem, settings: DiagnosisSettings, figures: str, log,
+                record: dict | None = None) -> BaseRun:
+    """The diagnosis on one base form (``CandidateSearch(...).run()``), its figures named in the folder
+    ``figures``."""
+    search = CandidateSearch(kind, base.par, base.values, data, settings, figures, log, record,
+                             refinement=base.refinement)
+    return BaseRun(search.run(), figures, search.residuals)
 
 
 def detection(eid: Engine, ev: Engine, par: Parametrization, z: np.ndarray, candidates: list[str], peak: float,
                stroke_range: float, mse_ref: float, noise: float, lengths: list[int], tests: list[str], log) -> dict:
     """``tuner.diagnosis.detection.detection_limits`` of ``candidates`` at the base refit ``z`` with the
     diagnosis's rules (acceptance score, penalty, search bounds, physical range); logged, units added."""
-    names = {e: EFFECT_IDENTIFIED[e][0] for e in candidates}
+    names = {e: ALL_EFFECTS[e].identified[0] for e in candidates}
     size = DamperSize(peak, stroke_range)
     limits = detection_limits(eid, ev, par, z, names, {n: typical_range(n, size)[0] for n in names.values()},
                               {n: search_bounds(n, peak, stroke_range) for n in names.values()},
                               {n: meaningful_floor(n, size) for n in names.values()}, mse_ref, noise,
                               ACCEPT_SCORE, PENALTY_PER_PARAMETER, lengths, tests)
     for e, r in limits.items():
-        r["unit"], r["covers"] = UNITS[r["parameter"]], EFFECT_KIND[e]
+        r["unit"], r["covers"] = UNITS[r["parameter"]], ALL_EFFECTS[e].kind
     if limits:
         log("diagnosis: detection limits on these tests (the smallest magnitude that would have been named): "
             + ", ".join(f"{e} {limit_text(r)}" for e, r in limits.items()))

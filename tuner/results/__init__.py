@@ -6,6 +6,7 @@
 - ``fit_figures``: the fit report's figures (the paper's Figs. 6-11 and the loops);
 - ``intervals_report``: the identified parameters' intervals and flags (tables, characteristics with bands);
 - ``diagnosis_report``: the diagnosis section, and the report of a diagnosis on its own;
+- ``diagnosis_figures``: the diagnosis's figures (the base model's residual), drawn from a ``Diagnosis``;
 - ``vehicle_report``: the vehicle section (the tuned FMUs in the vehicle, side by side, and their intervals);
 - ``design_report``: the test design section (the rig tests that would pin down the rest);
 - ``html``: HTML building blocks (tables, figures, numbers, the page);
