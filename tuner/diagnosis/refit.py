@@ -226,6 +226,10 @@ class HeldProfile:
     sse: list
     evaluations: int
 
+    def joined(self, other: "HeldProfile") -> "HeldProfile":
+        """This profile's points followed by ``other``'s, the simulations of both."""
+        return HeldProfile(self.points + other.points, self.sse + other.sse, self.evaluations + other.evaluations)
+
 
 def nonsmooth_profiles(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, pts: list, sse: list,
                        profile=None) -> HeldProfile:
@@ -253,9 +257,8 @@ def nonsmooth_profiles(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray
         held = held_profile(eid, ext, z0, i, sweep + values[-1:])
         vertex = _vertex_value(held, dim + i)
         if vertex is not None:  # between two values: the parabola's vertex through the best and its neighbours
-            more = held_profile(eid, ext, z0, i, [vertex])
-            held = HeldProfile(held.points + more.points, held.sse + more.sse, held.evaluations + more.evaluations)
-        out = HeldProfile(out.points + held.points, out.sse + held.sse, out.evaluations + held.evaluations)
+            held = held.joined(held_profile(eid, ext, z0, i, [vertex]))
+        out = out.joined(held)
     return out
 
 
