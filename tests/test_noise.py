@@ -306,3 +306,36 @@ def test_a_damper_drifting_between_the_repeats_is_not_credible(shape):
     assert rep["available"] and not rep["credible"] and any("drifts" in x for x in rep["reasons"]), rep
     assert rep["in_band_n"] > 1.5 * truth["in_band_n"]        # what it would have read: an upper bound
     assert r["method"] != "repeats" or not r["credible"], r
+
+
+def test_the_floor_of_a_model_is_what_the_stroke_noise_makes_through_it(tmp_path):
+    """A 0.057 mm free play between 9e7 N/m silent blocks (a random lumped damper of the class, seed 0, 2 um
+    stroke noise): the contact is a far stiffer path from the stroke to the force than the model without the
+    gap, so the stroke channel's noise makes many times more force through it; and the true model's own
+    residual on its data is what its floor says (force noise and stroke noise through it), not a model-form
+    error. The diagnosis judges each model's residual against its own floor (``CandidateSearch.floor_of``)."""
+    import json
+
+    from campaign.damper_class import write_class_dataset
+    from tuner.data.reading import load_dataset
+    from tuner.diagnosis.search import stroke_noise_force
+    from tuner.diagnosis.settings import DiagnosisSettings
+    from tuner.identification.engine import fastest_engine
+    from tuner.identification.fit import validation_run
+    from tuner.identification.problem import Problem
+
+    data = write_class_dataset(tmp_path / "data", "lumped", 0, noise_n=25.0, hidden={"free_play": 5.7e-5},
+                               sample_rate=500.0, durations=(6.0,) * 3)
+    truth = json.loads((data / "manifest.json").read_text())["generator"]["parameters"]
+    tests = load_dataset(data)
+    settings = DiagnosisSettings(engine=fastest_engine())
+    problem = Problem.build([t for t in tests if t.role == "identification"],
+                            [t for t in tests if t.role == "validation"], settings.data)
+    through_gap = stroke_noise_force("lumped", truth, problem.identification, problem.sig_id, settings)
+    without_gap = stroke_noise_force("lumped", {**truth, "free_play": 0.0}, problem.identification, problem.sig_id,
+                                     settings)
+    assert through_gap > 5.0 * without_gap
+    residual = np.concatenate([(s.force - validation_run("lumped", truth, s, settings.engine)[0])[s.mask]
+                               for s in problem.sig_id])
+    floor = math.hypot(25.0, through_gap)
+    assert float(np.sqrt(np.mean(residual ** 2))) == pytest.approx(floor, rel=0.3)

@@ -151,6 +151,10 @@ def _floor_text(d: dict) -> str:
     text = (f" The residual floor is {d['residual_floor_n']:.3g} N: the force noise and the "
             f"{d['stroke_noise_force_n']:.3g} N the stroke channel's noise makes through the model."
             if d.get("residual_floor_n") else "")
+    final = d.get("final_residual_floor_n")
+    if final and d.get("residual_floor_n") and abs(final - d["residual_floor_n"]) > 0.1 * d["residual_floor_n"]:
+        text += (f" Through the final model the stroke noise makes {d['final_stroke_noise_force_n']:.3g} N, and its "
+                 f"residual is judged against a floor of {final:.3g} N.")
     noise = d.get("noise") or {}
     if noise and not noise.get("credible", True):
         text += " The residual was not compared with it: " + html.escape(noise.get("text", "noise estimate not credible")) + "."
