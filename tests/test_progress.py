@@ -167,3 +167,53 @@ def test_the_diagnosis_forecast_counts_the_steps_a_leading_cause_brings_and_none
     one = expected_cost(d, s, settled=True, forms_run=True, held_out_share=0.5)
     after_ranking(one, d, s, scoring=1, forms_run=True)
     assert one.selection == 0.0 and one.total < hidden.total
+
+
+def test_a_part_that_overruns_its_forecast_does_not_eat_the_time_of_the_parts_still_to_come():
+    """The base identification said 20 s and the diagnosis after it 100 s; the identification takes 50 s: the
+    time left never drops below the diagnosis's 100 s while it has not started, and counts down from its start
+    (its first progress report) once it has."""
+    from tuner.progress import Plan
+
+    clock, out = Clock(), io.StringIO()
+    p = JobProgress({"diagnosis": 100.0}, stream=out, tty=False, clock=clock)
+    stage(p, "diagnosis")
+    plan = Plan(p, {"identify": 1.0, "diagnose": 1.0}, clock=clock)
+    plan.part("identify").expect(20.0)
+    plan.part("diagnose").expect(100.0)
+    advance(plan.part("identify"), 0.0)  # it starts
+    assert p.remaining_s() == pytest.approx(120.0)
+    clock.t = 10.0
+    advance(plan.part("identify"), 0.3)
+    assert p.remaining_s() == pytest.approx(110.0)
+    clock.t = 50.0  # 30 s past its forecast
+    advance(plan.part("identify"), 0.9)
+    assert p.remaining_s() == pytest.approx(100.0)
+    advance(plan.part("identify"), 1.0)
+    clock.t = 60.0
+    advance(plan.part("diagnose"), 0.0)  # it starts: its 100 s count from now
+    assert p.remaining_s() == pytest.approx(100.0)
+    clock.t = 70.0
+    advance(plan.part("diagnose"), 0.1)
+    assert p.remaining_s() == pytest.approx(90.0)
+
+
+def test_a_part_that_may_not_run_is_said_beside_the_time_left_and_counted_once_it_starts():
+    """A repeat of the diagnosis on another base runs only if the first leaves a residual above the floor: the
+    time left counts the first, says what the repeat would add, and counts it once it starts."""
+    from tuner.progress import Plan
+
+    clock, out = Clock(), io.StringIO()
+    p = JobProgress({"diagnosis": 100.0}, stream=out, tty=False, clock=clock)
+    stage(p, "diagnosis")
+    plan = Plan(p, {"diagnose a": 1.0, "diagnose b": 1.0}, clock=clock)
+    plan.maybe("diagnose b", "the diagnosis is repeated on b")
+    plan.part("diagnose a").expect(60.0)
+    plan.part("diagnose b").expect(90.0)
+    assert p.remaining_s() == pytest.approx(60.0)
+    assert "about 1.0 min left (1.5 min more if the diagnosis is repeated on b)" in p.status()
+    advance(plan.part("diagnose a"), 1.0)
+    clock.t = 60.0
+    plan.maybe("diagnose b", None)  # it runs
+    assert p.remaining_s() == pytest.approx(90.0)
+    assert "more if" not in p.status()

@@ -39,11 +39,15 @@ def advance(log, fraction: float) -> None:
         hook(fraction)
 
 
-def expect(log, seconds_left: float) -> None:
-    """Tell ``log`` the current stage's expected seconds left on this machine, if it keeps progress."""
+def expect(log, seconds_left: float, maybe: tuple[float, str] | None = None) -> None:
+    """Tell ``log`` the current stage's expected seconds left on this machine, if it keeps progress; ``maybe``:
+    (seconds [s], what) of a part that may still run, not counted in them (the display says it beside)."""
     hook = getattr(log, "expect", None)
     if hook is not None:
-        hook(seconds_left)
+        if maybe is None:
+            hook(seconds_left)
+        else:
+            hook(seconds_left, maybe)
 
 
 class SubStages:
@@ -69,14 +73,23 @@ class Plan:
     name -> relative cost), some of which may turn out not to run (``skip``). ``part(name)`` is the log of
     one part: its progress advances the job's current stage by the part's share of the planned total. A
     part that will not run counts as done only when skipped, so the time left covers every part that may
-    still run (a repeat on another base form), and no stage reads 100 % while parts remain."""
+    still run (a repeat on another base form), and no stage reads 100 % while parts remain.
 
-    def __init__(self, log, weights: dict[str, float]):
+    Parts may say their expected seconds (``expect``); once every open part has, their sum goes to the job,
+    again at every step of a part: a part that has started counts down from what it said (never below 0),
+    one that has not keeps its whole forecast, so a part that overruns its forecast does not eat the
+    time of the parts still to come. A part that runs only if something turns out so (``maybe``: a repeat on
+    another base form) is said beside the sum, with what it depends on, until it starts or is skipped: the
+    time left is then right whether it runs or not."""
+
+    def __init__(self, log, weights: dict[str, float], *, clock=time.monotonic):
         if not weights or any(w <= 0 for w in weights.values()):
             raise ValueError("weights must be a non-empty dict of positive expected costs")
-        self.log, self.weights = log, dict(weights)
+        self.log, self.weights, self.clock = log, dict(weights), clock
         self.fractions = {name: 0.0 for name in weights}
-        self.seconds_left: dict[str, float] = {}  # parts that said their expected seconds left (``expect``)
+        self.started: set[str] = set()  # parts that reported progress
+        self.conditional: dict[str, str] = {}  # parts that may not run -> what they depend on (``maybe``)
+        self.seconds_left: dict[str, tuple[float, float]] = {}  # part -> (seconds it said, when) (``expect``)
 
     def __call__(self, msg: str) -> None:
         self.log(msg)
@@ -86,24 +99,46 @@ class Plan:
             raise KeyError(f"{name!r} is not a part of the plan ({', '.join(self.weights)})")
         return _PlanPart(self, name)
 
+    def maybe(self, name: str, what: str | None) -> None:
+        """Part ``name`` runs only if ``what`` (words: 'the diagnosis is repeated on the lumped base'); None: it
+        runs for certain."""
+        if what is None:
+            self.conditional.pop(name, None)
+        else:
+            self.conditional[name] = what
+        self._forward()
+
     def skip(self, name: str) -> None:
         """The part ``name`` will not run (or was taken from a checkpoint): count it as done."""
         self.set(name, 1.0)
 
     def set(self, name: str, fraction: float) -> None:
         self.fractions[name] = min(max(float(fraction), self.fractions[name]), 1.0)
+        if name not in self.started and name in self.seconds_left:  # said before it started: counted from now
+            self.seconds_left[name] = (self.seconds_left[name][0], self.clock())
+        self.started.add(name)
         total = sum(self.weights.values())
         advance(self.log, sum(self.weights[k] * f for k, f in self.fractions.items()) / total)
-        if self.fractions[name] >= 1.0 and name in self.seconds_left:
-            self.expect(name, 0.0)
+        self._forward()
 
     def expect(self, name: str, seconds_left: float) -> None:
-        """Part ``name`` expects ``seconds_left`` [s] more (0 once done); when every part not done has said
-        so, the stage's seconds left (their sum) go to the job (``expect``)."""
-        self.seconds_left[name] = max(0.0, float(seconds_left))
+        """Part ``name`` expects ``seconds_left`` [s] more from now (0 once done)."""
+        self.seconds_left[name] = (max(0.0, float(seconds_left)), self.clock())
+        self._forward()
+
+    def _forward(self) -> None:
+        """The open parts' seconds left to the job (``expect``) when every one of them has said its own."""
         open_parts = [k for k, f in self.fractions.items() if f < 1.0]
-        if all(k in self.seconds_left for k in open_parts):
-            expect(self.log, sum(self.seconds_left[k] for k in open_parts))
+        if not all(k in self.seconds_left for k in open_parts):
+            return
+        now, left, maybe = self.clock(), 0.0, []
+        for k in open_parts:
+            said, at = self.seconds_left[k]
+            if k in self.conditional and k not in self.started:
+                maybe.append((said, self.conditional[k]))
+                continue
+            left += max(0.0, said - (now - at)) if k in self.started else said
+        expect(self.log, left, (sum(m[0] for m in maybe), " or ".join(m[1] for m in maybe)) if maybe else None)
 
 
 class _PlanPart:
@@ -140,6 +175,7 @@ class JobProgress:
         self._started = self.t0  # when the current stage started
         self._before_current = 0.0  # seconds the finished stages took
         self._said: tuple[float, float] | None = None  # (seconds left, when) the current stage said (``expect``)
+        self._maybe: tuple[float, str] | None = None  # (seconds, what) of a part that may still run (``expect``)
         self._last_line = -float("inf")
         self._bar = None
         if self.tty and not quiet:
@@ -193,14 +229,16 @@ class JobProgress:
             self.done.append(self.current)
         if name not in self.weights:  # an unplanned stage: give it the mean weight
             self.weights[name] = sum(self.weights.values()) / len(self.weights)
-        self.current, self.fraction, self._said = name, 0.0, None
+        self.current, self.fraction, self._said, self._maybe = name, 0.0, None, None
         self._started = self.clock()
         self._before_current = self._started - self.t0
         self._show(force=True)
 
-    def expect(self, seconds_left: float) -> None:
-        """The current stage's own forecast: ``seconds_left`` [s] on this machine from now."""
+    def expect(self, seconds_left: float, maybe: tuple[float, str] | None = None) -> None:
+        """The current stage's own forecast: ``seconds_left`` [s] on this machine from now; ``maybe``: (seconds
+        [s], what) more if what happens (said beside the time left, not counted in it)."""
         self._said = (max(0.0, float(seconds_left)), self.clock())
+        self._maybe = maybe
         self._show()
 
     def advance(self, fraction: float) -> None:
@@ -233,8 +271,9 @@ class JobProgress:
     def status(self) -> str:
         """``progress 37 % (stage: fit lumped 80 %), about 2.1 min left``."""
         left = self.remaining_s()
-        eta = "estimating time left" if left is None else (
-            f"about {left / 60:.1f} min left" if left >= 60 else f"about {left:.0f} s left")
+        eta = "estimating time left" if left is None else f"about {_duration(left)} left"
+        if left is not None and self._maybe is not None and self._maybe[0] > 0:
+            eta += f" ({_duration(self._maybe[0])} more if {self._maybe[1]})"
         st = f" (stage: {self.current} {100 * self.stage_fraction():.0f} %)" if self.current else ""
         return f"progress {100 * self.completed():.0f} %{st}, {eta}"
 
@@ -244,11 +283,17 @@ class JobProgress:
         if self._bar is not None:
             self._bar.n = int(1000 * self.completed())
             left = self.remaining_s()
+            maybe = f" (+{_duration(self._maybe[0])} if {self._maybe[1]})" if self._maybe and self._maybe[0] > 0 else ""
             self._bar.set_postfix_str(f"{self.current or ''} {100 * self.stage_fraction():.0f} %"
-                                      + ("" if left is None else f", ~{left / 60:.1f} min left"), refresh=True)
+                                      + ("" if left is None else f", ~{_duration(left)} left{maybe}"), refresh=True)
             return
         now = self.clock()
         if force or now - self._last_line >= self.interval_s:
             self._last_line = now
             self.stream.write(f"{self._stamp()} {self.status()}\n")
             self.stream.flush()
+
+
+def _duration(seconds: float) -> str:
+    """'2.1 min' or '42 s'."""
+    return f"{seconds / 60:.1f} min" if seconds >= 60 else f"{seconds:.0f} s"

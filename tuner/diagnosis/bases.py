@@ -4,12 +4,15 @@ MSE, whether a repeat on another form can plausibly win, and the progress plan o
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from damper_fmu.parameters import EFFECT_MODELS
+from damper_fmu.parameters import EFFECT_MODELS, defaults
 
-from tuner.identification.fit import RACE_RATIO, FitSettings, identify, validation_run
+from tuner.diagnosis.cost_model import EXTENDED_COST, expected_cost, identification_cost
+from tuner.identification.engine import Engine
+from tuner.identification.fit import RACE_RATIO, FitSettings, identify, initial_guess, refinement_starts, validation_run
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.problem import Problem
 from tuner.diagnosis.settings import DiagnosisSettings
@@ -17,7 +20,7 @@ from tuner.metrics import pooled_mse
 from tuner.progress import Plan
 
 __all__ = ["BASE_MODELS", "Base", "BaseRefinement", "pooled_validation_mse", "choose_base", "base_kinds", "PLAN_WEIGHTS",
-           "progress_plan", "identified_bases", "why_not_repeated"]
+           "progress_plan", "identified_bases", "why_not_repeated", "seconds_per_simulation", "forecast_identified"]
 
 #: base forms the diagnosis chooses from (the models that carry the effect catalogue): the lumped
 #: model of the paper, and the two-chamber form of a twin-tube damper
@@ -124,7 +127,9 @@ def identified_bases(problem: Problem, checkpoints: Path, settings: DiagnosisSet
                       for k, v in (other_bases or {}).items() if k != kind and k in EFFECT_MODELS})
         return kind, bases, base_choice
     fitted = {}
-    for kind in base_kinds(settings, None, None, given=False):
+    kinds = base_kinds(settings, None, None, given=False)
+    forecast_identified(log, problem, settings, {k: parametrization(k, None) for k in kinds})
+    for kind in kinds:
         par_k = parametrization(kind, None)
         log(f"diagnosis: identifying the base {kind} model ...")
         fs = FitSettings(models=(kind,), data=settings.data, iterations=settings.base_iterations,
@@ -142,6 +147,39 @@ def identified_bases(problem: Problem, checkpoints: Path, settings: DiagnosisSet
         log("diagnosis: base form " + kind + " (held-out MSE " + ", ".join(
             f"{k} {math.sqrt(v[1]):.1f} N rms" for k, v in fitted.items()) + ")")
     return kind, bases, base_choice
+
+
+def seconds_per_simulation(kind: str, par: Parametrization, problem: Problem, settings: DiagnosisSettings) -> float:
+    """Wall time [s] a simulation of the identification tests takes with the run's workers, before any was run:
+    one simulation of the data-driven initial guess in this process, shared among the workers."""
+    guess = {**defaults(kind), **initial_guess(kind, problem.sig_id, par)}
+    with Engine(kind, problem.sig_id, engine=settings.engine, workers=0) as eng:
+        t0 = time.perf_counter()
+        eng.sse_batch([guess])
+        return (time.perf_counter() - t0) / max(1, settings.workers)
+
+
+def forecast_identified(plan, problem: Problem, settings: DiagnosisSettings, pars: dict) -> None:
+    """Every part of the progress ``plan`` of a diagnosis that identifies its bases (``pars``: {kind: its
+    parametrization}) says its expected seconds before the first starts (``tuner.diagnosis.cost_model``: the
+    identification's and the diagnosis's simulations, at the cost per simulation one run measures; the forms and
+    forms counted until they are known not to run), so the time left covers every base from the start. Which base
+    the diagnosis runs on is chosen after the identifications: until then the cheapest diagnosis is counted and
+    what each other would add is said beside (``Plan.maybe``)."""
+    share = sum(int(s.mask.sum()) for s in problem.sig_val) / sum(int(s.mask.sum()) for s in problem.sig_id)
+    diagnosis = {}
+    for kind, par in pars.items():
+        rate = seconds_per_simulation(kind, par, problem, settings)
+        ident = identification_cost(par.dimension, refinement_starts(kind), settings.base_iterations,
+                                    FitSettings().population)
+        plan.part(f"identification of the {kind} base").expect(ident * rate)
+        cost = expected_cost(par.dimension, settings, settled=True, forms_run=bool(settings.forms),
+                             held_out_share=share)
+        diagnosis[kind] = cost.total * rate * EXTENDED_COST
+    cheapest = min(diagnosis, key=diagnosis.get)
+    for kind, seconds in diagnosis.items():
+        plan.maybe(f"diagnosis on the {kind} base", None if kind == cheapest else f"the diagnosis runs on the {kind} base")
+        plan.part(f"diagnosis on the {kind} base").expect(seconds)
 
 
 def why_not_repeated(kind: str, other: str, first_run: dict, other_values: dict, problem: Problem,

@@ -26,8 +26,8 @@ from dataclasses import dataclass
 from tuner.diagnosis.forms import shape_grid
 from tuner.diagnosis.refit import HELD_PROFILE_JACOBIANS
 
-__all__ = ["EXPECTED_REFITS", "CONTINUATION_JACOBIANS", "DiagnosisCost", "shapes", "refit_cost", "form_pass_cost",
-           "expected_cost", "after_ranking"]
+__all__ = ["EXPECTED_REFITS", "CONTINUATION_JACOBIANS", "REFINEMENT_JACOBIANS", "EXTENDED_COST", "DiagnosisCost",
+           "shapes", "refit_cost", "form_pass_cost", "expected_cost", "after_ranking", "identification_cost"]
 
 #: catalogue candidates refitted after the screen, assumed before it (measured: 0 on clean data, 2 on the
 #: real MR damper, 1 where an effect is hidden)
@@ -35,6 +35,13 @@ EXPECTED_REFITS = 2
 #: Jacobians a continuation (``final_jacobians`` cap) takes until its rule holds, assumed (measured on blind free
 #: plays: 4-5 on the lumped base, 6-7 on the two-chamber base)
 CONTINUATION_JACOBIANS = 5
+#: Jacobians a base identification's local refinement takes from one start until it converges, assumed (measured
+#: on held-out-sized data, six 12-16 s tests: 9-12)
+REFINEMENT_JACOBIANS = 12
+#: wall time per simulation in a diagnosis over that of its base's identification (measured on held-out-sized
+#: data: 1.6 on the lumped base, 1.9 on the two-chamber base; the effects' elements, a free play's contact above
+#: all, take the integrator's smaller steps)
+EXTENDED_COST = 1.8
 
 
 @dataclass
@@ -111,3 +118,10 @@ def after_ranking(cost: DiagnosisCost, d: int, settings, *, scoring: int, forms_
                            + (CONTINUATION_JACOBIANS * (d + 3) + d + 3 if others else 0))
     passes = (2 if scoring else 1) if forms_run and settings.forms else 0
     cost.forms = passes * form_pass_cost(d, settings)
+
+
+def identification_cost(d: int, starts: int, iterations: int, population: int) -> float:
+    """Simulations of a base identification of d coordinates (``tuner.identification.fit.identify``): the Firefly
+    search's ``iterations`` x ``population`` (at most: it stops early once at the data's resolution) and
+    ``starts`` local refinements of REFINEMENT_JACOBIANS Jacobians of d + 1 simulations each."""
+    return float(iterations * population + starts * REFINEMENT_JACOBIANS * (d + 1))

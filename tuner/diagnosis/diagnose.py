@@ -83,7 +83,7 @@ from tuner import strict_json
 from tuner.data.reading import RigTest
 from tuner.diagnosis.bases import (BASE_MODELS, Base, choose_base, identified_bases, progress_plan,  # noqa: F401
                                    why_not_repeated)
-from tuner.diagnosis.cost_model import expected_cost
+from tuner.diagnosis.cost_model import EXTENDED_COST, expected_cost
 from tuner.diagnosis.refit import MIN_BLOCKS, ExtendedParametrization  # noqa: F401
 from tuner.diagnosis.result import Diagnosis, DiagnosisFailed, failure_record
 from tuner.diagnosis.rules import (ACCEPT_SCORE, PENALTY_PER_PARAMETER, UNEXPLAINED_RATIO, cross_check,  # noqa: F401
@@ -188,6 +188,8 @@ def _diagnose_stages(problem: Problem, checkpoints: Path, settings: DiagnosisSet
                                                  other_bases, plan, refinements)
     record["base_choice"] = base_choice
     record["finished"].append("base identification")
+    for k in bases:  # the first base's diagnosis runs; a repeat on another only if the first leaves a residual
+        plan.maybe(f"diagnosis on the {k} base", None if k == kind else f"the diagnosis is repeated on the {k} base")
     forecast_parts(plan, bases, problem, settings)
     runs = {kind: _checkpointed_run(kind, bases[kind], problem, settings, checkpoints, "figures", record,
                                     plan.part(f"diagnosis on the {kind} base"))}
@@ -207,6 +209,7 @@ def _diagnose_stages(problem: Problem, checkpoints: Path, settings: DiagnosisSet
             continue
         log(f"diagnosis: the {kind} base leaves {left['ratio']:.1f} x the residual floor: "
             f"repeated on the {other} base (the base is chosen again by the final models' held-out MSE)")
+        plan.maybe(f"diagnosis on the {other} base", None)
         runs[other] = _checkpointed_run(other, bases[other], problem, settings, checkpoints, f"figures/base_{other}",
                                         record, plan.part(f"diagnosis on the {other} base"))
     if skipped:
@@ -230,9 +233,10 @@ def _diagnose_stages(problem: Problem, checkpoints: Path, settings: DiagnosisSet
 
 def forecast_parts(plan, bases: dict, problem: Problem, settings: DiagnosisSettings) -> None:
     """Each base's diagnosis part of the progress ``plan`` gets its expected seconds (``tuner.diagnosis.
-    cost_model``, at the cost per simulation its identification measured; the forms counted: a repeat runs only
-    when the first base leaves a residual above the floor), so that the time left covers a repeat until it is
-    known not to run. Nothing when a base's cost per simulation is not known."""
+    cost_model``, at the cost per simulation its identification measured; the forms counted), so that the time
+    left covers the first base's diagnosis and says what a repeat on another would add until it is known whether
+    it runs (a repeat runs only when the first base leaves a residual above the floor: ``Plan.maybe``). Nothing
+    when a base's cost per simulation is not known."""
     share = sum(int(s.mask.sum()) for s in problem.sig_val) / sum(int(s.mask.sum()) for s in problem.sig_id)
     for kind, base in bases.items():
         rate = base.refinement.seconds_per_evaluation
@@ -240,7 +244,7 @@ def forecast_parts(plan, bases: dict, problem: Problem, settings: DiagnosisSetti
             return
         cost = expected_cost(base.par.dimension, settings, settled=base.settled is not None,
                              forms_run=bool(settings.forms), held_out_share=share)
-        plan.part(f"diagnosis on the {kind} base").expect(cost.total * rate)
+        plan.part(f"diagnosis on the {kind} base").expect(cost.total * rate * EXTENDED_COST)
 
 
 def _checkpointed_run(kind: str, base: Base, problem: Problem, settings: DiagnosisSettings, checkpoints: Path,

@@ -17,7 +17,8 @@ from damper_fmu.parameters import defaults
 from tuner.data.noise import channel_noise
 from tuner.data.reading import RigTest
 from tuner.diagnosis.bases import Base, BaseRefinement
-from tuner.diagnosis.cost_model import DiagnosisCost, after_ranking, expected_cost, form_pass_cost, refit_cost
+from tuner.diagnosis.cost_model import (EXTENDED_COST, DiagnosisCost, after_ranking, expected_cost, form_pass_cost,
+                                         refit_cost)
 from tuner.diagnosis.detection import detection_limits
 from tuner.diagnosis.effect_sizes import REFERENCE, DamperSize, meaningful_floor, typical_range
 from tuner.diagnosis.forms import FORM_LABELS, screen, settings_text, shape_grid
@@ -137,7 +138,8 @@ class CandidateSearch:
                  refinement: BaseRefinement = BaseRefinement()):
         self.kind, self.par, self.data, self.settings, self.log = kind, par, data, settings, log
         self.settled_by = refinement.settled  # how the refinement of base_params on these tests ended
-        self.rate_prior = refinement.seconds_per_evaluation  # [s per simulation], the fit's
+        rate = refinement.seconds_per_evaluation  # [s per simulation], the fit's
+        self.rate_prior = None if rate is None else rate * EXTENDED_COST  # the diagnosis's, expected
         self.cost: DiagnosisCost | None = None  # the steps still to come (``forecast``)
         self.t_engines = time.perf_counter()  # when the engines opened (``run``): the live cost per simulation
         self.figures_folder = figures  # where the job draws the figures, relative to the output folder

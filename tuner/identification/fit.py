@@ -52,7 +52,7 @@ from tuner.progress import advance, stage
 from tuner import strict_json
 
 __all__ = ["FitSettings", "FitResult", "Identified", "fit", "initial_guess", "validation_run", "identify", "quality_gate", "QUALITY_AME_PCT",
-           "RACE_RATIO", "RESTART_LADDER"]
+           "RACE_RATIO", "RESTART_LADDER", "refinement_starts"]
 
 #: Log-scaled parameters whose decade decides the basin a local refinement ends in: the data-driven
 #: start is refined again with each one a decade up and down (measured on random lumped dampers: one
@@ -60,6 +60,14 @@ __all__ = ["FitSettings", "FitResult", "Identified", "fit", "initial_guess", "va
 #: k_B 1e9 N/m; another at 1.4x in a "blocks as dashpots" basin from the four starts with k_B alone,
 #: and at the floor from c_B a decade up or down).
 RESTART_LADDER = {"lumped": ("k_B", "c_B")}
+
+
+def refinement_starts(model: str) -> int:
+    """The local refinements ``identify`` runs at most for ``model``: from the Firefly best, the data-driven start
+    and, per RESTART_LADDER parameter, that start with it ten times larger and ten times smaller."""
+    return 2 + 2 * len(RESTART_LADDER.get(model, ()))
+
+
 #: A base form whose refinement leaves more than this many times another base form's identification
 #: RMSE is clearly the wrong form: its refinement is not restarted (``identify``, ``rival``).
 RACE_RATIO = 3.0
