@@ -217,3 +217,24 @@ def test_a_part_that_may_not_run_is_said_beside_the_time_left_and_counted_once_i
     plan.maybe("diagnose b", None)  # it runs
     assert p.remaining_s() == pytest.approx(90.0)
     assert "more if" not in p.status()
+
+
+def test_a_stage_forecast_in_seconds_counts_in_place_of_its_weight_before_and_while_it_runs():
+    """The job prices the diagnosis from the start (one simulation of each base form): while the fit runs the
+    time left counts the diagnosis's forecast seconds, not its planned share; once it starts, the forecast
+    stands until the stage says its own."""
+    from tuner.progress import expect, forecast
+
+    clock, out = Clock(), io.StringIO()
+    p = JobProgress({"fit": 50.0, "diagnosis": 50.0}, stream=out, tty=False, clock=clock)
+    stage(p, "fit")
+    forecast(p, "diagnosis", 200.0)
+    clock.t = 25.0
+    advance(p, 0.5)  # half the fit in 25 s: 25 s of it left
+    assert p.remaining_s() == pytest.approx(25.0 + 200.0)
+    clock.t = 50.0
+    stage(p, "diagnosis")
+    clock.t = 60.0
+    assert p.remaining_s() == pytest.approx(190.0)
+    expect(p, 100.0)
+    assert p.remaining_s() == pytest.approx(100.0)

@@ -28,12 +28,12 @@ from damper_fmu.fmu import SLAVES, build
 from damper_fmu.parameters import EFFECT_MODELS, MODEL_PARAMETERS
 from tuner.data.reading import RigTest
 from tuner import strict_json
-from tuner.diagnosis.bases import BaseRefinement
+from tuner.diagnosis.bases import BaseRefinement, diagnosis_forecast
 from tuner.diagnosis.diagnose import Diagnosis, DiagnosisFailed, DiagnosisSettings, choose_base, diagnose
 from tuner.identification.fit import FitResult, FitSettings, fit, full_rate_checks
 from tuner.identification.intervals import ModelIntervals
 from tuner.identification.problem import Problem
-from tuner.progress import SubStages, stage
+from tuner.progress import SubStages, forecast, stage
 from tuner.results.diagnosis_figures import diagnosis_figures
 from tuner.results.diagnosis_report import make_diagnosis_report
 from tuner.results.report import make_report
@@ -98,6 +98,9 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
     log: a callable taking one line (or a ``tuner.progress.JobProgress``, whose stages it advances)."""
     out = Path(out)
     problem = Problem.build(identification, validation, settings.data)  # prepared once, for every stage
+    if diagnose_after and wants_diagnosis(settings, validation):  # the display prices the diagnosis from the start
+        forecast(log, "diagnosis", diagnosis_forecast(problem, diagnosis_settings(settings),
+                                                      [m for m in settings.models if m in EFFECT_MODELS]))
     result = fit(identification, validation, settings, checkpoints=out / "checkpoints", provenance=provenance,
                  problem=problem, log=log)
     result.write(out)

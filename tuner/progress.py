@@ -22,7 +22,7 @@ from __future__ import annotations
 import sys
 import time
 
-__all__ = ["JobProgress", "SubStages", "Plan", "stage", "advance", "expect"]
+__all__ = ["JobProgress", "SubStages", "Plan", "stage", "advance", "expect", "forecast"]
 
 
 def stage(log, name: str) -> None:
@@ -37,6 +37,14 @@ def advance(log, fraction: float) -> None:
     hook = getattr(log, "advance", None)
     if hook is not None:
         hook(fraction)
+
+
+def forecast(log, stage_name: str, seconds: float) -> None:
+    """Tell ``log`` that stage ``stage_name``, still to come, is expected to take ``seconds`` [s] on this machine
+    (in place of its planned weight), if it keeps progress."""
+    hook = getattr(log, "forecast", None)
+    if hook is not None:
+        hook(stage_name, seconds)
 
 
 def expect(log, seconds_left: float, maybe: tuple[float, str] | None = None) -> None:
@@ -176,6 +184,7 @@ class JobProgress:
         self._before_current = 0.0  # seconds the finished stages took
         self._said: tuple[float, float] | None = None  # (seconds left, when) the current stage said (``expect``)
         self._maybe: tuple[float, str] | None = None  # (seconds, what) of a part that may still run (``expect``)
+        self.forecasts: dict[str, float] = {}  # stage -> seconds it is expected to take (``forecast``)
         self._last_line = -float("inf")
         self._bar = None
         if self.tty and not quiet:
@@ -211,17 +220,26 @@ class JobProgress:
     def remaining_s(self) -> float | None:
         """Estimated seconds left (None until some of the job is done). With the current stage's own forecast
         (``expect``): what it said, less the time since, plus the later stages' weights scaled by how the
-        finished stages went against theirs."""
+        finished stages went against theirs. Without: the elapsed time scaled by the expected cost left over the
+        cost done. A later stage forecast in seconds (``forecast``) counts with them, not its weight."""
+        later = [s for s in self.weights if s not in self.done and s != self.current]
+        foreseen = sum(self.forecasts[s] for s in later if s in self.forecasts)
+        planned_later = sum(self.weights[s] for s in later if s not in self.forecasts)
         if self._said is not None:
             left, at = self._said
             planned_done = sum(self.weights[s] for s in self.done)
             speed = self._before_current / planned_done if planned_done > 0 else 1.0
-            later = sum(w for s, w in self.weights.items() if s not in self.done and s != self.current)
-            return max(0.0, left - (self.clock() - at)) + speed * later
+            return max(0.0, left - (self.clock() - at)) + speed * planned_later + foreseen
         c = self.completed()
         if c <= 0.02:
             return None
-        return self.elapsed * (1.0 - c) / c
+        per_weight = self.elapsed / (c * sum(self.weights.values()))  # [s] per unit of planned cost so far
+        unplanned = sum(self.weights[s] for s in later if s in self.forecasts)
+        return per_weight * (sum(self.weights.values()) * (1.0 - c) - unplanned) + foreseen
+
+    def forecast(self, stage_name: str, seconds: float) -> None:
+        """Stage ``stage_name`` (one still to come) is expected to take ``seconds`` [s] on this machine."""
+        self.forecasts[stage_name] = max(0.0, float(seconds))
 
     # -- hooks -----------------------------------------------------------------------------------
     def stage(self, name: str) -> None:
@@ -231,6 +249,8 @@ class JobProgress:
             self.weights[name] = sum(self.weights.values()) / len(self.weights)
         self.current, self.fraction, self._said, self._maybe = name, 0.0, None, None
         self._started = self.clock()
+        if name in self.forecasts:  # its forecast stands until it says its own
+            self._said = (self.forecasts[name], self._started)
         self._before_current = self._started - self.t0
         self._show(force=True)
 

@@ -20,7 +20,8 @@ from tuner.metrics import pooled_mse
 from tuner.progress import Plan
 
 __all__ = ["BASE_MODELS", "Base", "BaseRefinement", "pooled_validation_mse", "choose_base", "base_kinds", "PLAN_WEIGHTS",
-           "progress_plan", "identified_bases", "why_not_repeated", "seconds_per_simulation", "forecast_identified"]
+           "progress_plan", "identified_bases", "why_not_repeated", "seconds_per_simulation", "forecast_identified",
+           "diagnosis_forecast"]
 
 #: base forms the diagnosis chooses from (the models that carry the effect catalogue): the lumped
 #: model of the paper, and the two-chamber form of a twin-tube damper
@@ -166,20 +167,35 @@ def forecast_identified(plan, problem: Problem, settings: DiagnosisSettings, par
     forms counted until they are known not to run), so the time left covers every base from the start. Which base
     the diagnosis runs on is chosen after the identifications: until then the cheapest diagnosis is counted and
     what each other would add is said beside (``Plan.maybe``)."""
-    share = sum(int(s.mask.sum()) for s in problem.sig_val) / sum(int(s.mask.sum()) for s in problem.sig_id)
     diagnosis = {}
     for kind, par in pars.items():
         rate = seconds_per_simulation(kind, par, problem, settings)
         ident = identification_cost(par.dimension, refinement_starts(kind), settings.base_iterations,
                                     FitSettings().population)
         plan.part(f"identification of the {kind} base").expect(ident * rate)
-        cost = expected_cost(par.dimension, settings, settled=True, forms_run=bool(settings.forms),
-                             held_out_share=share)
-        diagnosis[kind] = cost.total * rate * EXTENDED_COST
+        diagnosis[kind] = _diagnosis_seconds(par, problem, settings, rate)
     cheapest = min(diagnosis, key=diagnosis.get)
     for kind, seconds in diagnosis.items():
         plan.maybe(f"diagnosis on the {kind} base", None if kind == cheapest else f"the diagnosis runs on the {kind} base")
         plan.part(f"diagnosis on the {kind} base").expect(seconds)
+
+
+def _diagnosis_seconds(par: Parametrization, problem: Problem, settings: DiagnosisSettings, rate: float) -> float:
+    """Expected seconds [s] of a diagnosis on a base of ``par`` at ``rate`` [s per simulation of its identification]
+    (``tuner.diagnosis.cost_model``: the forms counted, its extended models EXTENDED_COST x slower)."""
+    share = sum(int(s.mask.sum()) for s in problem.sig_val) / sum(int(s.mask.sum()) for s in problem.sig_id)
+    cost = expected_cost(par.dimension, settings, settled=True, forms_run=bool(settings.forms), held_out_share=share)
+    return cost.total * rate * EXTENDED_COST
+
+
+def diagnosis_forecast(problem: Problem, settings: DiagnosisSettings, kinds) -> float:
+    """Expected seconds [s] of the diagnosis after a fit of the base forms ``kinds``, before the fit: the costliest
+    base's (the one it runs on is chosen on the fit's held-out errors), a repeat not counted; one simulation of
+    each base form's initial guess prices them (``seconds_per_simulation``). The job's display uses it for the
+    diagnosis stage while the fit runs, in place of a planned share."""
+    pars = {k: problem.parametrization(k, scheme="improved") for k in kinds}
+    return max(_diagnosis_seconds(par, problem, settings, seconds_per_simulation(k, par, problem, settings))
+               for k, par in pars.items())
 
 
 def why_not_repeated(kind: str, other: str, first_run: dict, other_values: dict, problem: Problem,
