@@ -98,7 +98,8 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
     log: a callable taking one line (or a ``tuner.progress.JobProgress``, whose stages it advances)."""
     out = Path(out)
     problem = Problem.build(identification, validation, settings.data)  # prepared once, for every stage
-    if diagnose_after and wants_diagnosis(settings, validation):  # the display prices the diagnosis from the start
+    if diagnose_after and wants_diagnosis(settings, validation) and hasattr(log, "forecast"):
+        # the progress display prices the diagnosis from the start
         forecast(log, "diagnosis", diagnosis_forecast(problem, diagnosis_settings(settings),
                                                       [m for m in settings.models if m in EFFECT_MODELS]))
     result = fit(identification, validation, settings, checkpoints=out / "checkpoints", provenance=provenance,

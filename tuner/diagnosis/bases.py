@@ -163,8 +163,8 @@ def seconds_per_simulation(kind: str, par: Parametrization, problem: Problem, se
 def forecast_identified(plan, problem: Problem, settings: DiagnosisSettings, pars: dict) -> None:
     """Every part of the progress ``plan`` of a diagnosis that identifies its bases (``pars``: {kind: its
     parametrization}) says its expected seconds before the first starts (``tuner.diagnosis.cost_model``: the
-    identification's and the diagnosis's simulations, at the cost per simulation one run measures; the forms and
-    forms counted until they are known not to run), so the time left covers every base from the start. Which base
+    identification's and the diagnosis's simulations, at the cost per simulation one run measures; the forms
+    counted until they are known not to run), so the time left covers every base from the start. Which base
     the diagnosis runs on is chosen after the identifications: until then the cheapest diagnosis is counted and
     what each other would add is said beside (``Plan.maybe``)."""
     diagnosis = {}
