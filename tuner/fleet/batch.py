@@ -210,6 +210,23 @@ def _prepare_folder(task: dict, out: Path, log) -> str:
     return "run"
 
 
+def _batch_settings(settings: dict | None, row_workers: int) -> dict:
+    """The fit settings of the rows where the manifest leaves them open: the defaults with ``settings`` over them
+    (ValueError naming an unknown or bad setting, or a negative ``row_workers``)."""
+    base = FitSettings().to_dict()
+    base.pop("workers")
+    base.pop("extra")
+    for k, v in (settings or {}).items():
+        if k not in base:
+            raise ValueError(f"unknown fit setting {k!r}")
+        base[k] = v
+    for name in ("population", "iterations", "polish_jacobians", "seed", "fit_rate_hz", "warmup_s", "engine"):
+        check_setting(name, base[name], "command line", name)
+    if row_workers < 0:
+        raise ValueError("--row-workers must be >= 0")
+    return base
+
+
 def run_batch(manifest, out, *, scheduler: str | None = None, settings: dict | None = None,
               diagnose: bool = False, row_workers: int = 0, outlier_k: float = OUTLIER_K,
               outlier_tolerance: float = OUTLIER_TOLERANCE, progress: bool | None = None, log=print) -> dict:
@@ -222,17 +239,7 @@ def run_batch(manifest, out, *, scheduler: str | None = None, settings: dict | N
     rows = read_fleet_manifest(manifest)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    base = FitSettings().to_dict()
-    base.pop("workers")
-    base.pop("extra")
-    for k, v in (settings or {}).items():
-        if k not in base:
-            raise ValueError(f"unknown fit setting {k!r}")
-        base[k] = v
-    for name in ("population", "iterations", "polish_jacobians", "seed", "fit_rate_hz", "warmup_s", "engine"):
-        check_setting(name, base[name], "command line", name)
-    if row_workers < 0:
-        raise ValueError("--row-workers must be >= 0")
+    base = _batch_settings(settings, row_workers)
     tasks = [_task(r, out, base, diagnose, row_workers) for r in rows]
     state = {t["id"]: {"row": t["row"], "id": t["id"], "damper_id": t["damper_id"], "session": t["session"],
                        "type": t["type"], "seed": t["settings"].get("seed"), "status": "pending", "error": "",

@@ -167,6 +167,34 @@ def _safe_name(text: str) -> str:
     return "".join(c if c.isalnum() or c in "-_." else "_" for c in text) or "_"
 
 
+def _summary_line(r: dict, o: dict | None, tests: list, models: list, par_cols: dict) -> dict:
+    """The summary.csv line of the fleet row ``r`` (``write_summary``'s rows), ``o`` its outlier record (None when
+    its type had no curves): identification RMSE [N], validation AME [N] and MSE [N^2] per test and model, the
+    identified parameters of ``par_cols`` (column -> (model, parameter)) in SI."""
+    rec = r.get("record") or {}
+    detail = ""
+    if o and o["ratio"] is not None:
+        detail = (f"worst at v = {o['worst_rate_m_s']:+.4g} m/s: {o['deviation_n']:+.0f} N from the type median, "
+                  f"limit {o['limit_n']:.0f} N")
+    diag = rec.get("diagnosis") or {}
+    line = {"row": r["row"], "id": r["id"], "damper_id": r["damper_id"], "session": r.get("session", ""),
+            "type": r["type"], "status": r["status"], "error": r.get("error", ""),
+            "seed": rec.get("seed", r.get("seed", "")),
+            "outlier": ("" if o is None or o["ratio"] is None else ("yes" if o["outlier"] else "no")),
+            "outlier_detail": detail, "causes": "+".join(diag.get("causes", [])) if diag else "",
+            "verdict": diag.get("verdict", "") if diag else "", "noise_floor_n": rec.get("noise_floor_n", "")}
+    for m in models:
+        line[f"identification_rmse.{m}_n"] = (rec.get("identification_rmse_n") or {}).get(m, "")
+    for t in tests:
+        for m in models:
+            met = ((rec.get("validation") or {}).get(t) or {}).get(m) or {}
+            line[f"validation.{t}.{m}.ame_n"] = met.get("ame", "")
+            line[f"validation.{t}.{m}.mse_n2"] = met.get("mse", "")
+    for col, (m, p) in par_cols.items():
+        line[col] = ((rec.get("parameters") or {}).get(m) or {}).get(p, "")
+    return line
+
+
 def write_summary(out: Path, rows: list[dict], *, k: float = OUTLIER_K, tolerance: float = OUTLIER_TOLERANCE,
                   title: str = "Fleet summary") -> dict:
     """Write summary.csv, summary.html and the per-type figures into ``out``; return {"csv", "html",
@@ -214,31 +242,7 @@ def write_summary(out: Path, rows: list[dict], *, k: float = OUTLIER_K, toleranc
     head += [f"identification_rmse.{m}_n" for m in models]
     head += [f"validation.{t}.{m}.{q}" for t in tests for m in models for q in ("ame_n", "mse_n2")]
     head += list(par_cols)
-    lines = []
-    for r in rows:
-        rec = r.get("record") or {}
-        o = outliers.get(r["id"])
-        detail = ""
-        if o and o["ratio"] is not None:
-            detail = (f"worst at v = {o['worst_rate_m_s']:+.4g} m/s: {o['deviation_n']:+.0f} N from the type median, "
-                      f"limit {o['limit_n']:.0f} N")
-        diag = rec.get("diagnosis") or {}
-        line = {"row": r["row"], "id": r["id"], "damper_id": r["damper_id"], "session": r.get("session", ""),
-                "type": r["type"], "status": r["status"], "error": r.get("error", ""),
-                "seed": rec.get("seed", r.get("seed", "")),
-                "outlier": ("" if o is None or o["ratio"] is None else ("yes" if o["outlier"] else "no")),
-                "outlier_detail": detail, "causes": "+".join(diag.get("causes", [])) if diag else "",
-                "verdict": diag.get("verdict", "") if diag else "", "noise_floor_n": rec.get("noise_floor_n", "")}
-        for m in models:
-            line[f"identification_rmse.{m}_n"] = (rec.get("identification_rmse_n") or {}).get(m, "")
-        for t in tests:
-            for m in models:
-                met = ((rec.get("validation") or {}).get(t) or {}).get(m) or {}
-                line[f"validation.{t}.{m}.ame_n"] = met.get("ame", "")
-                line[f"validation.{t}.{m}.mse_n2"] = met.get("mse", "")
-        for col, (m, p) in par_cols.items():
-            line[col] = ((rec.get("parameters") or {}).get(m) or {}).get(p, "")
-        lines.append(line)
+    lines = [_summary_line(r, outliers.get(r["id"]), tests, models, par_cols) for r in rows]
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=head, lineterminator="\n")
     w.writeheader()
