@@ -304,6 +304,24 @@ def _typical(Z: np.ndarray) -> np.ndarray:
     return r <= OUTLIER_FACTOR * np.median(r) + 1e-300
 
 
+def _force_from_stroke(dX: np.ndarray, dY: np.ndarray, period_s: float) -> np.ndarray:
+    """The part [N] of the cycles' force deviations ``dY`` (cycles x samples per cycle) that the stroke's own
+    cycle-to-cycle differences ``dX`` [m] make (a rig controller that does not repeat exactly), flattened: the
+    force deviations regressed on the stroke's slow differences and their rate, with coefficients per eighth of
+    the cycle of ``period_s`` [s]; the stroke's measurement noise, to which the force does not respond, explains
+    nothing and leaves the estimate as it is."""
+    m = dX.shape[1]
+    h = np.fft.rfftfreq(m, 1.0 / m)            # harmonic numbers
+    DX = np.fft.rfft(dX, axis=1)
+    DX[:, h > STROKE_HARMONICS] = 0.0
+    slow = [np.fft.irfft(DX, m, axis=1), np.fft.irfft(DX * (2j * np.pi * h / period_s), m, axis=1)]
+    bins = (np.arange(m) * _PHASE_BINS) // m
+    cols = [np.where(bins[None, :] == b, z, 0.0).ravel() for z in slow for b in range(_PHASE_BINS)]
+    A = np.column_stack([c / (np.sqrt(np.mean(c ** 2)) or 1.0) for c in cols])
+    coef, *_ = np.linalg.lstsq(A, dY.ravel(), rcond=None)
+    return A @ coef
+
+
 def cycle_scatter_noise(stroke, force, sample_rate_hz: float, fit_rate_hz: float | None = None,
                         warmup_s: float = 0.5) -> Estimate:
     """The cycle-scatter estimate (module docstring) of the force noise [N rms] of a periodic test:
@@ -354,19 +372,7 @@ def cycle_scatter_noise(stroke, force, sample_rate_hz: float, fit_rate_hz: float
         return unavailable(f"the stroke does not repeat (cycle-to-cycle scatter {stroke_scatter:.3g} m, "
                            f"{100 * stroke_scatter / max(stroke_rms, 1e-300):.0f} % of its rms): not a periodic test",
                            **details)
-    # the force the stroke's own cycle-to-cycle differences make (a rig controller that does not
-    # repeat exactly): the force deviations regressed on the stroke's slow differences and their rate,
-    # with coefficients per eighth of the cycle; the stroke's measurement noise, to which the force
-    # does not respond, explains nothing and leaves the estimate as it is
-    h = np.fft.rfftfreq(m, 1.0 / m)            # harmonic numbers
-    DX = np.fft.rfft(dX, axis=1)
-    DX[:, h > STROKE_HARMONICS] = 0.0
-    slow = [np.fft.irfft(DX, m, axis=1), np.fft.irfft(DX * (2j * np.pi * h / T), m, axis=1)]
-    bins = (np.arange(m) * _PHASE_BINS) // m
-    cols = [np.where(bins[None, :] == b, z, 0.0).ravel() for z in slow for b in range(_PHASE_BINS)]
-    A = np.column_stack([c / (np.sqrt(np.mean(c ** 2)) or 1.0) for c in cols])
-    coef, *_ = np.linalg.lstsq(A, dY.ravel(), rcond=None)
-    fitted = A @ coef
+    fitted = _force_from_stroke(dX, dY, T)
     from_stroke = math.sqrt(float(np.mean(fitted ** 2)) * corr)
     details["force_from_stroke_n"] = from_stroke
     reasons, credible = [], True
@@ -425,13 +431,47 @@ def _longest_run(ok: np.ndarray) -> tuple[int, int]:
     return int(starts[i]), int(stops[i])
 
 
+def _repeat_estimate(dF: np.ndarray, value: float, rate: float, fit_rate_hz: float | None, details: dict) -> Estimate:
+    """The repeats' estimate from the aligned force difference ``dF`` [N] (mean removed) of a repeat of
+    ``details['samples']`` samples at ``rate`` [Hz]: ``value`` [N rms], whether it is credible (long enough, the
+    same drive, no drift between the repeats) and its share in the fit band (``repeat_noise``)."""
+    n, stroke_diff = details["samples"], details["stroke_difference"]
+    reasons, credible = [], True
+    if n < MIN_REPEAT_SAMPLES or n < MIN_REPEAT_S * rate:
+        credible = False
+        reasons.append(f"the repeat is only {n / rate:.3g} s ({n} samples; needs {MIN_REPEAT_S:g} s and "
+                       f"{MIN_REPEAT_SAMPLES}): too few samples")
+    if stroke_diff > STROKE_REPEAT:
+        credible = False
+        reasons.append(f"the repeats' strokes differ by {100 * stroke_diff:.1f} % of the stroke's rms after alignment "
+                       f"(more than {100 * STROKE_REPEAT:g} %): not the same drive, so not the same force")
+    nper = min(n, 1 << int(math.ceil(math.log2(2.0 * rate))))
+    f, p = signal.welch(dF, fs=rate, nperseg=nper)
+    low = (f > 0) & (f <= DRIFT_HZ)
+    ref = (f > DRIFT_HZ) & (f <= DRIFT_BAND_TOP * rate)
+    if low.any() and ref.any() and np.mean(p[ref]) > 0:
+        ratio = float(np.mean(p[low]) / np.mean(p[ref]))
+        details["low_frequency_ratio"] = ratio
+        if ratio > DRIFT_FACTOR:
+            credible = False
+            reasons.append(f"the repeats' force difference is {ratio:.3g} x denser below {DRIFT_HZ:g} Hz than up to "
+                           f"{DRIFT_BAND_TOP * rate:.3g} Hz (more than {DRIFT_FACTOR:g}x): the damper drifts between "
+                           "the repeats (temperature) or the drive differs; the estimate is an upper bound")
+    in_band_value = None
+    if fit_rate_hz is not None:
+        total = float(np.sum(p))
+        share = float(np.sum(p[f < fit_rate_hz / 2.0])) / total if total > 0 else 1.0
+        in_band_value = value * math.sqrt(min(1.0, share)) if fit_rate_hz < rate else value
+        details["in_band_share"] = share
+    return Estimate.make("repeats", value, in_band_value, True, credible, reasons, **details)
+
+
 def repeat_noise(stroke, force, sample_rate_hz: float, fit_rate_hz: float | None = None,
                  warmup_s: float = 0.5) -> Estimate:
     """The repeated-segments estimate (module docstring) of the force noise [N rms] of a test that
     replays a drive: stroke [m] and force [N] sampled at ``sample_rate_hz`` [Hz]; samples in the first
-    ``warmup_s`` [s] do not count. Figures: ``shift_s`` (from the first repeat to the second; the
-    stroke's alone: ``stroke_shift_s``),
-    ``start_s`` (the first repeat's start), ``repeat_s`` and ``samples`` (its length),
+    ``warmup_s`` [s] do not count. Figures: ``shift_s`` (from the first repeat to the second; the stroke's alone:
+    ``stroke_shift_s``), ``start_s`` (the first repeat's start), ``repeat_s`` and ``samples`` (its length),
     ``stroke_difference`` (rms of the aligned strokes' difference / the stroke's rms there),
     ``low_frequency_ratio`` (the drift rule's ratio), ``in_band_share``."""
     x, F = _checked_pair(stroke, force, sample_rate_hz, "repeat_noise")
@@ -504,34 +544,7 @@ def repeat_noise(stroke, force, sample_rate_hz: float, fit_rate_hz: float | None
     value = float(np.sqrt(np.mean(dF ** 2))) / math.sqrt(2.0)
     details = dict(shift_s=shift / rate, stroke_shift_s=stroke_shift / rate, start_s=a / rate, repeat_s=t.size / rate,
                    samples=int(t.size), stroke_difference=stroke_diff)
-    reasons, credible = [], True
-    if t.size < MIN_REPEAT_SAMPLES or t.size < MIN_REPEAT_S * rate:
-        credible = False
-        reasons.append(f"the repeat is only {t.size / rate:.3g} s ({t.size} samples; needs {MIN_REPEAT_S:g} s and "
-                       f"{MIN_REPEAT_SAMPLES}): too few samples")
-    if stroke_diff > STROKE_REPEAT:
-        credible = False
-        reasons.append(f"the repeats' strokes differ by {100 * stroke_diff:.1f} % of the stroke's rms after alignment "
-                       f"(more than {100 * STROKE_REPEAT:g} %): not the same drive, so not the same force")
-    nper = min(t.size, 1 << int(math.ceil(math.log2(2.0 * rate))))
-    f, p = signal.welch(dF, fs=rate, nperseg=nper)
-    low = (f > 0) & (f <= DRIFT_HZ)
-    ref = (f > DRIFT_HZ) & (f <= DRIFT_BAND_TOP * rate)
-    if low.any() and ref.any() and np.mean(p[ref]) > 0:
-        ratio = float(np.mean(p[low]) / np.mean(p[ref]))
-        details["low_frequency_ratio"] = ratio
-        if ratio > DRIFT_FACTOR:
-            credible = False
-            reasons.append(f"the repeats' force difference is {ratio:.3g} x denser below {DRIFT_HZ:g} Hz than up to "
-                           f"{DRIFT_BAND_TOP * rate:.3g} Hz (more than {DRIFT_FACTOR:g}x): the damper drifts between "
-                           "the repeats (temperature) or the drive differs; the estimate is an upper bound")
-    in_band_value = None
-    if fit_rate_hz is not None:
-        total = float(np.sum(p))
-        share = float(np.sum(p[f < fit_rate_hz / 2.0])) / total if total > 0 else 1.0
-        in_band_value = value * math.sqrt(min(1.0, share)) if fit_rate_hz < rate else value
-        details["in_band_share"] = share
-    return Estimate.make("repeats", value, in_band_value, True, credible, reasons, **details)
+    return _repeat_estimate(dF, value, rate, fit_rate_hz, details)
 
 
 # --------------------------------------------------------------------------- the choice
