@@ -17,6 +17,7 @@ At the top:
 - ``formatting``: number formatting for people, in one place;
 - ``strict_json``: strict JSON for every file written (non-finite values as ``null``);
 - ``progress``: the one progress display over a whole job;
+- ``worker_processes``: how the worker pools start (a fork server with the simulation modules loaded);
 - ``__main__``: the parser of ``python -m tuner``.
 
 No import circle; modules import each other's public names by absolute path.

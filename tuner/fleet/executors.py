@@ -1,17 +1,13 @@
 """Where the rows run: a local process pool or a Dask cluster (``--scheduler``), results as they finish."""
 from __future__ import annotations
 
-import contextlib
 import os
 import re
 import time
 
+from tuner.worker_processes import WORKER_ENV, pool_context, worker_environment
+
 __all__ = ["FleetExecutor", "parse_scheduler", "WORKER_ENV"]
-
-#: environment of every worker process: one BLAS thread (the fleet level is the parallel one, and
-#: the same thread count everywhere keeps the numbers identical on every executor)
-WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-
 
 
 def parse_scheduler(spec: str | None) -> tuple[str, object]:
@@ -33,21 +29,6 @@ def parse_scheduler(spec: str | None) -> tuple[str, object]:
         return "address", spec
     raise ValueError(f"--scheduler {spec!r}: expected pool, pool:N, local:N or a Dask scheduler address such as "
                      f"tcp://10.0.0.5:8786")
-
-
-@contextlib.contextmanager
-def _worker_environment():
-    """WORKER_ENV in os.environ while worker processes are spawned (they inherit it)."""
-    old = {k: os.environ.get(k) for k in WORKER_ENV}
-    os.environ.update(WORKER_ENV)
-    try:
-        yield
-    finally:
-        for k, v in old.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
 
 
 def _in_worker(fn, arg):
@@ -79,10 +60,9 @@ class FleetExecutor:
 
     def __enter__(self):
         if self.kind == "pool":
-            import multiprocessing as mp
             from concurrent.futures import ProcessPoolExecutor
 
-            self._pool = ProcessPoolExecutor(max_workers=self.arg, mp_context=mp.get_context("spawn"))
+            self._pool = ProcessPoolExecutor(max_workers=self.arg, mp_context=pool_context())
         else:
             import logging
 
@@ -119,7 +99,7 @@ class FleetExecutor:
         if self._pool is not None:
             from concurrent.futures import as_completed
 
-            with _worker_environment():
+            with worker_environment():
                 futures = {self._pool.submit(_in_worker, fn, t): i for i, t in enumerate(tasks)}
             for fut in as_completed(futures):
                 try:

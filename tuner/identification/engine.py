@@ -2,7 +2,7 @@
 directly (``native``: one call per test, the same code the native FMU runs), or the Python
 reference in-process (``inprocess``).
 
-Evaluations run in worker processes (``spawn``), each holding ONE FMU instance reused for every
+Evaluations run in worker processes (``tuner.worker_processes``), each holding ONE FMU instance reused for every
 candidate (reset + parameters re-applied, see ``tuner.identification.runner``) and the identification strokes,
 sent once at start-up. A generation is evaluated as one batch (``sse_batch``), so evaluations
 run in parallel and are counted exactly. The other engines run the same equations without FMI;
@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import atexit
 import math
-import multiprocessing as mp
 import os
 import threading
 import time
@@ -43,6 +42,7 @@ from damper_fmu.models import ConvergenceError
 from tuner.data.prefilter import Prefilter
 from tuner.data.preprocess import Resampler
 from tuner.identification.runner import FmuRunner, SimulationError
+from tuner.worker_processes import pool_context
 
 __all__ = ["Signals", "Engine", "ENGINES", "fastest_engine", "oversampling", "simulate_signals",
            "IDENTIFICATION_STEP", "IDENTIFICATION_TOLERANCE"]
@@ -252,7 +252,7 @@ class Engine:
             self._pool = None
         else:
             self._local = None
-            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"),
+            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=pool_context(),
                                              initializer=_init_worker, initargs=args)
         # while the workers fill the cores, this process's BLAS runs on one thread too (its spinning
         # threads slowed the workers: the form tests 9 % slower with the workers' limit alone); restored
