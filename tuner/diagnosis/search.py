@@ -339,8 +339,10 @@ class CandidateSearch:
         re-balanced (the fitted base may have absorbed part of the effect into its tables) and a joint
         polish; the better identification fit wins. Returns its ranking row."""
         best_z, g, evals = None, -math.inf, 0
+        # one start (a settled base): its nonsmooth effects' held profiles also from the guess (``refit``'s fresh)
+        fresh = ext.from_params(self.guess) if self.one_start else None
         for start, sse_start, svd in self.starts:
-            fit = refit(self.eid, ext, ext.from_params(start), sse_start, svd, self.settings, self.share)
+            fit = refit(self.eid, ext, ext.from_params(start), sse_start, svd, self.settings, self.share, fresh=fresh)
             evals += fit.evaluations
             if fit.fitness > g:
                 best_z, g = fit.z, fit.fitness
