@@ -298,6 +298,24 @@ def test_a_free_play_in_a_damper_unlike_the_preset_is_named_on_the_base_that_mad
 
 
 @pytest.mark.slow
+@pytest.mark.full  # about 6 min on 2 cores (benchmarks/blind_class.py --model twochamber runs this damper, seed 500)
+def test_a_gap_the_two_chamber_base_absorbed_is_found_from_the_data_driven_guess(tmp_path):
+    """A 0.516 mm free play in the soft mounts of a random two-chamber damper (six 12-16 s tests at 500 Hz,
+    25 N noise), diagnosed blind. The two-chamber base fitted without the gap absorbs it as entrained air
+    and a small area ratio, where no refit from it gives the gap back (it ended 'unexplained'); the held
+    profile also started from the data-driven guess names it on the two-chamber base within 2 %."""
+    from campaign.damper_class import write_class_dataset
+
+    data = write_class_dataset(tmp_path / "data", "twochamber", 500, noise_n=25.0, sample_rate=500.0,
+                               hidden={"free_play": 0.5157e-3})
+    tests = load_dataset(data)
+    res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
+                   DiagnosisSettings(engine=fastest_engine()), log=lambda m: None)
+    assert res["base_model"] == "twochamber" and res["causes"] == ["free_play"], res["verdict"]
+    assert res["effect_parameters"]["free_play"]["value"] == pytest.approx(0.5157e-3, rel=0.02)
+
+
+@pytest.mark.slow
 def test_two_effects_hidden_together_are_both_named(tmp_path):
     rng = np.random.default_rng(2024)
     hidden = {e: float(rng.uniform(EFFECTS[e].low, EFFECTS[e].high)) for e in ("friction", "inertia")}
