@@ -107,14 +107,11 @@ def expected_cost(d: int, settings, *, settled: bool, forms_run: bool, held_out_
                          float(detection))
 
 
-def after_ranking(cost: DiagnosisCost, d: int, settings, *, scoring: int, forms_run: bool,
-                  base_continued: bool = True) -> None:
+def after_ranking(cost: DiagnosisCost, d: int, settings, *, scoring: int, forms_run: bool) -> None:
     """``cost`` once the candidates are ranked (module docstring): ``scoring`` candidates score above the
     acceptance line with a resolved force (the first of them leads); ``forms_run``: the base leaves a residual
-    above the floor; ``base_continued``: the lead's continuation continues the base refit too (not when that
-    is the settled base itself)."""
-    continued = 2.0 if base_continued else 1.0
-    cost.continuation = continued * CONTINUATION_JACOBIANS * (d + 2) if scoring and settings.final_jacobians > 0 else 0.0
+    above the floor."""
+    cost.continuation = 2.0 * CONTINUATION_JACOBIANS * (d + 2) if scoring and settings.final_jacobians > 0 else 0.0
     cost.intervals = float(scoring * (d + 2))
     others = max(0, min(scoring, settings.max_causes) - 1)
     cost.selection = float(others * refit_cost(d, 2, settings)

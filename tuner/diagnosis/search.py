@@ -187,8 +187,7 @@ class CandidateSearch:
         candidate's continuation, the intervals, the forward selection, the passes of the forms."""
         scoring = sum(1 for r in self.ranking if r["effect"] != "none" and r["score"] > ACCEPT_SCORE and r["resolved"])
         after_ranking(self.cost, self.par.dimension, self.settings, scoring=scoring,
-                      forms_run=self.above_floor(self.none_row["identification_rmse_n"]),
-                      base_continued=not self.base_is_settled_refit())
+                      forms_run=self.above_floor(self.none_row["identification_rmse_n"]))
         self.forecast()
 
     def at(self, stage: str, fraction: float | None = None) -> None:
@@ -271,10 +270,6 @@ class CandidateSearch:
         if rescore_ranking:
             rescore([r for r in self.ranking if r["effect"] != "none"], self.mse_none)
         self.ranking[:] = [self.none_row if r["effect"] == "none" else r for r in self.ranking]
-
-    def base_is_settled_refit(self) -> bool:
-        """The base refitted alike is the settled base itself (``refit_none``), not moved since."""
-        return bool(self.settled_by) and np.array_equal(self.z_none, self.par.from_params(self.base))
 
     def polish_quietly(self, par, z: np.ndarray, jacobians: int) -> PolishResult:
         return polish(self.eid, par, z, max_jacobians=jacobians, log=lambda m: None)
@@ -412,15 +407,13 @@ class CandidateSearch:
 
     def continue_lead(self) -> None:
         """The leading candidate's refit is continued to convergence (absorbed effects converge slowly), and
-        so is the base refit, so that the continuation is not credited to the effect; unless the base refit
-        is the settled base itself (``refit_none``: the same refinement would end where it is)."""
+        so is the base refit, so that the continuation is not credited to the effect."""
         lead = max(self.ranking, key=lambda r: r["score"] if r["resolved"] else -math.inf, default=None)
         if not (lead and lead["score"] > ACCEPT_SCORE and lead["resolved"] and self.settings.final_jacobians > 0):
             return
-        if not self.base_is_settled_refit():
-            pol = self.polish_quietly(self.par, self.z_none, self.settings.final_jacobians)
-            self.converged[""] = self.settled(pol, pol.fitness)
-            self.set_none(pol.z, pol.fitness, self.none_row["evaluations"] + pol.evaluations, rescore_ranking=False)
+        pol = self.polish_quietly(self.par, self.z_none, self.settings.final_jacobians)
+        self.converged[""] = self.settled(pol, pol.fitness)
+        self.set_none(pol.z, pol.fitness, self.none_row["evaluations"] + pol.evaluations, rescore_ranking=False)
         fit = self.refits[lead["effect"]]
         pol = self.polish_quietly(fit.ext, fit.z, self.settings.final_jacobians)
         g = pol.fitness
