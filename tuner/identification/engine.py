@@ -22,8 +22,8 @@ samples: the true parameters then score 8.6 N (``simulate_signals``, the one pla
 """
 from __future__ import annotations
 
-import atexit
 import math
+import multiprocessing.util
 import os
 import threading
 import time
@@ -201,7 +201,8 @@ def _exit_with_parent(parent: int) -> None:
 
 
 def _close_worker() -> None:
-    """Worker exit: free the worker's FMU while the interpreter is intact."""
+    """Worker exit (a multiprocessing finalizer: a forked worker ends without atexit): free the worker's FMU
+    while the interpreter is intact."""
     _WORKER["sim"].close()
 
 
@@ -212,7 +213,7 @@ def _init_worker(model, engine, fmu_path, max_internal_step, tolerance, tests):
     threadpool_limits(limits=1)
     _WORKER["sim"] = _Simulator(model, engine, fmu_path, max_internal_step, tolerance)
     _WORKER["tests"] = tests
-    atexit.register(_close_worker)
+    multiprocessing.util.Finalize(None, _close_worker, exitpriority=10)  # atexit does not run in a forked worker
 
 
 def _worker_sse(params):
