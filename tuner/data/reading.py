@@ -582,11 +582,10 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
     ``time_col=None`` (or a file without that column) with ``rate_hz`` [Hz] (else the rate a logger's
     preamble declares): samples at that rate. Time may be numbers (``time_unit`` s/ms) or date-time
     stamps (``date_order`` 'mdy'/'dmy' for year-last dates, None: from the data, see
-    :mod:`tuner.data.stamps`). ``header_line``: the 1-based file line of the column names (None:
-    detected after any preamble, :mod:`tuner.data.rigfile`). Units
-    (``*_unit``): given here or declared in the file (header ``force [kN]`` or a units row;
-    both must agree), else SI. ``velocity_col``: a measured stroke velocity (default unit:
-    stroke unit per second), used instead of differentiating the stroke.
+    :mod:`tuner.data.stamps`). ``header_line``: the 1-based file line of the column names (None: detected
+    after any preamble, :mod:`tuner.data.rigfile`). Units (``*_unit``): given here or declared in the file
+    (header ``force [kN]`` or a units row; both must agree), else SI. ``velocity_col``: a measured stroke
+    velocity (default unit: stroke unit per second), used instead of differentiating the stroke.
     ``temperature_col``: the oil temperature (degC or K), loaded as channel ``temperature``
     (without it the column named ``temperature`` in degC or K, or in no declared unit, is that
     channel -- ``Temperature (V)`` beside ``Temperature (degC)`` stays a channel in V -- and another
@@ -597,15 +596,13 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
     seconds of each test is removed (:mod:`tuner.data.calibration`). ``prefilter``: the filter the lab
     applied to the channels before writing them (:mod:`tuner.data.prefilter`, e.g. 'moving-average:0.02'),
     recorded in ``metadata['read']['prefilter']``: the simulated force passes it before every comparison.
-    Signs: ``stroke_sign``/``force_sign``
-    = -1 for rigs writing compression positive. ``t_start``/``t_end`` [s from the first sample] select a
-    segment. Duplicated or irregular stamps are regularised with a warning (see
-    :func:`_regularise`). ``extra_cols``: channel columns to keep (None: every other column).
+    Signs: ``stroke_sign``/``force_sign`` = -1 for rigs writing compression positive. ``t_start``/``t_end``
+    [s from the first sample] select a segment. Duplicated or irregular stamps are regularised with a warning
+    (see :func:`_regularise`). ``extra_cols``: channel columns to keep (None: every other column).
     ``check_plausible``: refuse physically implausible strokes/forces (:func:`check_plausible`);
     ``damper_class``: warn when the apparent damping is outside that class's range (:func:`class_warning`).
     What was understood goes to ``metadata['read']`` (with the damper class declared, checked or not),
-    warnings to ``metadata['warnings']``. Raises DataError on any problem.
-    """
+    warnings to ``metadata['warnings']``. Raises DataError on any problem."""
     path = Path(path)
     source = str(path)
     signs = {"stroke": stroke_sign, "force": force_sign}
@@ -626,7 +623,8 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
     cols.update(extra)
     ch_units = {"temperature": "degC", **ch_units} if "temperature" in use else ch_units
     stem = re.sub(r"\.(csv|tsv|txt|dat)(\.gz)?$|\.(parquet|pq)$", "", path.name, flags=re.IGNORECASE)
-    file_read = {"header_line": raw.header_line, "preamble": dict(raw.preamble), "date_order": stamps.get("date_order"),
+    file_read = {"columns": dict(use), "ignored": [c for c in rest if c not in extra_cols or c in dropped],
+                 "header_line": raw.header_line, "preamble": dict(raw.preamble), "date_order": stamps.get("date_order"),
                  "stamps": stamps.get("stamps"), "text_columns": text_cols}
     out = []
     for gid, rows in _groups(raw, use):
@@ -636,8 +634,7 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
         channels = {k[3:]: v for k, v in cg.items() if k.startswith("ch:")}
         rate, checks, notes = _test_checks(label, tg, cg, channels, lines, units, dt_tol, sample_rate_hz,
                                            raw.preamble, damper_class if check_plausible else None)
-        read = {"columns": dict(use), "ignored": [c for c in rest if c not in extra_cols or c in dropped],
-                "channels": list(channels), "units": units, "time": time_kind, "signs": dict(signs),
+        read = {"channels": list(channels), "units": units, "time": time_kind, "signs": dict(signs),
                 "delimiter": raw.delimiter, "decimal": raw.decimal, "regularised": note,
                 "segment_s": [t_start, t_end] if (t_start is not None or t_end is not None) else None,
                 **checks, **file_read, "calibration": _calibration_read(cal, use, raw, units, cg), "force_zero": zero,
@@ -645,9 +642,8 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
         warns = list(warn) + ([f"{label}: {note}"] if note else []) + notes
         out.append(RigTest(
             name=(name or stem) + ("" if gid is None else f"-{gid}"), role=role,
-            scenario="" if scenario is None else str(scenario), time=tg, stroke=cg["stroke"],
-            force=cg["force"], channels=channels,
-            sample_rate=float(sample_rate_hz) if sample_rate_hz else rate, source=path,
+            scenario="" if scenario is None else str(scenario), time=tg, stroke=cg["stroke"], force=cg["force"],
+            channels=channels, sample_rate=float(sample_rate_hz) if sample_rate_hz else rate, source=path,
             metadata={**dict(metadata or {}), "read": read, **({"warnings": warns} if warns else {})},
             channel_units=ch_units, velocity=cg.get("velocity")))
     return out
