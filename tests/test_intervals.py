@@ -193,6 +193,9 @@ def test_flags_from_value_and_standard_error():
     # log-scaled: symmetric in decades, always positive
     k = classify("k_B", "N/m", 1e6, 2e6, (1e2, 1e9), True)
     assert k.low > 0 and k.high / 1e6 == pytest.approx(1e6 / k.low, rel=1e-9)
+    # a standard error 3e5 times the value (a two-chamber L_C at its bound): the whole range, not an overflow
+    huge = classify("L_C", "m", 100.0, 2.96e7, (0.05, 100.0), True)
+    assert huge.status == "not determined" and (huge.low, huge.high) == (0.05, 100.0) and huge.beyond_bounds
     # a systematic shift of known size and unknown sign widens in quadrature: 0.3 and 0.4 give 0.5
     sh = classify("M_P", "kg", 12.0, 0.3, (1.0, 20.0), False, systematic=-0.4)
     assert (sh.low, sh.high) == pytest.approx((12.0 - 1.959964 * 0.5, 12.0 + 1.959964 * 0.5), rel=1e-6)

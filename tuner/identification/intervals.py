@@ -414,7 +414,9 @@ def classify(name: str, unit: str, value: float, std: float | None, bounds: tupl
                                      "finite variance): any value within the bounds fits as well"))
     spread = math.hypot(std, systematic) if systematic is not None and math.isfinite(systematic) else std
     if log_scale and value > 0:
-        low, high = value * math.exp(-Z95 * spread / value), value * math.exp(Z95 * spread / value)
+        # the relative half-width in decades; beyond 700 (e^700 ~ 1e304) every end is past the bounds already
+        k = min(Z95 * spread / value, 700.0)
+        low, high = value * math.exp(-k), value * math.exp(k)
     else:
         low, high = value - Z95 * spread, value + Z95 * spread
     beyond = low < lo_b or high > hi_b
