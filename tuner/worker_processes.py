@@ -11,6 +11,11 @@ Never 'fork' of the calling process itself: it may hold threads (BLAS, a progres
 instances that a child must not inherit. As with 'spawn', a script that opens a pool needs an
 ``if __name__ == "__main__":`` guard.
 
+Every worker ends when the process that opened its pool is gone (``exit_with_parent``): a run killed from
+outside (``kill``, a CI timeout) leaves no workers behind. With the fork server a worker's parent process is the
+server, which lives as long as any worker (each holds the server's liveness pipe), so the worker watches the
+pool's owner instead: ``multiprocessing.parent_process()``'s sentinel, a pipe only the owner holds open.
+
 Every worker runs with ``WORKER_ENV`` (one BLAS thread: the pool is the parallel level, and the same
 thread count everywhere keeps the numbers the same on every executor): the fork server is started
 with it, and spawned processes (Windows, a Dask LocalCluster) inherit it from ``worker_environment``.
@@ -19,9 +24,11 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing as mp
+import multiprocessing.connection
 import os
+import threading
 
-__all__ = ["pool_context", "worker_environment", "PRELOAD", "WORKER_ENV"]
+__all__ = ["pool_context", "worker_environment", "exit_with_parent", "PRELOAD", "WORKER_ENV"]
 
 #: the modules the fork server imports once: what a worker needs to simulate a damper or the vehicle
 PRELOAD = ("tuner.identification.engine", "tuner.vehicle.propagation")
@@ -55,3 +62,17 @@ def pool_context():
     with worker_environment():
         forkserver.ensure_running()
     return ctx
+
+
+def exit_with_parent() -> None:
+    """In a worker process: a daemon thread that ends the process (exit status 0, no clean-up: the owner is gone)
+    once the process that opened the pool has ended (module docstring). Nothing outside a pool's worker."""
+    parent = mp.parent_process()
+    if parent is None or parent.sentinel is None:
+        return
+    threading.Thread(target=_end_with, args=(parent.sentinel,), daemon=True, name="exit-with-parent").start()
+
+
+def _end_with(sentinel) -> None:
+    mp.connection.wait([sentinel])
+    os._exit(0)

@@ -5,7 +5,7 @@ import os
 import re
 import time
 
-from tuner.worker_processes import WORKER_ENV, pool_context, worker_environment
+from tuner.worker_processes import WORKER_ENV, exit_with_parent, pool_context, worker_environment
 
 __all__ = ["FleetExecutor", "parse_scheduler", "WORKER_ENV"]
 
@@ -62,7 +62,8 @@ class FleetExecutor:
         if self.kind == "pool":
             from concurrent.futures import ProcessPoolExecutor
 
-            self._pool = ProcessPoolExecutor(max_workers=self.arg, mp_context=pool_context())
+            self._pool = ProcessPoolExecutor(max_workers=self.arg, mp_context=pool_context(),
+                                             initializer=exit_with_parent)
         else:
             import logging
 

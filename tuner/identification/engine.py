@@ -24,9 +24,6 @@ from __future__ import annotations
 
 import math
 import multiprocessing.util
-import os
-import threading
-import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from functools import cached_property
@@ -42,7 +39,7 @@ from damper_fmu.models import ConvergenceError
 from tuner.data.prefilter import Prefilter
 from tuner.data.preprocess import Resampler
 from tuner.identification.runner import FmuRunner, SimulationError
-from tuner.worker_processes import pool_context
+from tuner.worker_processes import exit_with_parent, pool_context
 
 __all__ = ["Signals", "Engine", "ENGINES", "fastest_engine", "oversampling", "simulate_signals",
            "IDENTIFICATION_STEP", "IDENTIFICATION_TOLERANCE"]
@@ -193,13 +190,6 @@ class _Simulator:
 _WORKER: dict = {}
 
 
-def _exit_with_parent(parent: int) -> None:
-    """Daemon thread of a worker: end the worker when the parent process is gone (killed run)."""
-    while os.getppid() == parent:
-        time.sleep(2.0)
-    os._exit(0)
-
-
 def _close_worker() -> None:
     """Worker exit (a multiprocessing finalizer: a forked worker ends without atexit): free the worker's FMU
     while the interpreter is intact."""
@@ -207,7 +197,7 @@ def _close_worker() -> None:
 
 
 def _init_worker(model, engine, fmu_path, max_internal_step, tolerance, tests):
-    threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
+    exit_with_parent()  # a killed run leaves no workers behind
     # one BLAS thread per worker: the workers already fill the cores, and OpenBLAS threads that spin
     # beside them oversubscribe the machine (measured: the form tests 20 % slower with 2 BLAS threads each)
     threadpool_limits(limits=1)
