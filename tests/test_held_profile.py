@@ -1,0 +1,89 @@
+"""The held profile of a nonsmooth effect's magnitude (tuner.diagnosis.refit.held_profile, nonsmooth_profiles)
+on objectives whose minimum is known in closed form.
+
+A fake engine: the residual [N] is a known function of the free play alone (the Maxwell base's two parameters
+do not enter it, so each held value's re-fit ends where it starts), 50 samples.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from tuner.diagnosis.refit import HELD_PATIENCE, ExtendedParametrization, held_profile, nonsmooth_profiles
+from tuner.identification.parametrization import Parametrization
+
+N = 50
+GAP = 0.5e-3  # [m] the minimum of the profile objective
+
+
+class GapEngine:
+    """Residuals [N] of a function of the free play [m] only."""
+
+    def __init__(self, residual_of_gap):
+        self.residual_of_gap, self.n_samples = residual_of_gap, N
+
+    def residuals_batch(self, points):
+        return [np.full(N, self.residual_of_gap(float(p["free_play"]))) for p in points]
+
+
+def ext_and_start():
+    ext = ExtendedParametrization(Parametrization("maxwell", force_limit=4e4), "free_play", peak_force=2e4)
+    return ext, np.full(ext.dimension, 0.5)
+
+
+def coordinates(ext, gaps_m):
+    lo, hi = ext.extra_bounds[0]
+    return [(g - lo) / (hi - lo) for g in gaps_m]
+
+
+def test_a_start_where_the_held_effect_only_makes_the_fit_worse_is_left_after_the_patience():
+    """From a start that fits better without the effect (SSE sse_off) than with it at any value, the sweep stops
+    after HELD_PATIENCE values and no vertex is tried; counted against the best value alone, it went one further."""
+    ext, z0 = ext_and_start()
+    eng = GapEngine(lambda g: 10.0 + 1e5 * g)  # 10 N without the gap, worse with any
+    sse_off = N * 10.0 ** 2
+    values = coordinates(ext, np.geomspace(0.1e-3, 1.5e-3, 8))
+    held = held_profile(eng, ext, z0, 0, values, sse_off)
+    assert len(held.points) == HELD_PATIENCE
+    assert min(held.sse) > sse_off
+    assert len(held_profile(eng, ext, z0, 0, values).points) == HELD_PATIENCE + 1  # no reference: the first is best
+    pts = [np.r_[z0[:2], v] for v in values]
+    sse = [N * eng.residual_of_gap(ext.to_params(z)["free_play"]) ** 2 for z in pts]
+    out = nonsmooth_profiles(eng, ext, [z0], pts, sse, None, sse_off)
+    assert len(out.points) == HELD_PATIENCE  # the sweep only: no vertex
+
+
+def test_a_profile_that_beats_the_model_without_the_effect_is_swept_past_its_minimum_and_refined():
+    """A minimum at GAP [m] (the residual quadratic in log(gap / GAP)): the sweep runs through it, stops
+    HELD_PATIENCE values after the best, and the vertex of the parabola lands on GAP."""
+    ext, z0 = ext_and_start()
+    eng = GapEngine(lambda g: 1.0 + 5.0 * math.log(g / GAP) ** 2 if g > 0 else 1e3)
+    sse_off = N * 20.0 ** 2
+    gaps = np.geomspace(0.2e-3, 2e-3, 9)
+    values = coordinates(ext, gaps)
+    held = held_profile(eng, ext, z0, 0, values, sse_off)
+    best = int(np.argmin(held.sse))
+    assert len(held.points) == best + 1 + HELD_PATIENCE
+    assert abs(math.log(ext.to_params(held.points[best])["free_play"] / GAP)) <= 0.5 * math.log(gaps[1] / gaps[0])
+    pts = [np.r_[z0[:2], v] for v in values]
+    sse = [N * eng.residual_of_gap(ext.to_params(z)["free_play"]) ** 2 for z in pts]
+    out = nonsmooth_profiles(eng, ext, [z0], pts, sse, None, sse_off)
+    k = int(np.argmin(out.sse))
+    assert ext.to_params(out.points[k])["free_play"] == pytest.approx(GAP, rel=0.05)
+
+
+def test_the_start_that_absorbed_nothing_profiles_the_whole_grid_and_finds_a_minimum_beyond_a_flat_stretch():
+    """Flat (slowly rising) over the small gaps, a narrow minimum at GAP: the sweep from the grid profile's best
+    (the base re-balanced linearly pointed at the smallest value, as on a base that had absorbed the gap) gives up
+    on the flat stretch; the whole-grid profile of the second start finds GAP."""
+    ext, z0 = ext_and_start()
+    eng = GapEngine(lambda g: 10.0 + 1e3 * g - 9.5 * math.exp(-(math.log(g / GAP) / 0.3) ** 2) if g > 0 else 10.0)
+    sse_off = N * 10.0 ** 2
+    values = coordinates(ext, np.geomspace(0.04e-3, 2e-3, 7))
+    pts = [np.r_[z0[:2], v] for v in values]
+    sse = [sse_off * (0.9 + 0.01 * j) for j in range(len(pts))]  # the base re-balanced pointed at the smallest
+    swept_only = nonsmooth_profiles(eng, ext, [z0], pts, sse, None, sse_off)
+    assert max(ext.to_params(p)["free_play"] for p in swept_only.points) < 0.2e-3  # gave up on the flat stretch
+    both = nonsmooth_profiles(eng, ext, [z0, z0.copy()], pts, sse, None, sse_off)
+    k = int(np.argmin(both.sse))
+    assert ext.to_params(both.points[k])["free_play"] == pytest.approx(GAP, rel=0.1)
