@@ -145,7 +145,7 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print) -
             log(f"    polish: {failed} finite-difference neighbours could not be simulated; held this step")
         J = np.column_stack([(c - r) / hi for c, hi in zip(cols, h)])
         g = J.T @ r
-        free = ~(((u <= 0.0) & (g > 0.0)) | ((u >= 1.0) & (g < 0.0)))
+        free = _free(u, g)
         Jf = J[:, free]
         step_gn = np.linalg.lstsq(Jf, -r, rcond=1e-10)[0]
         predicted = float(cost - np.sum((r + Jf @ step_gn) ** 2)) / cost
@@ -178,6 +178,12 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print) -
                         predicted=predicted, budget_spent=stop.startswith("budget"), history=fitness)
 
 
+def _free(u: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """The active set: the variables not held on a bound (local coordinates in [0, 1]) by a gradient ``g`` of the
+    SSE that points out of the box there."""
+    return ~(((u <= 0.0) & (g > 0.0)) | ((u >= 1.0) & (g < 0.0)))
+
+
 def _secant_steps(residuals, u: np.ndarray, r: np.ndarray, J: np.ndarray, accepted: tuple):
     """Up to SECANT_STEPS Levenberg-Marquardt steps after the ``accepted`` step (SSE [N^2], damping, point,
     residual [N]) from ``u`` (residual ``r``), each on the Jacobian ``J`` (local coordinates) updated by
@@ -192,7 +198,7 @@ def _secant_steps(residuals, u: np.ndarray, r: np.ndarray, J: np.ndarray, accept
         J = J + np.outer((r_new - r) - J @ s, s) / float(s @ s)
         u, r = u_new, r_new
         g = J.T @ r
-        free = ~(((u <= 0.0) & (g > 0.0)) | ((u >= 1.0) & (g < 0.0)))
+        free = _free(u, g)
         step = _damped_step(residuals, u, free, J[:, free], g[free], cost, lam, batches=1)
         if step is None:
             break
