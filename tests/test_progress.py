@@ -238,3 +238,30 @@ def test_a_stage_forecast_in_seconds_counts_in_place_of_its_weight_before_and_wh
     assert p.remaining_s() == pytest.approx(190.0)
     expect(p, 100.0)
     assert p.remaining_s() == pytest.approx(100.0)
+
+
+def test_the_percentage_tells_the_time_left_and_never_goes_back_when_a_forecast_stage_starts():
+    """The main job's case: the diagnosis priced in seconds from the start at far more than its planned share.
+    The percentage is the elapsed time over itself and the time left, so the stage's start (where the forecast
+    becomes the stage's own clock) does not take it from 41 % back to 21 %; a later upward revision of the
+    time left lengthens the time left and leaves the percentage where the display had it."""
+    from tuner.progress import expect, forecast
+
+    clock, out = Clock(), io.StringIO()
+    p = JobProgress({"fit": 60.0, "validate": 12.0, "diagnosis": 70.0, "report": 8.0}, stream=out, tty=False,
+                    clock=clock)
+    stage(p, "fit")
+    forecast(p, "diagnosis", 150.0)
+    shown = []
+    for t, step in ((20.0, lambda: advance(p, 0.5)), (44.0, lambda: stage(p, "validate")),
+                    (48.0, lambda: stage(p, "diagnosis")), (59.0, lambda: expect(p, 25.0))):
+        clock.t = t
+        step()
+        left = p.remaining_s()
+        assert p.completed() == pytest.approx(t / (t + left)), t  # one story with the time left
+        shown.append(p.completed())
+    assert shown == sorted(shown)
+    clock.t = 60.0
+    expect(p, 400.0)  # the stage finds more work: more time left, the percentage stays
+    assert p.remaining_s() > 400.0
+    assert p.completed() == pytest.approx(shown[-1])

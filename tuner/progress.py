@@ -186,6 +186,7 @@ class JobProgress:
         self._maybe: tuple[float, str] | None = None  # (seconds, what) of a part that may still run (``expect``)
         self.forecasts: dict[str, float] = {}  # stage -> seconds it is expected to take (``forecast``)
         self._last_line = -float("inf")
+        self._shown = 0.0  # the share the display last showed (``completed`` never goes below it)
         self._bar = None
         if self.tty and not quiet:
             from tqdm import tqdm
@@ -199,10 +200,19 @@ class JobProgress:
         return self.clock() - self.t0
 
     def completed(self) -> float:
-        """Share [0-1] of the job's expected cost done (with a stage's own forecast: of the expected time)."""
-        if self._said is not None:
-            left = self.remaining_s()
-            return self.elapsed / (self.elapsed + left) if self.elapsed + left > 0 else 0.0
+        """Share [0-1] of the job done: the elapsed time over itself and the time left once that is estimated
+        (``remaining_s``: so the percentage and the time left tell one story, forecasts in seconds included),
+        before that the share of the planned weights done. Never less than the display showed before: an
+        estimate revised upward lengthens the time left, it does not take back progress."""
+        left = self.remaining_s()
+        if left is None:
+            share = self._planned_share()
+        else:
+            share = self.elapsed / (self.elapsed + left) if self.elapsed + left > 0 else 0.0
+        return max(share, self._shown)
+
+    def _planned_share(self) -> float:
+        """Share [0-1] of the planned weights done (the current stage by its fraction)."""
         total = sum(self.weights.values())
         done = sum(self.weights[s] for s in self.done)
         if self.current is not None and self.current not in self.done:
@@ -230,7 +240,7 @@ class JobProgress:
             planned_done = sum(self.weights[s] for s in self.done)
             speed = self._before_current / planned_done if planned_done > 0 else 1.0
             return max(0.0, left - (self.clock() - at)) + speed * planned_later + foreseen
-        c = self.completed()
+        c = self._planned_share()
         if c <= 0.02:
             return None
         per_weight = self.elapsed / (c * sum(self.weights.values()))  # [s] per unit of planned cost so far
@@ -301,7 +311,8 @@ class JobProgress:
         if self.quiet:
             return
         if self._bar is not None:
-            self._bar.n = int(1000 * self.completed())
+            self._shown = self.completed()
+            self._bar.n = int(1000 * self._shown)
             left = self.remaining_s()
             maybe = f" (+{_duration(self._maybe[0])} if {self._maybe[1]})" if self._maybe and self._maybe[0] > 0 else ""
             self._bar.set_postfix_str(f"{self.current or ''} {100 * self.stage_fraction():.0f} %"
@@ -310,7 +321,9 @@ class JobProgress:
         now = self.clock()
         if force or now - self._last_line >= self.interval_s:
             self._last_line = now
-            self.stream.write(f"{self._stamp()} {self.status()}\n")
+            line = self.status()
+            self._shown = self.completed()
+            self.stream.write(f"{self._stamp()} {line}\n")
             self.stream.flush()
 
 
