@@ -376,6 +376,9 @@ _TC_MAX_NEWTON = 60
 _TC_PLAIN = 12
 _TC_MAX_HALVINGS = 40
 _TC_MAX_NESTED = 200
+#: a mount whose stiffness and damping, linearised inside its dead band, are below this share of the engaged
+#: mount's carries no force there: the stage's first guess keeps the last piston velocity
+_TC_DISENGAGED = 1e-6
 #: smoothing width [m] of the two-chamber mount's dead band (free play); the gap's edges are kinks
 #: smoothed over this width (the limit gap -> 0 is the mount without play)
 PLAY_SMOOTHING = 1e-5
@@ -595,9 +598,18 @@ class TwoChamberModel:
 
         Unknowns: piston velocity w, valve rates up, uf and the chamber forces. Newton's method
         (``_newton``), started from the valve rates of the base point and the piston velocity at
-        frozen chamber forces."""
+        frozen chamber forces: with a free play, that of the mount linearised at the last piston velocity
+        (the mount's force is a kink smoothed over PLAY_SMOOTHING: the engaged mount's guess, far off inside
+        the dead band, sent the iteration to its line search and nested fallback at every crossing, 10 x
+        the cost of a simulation without the gap)."""
         fb = yb[1] - yb[2] + (self.ffr * math.tanh(yb[6] / self.v_eps) if self.ffr else 0.0)
-        w0 = (self.cM * v1 - fb + self.kM * (x1 - yb[0])) / (self.cM + self.kM * g)
+        if not self.gap:
+            w0 = (self.cM * v1 - fb + self.kM * (x1 - yb[0])) / (self.cM + self.kM * g)
+        else:
+            wp = yb[6]
+            fm, fe, fd = self.mount(x1 - (yb[0] + g * wp), v1 - wp)
+            den = g * fe + fd
+            w0 = wp + (fm - fb) / den if den > _TC_DISENGAGED * (self.cM + self.kM * g) else wp
         q, _, rn, singular = self._newton([w0, yb[4], yb[5], yb[1], yb[2]], 0, yb, g, x1, v1)
         if singular:
             raise ConvergenceError("two-chamber stage: singular Jacobian")

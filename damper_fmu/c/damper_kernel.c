@@ -438,6 +438,7 @@ static int maxwell_table_stage(DkModel *m, const double *yb, double g, double x1
 #define TC_MAX_HALVINGS 40
 #define TC_MAX_NESTED 200
 #define TC_PLAY_SMOOTHING 1e-5  /* m, models.py: PLAY_SMOOTHING */
+#define TC_DISENGAGED 1e-6  /* models.py: _TC_DISENGAGED */
 
 /* n x n (n <= 5) Gaussian elimination with partial pivoting; DK_ERROR when singular */
 static int solve_n(double a[5][5], const double *b, double *x, int n) {
@@ -646,7 +647,11 @@ static int tc_stage(DkModel *m, const double *yb, double g, double x1, double v1
                     size_t msglen) {
     double fb = yb[1] - yb[2] + (m->ff != 0.0 ? m->ff * tanh(yb[6] / m->v_eps) : 0.0), q[5], w0, r[5], J[5][5], rn;
     if (m->tc_tol == 0.0) m->tc_tol = TC_TOL * force_scale(m);
-    q[0] = (m->cM * v1 - fb + m->kM * (x1 - yb[0])) / (m->cM + m->kM * g);
+    if (m->tc_gap == 0.0) q[0] = (m->cM * v1 - fb + m->kM * (x1 - yb[0])) / (m->cM + m->kM * g);
+    else { /* the mount with its dead band linearised at the last piston velocity (models.py: stage) */
+        double fe, fd, wp = yb[6], fm = tc_mount(m, x1 - (yb[0] + g * wp), v1 - wp, &fe, &fd), den = g * fe + fd;
+        q[0] = den > TC_DISENGAGED * (m->cM + m->kM * g) ? wp + (fm - fb) / den : wp;
+    }
     q[1] = yb[4]; q[2] = yb[5]; q[3] = yb[1]; q[4] = yb[2];
     w0 = q[0];
     if (tc_newton(m, q, 0, yb, g, x1, v1, r, J, &rn)) {
