@@ -49,3 +49,47 @@ def test_the_workers_of_a_killed_run_end_with_it(tmp_path):
     while any(_alive(p) for p in workers) and time.monotonic() < deadline:
         time.sleep(0.2)
     assert not [p for p in workers if _alive(p)], "workers outlived the killed run"
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_the_workers_of_a_killed_fit_remove_their_extracted_fmus(tmp_path):
+    """An engine's workers on the FMU engine each extract the FMU into the temporary folder; killed with the run
+    that opened them, they delete those folders before they end (before, each one stayed: a run stopped by a CI
+    timeout or kill -9 left two per engine)."""
+    temp = tmp_path / "tmp"
+    temp.mkdir()
+    script = tmp_path / "fit.py"
+    script.write_text(textwrap.dedent("""
+        import os, time
+        from pathlib import Path
+        from damper_fmu import defaults
+        from tuner.data.reading import load_dataset
+        from tuner.identification.engine import Engine
+        from tuner.identification.fit import FitSettings, ensure_fmu
+        from tuner.identification.problem import Problem
+
+        if __name__ == "__main__":
+            tests = load_dataset(Path("data/default"))[:1]
+            problem = Problem.build(tests, [], FitSettings().data)
+            with Engine("maxwell", problem.sig_id, engine="fmu", workers=2, fmu_path=ensure_fmu("maxwell")) as eng:
+                eng.fitness_batch([defaults("maxwell")] * 4)
+                print(" ".join(str(p) for p in eng._pool._processes), flush=True)
+                time.sleep(120)
+    """))
+    proc = subprocess.Popen([sys.executable, str(script)], cwd=ROOT, stdout=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONPATH": str(ROOT), "TMPDIR": str(temp)})
+    try:
+        workers = [int(p) for p in proc.stdout.readline().split()]
+        assert workers and all(_alive(p) for p in workers)
+        started = time.monotonic() + 30.0  # a worker extracts its FMU as it starts
+        while len(list(temp.glob("damper_runner_*"))) < len(workers) and time.monotonic() < started:
+            time.sleep(0.2)
+        assert len(list(temp.glob("damper_runner_*"))) == len(workers)
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    deadline = time.monotonic() + 30.0
+    while (any(_alive(p) for p in workers) or list(temp.glob("damper_runner_*"))) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not [p for p in workers if _alive(p)], "workers outlived the killed run"
+    assert not list(temp.glob("damper_runner_*")), "the killed run's workers left their extracted FMUs"

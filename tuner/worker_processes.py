@@ -15,6 +15,8 @@ Every worker ends when the process that opened its pool is gone (``exit_with_par
 outside (``kill``, a CI timeout) leaves no workers behind. With the fork server a worker's parent process is the
 server, which lives as long as any worker (each holds the server's liveness pipe), so the worker watches the
 pool's owner instead: ``multiprocessing.parent_process()``'s sentinel, a pipe only the owner holds open.
+Before it ends it runs what was registered with ``on_orphan_exit`` (the FMU runners delete their extracted
+folders), with no other clean-up: the owner is gone and the main thread may be inside an FMU.
 
 Every worker runs with ``WORKER_ENV`` (one BLAS thread: the pool is the parallel level, and the same
 thread count everywhere keeps the numbers the same on every executor): the fork server is started
@@ -28,12 +30,14 @@ import multiprocessing.connection
 import os
 import threading
 
-__all__ = ["pool_context", "worker_environment", "exit_with_parent", "PRELOAD", "WORKER_ENV"]
+__all__ = ["pool_context", "worker_environment", "exit_with_parent", "on_orphan_exit", "PRELOAD", "WORKER_ENV"]
 
 #: the modules the fork server imports once: what a worker needs to simulate a damper or the vehicle
 PRELOAD = ("tuner.identification.engine", "tuner.vehicle.propagation")
 #: environment of every worker process (module docstring)
 WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+#: what a worker whose owner has gone does before it exits (``on_orphan_exit``)
+_ON_ORPHAN_EXIT: list = []
 
 
 @contextlib.contextmanager
@@ -73,6 +77,19 @@ def exit_with_parent() -> None:
     threading.Thread(target=_end_with, args=(parent.sentinel,), daemon=True, name="exit-with-parent").start()
 
 
+def on_orphan_exit(clean_up) -> None:
+    """Have ``clean_up()`` run in this worker just before it ends because its owner has gone
+    (``exit_with_parent``): files only (removing a folder this process extracted), no calls into a library
+    another thread of the worker may be inside. Registering the same callable again does nothing."""
+    if clean_up not in _ON_ORPHAN_EXIT:
+        _ON_ORPHAN_EXIT.append(clean_up)
+
+
 def _end_with(sentinel) -> None:
     mp.connection.wait([sentinel])
+    for clean_up in list(_ON_ORPHAN_EXIT):
+        try:
+            clean_up()
+        except OSError:  # the process ends anyway; a folder left behind is all that is lost
+            pass
     os._exit(0)

@@ -27,6 +27,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Integer
 
 from damper_fmu.native import compile_library
+from tuner.worker_processes import on_orphan_exit
 
 __all__ = ["FmuRunner", "SimulationError", "as_stroke_arrays", "stepper"]
 
@@ -46,6 +47,14 @@ _FINALIZED_PID: list = [None]
 def _close_live_runners() -> None:
     for runner in list(_LIVE):
         runner.close()
+
+
+def _remove_extracted_folders() -> None:
+    """The extracted FMU folders of this process's live runners deleted, the instances left alone: what a worker
+    whose run was killed does before it ends (``tuner.worker_processes.on_orphan_exit``; its main thread may be
+    inside the FMU, whose loaded library stays mapped after its file is gone)."""
+    for runner in list(_LIVE):
+        shutil.rmtree(getattr(runner, "_unzip", ""), ignore_errors=True)
 
 
 def _close_at_process_exit() -> None:
@@ -123,6 +132,7 @@ class FmuRunner:
         self.max_internal_step = max_internal_step
         self.tolerance = tolerance
         self._unzip = extract(str(self.path), tempfile.mkdtemp(prefix="damper_runner_"))
+        on_orphan_exit(_remove_extracted_folders)
         self.messages: list[str] = []
 
         def _log(env, instance, status, category, message):
