@@ -37,15 +37,6 @@ two-chamber classes, ``benchmarks/convergence.py``, docs/identification.md, "Con
   truth scoring 37.2 N, in 11 Jacobians). A secant over 1e-3 of each range sees through that
   roughness; the fine step is kept where it works (it is more accurate on smooth objectives).
 
-* after each accepted step, up to ``SECANT_STEPS`` more steps on the Jacobian updated by Broyden's rank-one
-  secant formula (the residual change of the step just taken), each one batch of two damping values, kept
-  while they lower the SSE; then a new finite-difference Jacobian. A Jacobian costs d simulations, a secant
-  step two: on a two-chamber damper with a 0.52 mm free play (39 coordinates, the diagnosis's continued
-  refit from 64.7 N) plain Levenberg-Marquardt took 30 Jacobians (1231 simulations, 130 s) to 26.9 N, with
-  secant steps 9 Jacobians (416 simulations, 46 s) to 26.5 N, 20 of 23 secant steps accepted. The
-  convergence tests above only ever use a finite-difference Jacobian, and the resolution window counts
-  Jacobians, not secant steps.
-
 Each Jacobian is one batch of d simulations (forward differences) through the engine, i.e. in
 parallel through the FMU; each damping trial evaluates two damping values at once. The best point
 seen is returned; the start is never lost.
@@ -61,7 +52,6 @@ from tuner.metrics import rmse_standard_error
 from tuner.progress import advance
 
 __all__ = ["polish", "PolishResult", "resolution_stop", "small_progress", "RTOL", "STALL_RTOL", "STEP", "COARSE_STEP", "FTOL",
-           "SECANT_STEPS",
            "RESOLUTION_WINDOW", "RESOLUTION_FRACTION"]
 
 #: Converged when the Gauss-Newton step predicts less than this share of the SSE.
@@ -73,8 +63,6 @@ STALL_RTOL = 1e-2
 FTOL = 1e-2
 RESOLUTION_WINDOW = 3
 RESOLUTION_FRACTION = 0.25
-#: steps on the secant-updated Jacobian after each accepted finite-difference step (module docstring)
-SECANT_STEPS = 3
 #: Jacobians a refinement typically takes to converge (for the progress display only)
 TYPICAL_JACOBIANS = 15
 #: forward-difference step in the local coordinates (each spans its parameter's bounds)
@@ -107,7 +95,7 @@ class PolishResult:
     predicted: float
     #: stopped by ``max_jacobians`` while still improving
     budget_spent: bool
-    #: fitness G = N / SSE [1/N^2] at the start and after each Jacobian's accepted steps
+    #: fitness G = N / SSE [1/N^2] at the start and after every accepted step
     history: list = field(default_factory=list)
 
 
@@ -167,7 +155,8 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print) -
             stop = (f"{'converged' if converged else 'stalled'}: no damped step lowers the SSE "
                     f"(the Gauss-Newton step predicts {predicted:.1e} of it, differences of {step:g})")
             break
-        cost, lam, u, r = _secant_steps(residuals, u, r, J, accepted)
+        cost, lam, u, r = accepted
+        lam = max(lam / 5.0, 1e-9)
         fitness.append(n / cost)
         resolved = resolution_stop(fitness, r)
         if resolved:
@@ -184,39 +173,16 @@ def _free(u: np.ndarray, g: np.ndarray) -> np.ndarray:
     return ~(((u <= 0.0) & (g > 0.0)) | ((u >= 1.0) & (g < 0.0)))
 
 
-def _secant_steps(residuals, u: np.ndarray, r: np.ndarray, J: np.ndarray, accepted: tuple):
-    """Up to SECANT_STEPS Levenberg-Marquardt steps after the ``accepted`` step (SSE [N^2], damping, point,
-    residual [N]) from ``u`` (residual ``r``), each on the Jacobian ``J`` (local coordinates) updated by
-    Broyden's rank-one formula with the step just taken: one batch of two damping values per step, kept while
-    it lowers the SSE. Returns (SSE, damping for the next step, point, residual) of the last point kept."""
-    cost, lam, u_new, r_new = accepted
-    lam = max(lam / 5.0, 1e-9)
-    for _ in range(SECANT_STEPS):
-        s = u_new - u
-        if not float(s @ s) > 0.0:
-            break
-        J = J + np.outer((r_new - r) - J @ s, s) / float(s @ s)
-        u, r = u_new, r_new
-        g = J.T @ r
-        free = _free(u, g)
-        step = _damped_step(residuals, u, free, J[:, free], g[free], cost, lam, batches=1)
-        if step is None:
-            break
-        cost, lam, u_new, r_new = step
-        lam = max(lam / 5.0, 1e-9)
-    return cost, lam, u_new, r_new
-
-
 def _damped_step(residuals, u: np.ndarray, free: np.ndarray, Jf: np.ndarray, gf: np.ndarray, cost: float,
-                 lam: float, batches: int = 10):
+                 lam: float):
     """The Levenberg-Marquardt step of ``polish`` from ``u`` (local coordinates) on its ``free`` variables:
     two damping values per batch (lam and 10 lam, lam raised 100x after a batch that lowers nothing, at
-    most ``batches`` batches), steps projected into the box. Returns (SSE [N^2], damping, point, residual) of the
+    most 10 batches), steps projected into the box. Returns (SSE [N^2], damping, point, residual) of the
     best trial that lowers ``cost``, or None."""
     JtJ = Jf.T @ Jf
     scale = np.diag(np.maximum(np.diag(JtJ), 1e-30))
     accepted = None
-    for _ in range(batches):
+    for _ in range(10):
         trials = []
         for damping in (lam, 10.0 * lam):
             un = u.copy()
