@@ -69,8 +69,9 @@ def pool_context():
 
 
 def exit_with_parent() -> None:
-    """In a worker process: a daemon thread that ends the process (exit status 0, no clean-up: the owner is gone)
-    once the process that opened the pool has ended (module docstring). Nothing outside a pool's worker."""
+    """In a worker process: a daemon thread that ends the process (exit status 0) once the process that opened the
+    pool has ended, after what ``on_orphan_exit`` registered and no other clean-up (module docstring). Nothing
+    outside a pool's worker."""
     parent = mp.parent_process()
     if parent is None or parent.sentinel is None:
         return

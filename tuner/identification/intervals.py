@@ -414,7 +414,7 @@ def classify(name: str, unit: str, value: float, std: float | None, bounds: tupl
                                      "finite variance): any value within the bounds fits as well"))
     spread = math.hypot(std, systematic) if systematic is not None and math.isfinite(systematic) else std
     if log_scale and value > 0:
-        # the relative half-width in decades; beyond 700 (e^700 ~ 1e304) every end is past the bounds already
+        # the half-width in natural-log units; beyond 700 (e^700 ~ 1e304) every end is past the bounds already
         k = min(Z95 * spread / value, 700.0)
         low, high = value * math.exp(-k), value * math.exp(k)
     else:
