@@ -87,3 +87,42 @@ def test_the_start_that_absorbed_nothing_profiles_the_whole_grid_and_finds_a_min
     both = nonsmooth_profiles(eng, ext, [z0, z0.copy()], pts, sse, None, sse_off)
     k = int(np.argmin(both.sse))
     assert ext.to_params(both.points[k])["free_play"] == pytest.approx(GAP, rel=0.1)
+
+
+class AbsorbingEngine:
+    """Residuals [N] of a base that absorbs the gap: the base coordinate u (the first search coordinate) fits
+    best at u*(g) = U0 + SLOPE * g / 1 mm, inside a ripple of local minima every RIPPLE in u (the
+    first 25 samples), with a weak pull to u*(g) (the next 24) and the gap's own term, least at GAP (the last)."""
+
+    U0, SLOPE, RIPPLE = 0.3, 0.14, 0.03
+
+    def __init__(self, ext):
+        self.ext, self.n_samples = ext, N
+
+    def residuals_batch(self, points):
+        out = []
+        for p in points:
+            g = float(p["free_play"])
+            d = float(self.ext.from_params(p)[0]) - (self.U0 + self.SLOPE * g / 1e-3)
+            out.append(np.r_[np.full(25, 100.0 * math.sin(math.pi * d / self.RIPPLE)), np.full(24, 100.0 * d),
+                             [50.0 * (g - GAP) / GAP]])
+        return out
+
+
+def test_a_chained_profile_follows_what_the_base_absorbed_where_a_refit_from_the_start_is_caught():
+    """The base's best coordinate moves with the gap (u*(g), known in closed form) across a ripple of local
+    minima: held at GAP, a re-fit from the start (u*(0)) stops in the ripple's nearest minimum, away from u*(GAP);
+    chained through gaps that move u* by a quarter of the ripple at a time, the profile stays on u*(g) and ends
+    at the global minimum (SSE 0)."""
+    ext, z0 = ext_and_start()
+    z0[0] = AbsorbingEngine.U0
+    eng = AbsorbingEngine(ext)
+    sse_off = float(np.sum(eng.residuals_batch([ext.to_params(np.r_[z0[:2], 0.0])])[0] ** 2))
+    values = coordinates(ext, np.linspace(0.05e-3, GAP, 10))
+    alone = held_profile(eng, ext, z0, 0, values[-1:], sse_off)
+    chained = held_profile(eng, ext, z0, 0, values, sse_off, chained=True)
+    u_star = AbsorbingEngine.U0 + AbsorbingEngine.SLOPE * GAP / 1e-3
+    assert abs(alone.points[0][0] - u_star) > 0.5 * AbsorbingEngine.RIPPLE  # caught in the ripple
+    assert alone.sse[0] > 0.1 * sse_off
+    assert chained.points[-1][0] == pytest.approx(u_star, abs=1e-3)
+    assert chained.sse[-1] < 1e-3 * alone.sse[0]
