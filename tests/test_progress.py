@@ -265,3 +265,41 @@ def test_the_percentage_tells_the_time_left_and_never_goes_back_when_a_forecast_
     expect(p, 400.0)  # the stage finds more work: more time left, the percentage stays
     assert p.remaining_s() > 400.0
     assert p.completed() == pytest.approx(shown[-1])
+
+
+def test_an_identification_tells_its_log_the_seconds_left_of_its_search_and_refinements(small_lumped):
+    """``identify`` (through ``fit``) says its seconds left at every Firefly iteration (the search's rest and the
+    refinements priced at the measured cost per simulation) and before every refinement after the first (those
+    still to run at the measured time of those done), so a stage that overruns a forecast made before it started
+    still counts down from what it measures, not from zero."""
+    from tuner.identification.engine import fastest_engine
+    from tuner.identification.fit import FitSettings, fit, refinement_starts
+
+    said, lines = [], []
+
+    class Log:
+        def __call__(self, msg):
+            lines.append(msg)
+            said.append(("line", msg))
+
+        def stage(self, name):
+            pass
+
+        def advance(self, fraction):
+            pass
+
+        def expect(self, seconds_left, maybe=None):
+            said.append(("expect", seconds_left))
+
+    ident, valid = small_lumped
+    fit(ident, valid, FitSettings(models=("lumped",), population=4, iterations=3, workers=0, engine=fastest_engine(),
+                                  polish_jacobians=2), log=Log())
+    expects = [s for kind, s in said if kind == "expect"]
+    assert expects and all(s >= 0.0 for s in expects)
+    first_refinement = next(k for k, (kind, m) in enumerate(said) if kind == "line" and "local refinement from" in m)
+    search = [s for kind, s in said[:first_refinement] if kind == "expect"]
+    refining = [s for kind, s in said[first_refinement:] if kind == "expect"]
+    assert len(search) >= 3 and search[0] > 0.0  # every iteration, the refinements included
+    runs = sum("local refinement from" in m and "RMSE" in m for m in lines)
+    assert runs == refinement_starts("lumped") and len(refining) == runs - 1
+    assert all(s > 0.0 for s in refining)  # each before a run still to come

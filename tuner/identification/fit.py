@@ -44,11 +44,11 @@ from tuner.identification.engine import IDENTIFICATION_STEP, Engine, Signals, si
 from tuner.identification.full_rate import MIN_RATE_RATIO, comparison_rate, full_rate_check
 from tuner.identification.intervals import parameter_intervals, reached_ranges
 from tuner.identification.parametrization import Parametrization
-from tuner.identification.polish import PolishResult, polish, resolution_stop, small_progress
+from tuner.identification.polish import TYPICAL_JACOBIANS, PolishResult, polish, resolution_stop, small_progress
 from tuner.identification.problem import DataSettings, Problem, split_data_settings, to_signals
 from tuner.identification.runner import SimulationError
 from tuner.metrics import error_metrics, noise_std
-from tuner.progress import advance, stage
+from tuner.progress import advance, expect, stage
 from tuner import strict_json
 
 __all__ = ["FitSettings", "FitResult", "Identified", "fit", "initial_guess", "validation_run", "identify", "quality_gate", "QUALITY_AME_PCT",
@@ -233,6 +233,8 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
             log(f"[{model}] iter {st.iteration:3d}/{settings.iterations}  best G {best:.4e} (RMSE {rmse:7.1f} N)"
                 f"  mean G {st.history_mean[-1]:.4e}  {rate:5.1f} eval/s  search ~{left / 60:4.1f} min left at most")
             advance(log, 0.85 * st.iteration / max(settings.iterations, 1))
+            if rate > 0:  # the search at most, then the refinements at the measured cost per simulation
+                expect(log, left + refinement_starts(model) * TYPICAL_JACOBIANS * (par.dimension + 1) / rate)
             return at_resolution(st)
 
         if state is not None and ckpt.exists():
@@ -293,7 +295,8 @@ def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result
     ``RESTART_LADDER`` variants): the Firefly population often collapses into one basin, on random dampers
     sometimes a degenerate one (silent blocks as pure dashpots, 2.2x the floor) that the data-driven start
     avoids; the best refinement wins (benchmarks/convergence.py). A form ``RACE_RATIO`` x worse than its
-    ``rival`` after the first gets no restart."""
+    ``rival`` after the first gets no restart. The progress ``log`` is told the seconds the refinements still to
+    run will take, at the measured time of those done."""
     none = PolishResult(result.x_best, result.fitness_best, 0, stop="no local refinement (--polish 0)",
                         converged=False, rule="not started", jacobians=0, predicted=1.0, budget_spent=False)
     ref = Refinement(result.x_best, result.fitness_best, 0, none, [], None)
@@ -308,7 +311,9 @@ def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result
         for factor in (10.0, 0.1):
             value = min(max(guess_p[name] * factor, lo), hi)
             starts.append((f"data-driven start with {name} = {value:.3g}", par.from_params({**guess_p, name: value})))
-    for label, z0 in starts:
+    for k, (label, z0) in enumerate(starts):
+        if k:  # the refinements still to run, at the measured time of those done
+            expect(log, (len(starts) - k) * (time.perf_counter() - t0) / k)
         if ref.runs and rival and ref.runs[0]["rmse_n"] > RACE_RATIO * rival[1]:
             ref.race = {"rival": rival[0], "rival_rmse_n": rival[1], "ratio": ref.runs[0]["rmse_n"] / rival[1],
                         "skipped": [lab for lab, _ in starts[1:]]}
