@@ -423,6 +423,93 @@ class DamperResponse:
     states: np.ndarray = field(repr=False)
 
 
+def _valve_constants(vs: ValveSet, rho: float) -> tuple:
+    """A valve's constants in the order ``_fast_fluid``'s flow takes them (SI): laminar resistance, turbulent
+    coefficient, orifice gain, blow-off crack and full pressure, smoothing and area, check crack and full
+    pressure, smoothing and area."""
+    cd = vs.discharge_coefficient
+    return (vs.laminar_resistance, rho / (2.0 * (cd * vs.orifice_area) ** 2),
+            cd * math.sqrt(2.0 / rho), vs.blowoff_crack, vs.blowoff_full,
+            vs.smooth_blowoff, vs.blowoff_area, vs.check_crack, vs.check_full,
+            vs.smooth_check, vs.check_area)
+
+
+def _fast_fluid(p: "DamperParams"):
+    """(flow, opening, beta_e): the closures over ``p``'s constants that ``RigDamper.fast_rhs`` calls, the same
+    sums as ``valve_flow``, ``_opening`` and ``bulk_modulus`` without their partials. flow(constants, dp [Pa],
+    phi, y or None) [m^3/s] with ``_valve_constants``; opening(u [Pa], crack, full, w) [0-1]; beta_e(p [Pa]) [Pa]."""
+    pt2 = _P_TURB * _P_TURB
+    a0, nair, bl = p.air_fraction, p.n_air, p.bulk_modulus
+    inv_n = 1.0 / nair
+    exp, sqrt, log1p = math.exp, math.sqrt, math.log1p
+
+    def sp(z, w):
+        return (z if z > 0 else 0.0) + w * log1p(exp(-abs(z) / w))
+
+    def opening(u, crack, full, w):
+        if u < crack - 40.0 * w:
+            return 0.0
+        return (sp(u - crack, w) - sp(u - full, w)) / (full - crack)
+
+    def flow(cs, dp, phi, ydyn):
+        rl, rt, kc, pc, pf, wb, ab, cc, cf, wc, ac = cs
+        u = dp / phi
+        q = 2.0 * u / (rl + sqrt(rl * rl + 4.0 * rt * abs(u)))
+        y = opening(u, pc, pf, wb) if ydyn is None else ydyn
+        if y != 0.0:
+            q += ab * y * kc * u / (u * u + pt2) ** 0.25
+        yc = opening(-dp, cc, cf, wc)
+        if yc != 0.0:
+            q += ac * yc * kc * dp / (dp * dp + pt2) ** 0.25
+        return q
+
+    def beta_e(pp):
+        if pp < 1e3:
+            pp = 1e3
+        uu = a0 * (P_ATM / pp) ** inv_n
+        a = uu / (uu + 1.0 - a0)
+        return 1.0 / ((1.0 - a) / bl + a / (nair * pp))
+
+    return flow, opening, beta_e
+
+
+@dataclass(frozen=True)
+class _Terms:
+    """What the derivative and its Jacobian share at one state (``RigDamper._terms``; SI units): the state, the
+    actuator rate, the relative rod rate, mount A's tension and its partials, the friction (with F_y zeta) and
+    its rate partial, the Bouc-Wen (d zeta/dt and its partials in the rate and zeta), the rod's thrust, the
+    reservoir pressure's partial in the displaced volume, the viscosity factor, the valves' pressure drops, their
+    (flow, partials in pressure, viscosity factor and opening) for the piston then the foot valve, the bypass
+    flow's partial in the stroke, the chambers' volumes, bulk moduli and net flows, and the lagged openings'
+    targets with their partials (piston, foot)."""
+
+    y: np.ndarray
+    sd: float
+    xd: float
+    ta: float
+    dta_d: float
+    dta_dd: float
+    th_f: float
+    dthf: float
+    bw: tuple
+    th: float
+    dpres: float
+    phi: float
+    dpp: float
+    dpf: float
+    valves: tuple
+    dqbp_dx: float
+    vR: float
+    vC: float
+    bR: float
+    dbR: float
+    bC: float
+    dbC: float
+    flowR: float
+    flowC: float
+    yq: tuple
+
+
 class RigDamper:
     """Twin-tube damper under displacement control; see the module docstring."""
 
@@ -512,28 +599,29 @@ class RigDamper:
 
     # -------------------------------------------------------------- rhs + Jacobian
     def _eval(self, y, t, stroke: StrokeInput, want_jac: bool):
+        """(the state derivative, its Jacobian d f / d y or None): ``_terms`` at the state, then both from them."""
+        terms = self._terms(y, t, stroke)
+        return self._derivative(terms), (self._jacobian(terms) if want_jac else None)
+
+    def _terms(self, y, t, stroke: StrokeInput) -> "_Terms":
+        """The forces, flows and fluid properties at state ``y`` and time ``t`` [s], with their partials."""
         p, c = self.p, self.c
-        aa, ap, ar = self.aa, self.ap, self.ar
+        aa, ap = self.aa, self.ap
         da, vr, xb, vb, pR, pC, dv, temp, yp, yf = y[:IZ]
-        n = self.n_states
         s, sd = stroke.eval(t)
         x, xd = s - da - xb, vr - vb
         ta, dta_d, dta_dd = self._mount_a(da, sd - vr)
-        k, cm = p.mount_stiffness, p.mount_damping
-        tb = k * xb + cm * vb
         ff, veps = c.friction_force, c.friction_v_eps
         th_f = ff * math.tanh(xd / veps) if ff > 0 else 0.0
         dthf = ff / veps * (1.0 - (th_f / ff) ** 2) if ff > 0 else 0.0
-        fy = c.preyield_force
+        bw = (0.0, 0.0, 0.0)
         if c.preyield:  # Bouc-Wen: force F_y zeta, acting like the friction
             z, xy = y[IZ], c.preyield_displacement
             zn = abs(z) ** BW_N
             shape = BW_GAMMA * (1.0 if xd * z >= 0.0 else -1.0) + BW_BETA
-            dz = xd / xy * (1.0 - zn * shape)
-            dz_dxd = (1.0 - zn * shape) / xy
-            dz_dz = -xd / xy * BW_N * abs(z) ** (BW_N - 1) * math.copysign(1.0, z) * shape
-            th_f += fy * z
-        th = pR * aa - pC * ap + P_ATM * ar + th_f
+            bw = (xd / xy * (1.0 - zn * shape), (1.0 - zn * shape) / xy,
+                  -xd / xy * BW_N * abs(z) ** (BW_N - 1) * math.copysign(1.0, z) * shape)
+            th_f += c.preyield_force * z
         pres, dpres = self._p_res(dv)
         beta = c.thermal_beta
         phi = math.exp(-beta * (temp - p.viscosity_reference_temperature)) if beta > 0 else 1.0
@@ -552,38 +640,54 @@ class RigDamper:
         vR, vC = self.vr0 - aa * x, self.vc0 + ap * x
         bR, dbR = bulk_modulus(pR, p)
         bC, dbC = bulk_modulus(pC, p)
-        flowR = aa * xd - qp
-        flowC = -ap * xd + qp - qf
-        f = [0.0] * n
-        f[ID_A] = sd - vr
-        f[IV_R] = (ta - th) / self.m_rod
-        f[IX_B] = vb
-        f[IV_B] = (th - tb) / p.body_mass
-        f[IP_R] = bR / vR * flowR
-        f[IP_C] = bC / vC * flowC
+        yq = (0.0, 0.0, 0.0, 0.0)
+        if lag:
+            vp, vf = p.piston_valve, self.foot
+            yq = (*_opening(dpp / phi, vp.blowoff_crack, vp.blowoff_full, vp.smooth_blowoff),
+                  *_opening(dpf / phi, vf.blowoff_crack, vf.blowoff_full, vf.smooth_blowoff))
+        return _Terms(y=y, sd=sd, xd=xd, ta=ta, dta_d=dta_d, dta_dd=dta_dd, th_f=th_f, dthf=dthf, bw=bw,
+                      th=pR * aa - pC * ap + P_ATM * self.ar + th_f, dpres=dpres, phi=phi, dpp=dpp, dpf=dpf,
+                      valves=(qp, gp, hp, jp, qf, gf, hf, jf), dqbp_dx=dqbp_dx, vR=vR, vC=vC, bR=bR, dbR=dbR,
+                      bC=bC, dbC=dbC, flowR=aa * xd - qp, flowC=-ap * xd + qp - qf, yq=yq)
+
+    def _derivative(self, tm: "_Terms") -> list[float]:
+        """The state derivative from the ``_terms`` at a state."""
+        p, c = self.p, self.c
+        qp, _, _, _, qf, _, _, _ = tm.valves
+        f = [0.0] * self.n_states
+        f[ID_A] = tm.sd - tm.y[IV_R]
+        f[IV_R] = (tm.ta - tm.th) / self.m_rod
+        f[IX_B] = tm.y[IV_B]
+        f[IV_B] = (tm.th - (p.mount_stiffness * tm.y[IX_B] + p.mount_damping * tm.y[IV_B])) / p.body_mass
+        f[IP_R] = tm.bR / tm.vR * tm.flowR
+        f[IP_C] = tm.bC / tm.vC * tm.flowC
         f[IV_RES] = qf
         if c.preyield:
-            f[IZ] = dz
-        if beta > 0:
-            power = qp * dpp + qf * dpf + th_f * xd
-            f[IT] = (power - p.heat_transfer * (temp - p.ambient_temperature)) / p.heat_capacity
-        if lag:
-            tau = c.valve_tau
-            up, uf = dpp / phi, dpf / phi
-            vp, vf = p.piston_valve, self.foot
-            yqp, dyqp = _opening(up, vp.blowoff_crack, vp.blowoff_full, vp.smooth_blowoff)
-            yqf, dyqf = _opening(uf, vf.blowoff_crack, vf.blowoff_full, vf.smooth_blowoff)
-            f[IY_P] = (yqp - yp) / tau
-            f[IY_F] = (yqf - yf) / tau
-        if not want_jac:
-            return f, None
+            f[IZ] = tm.bw[0]
+        if c.thermal_beta > 0:
+            power = qp * tm.dpp + qf * tm.dpf + tm.th_f * tm.xd
+            f[IT] = (power - p.heat_transfer * (tm.y[IT] - p.ambient_temperature)) / p.heat_capacity
+        if c.valve_tau > 0:
+            f[IY_P] = (tm.yq[0] - tm.y[IY_P]) / c.valve_tau
+            f[IY_F] = (tm.yq[2] - tm.y[IY_F]) / c.valve_tau
+        return f
+
+    def _jacobian(self, tm: "_Terms") -> np.ndarray:
+        """Analytic d f / d y from the ``_terms`` at a state: the rod, the body and the two chambers here, the
+        thermal and valve-lag rows in ``_jacobian_extras``."""
+        p, c = self.p, self.c
+        aa, ap = self.aa, self.ap
+        k, cm = p.mount_stiffness, p.mount_damping
+        qp, gp, hp, jp, qf, gf, hf, jf = tm.valves
+        dthf, dqbp_dx, dpres, flowR, flowC, vR, vC = tm.dthf, tm.dqbp_dx, tm.dpres, tm.flowR, tm.flowC, tm.vR, tm.vC
+        n = self.n_states
         J = np.zeros((n, n))
         J[ID_A, IV_R] = -1.0
         J[IX_B, IV_B] = 1.0
         # th partials: pR: aa, pC: -ap, xd: dthf (vr +, vb -)
         mr, mb = self.m_rod, p.body_mass
-        J[IV_R, ID_A] = dta_d / mr
-        J[IV_R, IV_R] = (-dta_dd - dthf) / mr
+        J[IV_R, ID_A] = tm.dta_d / mr
+        J[IV_R, IV_R] = (-tm.dta_dd - dthf) / mr
         J[IV_R, IV_B] = dthf / mr
         J[IV_R, IP_R] = -aa / mr
         J[IV_R, IP_C] = ap / mr
@@ -593,30 +697,31 @@ class RigDamper:
         J[IV_B, IP_R] = aa / mb
         J[IV_B, IP_C] = -ap / mb
         if c.preyield:
+            fy, (_, dz_dxd, dz_dz) = c.preyield_force, tm.bw
             J[IV_R, IZ] = -fy / mr
             J[IV_B, IZ] = fy / mb
             J[IZ, IV_R] = dz_dxd
             J[IZ, IV_B] = -dz_dxd
             J[IZ, IZ] = dz_dz
         # dphi/dT
-        dphi = -beta * phi
+        dphi = -c.thermal_beta * tm.phi
         # rebound chamber: f = bR/vR * flowR
-        cR = bR / vR
+        cR = tm.bR / vR
         # x = s - d_a - x_b; d(1/vR)/dx = aa/vR^2, d(1/vC)/dx = -ap/vC^2
         # (the bypass flow depends on x too: d qbp / d d_a = d qbp / d x_b = -dqbp_dx)
         J[IP_R, ID_A] = J[IP_R, IX_B] = -cR * flowR * aa / vR + cR * dqbp_dx
         J[IP_R, IV_R] = cR * aa
         J[IP_R, IV_B] = -cR * aa
-        J[IP_R, IP_R] = dbR / vR * flowR - cR * gp
+        J[IP_R, IP_R] = tm.dbR / vR * flowR - cR * gp
         J[IP_R, IP_C] = cR * gp
         J[IP_R, IT] = -cR * hp * dphi
         J[IP_R, IY_P] = -cR * jp
-        cC = bC / vC
+        cC = tm.bC / vC
         J[IP_C, ID_A] = J[IP_C, IX_B] = cC * flowC * ap / vC - cC * dqbp_dx
         J[IP_C, IV_R] = -cC * ap
         J[IP_C, IV_B] = cC * ap
         J[IP_C, IP_R] = cC * gp
-        J[IP_C, IP_C] = dbC / vC * flowC + cC * (-gp - gf)
+        J[IP_C, IP_C] = tm.dbC / vC * flowC + cC * (-gp - gf)
         J[IP_C, IV_RES] = cC * gf * dpres
         J[IP_C, IT] = cC * (hp - hf) * dphi
         J[IP_C, IY_P] = cC * jp
@@ -625,15 +730,23 @@ class RigDamper:
         J[IV_RES, IV_RES] = -gf * dpres
         J[IV_RES, IT] = hf * dphi
         J[IV_RES, IY_F] = jf
-        if beta > 0:
+        self._jacobian_extras(J, tm, dphi)
+        return J
+
+    def _jacobian_extras(self, J: np.ndarray, tm: "_Terms", dphi: float) -> None:
+        """The thermal and valve-lag rows of ``_jacobian`` (``dphi``: d phi / d T [1/K]), into ``J``."""
+        p, c = self.p, self.c
+        qp, gp, hp, jp, qf, gf, hf, jf = tm.valves
+        dpp, dpf, dpres, phi = tm.dpp, tm.dpf, tm.dpres, tm.phi
+        if c.thermal_beta > 0:
             hc = p.heat_capacity
             # power = qp dpp + qf dpf + th_f xd (qp with the bypass, th_f with F_y zeta)
             dP_dpp = qp + dpp * gp
             dP_dpf = qf + dpf * gf
-            dP_dxd = th_f + dthf * xd
-            J[IT, ID_A] = J[IT, IX_B] = -dpp * dqbp_dx / hc
+            dP_dxd = tm.th_f + tm.dthf * tm.xd
+            J[IT, ID_A] = J[IT, IX_B] = -dpp * tm.dqbp_dx / hc
             if c.preyield:
-                J[IT, IZ] = fy * xd / hc
+                J[IT, IZ] = c.preyield_force * tm.xd / hc
             J[IT, IP_R] = dP_dpp / hc
             J[IT, IP_C] = (-dP_dpp + dP_dpf) / hc
             J[IT, IV_RES] = -dP_dpf * dpres / hc
@@ -642,8 +755,10 @@ class RigDamper:
             J[IT, IT] = ((dpp * hp + dpf * hf) * dphi - p.heat_transfer) / hc
             J[IT, IY_P] = dpp * jp / hc
             J[IT, IY_F] = dpf * jf / hc
-        if lag:
+        if c.valve_tau > 0:
             # f = (yq(dp/phi) - y)/tau
+            tau, (_, dyqp, _, dyqf) = c.valve_tau, tm.yq
+            up, uf = dpp / phi, dpf / phi
             J[IY_P, IP_R] = dyqp / phi / tau
             J[IY_P, IP_C] = -dyqp / phi / tau
             J[IY_P, IT] = -dyqp * up / phi * dphi / tau
@@ -652,7 +767,6 @@ class RigDamper:
             J[IY_F, IV_RES] = -dyqf / phi * dpres / tau
             J[IY_F, IT] = -dyqf * uf / phi * dphi / tau
             J[IY_F, IY_F] = -1.0 / tau
-        return f, J
 
     def rhs(self, y, t, stroke: StrokeInput) -> list[float]:
         """State derivative (LSODA calling convention y, t); reference implementation."""
@@ -676,51 +790,16 @@ class RigDamper:
         pg0, vg0, ngas = p.gas_pressure, p.gas_volume, p.n_gas
         rho = p.oil_density
         pt2 = _P_TURB * _P_TURB
-        a0, nair, bl = p.air_fraction, p.n_air, p.bulk_modulus
-        inv_n = 1.0 / nair
         hyst, fy, xy = c.preyield, c.preyield_force, c.preyield_displacement
         bwg, bwb, bwn = BW_GAMMA, BW_BETA, BW_N
         groove, agr, x0g, hgr, egr = (c.bypass_area > 0.0, c.bypass_area, c.bypass_center,
                                       0.5 * c.bypass_length, c.bypass_edge)
         kbp = p.piston_valve.discharge_coefficient * math.sqrt(2.0 / rho)
         seval = stroke.eval
-        exp, sqrt, log1p, tanh = math.exp, math.sqrt, math.log1p, math.tanh
+        exp, log1p, tanh = math.exp, math.log1p, math.tanh
 
-        def consts(vs: ValveSet):
-            cd = vs.discharge_coefficient
-            return (vs.laminar_resistance, rho / (2.0 * (cd * vs.orifice_area) ** 2),
-                    cd * math.sqrt(2.0 / rho), vs.blowoff_crack, vs.blowoff_full,
-                    vs.smooth_blowoff, vs.blowoff_area, vs.check_crack, vs.check_full,
-                    vs.smooth_check, vs.check_area)
-
-        def sp(z, w):
-            return (z if z > 0 else 0.0) + w * log1p(exp(-abs(z) / w))
-
-        def opening(u, crack, full, w):
-            if u < crack - 40.0 * w:
-                return 0.0
-            return (sp(u - crack, w) - sp(u - full, w)) / (full - crack)
-
-        def flow(cs, dp, phi, ydyn):
-            rl, rt, kc, pc, pf, wb, ab, cc, cf, wc, ac = cs
-            u = dp / phi
-            q = 2.0 * u / (rl + sqrt(rl * rl + 4.0 * rt * abs(u)))
-            y = opening(u, pc, pf, wb) if ydyn is None else ydyn
-            if y != 0.0:
-                q += ab * y * kc * u / (u * u + pt2) ** 0.25
-            yc = opening(-dp, cc, cf, wc)
-            if yc != 0.0:
-                q += ac * yc * kc * dp / (dp * dp + pt2) ** 0.25
-            return q
-
-        def beta_e(pp):
-            if pp < 1e3:
-                pp = 1e3
-            uu = a0 * (P_ATM / pp) ** inv_n
-            a = uu / (uu + 1.0 - a0)
-            return 1.0 / ((1.0 - a) / bl + a / (nair * pp))
-
-        cp, cf_ = consts(p.piston_valve), consts(self.foot)
+        flow, opening, beta_e = _fast_fluid(p)
+        cp, cf_ = _valve_constants(p.piston_valve, rho), _valve_constants(self.foot, rho)
         vp, vf = p.piston_valve, self.foot
 
         def f(y, t):
