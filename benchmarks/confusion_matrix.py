@@ -118,7 +118,7 @@ def run_case(case: dict) -> dict:
     return row
 
 
-def main(argv=None) -> int:
+def _arguments(argv) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--t-end", type=float, default=6.0, help="duration of each scenario [s] (None: full)")
@@ -135,11 +135,13 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "confusion")
     ap.add_argument("--seed-offset", type=int, default=0,
                     help="shifts every dataset seed and the magnitude draws: new seeds for a rerun (default 0)")
-    a = ap.parse_args(argv)
-    a.out.mkdir(parents=True, exist_ok=True)
+    return ap.parse_args(argv)
+
+
+def _cases(a: argparse.Namespace, truths: list[str]) -> list[dict]:
+    """The runs, in the order of the sequential benchmark: the same seeds and magnitudes."""
     rng = np.random.default_rng(20231121 + a.seed_offset)
-    truths = [e.strip() for e in a.effects.split(",")]
-    cases = []  # in the order of the sequential benchmark: the same seeds and magnitudes
+    cases = []
     for truth in truths:
         for k in range(a.seeds):
             effects = {}
@@ -148,38 +150,30 @@ def main(argv=None) -> int:
                 effects[truth] = float(rng.uniform(spec.low, spec.high))
             cases.append({"truth": truth, "effects": effects, "seed": 1000 + a.seed_offset + 17 * k + 3 * len(cases),
                           "t_end": a.t_end, "damper": a.damper, "chamber": a.chamber, "workers": a.workers})
-    done = {}
-    with FleetExecutor(a.scheduler) as ex:
-        print(f"{len(cases)} blind diagnoses on a {ex.description}", flush=True)
-        for i, row, err in ex.run(run_case, cases):
-            if err is not None:
-                raise RuntimeError(f"run {i} ({cases[i]['truth']}, seed {cases[i]['seed']}) failed: {err}") from err
-            done[i] = row
-            truth = row["truth"]
-            print(f"{truth:14s} {row['magnitude'] if row['magnitude'] is not None else '':>12}  -> "
-                  f"{'+'.join(row['causes']) or row['named']:14s} score {row['score']:+.3f}" +
-                  (f"  fitted {row['fitted']:.4g} ({100 * row['relative_error']:+.0f} %), "
-                   f"MSE {row['mse_change_pct']:+.1f} %" if truth != "none" else "")
-                  + (f"  effect force {row['effect_force_id_n']:.3g} / {row['effect_force_val_n']:.3g} N "
-                     f"(identification / validation; noise {row['noise_n']:.3g} N)"
-                     if row.get("effect_force_val_n") is not None else "")
-                  + "".join(f"  form {k} {v['mse_change_pct']:+.0f} % "
-                            f"({100 * (v['excess_explained'] or 0):.0f} % of the excess)"
-                            for k, v in row["forms_tried"].items())
-                  + f"  screen {'+'.join(row['screen']) or '-'}  base {row['base']}"
-                  + (f" (first {row['first_base']})" if row["first_base"] != row["base"] else "")
-                  + f"  [{row['elapsed_s']:.0f} s]", flush=True)
-    rows = [done[i] for i in range(len(cases))]
-    write_atomic(a.out / "confusion.json", json.dumps({"rows": rows}, indent=1))
-    labels = ["none", "unexplained", *CANDIDATES, *FORM_EFFECTS]
-    matrix = {t: {n: sum(1 for r in rows if r["truth"] == t and r["named"] == n) for n in labels} for t in truths}
-    print("\nconfusion matrix (rows: hidden effect, columns: named cause)")
-    print(" " * 15 + "".join(f"{n[:9]:>10}" for n in labels))
-    for t in truths:
-        print(f"{t:15s}" + "".join(f"{matrix[t][n]:10d}" for n in labels))
-    wrong = [r for r in rows if r["named"] not in ("none", "unexplained", r["truth"]) or r["extra_causes"]]
-    print(f"\nfalse causes (a named effect that was not hidden, first or added): {len(wrong)}/{len(rows)} runs"
-          + "".join(f"\n  {r['truth']} -> {'+'.join(r['causes'])}" for r in wrong))
+    return cases
+
+
+def _row_line(row: dict) -> str:
+    """One run's line: hidden, named, score, magnitude, forces, forms, screen, base, time."""
+    truth = row["truth"]
+    return (f"{truth:14s} {row['magnitude'] if row['magnitude'] is not None else '':>12}  -> "
+            f"{'+'.join(row['causes']) or row['named']:14s} score {row['score']:+.3f}" +
+            (f"  fitted {row['fitted']:.4g} ({100 * row['relative_error']:+.0f} %), "
+             f"MSE {row['mse_change_pct']:+.1f} %" if truth != "none" else "")
+            + (f"  effect force {row['effect_force_id_n']:.3g} / {row['effect_force_val_n']:.3g} N "
+               f"(identification / validation; noise {row['noise_n']:.3g} N)"
+               if row.get("effect_force_val_n") is not None else "")
+            + "".join(f"  form {k} {v['mse_change_pct']:+.0f} % "
+                      f"({100 * (v['excess_explained'] or 0):.0f} % of the excess)"
+                      for k, v in row["forms_tried"].items())
+            + f"  screen {'+'.join(row['screen']) or '-'}  base {row['base']}"
+            + (f" (first {row['first_base']})" if row["first_base"] != row["base"] else "")
+            + f"  [{row['elapsed_s']:.0f} s]")
+
+
+def _summary(rows: list[dict], truths: list[str], matrix: dict) -> dict:
+    """Per hidden effect: runs, named right, rate, median magnitude error, runs below the noise, joint screen's
+    top term right; printed as it goes."""
     print("\ndetection rate per effect (target >= 95 %), clean data named none or unexplained:")
     summary = {}
     for t in truths:
@@ -208,6 +202,34 @@ def main(argv=None) -> int:
         hit = sum(1 for r in rs if (r["screen"][:1] == [t] if t != "none" else not r["screen"]))
         summary[t]["screen_top_correct"] = hit
         print(f"  {t:24s} {hit}/{len(rs)}")
+    return summary
+
+
+def main(argv=None) -> int:
+    a = _arguments(argv)
+    a.out.mkdir(parents=True, exist_ok=True)
+    truths = [e.strip() for e in a.effects.split(",")]
+    cases = _cases(a, truths)
+    done = {}
+    with FleetExecutor(a.scheduler) as ex:
+        print(f"{len(cases)} blind diagnoses on a {ex.description}", flush=True)
+        for i, row, err in ex.run(run_case, cases):
+            if err is not None:
+                raise RuntimeError(f"run {i} ({cases[i]['truth']}, seed {cases[i]['seed']}) failed: {err}") from err
+            done[i] = row
+            print(_row_line(row), flush=True)
+    rows = [done[i] for i in range(len(cases))]
+    write_atomic(a.out / "confusion.json", json.dumps({"rows": rows}, indent=1))
+    labels = ["none", "unexplained", *CANDIDATES, *FORM_EFFECTS]
+    matrix = {t: {n: sum(1 for r in rows if r["truth"] == t and r["named"] == n) for n in labels} for t in truths}
+    print("\nconfusion matrix (rows: hidden effect, columns: named cause)")
+    print(" " * 15 + "".join(f"{n[:9]:>10}" for n in labels))
+    for t in truths:
+        print(f"{t:15s}" + "".join(f"{matrix[t][n]:10d}" for n in labels))
+    wrong = [r for r in rows if r["named"] not in ("none", "unexplained", r["truth"]) or r["extra_causes"]]
+    print(f"\nfalse causes (a named effect that was not hidden, first or added): {len(wrong)}/{len(rows)} runs"
+          + "".join(f"\n  {r['truth']} -> {'+'.join(r['causes'])}" for r in wrong))
+    summary = _summary(rows, truths, matrix)
     write_atomic(a.out / "confusion.json", json.dumps({"rows": rows, "matrix": matrix, "summary": summary,
                                                       "false_cause_runs": len(wrong)}, indent=1))
     return 0
