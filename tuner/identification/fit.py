@@ -312,14 +312,14 @@ def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result
             value = min(max(guess_p[name] * factor, lo), hi)
             starts.append((f"data-driven start with {name} = {value:.3g}", par.from_params({**guess_p, name: value})))
     for k, (label, z0) in enumerate(starts):
-        if k:  # the refinements still to run, at the measured time of those done
-            expect(log, (len(starts) - k) * (time.perf_counter() - t0) / k)
         if ref.runs and rival and ref.runs[0]["rmse_n"] > RACE_RATIO * rival[1]:
             ref.race = {"rival": rival[0], "rival_rmse_n": rival[1], "ratio": ref.runs[0]["rmse_n"] / rival[1],
                         "skipped": [lab for lab, _ in starts[1:]]}
             log(f"[{model}] no restart: {ref.race['ratio']:.1f} x the {rival[0]} form's RMSE, "
                 f"clearly the wrong form for this damper")
             break
+        if k:  # the refinements still to run (none skipped by the race), at the measured time of those done
+            expect(log, (len(starts) - k) * (time.perf_counter() - t0) / k)
         log(f"[{model}] local refinement from the {label} (projected Levenberg-Marquardt until converged, "
             f"at most {settings.polish_jacobians} Jacobians of {par.dimension} parallel simulations)")
         pol = polish(eng, par, z0, max_jacobians=settings.polish_jacobians, log=log)
