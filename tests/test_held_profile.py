@@ -9,7 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from tuner.diagnosis.refit import HELD_PATIENCE, ExtendedParametrization, held_profile, nonsmooth_profiles
+from tuner.diagnosis.refit import (HELD_PATIENCE, ExtendedParametrization, held_profile, nonsmooth_profiles,
+                                   series_profiles)
 from tuner.identification.parametrization import Parametrization
 
 N = 50
@@ -126,3 +127,44 @@ def test_a_chained_profile_follows_what_the_base_absorbed_where_a_refit_from_the
     assert alone.sse[0] > 0.1 * sse_off
     assert chained.points[-1][0] == pytest.approx(u_star, abs=1e-3)
     assert chained.sse[-1] < 1e-3 * alone.sse[0]
+
+
+class SeriesEngine:
+    """Residuals [N] of a model whose series stiffness k_s [N/m] fits best at K_STAR inside a ripple of local
+    minima every RIPPLE in its search coordinate u (log-scaled: 0.25 a decade; the first 25 samples), with a weak
+    pull to K_STAR (the next 24) and the gap's own term, least at GAP (the last)."""
+
+    K_STAR, RIPPLE = 6.31e7, 0.05
+
+    def __init__(self, ext):
+        self.ext, self.n_samples = ext, N
+        self.u_star = float(ext.base.from_params({"k_s": self.K_STAR, "c": 5e5})[0])
+
+    def residuals_batch(self, points):
+        out = []
+        for p in points:
+            g = float(p["free_play"])
+            d = float(self.ext.base.from_params(p)[0]) - self.u_star
+            out.append(np.r_[np.full(25, 100.0 * math.sin(math.pi * d / self.RIPPLE)), np.full(24, 100.0 * d),
+                             [50.0 * (g - GAP) / GAP]])
+        return out
+
+
+def test_the_series_element_held_a_decade_up_lets_the_gap_profile_reach_what_a_refit_from_the_base_cannot():
+    """The base's series stiffness is caught in the ripple far below K_STAR: held at GAP, a re-fit from the base
+    ends in the nearest local minimum. Held at a stiffness within half a ripple of K_STAR, the gap's profile finds
+    GAP and the series element, released there, ends on K_STAR (SSE 0); held a decade away, it is caught again."""
+    ext, z0 = ext_and_start()
+    eng = SeriesEngine(ext)
+    z0[0] = eng.u_star - 0.4  # 1.6 decades soft of K_STAR
+    sse_off = float(np.sum(eng.residuals_batch([ext.to_params(np.r_[z0[:2], 0.0])])[0] ** 2))
+    values = coordinates(ext, np.geomspace(0.1e-3, 1.5e-3, 8))
+    from_base = held_profile(eng, ext, z0, 0, coordinates(ext, [GAP]), sse_off)
+    assert from_base.sse[0] > 0.1 * sse_off
+    near = series_profiles(eng, ext, z0, 0, values, sse_off, [{"k_s": 6.0e7}])
+    k = int(np.argmin(near.sse))
+    assert ext.to_params(near.points[k])["k_s"] == pytest.approx(SeriesEngine.K_STAR, rel=0.01)
+    assert ext.to_params(near.points[k])["free_play"] == pytest.approx(GAP, rel=0.05)
+    assert near.sse[k] < 1e-3 * from_base.sse[0]
+    far = series_profiles(eng, ext, z0, 0, values, sse_off, [{"k_s": 6.0e6}])
+    assert min(far.sse) > 0.1 * from_base.sse[0]

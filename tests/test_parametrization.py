@@ -64,3 +64,22 @@ def test_paper_scheme_draws_non_monotone_tables_which_the_model_rejects():
             assert "not monotone" in str(err)
             rejected += 1
     assert rejected > 90
+
+
+def test_holding_a_scalar_removes_its_coordinate_and_keeps_its_value():
+    """A held parameter is no coordinate and comes back at its held value; the others map as before; a table
+    ordinate or a name outside the space cannot be held."""
+    par = Parametrization("twochamber", force_limit=4e4)
+    p = par.to_params(np.full(par.dimension, 0.4))
+    held = par.holding({"k_M": 3.0e8, "c_M": 5.1e4})
+    assert held.dimension == par.dimension - 2 and "k_M" not in held.names
+    q = held.to_params(held.from_params(p))
+    assert q["k_M"] == 3.0e8 and q["c_M"] == 5.1e4
+    for n in par.names:
+        if n not in ("k_M", "c_M"):
+            assert q[n] == pytest.approx(p[n], rel=1e-9)
+    assert par.dimension == len(par.names)  # the original is untouched
+    with pytest.raises(ValueError, match="Fc_01"):
+        par.holding({"Fc_01": -1e3})
+    with pytest.raises(ValueError, match="k_B"):
+        par.holding({"k_B": 1e8})

@@ -352,3 +352,26 @@ def test_a_failed_diagnosis_still_ends_with_the_summary_and_keeps_its_checkpoint
     assert (out / "checkpoints" / "diagnosis_lumped.json").exists()
     assert json.loads((out / "summary.json").read_text())["recommendation"]["status"] == "diagnosis_failed"
     assert "recommendation: none: the diagnosis failed" in capsys.readouterr().out
+
+
+def test_vehicle_intervals_are_drawn_for_the_recommended_model_only_unless_all_are_asked(tmp_path):
+    """``tuner.job.interval_models``: the recommended model (the diagnosis's base with its causes: the base's
+    parameters are drawn), none when nothing passes the gate, every one with 'all'; a bad choice is an error
+    naming the option."""
+    from tuner.job import interval_models
+    out = tmp_path / "run"
+    write_run(out, {"lumped": 3.1, "maxwell": 12.0, "twochamber": 0.13}, diagnosis=diagnosis_json("twochamber"))
+    lines = []
+    assert interval_models(out, "recommended", lines.append) == ("twochamber",)
+    assert interval_models(out, "all", lines.append) is None
+    with pytest.raises(ValueError, match="--vehicle-intervals"):
+        interval_models(out, "best", lines.append)
+    named = tmp_path / "named"
+    write_run(named, {"lumped": 6.0, "maxwell": 12.0, "twochamber": 1.5},
+              diagnosis=diagnosis_json("twochamber", ("friction",), after_pct=0.4))
+    assert interval_models(named, "recommended", lines.append) == ("twochamber",)
+    assert "friction are not drawn" in lines[-1]
+    failing = tmp_path / "failing"
+    write_run(failing, {"lumped": 12.0, "maxwell": 15.0})
+    assert interval_models(failing, "recommended", lines.append) == ()
+    assert "no model is recommended" in lines[-1]

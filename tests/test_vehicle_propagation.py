@@ -118,3 +118,11 @@ def test_the_command_line_options_are_checked_and_mapped():
         vehicle_scheduler(Namespace(vehicle_draws=24, vehicle_scheduler="pool:x", workers=2))
     with pytest.raises(ValueError, match="--vehicle-draws"):
         vehicle_scheduler(Namespace(vehicle_draws=1, vehicle_scheduler=None, workers=2))
+
+
+def test_only_the_models_asked_for_are_drawn(tmp_path):
+    """``PropagationSettings.models``: a folder's FMU of another model gets no plan (and no simulation)."""
+    folder = tmp_path
+    maxwell_folder(folder, shift_log=SHIFT_LOG)
+    data = propagate(folder, PropagationSettings(draws=2, batch=2, models=("lumped",)), log=lambda m: None)
+    assert data["results"] == {} and data["errors"] == {}

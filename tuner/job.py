@@ -36,6 +36,7 @@ from tuner.identification.problem import Problem
 from tuner.progress import SubStages, forecast, stage
 from tuner.results.diagnosis_figures import diagnosis_figures
 from tuner.results.diagnosis_report import make_diagnosis_report
+from tuner.results.recommendation import recommend
 from tuner.results.report import make_report
 from tuner.vehicle.compare import SCENARIO_NAMES, VEHICLE_FOLDER, compare_fmus
 from tuner.vehicle.propagation import PropagationSettings, propagate
@@ -89,12 +90,13 @@ def export_fmus(result: FitResult, out: Path) -> list[Path]:
 
 def run(identification: list[RigTest], validation: list[RigTest], out: Path, settings: FitSettings, *,
         diagnose_after: bool = True, vehicle: bool = False, vehicle_draws: int = 0, vehicle_scheduler: str | None = None,
-        provenance: dict | None = None, log=print) -> JobResult:
+        vehicle_intervals: str = "recommended", provenance: dict | None = None, log=print) -> JobResult:
     """The whole job into the existing folder ``out`` (checkpoints there are resumed).
 
     diagnose_after: diagnose the best-validated base form after the fit (when ``wants_diagnosis``);
     vehicle: the tuned FMUs as the yaw dampers of the campaign's vehicle (``vehicle_consequences``), with
-    95 % intervals from up to ``vehicle_draws`` parameter sets per FMU (0: none) run on ``vehicle_scheduler``;
+    95 % intervals from up to ``vehicle_draws`` parameter sets per FMU (0: none) run on ``vehicle_scheduler``, for
+    the recommended model's FMU or ``vehicle_intervals`` 'all';
     log: a callable taking one line (or a ``tuner.progress.JobProgress``, whose stages it advances)."""
     out = Path(out)
     problem = Problem.build(identification, validation, settings.data)  # prepared once, for every stage
@@ -121,7 +123,7 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
             raise
     if vehicle:
         vehicle_consequences(sorted((out / "fmu").glob("*_tuned.fmu")), out, settings.seed, log, draws=vehicle_draws,
-                             scheduler=vehicle_scheduler)
+                             scheduler=vehicle_scheduler, intervals_for=vehicle_intervals)
     stage(log, "report")
     report = make_report(out)
     return JobResult(out=out, fit=result, diagnosis=diagnosis, fmus=sorted((out / "fmu").glob("*.fmu")),
@@ -217,23 +219,47 @@ def write_diagnosis_failure(failed: DiagnosisFailed, out: Path) -> Path:
     return path
 
 
+#: which tuned FMUs get vehicle intervals (``vehicle_consequences``)
+INTERVALS_FOR = ("recommended", "all")
+
+
+def interval_models(out: Path, intervals_for: str, log=print) -> tuple[str, ...] | None:
+    """The models whose FMUs get vehicle intervals: None for 'all'; for 'recommended', the model the folder's
+    recommendation names (``tuner.results.recommendation``; its base FMU: an extension's own parameters are not
+    drawn), none when it names none. A model that fails the quality gate has no interval worth drawing: its
+    covariance bounds its parameters, not its error (the default run's Maxwell FMU: 334-889 km/h)."""
+    if intervals_for not in INTERVALS_FOR:
+        raise ValueError(f"--vehicle-intervals must be one of {', '.join(INTERVALS_FOR)}, got {intervals_for!r}")
+    if intervals_for == "all":
+        return None
+    rec = recommend(out)
+    if rec.model is None:
+        log("vehicle intervals: not computed, no model is recommended (--vehicle-intervals all draws every FMU)")
+        return ()
+    log(f"vehicle intervals: for the recommended {rec.model} FMU" + (f" (its base: the parameters of "
+        f"{', '.join(rec.causes)} are not drawn)" if rec.causes else "") + "; --vehicle-intervals all draws every FMU")
+    return (rec.model,)
+
+
 def vehicle_consequences(fmus: list[Path], out: Path, seed: int = 0, log=print, *, draws: int = 0,
-                         scheduler: str | None = None) -> dict:
+                         scheduler: str | None = None, intervals_for: str = "recommended") -> dict:
     """What the damper model changes at vehicle level: each FMU of ``fmus`` as the four yaw dampers of the
     campaign's vehicle in every scenario of ``tuner.vehicle.compare`` (hunting critical speed, curve
     entry, straight track with irregularities), into ``out / VEHICLE_FOLDER`` (the report's vehicle
     section). ``seed``: the irregularities' master seed and the draws'. ``draws`` > 0: the 95 % intervals of
     the critical speed and the curve's peak damper force from up to that many parameter sets per tuned FMU
-    (``tuner.vehicle.propagation``), run on ``scheduler`` (None: in this process)."""
+    (``tuner.vehicle.propagation``), run on ``scheduler`` (None: in this process), for the FMUs of
+    ``intervals_for``: 'recommended' (``interval_models``) or 'all'."""
     stage(log, "vehicle")
     log(f"vehicle: {len(fmus)} tuned FMUs as the yaw dampers, scenarios {', '.join(SCENARIO_NAMES)} ...")
     data = compare_fmus(fmus, Path(out) / VEHICLE_FOLDER, seed=seed,
                         log=SubStages(log, len(fmus) * len(SCENARIO_NAMES)))
-    if draws > 0:
+    models = interval_models(out, intervals_for, log) if draws > 0 else ()
+    if models is None or models:
         stage(log, "vehicle intervals")
         try:
-            propagate(out, PropagationSettings(draws=draws, seed=seed, irregularity_seed=seed), scheduler=scheduler,
-                      log=log)
+            propagate(out, PropagationSettings(draws=draws, seed=seed, irregularity_seed=seed, models=models),
+                      scheduler=scheduler, log=log)
         except (ValueError, OSError, RuntimeError) as err:  # e.g. the Dask cluster went away: the rest stands
             log(f"vehicle intervals not computed: {err}")
     return data

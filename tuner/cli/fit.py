@@ -61,7 +61,8 @@ def cmd_fit(args) -> int:
     if getattr(args, "vehicle", False):
         weights["vehicle"] = 8.0 * len(models)
         if args.vehicle_draws > 0:
-            weights["vehicle intervals"] = 1.0 * args.vehicle_draws * len(models)  # 79 s measured, 24 draws, 3 models
+            drawn = len(models) if args.vehicle_intervals == "all" else 1
+            weights["vehicle intervals"] = 1.0 * args.vehicle_draws * drawn  # 79 s measured, 24 draws, 3 models
     if not args.no_diagnose and any(m in EFFECT_MODELS for m in models):
         weights["diagnosis"] = 70.0
     start_job(args, weights)
@@ -100,6 +101,7 @@ def _fit_job(args, models) -> Path:
         progress().weights.pop("diagnosis", None)
     result = job.run(ident, valid, out, settings, diagnose_after=diagnosis, vehicle=args.vehicle,
                      vehicle_draws=args.vehicle_draws, vehicle_scheduler=vehicle_scheduler(args),
+                     vehicle_intervals=args.vehicle_intervals,
                      provenance=provenance, log=job_log())  # the progress display when a job runs
     print_table3(result.fit.metrics)
     return out

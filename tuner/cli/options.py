@@ -156,6 +156,9 @@ def add_fit_options(ap: argparse.ArgumentParser) -> None:
                    help="with --vehicle: 95 %% intervals of the critical speed and the curve's peak damper force "
                         "from up to N parameter sets per tuned FMU drawn from the fitted covariance, fewer once "
                         "the Monte-Carlo error is below 2 km/h and 1 %% (default %(default)s; 0: no intervals)")
+    g.add_argument("--vehicle-intervals", choices=("recommended", "all"), default="recommended",
+                   help="with --vehicle-draws: the intervals for the recommended model's FMU only (default) or for "
+                        "every tuned FMU (about 25 s more in the default run)")
     g.add_argument("--vehicle-scheduler", default=None, metavar="SPEC",
                    help="where the draws run: pool:N (local processes), local:N (Dask LocalCluster), a Dask "
                         "scheduler address tcp://HOST:PORT, or 'here' (this process); default a pool of "

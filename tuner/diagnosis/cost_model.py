@@ -24,7 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from tuner.diagnosis.forms import shape_grid
-from tuner.diagnosis.refit import HELD_PROFILE_JACOBIANS
+from tuner.diagnosis.refit import HELD_PROFILE_JACOBIANS, SERIES_HELD_JACOBIANS
 
 __all__ = ["EXPECTED_REFITS", "CONTINUATION_JACOBIANS", "REFINEMENT_JACOBIANS", "EXTENDED_COST", "DiagnosisCost",
            "shapes", "refit_cost", "form_pass_cost", "expected_cost", "after_ranking", "identification_cost"]
@@ -83,6 +83,15 @@ def refit_cost(d: int, extra: int, settings, nonsmooth: bool = False) -> float:
     profile = settings.grid_points * (1 + settings.profile_steps / 2)
     held = settings.grid_points * HELD_PROFILE_JACOBIANS * (d + extra + 3) if nonsmooth else 0.0
     return profile + held + max(1, settings.polish_jacobians // 2) * (d + extra + 1)
+
+
+def series_cost(d: int, settings, held: int) -> float:
+    """Simulations of ``tuner.diagnosis.refit.series_profiles`` with the series element held at ``held`` values and
+    the joint polish after: per held value, the coarse pass (the grid's values, each SERIES_HELD_JACOBIANS
+    Jacobians of the d - 2 free coordinates and the magnitude held) and the chained sweep from its release (about
+    the grid's values again, HELD_PROFILE_JACOBIANS each)."""
+    per_value = SERIES_HELD_JACOBIANS * (d + 1) + HELD_PROFILE_JACOBIANS * (d + 3)
+    return held * settings.grid_points * per_value + max(1, settings.polish_jacobians // 2) * (d + 2)
 
 
 def form_pass_cost(d: int, settings) -> float:

@@ -29,6 +29,7 @@ derives F_max from the measured forces; the paper used 3e4 N and 1.5e7 N/m for i
 """
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -134,6 +135,22 @@ class Parametrization:
                         z[n] = (math.log(slope) - lo) / (hi - lo)
                         f, x0 = min(f + slope * abs(x - x0), cap), x
         return np.clip(np.array([z[n] for n in self.names]), 0.0, 1.0)
+
+    def holding(self, values: dict) -> "Parametrization":
+        """The same space with the scalar parameters of ``values`` (SI; not table ordinates) held at them: no
+        longer coordinates, moved to ``fixed`` (a refit with a series stiffness held at a chosen decade)."""
+        tables = [n for n in values if n.startswith(("Fc_", "Fk_"))]
+        unknown = [n for n in values if n not in self.names]
+        if tables or unknown:
+            raise ValueError(f"holding: {', '.join(tables + unknown)} cannot be held (table ordinates or not "
+                             f"coordinates of the {self.model} space)")
+        held = copy.copy(self)
+        held.fixed = {**self.fixed, **{n: float(v) for n, v in values.items()}}
+        held.names = [n for n in self.names if n not in values]
+        held.bounds = {n: b for n, b in self.bounds.items() if n not in values}
+        held.log_scale = {n: s for n, s in self.log_scale.items() if n not in values}
+        held.dimension = len(held.names)
+        return held
 
     def local_space(self):
         """Coordinates for the local solver: ``LocalSpace`` of the 'improved' scheme; the 'paper' scheme's own."""

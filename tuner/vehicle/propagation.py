@@ -74,7 +74,8 @@ class PropagationSettings:
     draws; irregularity_seed: of the curve's irregularity; v_min_ms, v_max_ms, kick_m, step_s: the
     critical speed search's range and kick and the communication step (``tuner.vehicle.compare.compare_fmus``'s
     defaults); half_width_ms: the first bracket around the fitted FMU's critical speed; points, stages: kick
-    runs per stage and stages of ``hunting.critical_speed_near``. Two stages, not three (8 kick runs a draw, not
+    runs per stage and stages of ``hunting.critical_speed_near``; models: the models whose tuned FMUs are drawn
+    (None: every one in the folder). Two stages, not three (8 kick runs a draw, not
     11): on the bundled fit's two-chamber FMU a third stage brought the draws no closer to a finer search's (4
     stages of 4 runs: rms difference 2.1 km/h with either), nor on its lumped FMU, where 3 of 16 draws have two
     zero crossings 15-20 km/h apart that any of these searches may take (docs/measurements.md)."""
@@ -92,6 +93,7 @@ class PropagationSettings:
     half_width_ms: float = 30.0 / 3.6
     points: int = 3
     stages: int = 2
+    models: tuple[str, ...] | None = None
 
     def check(self) -> None:
         """ValueError naming the setting (its command-line option where there is one) and the fix."""
@@ -378,7 +380,7 @@ def _run_rounds(plans: list[_Plan], s: PropagationSettings, executor, log) -> No
 
 
 def _plans(folder: Path, s: PropagationSettings, log) -> list[_Plan]:
-    """One plan per tuned FMU of ``folder`` whose model has a covariance; the first bracket around the
+    """One plan per tuned FMU of ``folder`` whose model has a covariance (of ``s.models`` when given); the first bracket around the
     critical speed ``vehicle/vehicle.json`` gives (else the middle of the search range)."""
     path = folder / "parameters.json"
     if not path.is_file():
@@ -388,6 +390,8 @@ def _plans(folder: Path, s: PropagationSettings, log) -> list[_Plan]:
     known = strict_json.loads(vpath.read_text()).get("results", {}) if vpath.is_file() else {}
     plans = []
     for model, entry in params.items():
+        if s.models is not None and model not in s.models:
+            continue
         fmu = folder / "fmu" / f"{SLAVES[model]}_tuned.fmu"
         if not fmu.is_file():
             log(f"vehicle intervals: {model}: no {fmu} (skipped)")
