@@ -356,7 +356,7 @@ class CandidateSearch:
         decade and two above the data-driven guess's stiffness, at the guess's damping (``refit.series_profiles``;
         a mount fitted as a dashpot carries a gap's lost motion; the second only when the first leaves the
         residual above the floor), then polished jointly; the better refit of the effect is kept. Returns its
-        ranking row."""
+        ranking row (``series_element_held``: the values held [SI])."""
         names = SERIES_ELEMENT.get(self.kind)
         if names is None or not self.above_floor(row["identification_rmse_n"]):
             return row
@@ -386,9 +386,10 @@ class CandidateSearch:
             self.refits[effect] = Fit(fit.ext, fit.z, evals)
             self.log(f"  {effect:14s} no better with the series element held: "
                      f"{1.0 / math.sqrt(pol.fitness):.1f} N")
-            return {**row, "evaluations": evals}
+            return {**row, "evaluations": evals, "series_element_held": held}
         self.refits[effect] = Fit(ext, pol.z, evals)
-        return self.held_out(effect, ext.to_params(pol.z), ext.extra, pol.fitness, evals, self.mse_none)
+        new = self.held_out(effect, ext.to_params(pol.z), ext.extra, pol.fitness, evals, self.mse_none)
+        return {**new, "series_element_held": held}
 
     def signalled_nonsmooth(self) -> set:
         """The nonsmooth effects (``Effect.nonsmooth``: a free play) whose residual signature the joint screen
