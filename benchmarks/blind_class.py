@@ -49,6 +49,13 @@ MAGNITUDE = {"free_play_soft": "free_play", "free_play_stiff": "free_play", "byp
 EXPECTED = {"free_play_soft": "free_play", "free_play_stiff": "free_play", "bypass": "bypass", "none": "none"}
 
 
+def case_seed(case: str, k: int) -> int:
+    """The seed of a case's k-th run: the same whichever other cases are listed (free_play_stiff: 601, 612, ...)."""
+    if case not in CASES:
+        raise ValueError(f"unknown case {case!r}: choose from {', '.join(CASES)}")
+    return 500 + 11 * k + 101 * CASES.index(case)
+
+
 def hidden_parameters(case: str, model: str, seed: int) -> dict:
     """The parameters hidden in the random damper of ``model`` drawn with ``seed`` (SI)."""
     rng = np.random.default_rng([seed, CASES.index(case), 4242])
@@ -91,9 +98,8 @@ def main(argv=None) -> int:
     ap.add_argument("--scheduler", default=None, metavar="SPEC")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "blind_class")
     a = ap.parse_args(argv)
-    cases = [{"case": c, "model": a.model, "seed": 500 + 11 * k + 101 * i, "noise_n": a.noise, "workers": a.workers,
-              "hidden": hidden_parameters(c, a.model, 500 + 11 * k + 101 * i)}
-             for i, c in enumerate(a.cases.split(",")) for k in range(a.seeds)]
+    cases = [{"case": c, "model": a.model, "seed": case_seed(c, k), "noise_n": a.noise, "workers": a.workers,
+              "hidden": hidden_parameters(c, a.model, case_seed(c, k))} for c in a.cases.split(",") for k in range(a.seeds)]
     rows = []
     with FleetExecutor(a.scheduler) as ex:
         print(f"{len(cases)} blind diagnoses of random {a.model} dampers on a {ex.description}", flush=True)
