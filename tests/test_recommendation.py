@@ -375,3 +375,25 @@ def test_vehicle_intervals_are_drawn_for_the_recommended_model_only_unless_all_a
     write_run(failing, {"lumped": 12.0, "maxwell": 15.0})
     assert interval_models(failing, "recommended", lines.append) == ()
     assert "no model is recommended" in lines[-1]
+
+
+def test_the_end_summary_gives_every_fmus_critical_speed_with_or_without_its_interval(tmp_path, capsys):
+    """Intervals drawn for the recommended FMU only: its line carries the interval, the other FMUs' critical
+    speeds are still said (from vehicle/vehicle.json), marked as drawn without an interval."""
+    out = tmp_path / "run"
+    write_run(out, {"lumped": 3.1, "maxwell": 12.0, "twochamber": 0.13}, diagnosis=diagnosis_json("twochamber"))
+    (out / "vehicle").mkdir()
+    speeds = {"DamperLumped_tuned": 805.0, "DamperMaxwell_tuned": 647.0, "DamperTwoChamber_tuned": 801.0}
+    (out / "vehicle" / "vehicle.json").write_text(strict_json.dumps(
+        {"results": {k: {"critical_speed": {"critical_speed_kmh": v}} for k, v in speeds.items()}}))
+    figure = {"nominal": 801 / 3.6, "low": 800 / 3.6, "high": 802 / 3.6, "mc_error": 0.1, "draws": 8,
+              "method": "normal"}
+    (out / "vehicle" / "intervals.json").write_text(strict_json.dumps({"results": {"DamperTwoChamber_tuned": {
+        "model": "twochamber", "critical_speed": figure, "peak_curve_force": {**figure, "nominal": 9390.0},
+        "critical_speed_text": "801 km/h (95 %: 800-802)", "peak_curve_force_text": "9.39 kN (95 %: 9.39-9.39)",
+        "search_scatter_ms": None}}}))
+    end_summary(out, 1.0)
+    text = capsys.readouterr().out
+    assert ("vehicle, hunting critical speed [km/h] (no interval drawn): DamperLumped_tuned 805, "
+            "DamperMaxwell_tuned 647\n") in text
+    assert "vehicle: critical speed 801 km/h (95 %: 800-802)" in text and "DamperTwoChamber_tuned 801" not in text

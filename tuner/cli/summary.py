@@ -106,9 +106,11 @@ def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
         lines.append(f"  {m} parameters: {iv.get('summary') or iv['note']}")
     if summary["verdict"]:
         lines.append(f"  diagnosis: {summary['verdict']}")
-    if summary["critical_speed_kmh"] and not summary["vehicle_intervals"]:  # else the interval lines give it
-        lines.append("  vehicle, hunting critical speed [km/h]: " + ", ".join(
-            f"{k} {'-' if v is None else format(v, '.0f')}" for k, v in summary["critical_speed_kmh"].items()))
+    plain = {k: v for k, v in summary["critical_speed_kmh"].items() if k not in summary["vehicle_intervals"]}
+    if plain:  # the FMUs with an interval have their line below
+        lines.append("  vehicle, hunting critical speed [km/h]" + (" (no interval drawn)" if summary["vehicle_intervals"]
+                                                                  else "") + ": " + ", ".join(
+            f"{k} {'-' if v is None else format(v, '.0f')}" for k, v in plain.items()))
     for v in summary["vehicle_intervals"].values():
         lines.append(f"  vehicle: {v['text']}")
     if summary["report"]:
