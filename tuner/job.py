@@ -39,7 +39,7 @@ from tuner.results.diagnosis_report import make_diagnosis_report
 from tuner.results.recommendation import recommend
 from tuner.results.report import make_report
 from tuner.vehicle.compare import SCENARIO_NAMES, VEHICLE_FOLDER, compare_fmus
-from tuner.vehicle.propagation import PropagationSettings, propagate
+from tuner.vehicle.propagation import INTERVALS_FOR, PropagationSettings, propagate
 
 __all__ = ["JobResult", "run", "run_diagnosis", "diagnosis_settings", "export_fmus", "wants_diagnosis",
            "write_diagnosis", "write_diagnosis_failure", "export_extended_fmu", "vehicle_consequences"]
@@ -217,10 +217,6 @@ def write_diagnosis_failure(failed: DiagnosisFailed, out: Path) -> Path:
     path.write_text(strict_json.dumps(failed.record, indent=2))
     failed.path = path
     return path
-
-
-#: which tuned FMUs get vehicle intervals (``vehicle_consequences``)
-INTERVALS_FOR = ("recommended", "all")
 
 
 def interval_models(out: Path, intervals_for: str, log=print) -> tuple[str, ...] | None:

@@ -12,7 +12,7 @@ from tuner.data.summary import format_summary
 from tuner.fleet.executors import parse_scheduler
 from tuner.identification.fit import FitSettings
 from tuner.identification.problem import DataSettings
-from tuner.vehicle.propagation import PropagationSettings
+from tuner.vehicle.propagation import INTERVALS_FOR, PropagationSettings
 
 __all__ = ["add_data_options", "add_fit_options", "column_options", "fit_settings", "load_tests", "fit_rate_and_band",
            "vehicle_scheduler", "DATA_OPTIONS"]
@@ -156,7 +156,7 @@ def add_fit_options(ap: argparse.ArgumentParser) -> None:
                    help="with --vehicle: 95 %% intervals of the critical speed and the curve's peak damper force "
                         "from up to N parameter sets per tuned FMU drawn from the fitted covariance, fewer once "
                         "the Monte-Carlo error is below 2 km/h and 1 %% (default %(default)s; 0: no intervals)")
-    g.add_argument("--vehicle-intervals", choices=("recommended", "all"), default="recommended",
+    g.add_argument("--vehicle-intervals", choices=INTERVALS_FOR, default=INTERVALS_FOR[0],
                    help="with --vehicle-draws: the intervals for the recommended model's FMU only (default) or for "
                         "every tuned FMU (about 25 s more in the default run)")
     g.add_argument("--vehicle-scheduler", default=None, metavar="SPEC",

@@ -88,8 +88,8 @@ def refit_cost(d: int, extra: int, settings, nonsmooth: bool = False) -> float:
 def series_cost(d: int, settings, held: int) -> float:
     """Simulations of ``tuner.diagnosis.refit.series_profiles`` with the series element held at ``held`` values and
     the joint polish after: per held value, the coarse pass (the grid's values, each SERIES_HELD_JACOBIANS
-    Jacobians of the d - 2 free coordinates and the magnitude held) and the chained sweep from its release (about
-    the grid's values again, HELD_PROFILE_JACOBIANS each)."""
+    Jacobians, counted at d + 1 simulations: an upper bound, as the series element and the magnitude are held) and
+    the chained sweep from its release (about the grid's values again, HELD_PROFILE_JACOBIANS each)."""
     per_value = SERIES_HELD_JACOBIANS * (d + 1) + HELD_PROFILE_JACOBIANS * (d + 3)
     return held * settings.grid_points * per_value + max(1, settings.polish_jacobians // 2) * (d + 2)
 

@@ -51,7 +51,7 @@ from tuner.vehicle.cosim import DEFAULT_STEP, VehicleCosim
 from tuner.vehicle.hunting import DEFAULT_KICK, critical_speed_near
 
 __all__ = ["PropagationSettings", "DrawTask", "DrawOutcome", "FigureInterval", "FmuIntervals", "run_draw",
-           "figure_interval", "propagate", "close_cached", "INTERVALS_FILE", "NOMINAL_OFFSETS"]
+           "figure_interval", "propagate", "close_cached", "INTERVALS_FILE", "INTERVALS_FOR", "NOMINAL_OFFSETS"]
 
 #: the vehicle intervals' file in ``<out>/vehicle/``
 INTERVALS_FILE = "intervals.json"
@@ -59,6 +59,8 @@ INTERVALS_FILE = "intervals.json"
 #: offset times the first bracket's half width; indices -1, -2, -3): the first is the nominal value, the
 #: spread of the three the search's own scatter
 NOMINAL_OFFSETS = (0.0, -0.5, 0.5)
+#: which tuned FMUs of a job get intervals (``tuner.job.interval_models``): the recommended model's, or all
+INTERVALS_FOR = ("recommended", "all")
 #: |skewness| of the draws beyond which the normal-theory interval is said to be rough
 SKEWED = 1.0
 _COSIMS: dict = {}
@@ -380,8 +382,8 @@ def _run_rounds(plans: list[_Plan], s: PropagationSettings, executor, log) -> No
 
 
 def _plans(folder: Path, s: PropagationSettings, log) -> list[_Plan]:
-    """One plan per tuned FMU of ``folder`` whose model has a covariance (of ``s.models`` when given); the first bracket around the
-    critical speed ``vehicle/vehicle.json`` gives (else the middle of the search range)."""
+    """One plan per tuned FMU of ``folder`` whose model has a covariance (of ``s.models`` when given); the first
+    bracket around the critical speed ``vehicle/vehicle.json`` gives (else the middle of the search range)."""
     path = folder / "parameters.json"
     if not path.is_file():
         raise FileNotFoundError(f"{path}: not found (the vehicle intervals need a fit output folder)")
