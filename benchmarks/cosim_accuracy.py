@@ -5,7 +5,7 @@ table, dated, in docs/measurements.md).
 
 The master sets the stroke and velocity of each communication point at the start of the step
 (``input_interpolation = 0``, as a multibody code does) on sines of 0.5-10 Hz and 1-30 mm; the
-reference is scipy's Radau (rtol 1e-9) on the lumped model's right-hand side driven by the true
+reference is scipy's LSODA (rtol 1e-9) on the lumped model's right-hand side driven by the true
 continuous stroke (``tuner.identification.reference``). Printed: the largest force error after the first 0.1 s,
 in % of the peak force, per frequency/amplitude (rows) and communication step (columns).
 """

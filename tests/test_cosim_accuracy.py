@@ -1,4 +1,4 @@
-"""The native FMU stepped as a multibody master steps it, against scipy's Radau on the true
+"""The native FMU stepped as a multibody master steps it, against scipy's LSODA on the true
 continuous stroke (tuner.identification.reference: an independent right-hand-side formulation)."""
 import numpy as np
 import pytest

@@ -58,7 +58,12 @@ class Slave3:
 
     def close(self):
         self.fmu.terminate()
+        self.free()
+
+    def free(self):
+        """Free the instance and delete the extracted FMU."""
         self.fmu.freeInstance()
+        shutil.rmtree(self.dir, ignore_errors=True)
 
 
 def stroke_run3(path, steps, input_mode=0):
@@ -203,7 +208,7 @@ def test_non_finite_input_is_an_fmi3_error_with_the_values(fmu3_paths):
     with pytest.raises(Exception, match="fmi3DoStep.*status 3"):
         s.fmu.doStep(0.0, H)
     assert any(st == 3 and "non-finite input" in m and "stroke_velocity = nan" in m for st, m in s.log), s.log
-    s.fmu.freeInstance()
+    s.free()
 
 
 def test_what_the_fmu_does_not_have_is_an_error_with_a_reason(fmu3_paths):
@@ -228,7 +233,7 @@ def test_what_the_fmu_does_not_have_is_an_error_with_a_reason(fmu3_paths):
         with pytest.raises(Exception, match=f"{name}.*status 3"):
             call()
         assert len(s.log) == n + 1 and s.log[-1][0] == 3 and s.log[-1][1], name
-    s.fmu.freeInstance()
+    s.free()
 
 
 def test_wrong_instantiation_token_and_event_mode_are_refused(fmu3_paths):
@@ -246,6 +251,7 @@ def test_wrong_instantiation_token_and_event_mode_are_refused(fmu3_paths):
             f.instantiate(logMessage=logger, eventModeUsed=event_mode)
         assert text in log[-1]
         f.freeLibrary()
+    shutil.rmtree(d, ignore_errors=True)
 
 
 # -- FMU state -----------------------------------------------------------------------------------

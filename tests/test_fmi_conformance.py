@@ -63,7 +63,12 @@ class Slave:
 
     def close(self):
         self.fmu.terminate()
+        self.free()
+
+    def free(self):
+        """Free the instance and delete the extracted FMU."""
         self.fmu.freeInstance()
+        shutil.rmtree(self.dir, ignore_errors=True)
 
 
 def stroke_run(path, steps, input_mode=EXTRAPOLATE):
@@ -267,6 +272,9 @@ for d, md in zip(dirs, mds):
         forces.append(f.getReal([2])[0])
     f.terminate(); f.freeInstance()
     out[md.coSimulation.modelIdentifier] = forces
+import shutil
+for d in dirs:
+    shutil.rmtree(d, ignore_errors=True)
 print(json.dumps(out))
 """
 
@@ -319,7 +327,7 @@ def test_bad_parameters_fail_the_initial_output_with_their_name(fmu_paths):
     with pytest.raises(Exception, match="fmi2GetReal"):
         s.force()
     assert any(status == 3 and "M_P" in text for status, text in s.log), s.log
-    s.fmu.freeInstance()
+    s.free()
 
 
 # -- model structure -----------------------------------------------------------------------------
@@ -379,6 +387,8 @@ try:
         out.append(s.force())
 except Exception as exc:
     error = str(exc)
+import shutil
+shutil.rmtree(s.dir, ignore_errors=True)  # the extracted FMU
 print(json.dumps({"forces": out, "error": error, "log": [m for st, m in s.log if st >= 3]}))
 """
 

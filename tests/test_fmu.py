@@ -1,6 +1,7 @@
 """The FMUs through fmpy: validity, identity with the in-process engine, state, errors, co-simulation
 (``examples/mass_spring_cosim.py``, loaded from its file: the examples are no package)."""
 import importlib.util
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -103,7 +104,8 @@ def test_get_and_set_fmu_state_resumes_identically(fmu_paths, flavour, reals):
 
     md = read_model_description(str(fmu_paths[flavour]))
     vr = {v.name: v.valueReference for v in md.modelVariables}
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu_paths[flavour])),
+    unzip = extract(str(fmu_paths[flavour]))
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzip,
                     modelIdentifier=md.coSimulation.modelIdentifier, instanceName="s")
     fmu.instantiate()
     fmu.setupExperiment(startTime=0.0)
@@ -130,6 +132,7 @@ def test_get_and_set_fmu_state_resumes_identically(fmu_paths, flavour, reals):
     fmu.freeFMUstate(saved)
     fmu.terminate()
     fmu.freeInstance()
+    shutil.rmtree(unzip, ignore_errors=True)
     np.testing.assert_array_equal(first, second)
     assert np.abs(first[:, 0]).max() > 1e3
 

@@ -5,6 +5,7 @@ DefaultExperiment; Outputs and InitialUnknowns with their dependencies; and the 
 addressed by the native value references."""
 import json
 import math
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -124,6 +125,7 @@ def run_by_reference(path, vr, t, x, v, reals=None, integers=None):
         rows.append(fmu.getReal(outs))
     fmu.terminate()
     fmu.freeInstance()
+    shutil.rmtree(unzip, ignore_errors=True)
     return np.array(rows)
 
 
@@ -180,13 +182,14 @@ def test_initial_outputs_are_calculated_in_initialization_mode_as_the_native_doe
     reals = {"preload_force": 1234.0, "friction_force": 300.0} if kind != "maxwell" else {}
     got = []
     for path in (fmu_paths[kind], fmu_paths[f"{kind}_py"]):
-        fmu, _ = in_initialization(path, vr, "init", reals)
+        fmu, unzip = in_initialization(path, vr, "init", reals)
         fmu.setReal([vr["stroke"], vr["stroke_velocity"]], [2e-3, 0.01])
         during = fmu.getReal(outs)
         fmu.exitInitializationMode()
         after = fmu.getReal(outs)
         fmu.terminate()
         fmu.freeInstance()
+        shutil.rmtree(unzip, ignore_errors=True)
         np.testing.assert_allclose(during, after, rtol=1e-12, atol=0)
         got.append(np.array(during))
     np.testing.assert_allclose(got[1], got[0], rtol=1e-9, atol=1e-9)

@@ -4,7 +4,7 @@
 - ``parametrization``: the design variables of each model;
 - ``runner``: the FMU through fmpy, with its C stepping loop (``c/fmi2_stepper.c``);
 - ``engine``: simulation engines (FMU, C kernel, Python) and the worker pool;
-- ``reference``: the converged Radau reference;
+- ``reference``: the converged ODE reference (scipy's LSODA);
 - ``firefly``: the Firefly algorithm;
 - ``polish``: the local solver (projected Levenberg-Marquardt);
 - ``intervals``: 95 % intervals and identifiability flags of every identified parameter at the fit;
