@@ -49,3 +49,39 @@ def test_a_clearly_wrong_base_form_gets_no_restart(tmp_path):
     assert [r["start"] for r in runs["twochamber"]] == ["Firefly best"], (runs, lumped)
     assert hist["twochamber"]["race"]["skipped"] == ["data-driven start"]
     assert hist["twochamber"]["race"]["ratio"] > RACE_RATIO
+
+
+@pytest.mark.slow
+def test_a_refinement_at_the_residual_floor_is_not_restarted_and_one_above_it_is(tmp_path):
+    """The preset lumped damper with 20 N of force noise (which dominates the floor, so the floor is well known),
+    fitted with the lumped model (which represents it): the first refinement ends within FLOOR_REACHED x the
+    residual floor, the four restarts are skipped and recorded, and nothing is lost (the RMSE within RATIO of
+    what the TRUE parameters score). The same damper with a friction the fitted model has no element for
+    (300 N, far above the noise) stays above the floor: every restart runs."""
+    from benchmarks.convergence import truth_rmse
+    from campaign.synthetic import write_model_dataset
+    from damper_fmu import defaults
+    from tuner.data.reading import load_dataset
+    from tuner.identification.engine import fastest_engine
+    from tuner.identification.fit import FitSettings, fit, refinement_starts
+    from tuner.identification.floor import FLOOR_REACHED
+
+    # no Firefly iterations (as the diagnosis's bases): the refinements from its seeded first population's best
+    settings = FitSettings(models=("lumped",), engine=fastest_engine(), iterations=0)
+    hists = {}
+    for name, extra in (("clean", {}), ("friction", {"friction_force": 300.0})):
+        data = write_model_dataset(tmp_path / name, "lumped", {**defaults("lumped"), **extra}, seed=4,
+                                   durations=(6.0, 6.0, 6.0), roles=("identification",) * 3, noise_n=20.0)
+        tests = load_dataset(data)
+        hists[name] = fit(tests, [], settings, log=lambda m: None).histories["lumped"]
+        if name == "clean":
+            truth, _ = truth_rmse("lumped", data, settings, fastest_engine())
+    clean, rubbed = hists["clean"], hists["friction"]
+    stop = clean["floor_stop"]
+    assert stop is not None, clean["local_refinements"]
+    assert len(clean["local_refinements"]) == 1 and len(stop["skipped"]) >= refinement_starts("lumped") - 2
+    assert stop["rmse_n"] <= FLOOR_REACHED * stop["residual_floor_n"]
+    assert clean["identification_rmse_n"] <= RATIO * truth, (clean["identification_rmse_n"], truth)
+    assert rubbed["floor_stop"] is None
+    assert rubbed["identification_rmse_n"] > 2.0 * FLOOR_REACHED * stop["residual_floor_n"]  # far above the floor
+    assert len(rubbed["local_refinements"]) >= refinement_starts("lumped") - 1, rubbed["local_refinements"]

@@ -318,7 +318,6 @@ def test_the_floor_of_a_model_is_what_the_stroke_noise_makes_through_it(tmp_path
 
     from campaign.damper_class import write_class_dataset
     from tuner.data.reading import load_dataset
-    from tuner.diagnosis.search import stroke_noise_force
     from tuner.diagnosis.settings import DiagnosisSettings
     from tuner.identification.engine import fastest_engine
     from tuner.identification.fit import validation_run
@@ -331,9 +330,9 @@ def test_the_floor_of_a_model_is_what_the_stroke_noise_makes_through_it(tmp_path
     settings = DiagnosisSettings(engine=fastest_engine())
     problem = Problem.build([t for t in tests if t.role == "identification"],
                             [t for t in tests if t.role == "validation"], settings.data)
-    through_gap = stroke_noise_force("lumped", truth, problem.identification, problem.sig_id, settings)
-    without_gap = stroke_noise_force("lumped", {**truth, "free_play": 0.0}, problem.identification, problem.sig_id,
-                                     settings)
+    floors = problem.residual_floor(settings.engine)
+    through_gap = floors.stroke_noise_n("lumped", truth)
+    without_gap = floors.stroke_noise_n("lumped", {**truth, "free_play": 0.0})
     assert through_gap > 5.0 * without_gap
     residual = np.concatenate([(s.force - validation_run("lumped", truth, s, settings.engine)[0])[s.mask]
                                for s in problem.sig_id])

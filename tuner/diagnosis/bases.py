@@ -12,6 +12,7 @@ from damper_fmu.parameters import EFFECT_MODELS, defaults
 
 from tuner.diagnosis.cost_model import EXTENDED_COST, expected_cost, identification_cost
 from tuner.identification.engine import Engine
+from tuner.identification.floor import ResidualFloor
 from tuner.identification.fit import RACE_RATIO, FitSettings, identify, initial_guess, refinement_starts, validation_run
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.problem import Problem
@@ -127,27 +128,48 @@ def identified_bases(problem: Problem, checkpoints: Path, settings: DiagnosisSet
         bases.update({k: Base(parametrization(k, v), v, facts.get(k, BaseRefinement()))
                       for k, v in (other_bases or {}).items() if k != kind and k in EFFECT_MODELS})
         return kind, bases, base_choice
-    fitted = {}
+    fitted, floor, at_floor = {}, problem.residual_floor(settings.engine), None
     kinds = base_kinds(settings, None, None, given=False)
     forecast_identified(log, problem, settings, {k: parametrization(k, None) for k in kinds})
     for kind in kinds:
+        if at_floor is not None:
+            log.skip(f"identification of the {kind} base")
+            continue
         par_k = parametrization(kind, None)
         log(f"diagnosis: identifying the base {kind} model ...")
         fs = FitSettings(models=(kind,), data=settings.data, iterations=settings.base_iterations,
                          workers=settings.workers, seed=settings.seed, engine=settings.engine,
                          polish_jacobians=settings.base_polish_jacobians)
         found = identify(kind, problem.sig_id, fs, par_k, checkpoints / f"diagnosis_base_{kind}.json",
-                         problem.digest, log.part(f"identification of the {kind} base"))
+                         problem.digest, log.part(f"identification of the {kind} base"), floor=floor)
         fitted[kind] = (Base(par_k, found.values, BaseRefinement.from_history(found.history)),
                         pooled_validation_mse(kind, found.values, problem.sig_val, settings.engine))
+        if kind != kinds[-1]:
+            at_floor = _at_floor(kind, found, floor, [k for k in kinds if k not in fitted], log)
     kind = min(fitted, key=lambda k: fitted[k][1])
     bases = {k: fitted[k][0] for k in sorted(fitted, key=lambda k: fitted[k][1])}
     base_choice = {"chosen": kind, "by": "held-out MSE of the identified base models (Table 3 definition)",
                    "validation_mse": {k: v[1] for k, v in fitted.items()}}
+    if at_floor is not None:
+        base_choice.update(by="the first base form identified reaches the residual floor", at_floor=at_floor)
     if len(fitted) > 1:
         log("diagnosis: base form " + kind + " (held-out MSE " + ", ".join(
             f"{k} {math.sqrt(v[1]):.1f} N rms" for k, v in fitted.items()) + ")")
     return kind, bases, base_choice
+
+
+def _at_floor(kind: str, found, floor: ResidualFloor, others: list, log) -> dict | None:
+    """When the base ``kind`` identified (``found``, an ``Identified``) reaches the residual ``floor``
+    (``ResidualFloor.reached``), the record of why the base forms ``others`` are not identified (the ``log``
+    says it), else None: no form can fit these tests more than the noise better."""
+    g = found.history["best_fitness_final"]
+    rmse = 1.0 / math.sqrt(g) if g > 0 else math.inf
+    level = floor.reached(kind, found.values, rmse)
+    if level is None:
+        return None
+    log(f"diagnosis: the {kind} base reaches the residual floor ({rmse:.2f} N against {level:.2f} N): no other form "
+        f"can fit these tests more than the noise better; not identified: {', '.join(others)}")
+    return {"rmse_n": rmse, "residual_floor_n": level, "not_identified": others}
 
 
 def seconds_per_simulation(kind: str, par: Parametrization, problem: Problem, settings: DiagnosisSettings) -> float:

@@ -3,7 +3,6 @@ continuation, intervals, forward selection, the forms and the detection limits (
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -14,8 +13,6 @@ from damper_fmu.fmu import ensure_fmu
 from damper_fmu.effect_catalogue import ALL_EFFECTS, EFFECT_PARAMETERS, effect_of, search_bounds
 from damper_fmu.parameters import SERIES_ELEMENT, defaults
 
-from tuner.data.noise import channel_noise
-from tuner.data.reading import RigTest
 from tuner.diagnosis.bases import Base, BaseRefinement
 from tuner.diagnosis.cost_model import (EXTENDED_COST, DiagnosisCost, after_ranking, expected_cost, form_pass_cost,
                                          refit_cost, series_cost)
@@ -69,22 +66,6 @@ def base_residuals(kind: str, values: dict, data: Problem, settings) -> list[Tes
     return [TestResidual(p.name, p.role or "", p.time, p.stroke, p.stroke_velocity, p.force,
                          validation_run(kind, point, s, settings.engine)[0], s.mask, s.temperature)
             for p, s in zip([*data.prep_id, *data.prep_val], [*data.sig_id, *data.sig_val])]
-
-
-def stroke_noise_force(kind: str, params: dict, tests: list[RigTest], signals: list, settings) -> float:
-    """Force [N rms, fit band] that the stroke channel's noise makes in the simulation: the model
-    driven by the measured stroke plus white noise at the stroke's own noise level in the fit band
-    (``tuner.data.noise.channel_noise``), minus the same without it; pooled over the tests, seed 0.
-    The velocity input is left as measured: the differentiator's band (20 Hz and up) keeps the
-    stroke noise's share in it small, and the series stiffness acts on the stroke."""
-    rng = np.random.default_rng(0)
-    se = n = 0.0
-    for t, s in zip(tests, signals):
-        sigma = channel_noise(t, settings.data.fit_rate_hz, "stroke")
-        noisy = dataclasses.replace(s, stroke=s.stroke + rng.normal(0.0, sigma, s.stroke.size))
-        d = (validation_run(kind, params, noisy, settings.engine)[0] - validation_run(kind, params, s, settings.engine)[0])
-        se, n = se + float(np.sum(d[s.mask] ** 2)), n + int(s.mask.sum())
-    return math.sqrt(se / n) if n else 0.0
 
 
 def split_mse(residual: np.ndarray | None, lengths: list[int]) -> list[tuple[float, float]]:
@@ -201,8 +182,7 @@ class CandidateSearch:
         the model's series stiffness (no model of the damper can remove it). A floor from a noise estimate
         that is not credible (filtered data, too few samples) decides nothing: no "N x the floor", no
         'unexplained' and no "settled" from a ratio against it."""
-        self.stroke_noise_n = stroke_noise_force(self.kind, self.base, self.data.identification, self.data.sig_id,
-                                                 self.settings)
+        self.stroke_noise_n = self.data.residual_floor(self.settings.engine).stroke_noise_n(self.kind, self.base)
         self.floor = math.hypot(self.noise, self.stroke_noise_n)
         self.credible = bool(self.data.noise.get("credible", True))
         self.not_credible = None if self.credible else self.data.noise.get("text", "noise estimate not credible")
@@ -522,8 +502,7 @@ class CandidateSearch:
             return self.stroke_noise_n, self.floor
         key = "+".join(causes)
         if key not in self.floors:
-            sn = stroke_noise_force(self.kind, self.refits[key].params(), self.data.identification, self.data.sig_id,
-                                    self.settings)
+            sn = self.data.residual_floor(self.settings.engine).stroke_noise_n(self.kind, self.refits[key].params())
             self.floors[key] = (sn, math.hypot(self.noise, sn))
             if abs(sn - self.stroke_noise_n) > 0.1 * self.floor:
                 self.log(f"diagnosis: stroke noise through the model with {key} {sn:.1f} N rms (the base's "

@@ -10,6 +10,8 @@
 - ``intervals``: 95 % intervals and identifiability flags of every identified parameter at the fit;
 - ``parameter_draws``: parameter sets drawn from a fitted model's covariance (for the vehicle's intervals);
 - ``rig_test_design``: the rig tests that would shrink the intervals of the parameters not determined;
+- ``validation``: the one definition of the validation figures (the FMU at its own steps, error metrics);
+- ``floor``: the residual floor (force noise and the stroke noise through the model) and when a fit is at it;
 - ``fit``: identification and validation (``fit`` returns a ``FitResult``);
 - ``full_rate``: the full-rate check of a decimated fit.
 """

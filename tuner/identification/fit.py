@@ -40,14 +40,16 @@ from damper_fmu.parameters import EFFECT_MODELS, defaults
 from tuner.data.preprocess import prepare
 from tuner.data.reading import RigTest
 from tuner.identification import firefly
-from tuner.identification.engine import IDENTIFICATION_STEP, Engine, Signals, simulate_signals
+from tuner.identification.engine import IDENTIFICATION_STEP, Engine, Signals
+from tuner.identification.floor import ResidualFloor
 from tuner.identification.full_rate import MIN_RATE_RATIO, comparison_rate, full_rate_check
 from tuner.identification.intervals import parameter_intervals, reached_ranges
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.polish import TYPICAL_JACOBIANS, PolishResult, polish, resolution_stop, small_progress
 from tuner.identification.problem import DataSettings, Problem, split_data_settings, to_signals
 from tuner.identification.runner import SimulationError
-from tuner.metrics import error_metrics, noise_std
+from tuner.identification.validation import validation_run
+from tuner.metrics import noise_std
 from tuner.progress import advance, expect, stage
 from tuner import strict_json
 
@@ -177,13 +179,14 @@ class Identified:
 
 def identify(model: str, signals: list[Signals], settings: FitSettings, par: Parametrization,
               ckpt: Path, digest: str, log, *, rival: tuple[str, float] | None = None,
-              intervals: bool = False) -> Identified:
+              intervals: bool = False, floor: ResidualFloor | None = None) -> Identified:
     """Run Firefly and the local refinements for one model.
 
     rival: (model, identification RMSE [N]) of another base form already fitted to the same data;
     when the first refinement leaves more than ``RACE_RATIO`` x its RMSE, this form is clearly the
     wrong one and gets no restart (the effort goes to the contender). intervals: the parameters' intervals
-    at the best point too, through the same engine's workers (d + 1 simulations in parallel)."""
+    at the best point too, through the same engine's workers (d + 1 simulations in parallel). floor: the
+    problem's residual floor; a first refinement within ``FLOOR_REACHED`` x of it is not restarted."""
     opts = firefly.FireflyOptions(population=settings.population, max_iterations=settings.iterations,
                                   stop_tol=settings.stop_tol)
     key = _settings_hash(settings, digest, model)
@@ -242,7 +245,7 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         result = firefly.run(evaluate, par.dimension, options=opts, seed=settings.seed, state=state,
                              callback=callback, initial=initial)
         last_failure = eng.last_failure
-        ref = _refine(eng, model, par, settings, result, guess, guess_p, rival, log)
+        ref = _refine(eng, model, par, settings, result, guess, guess_p, rival, log, floor)
         elapsed = time.perf_counter() - t_start
         ivs = _intervals(eng, model, signals, par, par.to_params(ref.z), log) if intervals and ref.g > 0.0 else None
     if ref.g <= 0.0:
@@ -278,7 +281,8 @@ def _resumed_state(ckpt: Path, key: str, model: str, log):
 class Refinement:
     """The local refinements after the Firefly search: the best point (scaled ``z``, fitness ``g`` = N / SSE
     [1/N^2]), the evaluations they took, the winning refinement (``polished``, a ``PolishResult``), every run,
-    and the restarts skipped as a clearly wrong form (``race``, or None)."""
+    the restarts skipped as a clearly wrong form (``race``, or None) and those skipped at the residual floor
+    (``floor_stop``, or None)."""
 
     z: np.ndarray
     g: float
@@ -287,16 +291,18 @@ class Refinement:
     runs: list
     race: dict | None
     elapsed_s: float = 0.0  # wall time of the refinements [s]
+    floor_stop: dict | None = None
 
 
 def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result, guess: np.ndarray, guess_p: dict,
-            rival, log) -> Refinement:
+            rival, log, floor: ResidualFloor | None = None) -> Refinement:
     """The local refinements from the Firefly best and the restarts (the data-driven start and its
     ``RESTART_LADDER`` variants): the Firefly population often collapses into one basin, on random dampers
     sometimes a degenerate one (silent blocks as pure dashpots, 2.2x the floor) that the data-driven start
     avoids; the best refinement wins (benchmarks/convergence.py). A form ``RACE_RATIO`` x worse than its
-    ``rival`` after the first gets no restart. The progress ``log`` is told the seconds the refinements still to
-    run will take, at the measured time of those done."""
+    ``rival`` after the first gets no restart, nor one whose first refinement reaches the residual ``floor``
+    (``_at_floor``). The progress ``log`` is told the seconds the refinements still to run will take, at the
+    measured time of those done."""
     none = PolishResult(result.x_best, result.fitness_best, 0, stop="no local refinement (--polish 0)",
                         converged=False, rule="not started", jacobians=0, predicted=1.0, budget_spent=False)
     ref = Refinement(result.x_best, result.fitness_best, 0, none, [], None)
@@ -318,6 +324,8 @@ def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result
             log(f"[{model}] no restart: {ref.race['ratio']:.1f} x the {rival[0]} form's RMSE, "
                 f"clearly the wrong form for this damper")
             break
+        if k == 1 and floor is not None and _at_floor(ref, model, par, floor, [lab for lab, _ in starts[1:]], log):
+            break
         if k:  # the refinements still to run (none skipped by the race), at the measured time of those done
             expect(log, (len(starts) - k) * (time.perf_counter() - t0) / k)
         log(f"[{model}] local refinement from the {label} (projected Levenberg-Marquardt until converged, "
@@ -332,6 +340,21 @@ def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result
             ref.z, ref.g, ref.polished = pol.z, g, pol
     ref.elapsed_s = time.perf_counter() - t0
     return ref
+
+
+def _at_floor(ref: Refinement, model: str, par: Parametrization, floor: ResidualFloor, skipped: list, log) -> bool:
+    """Whether the first refinement of ``ref`` ends at the residual ``floor`` of the model at its point
+    (``ResidualFloor.reached``: within ``FLOOR_REACHED`` x); if so the restarts
+    ``skipped`` (their labels) are recorded in ``ref.floor_stop`` and the ``log`` says why."""
+    rmse = ref.runs[0]["rmse_n"]
+    level = floor.reached(model, par.to_params(ref.z), rmse)
+    if level is None:
+        return False
+    ref.floor_stop = {"rmse_n": rmse, "residual_floor_n": level, "skipped": skipped}
+    log(f"[{model}] no restart: the refinement ends at {rmse:.2f} N, {rmse / level:.2f} x the residual floor "
+        f"({level:.2f} N: force noise and the stroke noise through the model); no start can end more than the noise "
+        f"below it")
+    return True
 
 
 def _history(result, ref: Refinement, par: Parametrization, first_population: dict, search_stop: dict,
@@ -356,6 +379,7 @@ def _history(result, ref: Refinement, par: Parametrization, first_population: di
         "polish_jacobians": int(ref.polished.jacobians),
         "local_refinements": ref.runs,
         "race": ref.race,  # None, or the restarts skipped as a clearly wrong form (RACE_RATIO)
+        "floor_stop": ref.floor_stop,  # None, or the restarts skipped at the residual floor (FLOOR_REACHED)
         "converged": bool(ref.polished.converged),
         "polish_evaluations": int(ref.evaluations),
         "polish_elapsed_s": ref.elapsed_s,  # with polish_evaluations: the cost of a full simulation near the fit
@@ -364,18 +388,6 @@ def _history(result, ref: Refinement, par: Parametrization, first_population: di
         "elapsed_s": elapsed,
         "parametrization": par.describe(),
     }
-
-
-def validation_run(model: str, params: dict, s: Signals, engine: str = "fmu") -> tuple[np.ndarray, dict]:
-    """(simulated force [N] at the samples of ``s``, error metrics dict over its counted samples).
-
-    The one definition of the validation figures (Table 3, diagnosis before/after): band-limited
-    as the identification objective (``tuner.identification.engine.simulate_signals``), but through the built FMU
-    (engine 'fmu') at its own default internal steps (error-controlled), i.e. the model the user
-    gets. engine 'native' gives the same numbers without FMI (tests hold them equal).
-    """
-    sim = simulate_signals(model, params, s, engine=engine, max_internal_step=None, tolerance=None)
-    return sim, error_metrics(s.force[s.mask], sim[s.mask]).to_dict()
 
 
 def full_rate_checks(tests: list[RigTest], params: dict, settings: FitSettings, log=print) -> dict:
@@ -509,6 +521,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
     # measurement noise in the fit band [N]: what a fit of a model that can represent the data
     # reaches, reported beside the identification RMSE
     noise, axes, force_limit = problem.noise_n, problem.axes, problem.force_limit_n
+    floor = problem.residual_floor(settings.engine)
     _log_problem(problem, log)
     params, histories = {}, {}
     try:
@@ -518,7 +531,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
             fitted_bases = [(m, histories[m]["identification_rmse_n"]) for m in histories if m in EFFECT_MODELS]
             found = identify(model, signals, settings, par, checkpoints / f"{model}.json", digest, log,
                              rival=min(fitted_bases, key=lambda r: r[1])
-                             if model in EFFECT_MODELS and fitted_bases else None, intervals=True)
+                             if model in EFFECT_MODELS and fitted_bases else None, intervals=True, floor=floor)
             best, hist = found.values, found.history
             params[model] = {"values": best, "units": dict(par.units),
                              "bounds": {n: list(par.bounds[n]) for n in par.names},

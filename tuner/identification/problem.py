@@ -22,6 +22,7 @@ from tuner.data.prefilter import parse_prefilter
 from tuner.data.preprocess import prepare
 from tuner.data.reading import RigTest
 from tuner.identification.engine import Signals, oversampling
+from tuner.identification.floor import ResidualFloor, stroke_sigmas
 from tuner.identification.parametrization import Parametrization
 
 __all__ = ["DataSettings", "split_data_settings", "Problem", "to_signals", "table_abscissae", "model_abscissae",
@@ -235,3 +236,9 @@ class Problem:
             fixed = {k: fixed_from.get(k, v) for k, v in fixed.items()}
         return Parametrization(kind, scheme or self.settings.parametrization, force_limit=self.force_limit_n,
                                spring_reference=self.settings.spring_reference_n_per_m, fixed=fixed)
+
+    def residual_floor(self, engine: str = "fmu") -> ResidualFloor:
+        """The residual floor of this problem's identification tests (``tuner.identification.floor``): the force
+        noise, whether it is credible, and the stroke channel's noise of each test, simulated with ``engine``."""
+        return ResidualFloor(self.noise_n, bool(self.noise.get("credible", True)), self.sig_id,
+                             stroke_sigmas(self.identification, self.settings.fit_rate_hz), engine)
