@@ -13,7 +13,8 @@ from damper_fmu.parameters import EFFECT_MODELS, defaults
 from tuner.diagnosis.cost_model import EXTENDED_COST, expected_cost, identification_cost
 from tuner.identification.engine import Engine
 from tuner.identification.floor import ResidualFloor
-from tuner.identification.fit import RACE_RATIO, FitSettings, identify, initial_guess, refinement_starts, validation_run
+from tuner.identification.fit import (RACE_RATIO, FitSettings, fit_order, identify, initial_guess, refinement_starts,
+                                      validation_run)
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.problem import Problem
 from tuner.diagnosis.settings import DiagnosisSettings
@@ -116,7 +117,8 @@ def identified_bases(problem: Problem, checkpoints: Path, settings: DiagnosisSet
     """(the first base kind, {kind: Base} in the order tried, how it was chosen): the bases given
     (``base_params`` of ``base_model`` and ``other_bases``; ``refinements``: {kind: BaseRefinement} of their
     identification on this problem), or identified here (Firefly state checkpointed in the folder
-    ``checkpoints``: ``diagnosis_base_<kind>.json``)."""
+    ``checkpoints``: ``diagnosis_base_<kind>.json``) as the fit identifies them: in ``fit_order``, each raced
+    against the best before it (``RACE_RATIO``), none after one that reaches the residual floor (``_at_floor``)."""
     def parametrization(kind: str, given: dict | None) -> Parametrization:
         # the local solver needs monotone tables: the 'improved' scheme whatever the fit used
         return problem.parametrization(kind, fixed_from=given, scheme="improved")
@@ -128,8 +130,8 @@ def identified_bases(problem: Problem, checkpoints: Path, settings: DiagnosisSet
         bases.update({k: Base(parametrization(k, v), v, facts.get(k, BaseRefinement()))
                       for k, v in (other_bases or {}).items() if k != kind and k in EFFECT_MODELS})
         return kind, bases, base_choice
-    fitted, floor, at_floor = {}, problem.residual_floor(settings.engine), None
-    kinds = base_kinds(settings, None, None, given=False)
+    fitted, floor, at_floor, rmse = {}, problem.residual_floor(settings.engine), None, {}
+    kinds = fit_order(base_kinds(settings, None, None, given=False), problem, settings.engine)
     forecast_identified(log, problem, settings, {k: parametrization(k, None) for k in kinds})
     for kind in kinds:
         if at_floor is not None:
@@ -141,7 +143,10 @@ def identified_bases(problem: Problem, checkpoints: Path, settings: DiagnosisSet
                          workers=settings.workers, seed=settings.seed, engine=settings.engine,
                          polish_jacobians=settings.base_polish_jacobians)
         found = identify(kind, problem.sig_id, fs, par_k, checkpoints / f"diagnosis_base_{kind}.json",
-                         problem.digest, log.part(f"identification of the {kind} base"), floor=floor)
+                         problem.digest, log.part(f"identification of the {kind} base"), floor=floor,
+                         rival=min(rmse.items(), key=lambda r: r[1]) if rmse else None)
+        g = found.history["best_fitness_final"]
+        rmse[kind] = 1.0 / math.sqrt(g) if g > 0 else math.inf
         fitted[kind] = (Base(par_k, found.values, BaseRefinement.from_history(found.history)),
                         pooled_validation_mse(kind, found.values, problem.sig_val, settings.engine))
         if kind != kinds[-1]:

@@ -54,7 +54,7 @@ from tuner.progress import advance, expect, stage
 from tuner import strict_json
 
 __all__ = ["FitSettings", "FitResult", "Identified", "fit", "initial_guess", "validation_run", "identify", "quality_gate", "QUALITY_AME_PCT",
-           "RACE_RATIO", "RESTART_LADDER", "refinement_starts"]
+           "RACE_RATIO", "RESTART_LADDER", "refinement_starts", "fit_order"]
 
 #: Log-scaled parameters whose decade decides the basin a local refinement ends in: the data-driven
 #: start is refined again with each one a decade up and down (measured on random lumped dampers: one
@@ -257,6 +257,24 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         f"(RMSE {_rmse(result.fitness_best):.1f} N), {result.evaluations + ref.evaluations} evaluations, "
         f"{elapsed:.0f} s; identification RMSE {_rmse(ref.g):.1f} N")
     return Identified(par.to_params(ref.z), history, ivs)
+
+
+def fit_order(models, problem: Problem, engine: str) -> list[str]:
+    """The order ``models`` are fitted in: as given, except that the base forms among them (``EFFECT_MODELS``) are
+    fitted best data-driven start first (one simulation of each form's ``initial_guess``, identification SSE),
+    so that the race (``RACE_RATIO``) can spare the clearly wrong form its restarts whichever it is: on the
+    bundled twin-tube data the lumped form's start leaves 683 N, the two-chamber form's 23 N, and fitted
+    first the lumped form had no rival and took four restarts (5 s) to end at 384 N against the other's 19 N."""
+    bases = [m for m in models if m in EFFECT_MODELS]
+    if len(bases) < 2:
+        return list(models)
+    sse = {}
+    for kind in bases:
+        guess = {**defaults(kind), **initial_guess(kind, problem.sig_id, problem.parametrization(kind))}
+        with Engine(kind, problem.sig_id, engine=engine, workers=0) as eng:
+            sse[kind] = float(eng.sse_batch([guess])[0])
+    ranked = iter(sorted(bases, key=lambda k: sse[k]))
+    return [next(ranked) if m in EFFECT_MODELS else m for m in models]
 
 
 def _rmse(g: float) -> float:
@@ -525,7 +543,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
     _log_problem(problem, log)
     params, histories = {}, {}
     try:
-        for model in settings.models:
+        for model in fit_order(settings.models, problem, settings.engine):
             stage(log, f"fit {model}")
             par = problem.parametrization(model)
             fitted_bases = [(m, histories[m]["identification_rmse_n"]) for m in histories if m in EFFECT_MODELS]
@@ -548,6 +566,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
     finally:
         if scratch is not None:
             scratch.cleanup()
+    params, histories = ({m: d[m] for m in settings.models if m in d} for d in (params, histories))
 
     # every result is checked through the FMU the user gets, whatever engine identified it
     stage(log, "validate and export")
