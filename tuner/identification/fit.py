@@ -193,12 +193,9 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
     state = _resumed_state(ckpt, key, model, log)
     guess_p = initial_guess(model, signals, par)  # seeds the first population and restarts the refinement
     guess = par.from_params(guess_p)
-    initial = None
-    if settings.init == "seeded" and state is None:
-        initial = np.array([guess, par.from_params(defaults(model))])
-    engine_path = None
-    if settings.engine == "fmu":
-        engine_path = ensure_fmu(model)
+    seeded = settings.init == "seeded" and state is None
+    initial = np.array([guess, par.from_params(defaults(model))]) if seeded else None
+    engine_path = ensure_fmu(model) if settings.engine == "fmu" else None
     t_start = time.perf_counter()
     evals_start = state.evaluations if state else 0
     first_population = {}
@@ -535,34 +532,14 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
         checkpoints = Path(scratch.name)
     checkpoints = Path(checkpoints)
     checkpoints.mkdir(parents=True, exist_ok=True)
-    digest, prep_id, signals = problem.digest, problem.prep_id, problem.sig_id
-    # measurement noise in the fit band [N]: what a fit of a model that can represent the data
-    # reaches, reported beside the identification RMSE
-    noise, axes, force_limit = problem.noise_n, problem.axes, problem.force_limit_n
+    prep_id, axes, force_limit = problem.prep_id, problem.axes, problem.force_limit_n
     floor = problem.residual_floor(settings.engine)
     _log_problem(problem, log)
     params, histories = {}, {}
     try:
         for model in fit_order(settings.models, problem, settings.engine):
             stage(log, f"fit {model}")
-            par = problem.parametrization(model)
-            fitted_bases = [(m, histories[m]["identification_rmse_n"]) for m in histories if m in EFFECT_MODELS]
-            found = identify(model, signals, settings, par, checkpoints / f"{model}.json", digest, log,
-                             rival=min(fitted_bases, key=lambda r: r[1])
-                             if model in EFFECT_MODELS and fitted_bases else None, intervals=True, floor=floor)
-            best, hist = found.values, found.history
-            params[model] = {"values": best, "units": dict(par.units),
-                             "bounds": {n: list(par.bounds[n]) for n in par.names},
-                             "parametrization": settings.data.parametrization, **found.intervals}
-            rmse_id = 1.0 / math.sqrt(hist["best_fitness_final"]) if hist["best_fitness_final"] > 0 else math.inf
-            hist["noise_floor_n"] = noise
-            hist["noise_credible"] = bool(problem.noise.get("credible", True))
-            hist["identification_rmse_n"] = rmse_id
-            against = (f"= {rmse_id / noise:.1f} x the measurement noise in the fit band ({noise:.1f} N)"
-                       if hist["noise_credible"] else f"({problem.noise.get('text')})")
-            log(f"[{model}] identification RMSE {rmse_id:.1f} N {against}; local refinement "
-                f"{'converged' if hist['converged'] else 'NOT converged'}")
-            histories[model] = hist
+            params[model], histories[model] = _fit_model(model, problem, settings, checkpoints, histories, floor, log)
     finally:
         if scratch is not None:
             scratch.cleanup()
@@ -592,6 +569,30 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
     })
     metrics = {"settings": settings_out, "tests": tests_out, "table3": table3, "quality": quality}
     return FitResult(params=params, histories=histories, metrics=metrics, simulations=arrays, problem=problem)
+
+
+def _fit_model(model: str, problem: Problem, settings: FitSettings, checkpoints: Path, histories: dict,
+               floor: ResidualFloor, log) -> tuple[dict, dict]:
+    """(the ``FitResult.params`` entry, the history) of ``model`` identified on ``problem``, raced against the best
+    base form among those already fitted (``histories``); the identification RMSE [N] logged beside the
+    measurement noise in the fit band, what a fit of a model that can represent the data reaches."""
+    par, noise = problem.parametrization(model), problem.noise_n
+    fitted_bases = [(m, histories[m]["identification_rmse_n"]) for m in histories if m in EFFECT_MODELS]
+    found = identify(model, problem.sig_id, settings, par, checkpoints / f"{model}.json", problem.digest, log,
+                     rival=min(fitted_bases, key=lambda r: r[1]) if model in EFFECT_MODELS and fitted_bases else None,
+                     intervals=True, floor=floor)
+    hist = found.history
+    entry = {"values": found.values, "units": dict(par.units), "bounds": {n: list(par.bounds[n]) for n in par.names},
+             "parametrization": settings.data.parametrization, **found.intervals}
+    rmse_id = 1.0 / math.sqrt(hist["best_fitness_final"]) if hist["best_fitness_final"] > 0 else math.inf
+    hist["noise_floor_n"] = noise
+    hist["noise_credible"] = bool(problem.noise.get("credible", True))
+    hist["identification_rmse_n"] = rmse_id
+    against = (f"= {rmse_id / noise:.1f} x the measurement noise in the fit band ({noise:.1f} N)"
+               if hist["noise_credible"] else f"({problem.noise.get('text')})")
+    log(f"[{model}] identification RMSE {rmse_id:.1f} N {against}; local refinement "
+        f"{'converged' if hist['converged'] else 'NOT converged'}")
+    return entry, hist
 
 
 def _log_problem(problem: Problem, log) -> None:
