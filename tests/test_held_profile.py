@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from tuner.diagnosis.refit import (HELD_PATIENCE, ExtendedParametrization, held_profile, nonsmooth_profiles,
+from tuner.diagnosis.refit import (FAR_WORSE, HELD_PATIENCE, ExtendedParametrization, held_profile, nonsmooth_profiles,
                                    series_profiles)
 from tuner.identification.parametrization import Parametrization
 
@@ -53,6 +53,29 @@ def test_a_start_where_the_held_effect_only_makes_the_fit_worse_is_left_after_th
     out = nonsmooth_profiles(eng, ext, [z0], pts, sse, None, sse_off)
     assert len(out.points) == HELD_PATIENCE  # the sweep only: no vertex
 
+
+
+def test_a_start_where_the_held_effect_fits_far_worse_is_left_at_once_when_a_fresh_start_follows():
+    """Held at any gap, the start leaves more than FAR_WORSE x the SSE without it (the RMSE 2.2x): with a start
+    that has absorbed nothing to follow, its sweep ends after the first value and the other start's whole-grid profile
+    runs; alone (no other start) the sweep keeps its patience; a start only a little worse keeps it too."""
+    ext, z0 = ext_and_start()
+    far_worse = GapEngine(lambda g: 22.0 + 1e4 * g if g > 0 else 10.0)  # 22-37 N with the gap, 10 N without
+    sse_off = N * 10.0 ** 2
+    values = coordinates(ext, np.geomspace(0.1e-3, 1.5e-3, 8))
+    assert far_worse.residual_of_gap(0.1e-3) ** 2 > FAR_WORSE * 10.0 ** 2
+    pts = [np.r_[z0[:2], v] for v in values]
+    sse = [N * far_worse.residual_of_gap(ext.to_params(z)["free_play"]) ** 2 for z in pts]
+    both = nonsmooth_profiles(far_worse, ext, [z0, z0.copy()], pts, sse, None, sse_off)
+    alone = nonsmooth_profiles(far_worse, ext, [z0], pts, sse, None, sse_off)
+    assert len(alone.points) == HELD_PATIENCE
+    # the sweep's first value, the coarse grid, two fine values (the coarse best is the smallest: it and the mean
+    # with its neighbour); no vertex (nothing beat the model without the gap)
+    assert len(both.points) == 1 + len(values) + 2
+    a_little_worse = GapEngine(lambda g: 12.0 + 1e3 * g if g > 0 else 10.0)  # 12-13.5 N: below FAR_WORSE
+    sse = [N * a_little_worse.residual_of_gap(ext.to_params(z)["free_play"]) ** 2 for z in pts]
+    both = nonsmooth_profiles(a_little_worse, ext, [z0, z0.copy()], pts, sse, None, sse_off)
+    assert len(both.points) == HELD_PATIENCE + len(values) + 2
 
 def test_a_profile_that_beats_the_model_without_the_effect_is_swept_past_its_minimum_and_refined():
     """A minimum at GAP [m] (the residual quadratic in log(gap / GAP)): the sweep runs through it, stops
