@@ -335,8 +335,9 @@ class CandidateSearch:
         score (``unearned_nonsmooth``) whose refit still leaves a residual above the floor is profiled again with
         the element in series with it (``SERIES_ELEMENT``) held a decade and two above the data-driven guess's
         stiffness, at the guess's damping (``refit.series_profiles``; a mount fitted as a dashpot carries a gap's
-        lost motion; the second only when the first leaves the residual above the floor), then polished jointly; the better refit of the effect is kept. Returns its
-        ranking row (``series_element_held``: the values held [SI])."""
+        lost motion; the second only when the first leaves the residual above the floor), then polished jointly;
+        the better refit of the effect is kept. Returns its ranking row (``series_element_held``: the values held
+        [SI])."""
         names = SERIES_ELEMENT.get(self.kind)
         if names is None or not self.above_floor(row["identification_rmse_n"]):
             return row
