@@ -10,8 +10,8 @@ from __future__ import annotations
 import math
 
 __all__ = ["PENALTY_PER_PARAMETER", "ACCEPT_SCORE", "UNEXPLAINED_RATIO", "FORM_EXCESS_SHARE", "AT_BOUND",
-           "DELAY_AGREEMENT", "score", "rescore", "excess_explained", "cross_check", "earned", "within_bounds",
-           "decide"]
+           "DELAY_AGREEMENT", "score", "rescore", "excess_explained", "cross_check", "earned", "scores",
+           "within_bounds", "decide"]
 
 PENALTY_PER_PARAMETER = 0.02
 
@@ -77,6 +77,12 @@ def cross_check(ranking: list[dict], evidence: dict) -> list[dict]:
                 r["resolved"] = False
                 marked.append(r)
     return marked
+
+
+def scores(row: dict) -> bool:
+    """The ranking row's extension scores above ACCEPT_SCORE with its force above the noise (resolved): it leads
+    a refit's continuation and is a candidate of forward selection; naming it takes more (``earned``)."""
+    return bool(row["score"] > ACCEPT_SCORE and row["resolved"])
 
 
 def earned(row: dict) -> bool:

@@ -23,7 +23,8 @@ from tuner.diagnosis.refit import (ExtendedParametrization, base_jacobian, effec
                                    series_profiles)
 from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidence, figure_files
 from tuner.diagnosis.rules import (ACCEPT_SCORE, FORM_EXCESS_SHARE, PENALTY_PER_PARAMETER, UNEXPLAINED_RATIO,
-                                   cross_check, decide, earned, excess_explained, rescore, score, within_bounds)
+                                   cross_check, decide, earned, excess_explained, rescore, score, scores,
+                                   within_bounds)
 from tuner.diagnosis.screen import SCREEN_SHARE, profile_screen
 
 #: a form's shape is refitted only when the screen predicts it to win at least this share of the identification
@@ -167,7 +168,7 @@ class CandidateSearch:
     def expect_after_ranking(self) -> None:
         """The cost of the steps the ranking decides (``tuner.diagnosis.cost_model.after_ranking``): a leading
         candidate's continuation, the intervals, the forward selection, the passes of the forms."""
-        scoring = sum(1 for r in self.ranking if r["effect"] != "none" and r["score"] > ACCEPT_SCORE and r["resolved"])
+        scoring = sum(1 for r in self.ranking if r["effect"] != "none" and scores(r))
         after_ranking(self.cost, self.par.dimension, self.settings, scoring=scoring,
                       forms_run=self.above_floor(self.none_row["identification_rmse_n"]))
         self.forecast()
@@ -380,7 +381,7 @@ class CandidateSearch:
         kept no free play, the profile screen predicted 7.5 % of the SSE, the refit ended at 0.05 mm (score
         +0.015, 964 N rms against 1030 N without it); with the mount held a decade stiffer (``series_ladder``)
         0.555 mm, held-out MSE -92 %."""
-        return ALL_EFFECTS[effect].nonsmooth and not (row["score"] > ACCEPT_SCORE and row["resolved"])
+        return ALL_EFFECTS[effect].nonsmooth and not scores(row)
 
     def signalled_nonsmooth(self) -> set:
         """The nonsmooth effects (``Effect.nonsmooth``: a free play) whose residual signature the joint screen
@@ -419,7 +420,7 @@ class CandidateSearch:
                 row = self.held_out(effect, point, ext.extra, self.eid.n_samples / scr.sse_n2, 1, self.mse_none)
                 row["identification_rmse_effect_off_n"] = self.none_row["identification_rmse_n"]
                 self.refits[effect] = Fit(ext, ext.from_params(point), 1)
-            refitted = row is None or (row["score"] > ACCEPT_SCORE and row["resolved"])
+            refitted = row is None or scores(row)
             if refitted:
                 row = self.refit_candidate(effect, ext)
                 if effect in signalled or self.unearned_nonsmooth(effect, row):
@@ -460,7 +461,7 @@ class CandidateSearch:
         """The leading candidate's refit is continued to convergence (absorbed effects converge slowly), and
         so is the base refit, so that the continuation is not credited to the effect."""
         lead = max(self.ranking, key=lambda r: r["score"] if r["resolved"] else -math.inf, default=None)
-        if not (lead and lead["score"] > ACCEPT_SCORE and lead["resolved"] and self.settings.final_jacobians > 0):
+        if not (lead and scores(lead) and self.settings.final_jacobians > 0):
             return
         pol = self.polish_quietly(self.par, self.z_none, self.settings.final_jacobians)
         self.converged[""] = self.settled(pol, pol.fitness)
@@ -485,7 +486,7 @@ class CandidateSearch:
         extension that earned its score with a force above the noise; then the cross-check of a fitted
         delay with the one the base residual shows (the refit alone can trade a delay for table changes)."""
         for row in self.ranking:
-            if row["effect"] != "none" and row["score"] > ACCEPT_SCORE and row["resolved"]:
+            if row["effect"] != "none" and scores(row):
                 fit = self.refits[row["effect"]]
                 ci = effect_intervals(self.eid, fit.ext, fit.z)
                 attach_interval(row, ci, fit.ext, fit.ext.extra)
@@ -619,7 +620,7 @@ class CandidateSearch:
         form = lead["added"]
         fit = fits[form]
         pol = None  # not continued: not settled
-        if lead["score"] > ACCEPT_SCORE and lead["resolved"]:
+        if scores(lead):
             if self.settings.final_jacobians > 0:
                 pol = self.polish_quietly(fit.ext, fit.z, self.settings.final_jacobians)
                 fit = fits[form] = Fit(fit.ext, pol.z, fit.evaluations + pol.evaluations)
@@ -645,7 +646,7 @@ class CandidateSearch:
         the current model, it earns a cause's rules. Returns {"cause": effect or 'none', "tried": rows, and
         for a named cause "row" and "refit"}."""
         others = [r["effect"] for r in self.ranking if r["effect"] not in current.ext.effects and r["effect"] != "none"
-                  and "+" not in r["effect"] and r["score"] > ACCEPT_SCORE and r["resolved"]]
+                  and "+" not in r["effect"] and scores(r)]
         if not others:
             return {"cause": "none", "tried": []}
         params_cur = current.params()
@@ -674,7 +675,7 @@ class CandidateSearch:
     def name_next(self, rows: list[dict], fits: dict, current_row: dict) -> dict:
         """The best of a forward-selection step's rows continued, given intervals, and named if earned."""
         lead = max(rows, key=lambda r: r["score"] if r["resolved"] else -math.inf)
-        if lead["score"] > ACCEPT_SCORE and lead["resolved"] and self.settings.final_jacobians > 0:
+        if scores(lead) and self.settings.final_jacobians > 0:
             fit = fits[lead["effect"]]
             pol = self.polish_quietly(fit.ext, fit.z, self.settings.final_jacobians)
             fit = fits[lead["effect"]] = Fit(fit.ext, pol.z, fit.evaluations + pol.evaluations)
@@ -684,7 +685,7 @@ class CandidateSearch:
             rows[rows.index(lead)] = row
         cross_check(rows, self.evidence)
         for row in rows:
-            if row["score"] > ACCEPT_SCORE and row["resolved"]:
+            if scores(row):
                 fit = fits[row["effect"]]
                 attach_interval(row, effect_intervals(self.eid, fit.ext, fit.z), fit.ext,
                                 ALL_EFFECTS[row["added"]].identified)
