@@ -85,7 +85,8 @@ def _check_fleet(res: dict, out: Path) -> None:
         assert rec["seed"] == 7 and rec["validation"]["val1_straight_250"]["lumped"]["ame"] > 0
 
 
-@pytest.mark.slow  # 72-79 s in the suite on the 2-core machine (a one-row pool batch, a Dask batch killed and restarted)
+@pytest.mark.slow  # 65-107 s in the suite on the 2-core machine (a one-row pool batch, a Dask batch killed,
+#                   restarted)
 def test_pool_dask_kill_and_restart(fleet, tmp_path):
     # 1. the local process pool: the reference, on the fleet's first row (the same row of a one-row manifest
     #    beside it; every row through the pool would only repeat what the Dask runs check)

@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from tuner.diagnosis.refit import (FAR_WORSE, HELD_PATIENCE, ExtendedParametrization, held_profile, nonsmooth_profiles,
-                                   series_profiles)
+from tuner.diagnosis.refit import (FAR_WORSE, HELD_PATIENCE, ExtendedParametrization, held_profile,
+                                   nonsmooth_profiles, series_profiles)
 from tuner.identification.parametrization import Parametrization
 
 N = 50
@@ -54,11 +54,10 @@ def test_a_start_where_the_held_effect_only_makes_the_fit_worse_is_left_after_th
     assert len(out.points) == HELD_PATIENCE  # the sweep only: no vertex
 
 
-
 def test_a_start_where_the_held_effect_fits_far_worse_is_left_at_once_when_a_fresh_start_follows():
     """Held at any gap, the start leaves more than FAR_WORSE x the SSE without it (the RMSE 2.2x): with a start
-    that has absorbed nothing to follow, its sweep ends after the first value and the other start's whole-grid profile
-    runs; alone (no other start) the sweep keeps its patience; a start only a little worse keeps it too."""
+    that has absorbed nothing to follow, its sweep ends after the first value and the other start's whole-grid
+    profile runs; alone (no other start) the sweep keeps its patience; a start only a little worse keeps it too."""
     ext, z0 = ext_and_start()
     far_worse = GapEngine(lambda g: 22.0 + 1e4 * g if g > 0 else 10.0)  # 22-37 N with the gap, 10 N without
     sse_off = N * 10.0 ** 2
@@ -76,6 +75,7 @@ def test_a_start_where_the_held_effect_fits_far_worse_is_left_at_once_when_a_fre
     sse = [N * a_little_worse.residual_of_gap(ext.to_params(z)["free_play"]) ** 2 for z in pts]
     both = nonsmooth_profiles(a_little_worse, ext, [z0, z0.copy()], pts, sse, None, sse_off)
     assert len(both.points) == HELD_PATIENCE + len(values) + 2
+
 
 def test_a_profile_that_beats_the_model_without_the_effect_is_swept_past_its_minimum_and_refined():
     """A minimum at GAP [m] (the residual quadratic in log(gap / GAP)): the sweep runs through it, stops

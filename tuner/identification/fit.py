@@ -539,7 +539,8 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
     try:
         for model in fit_order(settings.models, problem, settings.engine):
             stage(log, f"fit {model}")
-            params[model], histories[model] = _fit_model(model, problem, settings, checkpoints, histories, floor, log)
+            one = _fit_model(model, problem, settings, checkpoints, histories, floor, log)
+            params[model], histories[model] = one.params, one.history
     finally:
         if scratch is not None:
             scratch.cleanup()
@@ -571,9 +572,18 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
     return FitResult(params=params, histories=histories, metrics=metrics, simulations=arrays, problem=problem)
 
 
+@dataclass(frozen=True)
+class ModelFit:
+    """One model's identification in ``fit``: its ``FitResult.params`` entry (values [SI], units, bounds,
+    parametrization, intervals) and its ``FitResult.histories`` entry."""
+
+    params: dict
+    history: dict
+
+
 def _fit_model(model: str, problem: Problem, settings: FitSettings, checkpoints: Path, histories: dict,
-               floor: ResidualFloor, log) -> tuple[dict, dict]:
-    """(the ``FitResult.params`` entry, the history) of ``model`` identified on ``problem``, raced against the best
+               floor: ResidualFloor, log) -> ModelFit:
+    """The ``ModelFit`` of ``model`` identified on ``problem``, raced against the best
     base form among those already fitted (``histories``); the identification RMSE [N] logged beside the
     measurement noise in the fit band, what a fit of a model that can represent the data reaches."""
     par, noise = problem.parametrization(model), problem.noise_n
@@ -592,7 +602,7 @@ def _fit_model(model: str, problem: Problem, settings: FitSettings, checkpoints:
                if hist["noise_credible"] else f"({problem.noise.get('text')})")
     log(f"[{model}] identification RMSE {rmse_id:.1f} N {against}; local refinement "
         f"{'converged' if hist['converged'] else 'NOT converged'}")
-    return entry, hist
+    return ModelFit(entry, hist)
 
 
 def _log_problem(problem: Problem, log) -> None:
