@@ -200,7 +200,8 @@ def test_a_part_that_overruns_its_forecast_does_not_eat_the_time_of_the_parts_st
 
 def test_a_part_that_may_not_run_is_said_beside_the_time_left_and_counted_once_it_starts():
     """A repeat of the diagnosis on another base runs only if the first leaves a residual above the floor: the
-    time left counts the first, says what the repeat would add, and counts it once it starts."""
+    time left counts the first, says what the repeat would add, and counts it once it starts; the percentages
+    count it from the start (a share near 100 % stood for minutes while a repeat ran)."""
     from tuner.progress import Plan
 
     clock, out = Clock(), io.StringIO()
@@ -214,9 +215,14 @@ def test_a_part_that_may_not_run_is_said_beside_the_time_left_and_counted_once_i
     assert "about 1.0 min left (1.5 min more if the diagnosis is repeated on b)" in p.status()
     advance(plan.part("diagnose a"), 1.0)
     clock.t = 60.0
+    # the shares count what may still run: 60 s done of 60 + 90, not 100 % while the repeat may take 90 s more
+    assert p.completed() == pytest.approx(60.0 / 150.0) and p.stage_fraction() == pytest.approx(60.0 / 150.0)
+    assert "progress 40 % (stage: diagnosis 40 %)" in p.status()
     plan.maybe("diagnose b", None)  # it runs
     assert p.remaining_s() == pytest.approx(90.0)
     assert "more if" not in p.status()
+    clock.t = 105.0
+    assert p.completed() == pytest.approx(105.0 / 150.0)  # the repeat half done
 
 
 def test_a_stage_forecast_in_seconds_counts_in_place_of_its_weight_before_and_while_it_runs():

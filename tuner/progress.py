@@ -201,15 +201,23 @@ class JobProgress:
 
     def completed(self) -> float:
         """Share [0-1] of the job done: the elapsed time over itself and the time left once that is estimated
-        (``remaining_s``: so the percentage and the time left tell one story, forecasts in seconds included),
+        (``remaining_s``: so the percentage and the time left tell one story, forecasts in seconds included, and
+        what may still run),
         before that the share of the planned weights done. Never less than the display showed before: an
         estimate revised upward lengthens the time left, it does not take back progress."""
         left = self.remaining_s()
         if left is None:
             share = self._planned_share()
         else:
+            left += self._may_still_run_s()
             share = self.elapsed / (self.elapsed + left) if self.elapsed + left > 0 else 0.0
         return max(share, self._shown)
+
+    def _may_still_run_s(self) -> float:
+        """Seconds [s] of a part that may still run (``expect``'s ``maybe``): not in the time left, which says it
+        beside, but in the shares shown, so that no percentage stands near 100 while a repeat of minutes runs
+        (a hidden free play: 96 % for 3 min before); when it does not run, the share jumps forward."""
+        return self._maybe[0] if self._maybe is not None and self._maybe[0] > 0 else 0.0
 
     def _planned_share(self) -> float:
         """Share [0-1] of the planned weights done (the current stage by its fraction)."""
@@ -220,11 +228,12 @@ class JobProgress:
         return min(done / total, 1.0)
 
     def stage_fraction(self) -> float:
-        """Share [0-1] of the current stage done: of its expected time when it said its seconds left."""
+        """Share [0-1] of the current stage done: of its expected time when it said its seconds left (with what
+        may still run)."""
         if self._said is None:
             return self.fraction
         spent = self.clock() - self._started
-        left = max(0.0, self._said[0] - (self.clock() - self._said[1]))
+        left = max(0.0, self._said[0] - (self.clock() - self._said[1])) + self._may_still_run_s()
         return spent / (spent + left) if spent + left > 0 else 1.0
 
     def remaining_s(self) -> float | None:
