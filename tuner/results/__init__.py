@@ -10,5 +10,6 @@
 - ``vehicle_report``: the vehicle section (the tuned FMUs in the vehicle, side by side, and their intervals);
 - ``design_report``: the test design section (the rig tests that would pin down the rest);
 - ``html``: HTML building blocks (tables, figures, numbers, the page);
+- ``figure_layout``: the figures' margins, fixed in inches (in place of matplotlib's constrained layout);
 - ``fleet_summary``: the fleet summary of a batch (table, outliers, characteristics).
 """

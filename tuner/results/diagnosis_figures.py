@@ -17,6 +17,7 @@ from matplotlib.figure import Figure
 from tuner.diagnosis.residuals import (BANDS_HZ, FIGURE_TOPICS, GAP_WINDOW_S, PreparedTest, TestResidual, dot,
                                        figure_files, residual_summary, spectra, true_runs)
 from tuner.diagnosis.result import Diagnosis
+from tuner.results.figure_layout import TWIN_AXIS_IN, fixed_margins
 
 __all__ = ["diagnosis_figures", "residual_figures"]
 
@@ -73,8 +74,10 @@ def residual_figures(tests: list[TestResidual], out_dir: Path, prefix: str = "di
 
 def _figure_time(preps: list, sty: list) -> Figure:
     """Residual [N] in time over the measured force (grey: outside the mask), one panel per test."""
-    fig = Figure(figsize=(10, 1.2 + 2.0 * len(preps)), layout="constrained")
-    for p, st, ax in zip(preps, sty, fig.subplots(len(preps), 1, squeeze=False)[:, 0]):
+    fig = Figure(figsize=(10, 1.2 + 2.0 * len(preps)))
+    axes = fig.subplots(len(preps), 1, squeeze=False)[:, 0]
+    fixed_margins(fig, right=0.2 + TWIN_AXIS_IN)  # the measured force's axis on the right
+    for p, st, ax in zip(preps, sty, axes):
         t, g, bx = p.t, residual_summary([p]), ax.twinx()
         bx.plot(t.time, t.measured / 1e3, color="0.75", lw=0.6)
         bx.set_ylabel("measured [kN]", color="0.6", fontsize=8)
@@ -90,8 +93,9 @@ def _figure_time(preps: list, sty: list) -> Figure:
 
 def _figure_loops(preps: list, sty: list) -> Figure:
     """Residual [N] against velocity and stroke (the residual loops)."""
-    fig = Figure(figsize=(11, 4.5), layout="constrained")
+    fig = Figure(figsize=(11, 4.5))
     axs = fig.subplots(1, 2, sharey=True)
+    fixed_margins(fig, wgap=0.3)  # the y axis is shared: no labels between the two
     for p, st in zip(preps, sty):
         for ax, x in zip(axs, (p.t.velocity, p.t.stroke)):
             ax.plot(np.where(p.use, x, np.nan) * 1e3, p.r, lw=0.4, alpha=0.8, **st)
@@ -104,8 +108,9 @@ def _figure_loops(preps: list, sty: list) -> Figure:
 def _figure_reversals(preps: list, sty: list) -> Figure:
     """Residual x sign(v after) averaged around velocity reversals, with -F_sim."""
     tau = np.arange(*np.rint(np.array(REVERSAL_SPAN_S) * 1e3 + [0, 1]).astype(int)) * 1e-3
-    fig = Figure(figsize=(9, 4.8), layout="constrained")
+    fig = Figure(figsize=(9, 4.8))
     ax, rr, ff = fig.subplots(), [], []
+    fixed_margins(fig)
     for p, st in zip(preps, sty):
         idx, s = p.stack(tau)
         if len(idx):
@@ -126,8 +131,9 @@ def _figure_reversals(preps: list, sty: list) -> Figure:
 
 def _figure_spectra(preps: list, sty: list) -> Figure:
     """Welch spectra of residual and force, and their ratio."""
-    fig = Figure(figsize=(11, 4.5), layout="constrained")
+    fig = Figure(figsize=(11, 4.5))
     a1, a2 = fig.subplots(1, 2, sharex=True)
+    fixed_margins(fig)
     top = 0.0
     for p, st in zip(preps, sty):
         if (s := spectra(p)) is not None:
@@ -149,8 +155,9 @@ def _figure_spectra(preps: list, sty: list) -> Figure:
 def _figure_drift(preps: list, sty: list) -> Figure:
     """Windowed rms residual and force gain against time and temperature."""
     hot = any(p.t.temperature is not None for p in preps)
-    fig = Figure(figsize=(5 + 4 * hot, 6), layout="constrained")
+    fig = Figure(figsize=(5 + 4 * hot, 6))
     axs = fig.subplots(2, 1 + hot, squeeze=False)
+    fixed_margins(fig)
     for p, st in zip(preps, sty):
         w = _drift_windows(p)
         for j in range(1 + (p.t.temperature is not None)):

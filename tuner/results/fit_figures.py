@@ -14,6 +14,7 @@ from damper_fmu.parameters import MODEL_PARAMETERS
 from damper_fmu.tables import PwlTable
 from tuner.formatting import eng
 from tuner.metrics import polyfit_odd_even
+from tuner.results.figure_layout import SUPTITLE_IN, fixed_margins
 from tuner.results.fit_folder import FitFolder
 from tuner.results.html import MODEL_COLOR, MODEL_LABEL, safe_name
 
@@ -45,8 +46,9 @@ def fig_forces(run: FitFolder, test: str, fdir: Path, dpi: int, prefix: str):
     if not valid.any():
         valid = np.ones_like(t, dtype=bool)
     ref = "lumped" if "lumped" in sim else (next(iter(sim)) if sim else None)
-    fig = Figure(figsize=(10, 8.2), layout="constrained")
+    fig = Figure(figsize=(10, 8.2))
     ax1, ax2, ax3 = fig.subplots(3, 1, gridspec_kw={"height_ratios": [1.2, 1, 1.2]})
+    fixed_margins(fig)
     ax1.sharex(ax2)
     ax1.plot(t, f / 1e3, color="k", lw=1.0, label="measured")
     for m, y in sim.items():
@@ -109,8 +111,9 @@ def fig_loops(run: FitFolder, test: str, fdir: Path, dpi: int):
     t, x, f, sim = s
     v = loop_velocity(t, x)
     keep = (t - t[0]) >= run.warmup
-    fig = Figure(figsize=(10, 4.2), layout="constrained")
+    fig = Figure(figsize=(10, 4.2))
     a1, a2 = fig.subplots(1, 2, sharey=True)
+    fixed_margins(fig, wgap=0.3)  # the y axis is shared: no labels between the two
     for ax, ab, lab in ((a1, x[keep] * 1e3, "stroke [mm] (+ extension)"),
                         (a2, v[keep] * 1e3, "stroke velocity [mm/s]")):
         ax.plot(ab, f[keep] / 1e3, color="k", lw=0.6, alpha=0.8, label="measured")
@@ -130,8 +133,9 @@ def fig_fitness(run: FitFolder, fdir: Path, dpi: int):
     hist = {m: h for m, h in run.histories.items() if h and h.get("mean_fitness")}
     if not hist:
         return None
-    fig = Figure(figsize=(8, 4.5), layout="constrained")
+    fig = Figure(figsize=(8, 4.5))
     ax = fig.subplots()
+    fixed_margins(fig)
     for m, h in hist.items():
         for key, ls, lab in (("mean_fitness", "-", "mean"), ("best_fitness", "--", "best ever")):
             y = np.array([np.nan if v is None else float(v) for v in h.get(key, [])], dtype=float)
@@ -175,8 +179,9 @@ def fig_constants(run: FitFolder, fdir: Path, dpi: int):
     b = bounds_of(run, "lumped")
     best = run.values("lumped")
     rng = np.random.default_rng(0)
-    fig = Figure(figsize=(9, 4.5), layout="constrained")
+    fig = Figure(figsize=(9, 4.5))
     ax = fig.subplots()
+    fixed_margins(fig, bottom=1.4)  # four-line tick labels and the legend below them
     labels = []
     for i, name in enumerate(CONSTANTS):
         lo, hi = b[name]
@@ -228,8 +233,9 @@ def fig_populations(run: FitFolder, fdir: Path, dpi: int):
     if not h or not h.get("initial_population") or not h.get("final_population"):
         return None
     best = run.values("lumped")
-    fig = Figure(figsize=(10, 7.5), layout="constrained")
+    fig = Figure(figsize=(10, 7.5))
     axes = fig.subplots(2, 2)
+    fixed_margins(fig, top=0.35 + SUPTITLE_IN)
     for row, key in enumerate(("Fk", "Fc")):
         axis, sc, xlabel, title = _CHAR[key]
         tb = _table_of(best, key, axis, best)
@@ -291,8 +297,9 @@ def fig_polyfit(fits: dict, fdir: Path, dpi: int):
     if not fits:
         return None
     panels = [(k, False) for k in ("Fk", "Fc") if k in fits] + ([("Fk", True)] if "Fk" in fits else [])
-    fig = Figure(figsize=(4.2 * len(panels), 4.4), layout="constrained")
+    fig = Figure(figsize=(4.2 * len(panels), 4.4))
     axes = np.atleast_1d(fig.subplots(1, len(panels)))
+    fixed_margins(fig, top=0.35 + SUPTITLE_IN)
     for ax, (key, zoomed) in zip(axes, panels):
         axis, sc, xlabel, title = _CHAR[key]
         tb, p5, p1 = fits[key]["table"], fits[key]["p5"], fits[key]["p1"]
