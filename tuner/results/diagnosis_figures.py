@@ -17,7 +17,7 @@ from matplotlib.figure import Figure
 from tuner.diagnosis.residuals import (BANDS_HZ, FIGURE_TOPICS, GAP_WINDOW_S, PreparedTest, TestResidual, dot,
                                        figure_files, residual_summary, spectra, true_runs)
 from tuner.diagnosis.result import Diagnosis
-from tuner.results.figure_layout import TWIN_AXIS_IN, fixed_margins
+from tuner.results.figure_layout import RIGHT_IN, TWIN_AXIS_IN, fixed_margins
 
 __all__ = ["diagnosis_figures", "residual_figures"]
 
@@ -76,7 +76,7 @@ def _figure_time(preps: list, sty: list) -> Figure:
     """Residual [N] in time over the measured force (grey: outside the mask), one panel per test."""
     fig = Figure(figsize=(10, 1.2 + 2.0 * len(preps)))
     axes = fig.subplots(len(preps), 1, squeeze=False)[:, 0]
-    fixed_margins(fig, right=0.2 + TWIN_AXIS_IN)  # the measured force's axis on the right
+    fixed_margins(fig, right=RIGHT_IN + TWIN_AXIS_IN)  # the measured force's axis on the right
     for p, st, ax in zip(preps, sty, axes):
         t, g, bx = p.t, residual_summary([p]), ax.twinx()
         bx.plot(t.time, t.measured / 1e3, color="0.75", lw=0.6)

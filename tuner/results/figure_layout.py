@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from matplotlib.figure import Figure
 
-__all__ = ["fixed_margins", "SUPTITLE_IN", "TWIN_AXIS_IN"]
+__all__ = ["fixed_margins", "LEFT_IN", "RIGHT_IN", "BOTTOM_IN", "TOP_IN", "HGAP_IN", "WGAP_IN", "SUPTITLE_IN", "TWIN_AXIS_IN"]
 
 LEFT_IN = 0.9      # figure edge to the axes: y tick labels and the y axis label [in]
 RIGHT_IN = 0.2     # axes to the right edge [in]

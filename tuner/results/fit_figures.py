@@ -14,7 +14,7 @@ from damper_fmu.parameters import MODEL_PARAMETERS
 from damper_fmu.tables import PwlTable
 from tuner.formatting import eng
 from tuner.metrics import polyfit_odd_even
-from tuner.results.figure_layout import SUPTITLE_IN, fixed_margins
+from tuner.results.figure_layout import SUPTITLE_IN, TOP_IN, fixed_margins
 from tuner.results.fit_folder import FitFolder
 from tuner.results.html import MODEL_COLOR, MODEL_LABEL, safe_name
 
@@ -235,7 +235,7 @@ def fig_populations(run: FitFolder, fdir: Path, dpi: int):
     best = run.values("lumped")
     fig = Figure(figsize=(10, 7.5))
     axes = fig.subplots(2, 2)
-    fixed_margins(fig, top=0.35 + SUPTITLE_IN)
+    fixed_margins(fig, top=TOP_IN + SUPTITLE_IN)
     for row, key in enumerate(("Fk", "Fc")):
         axis, sc, xlabel, title = _CHAR[key]
         tb = _table_of(best, key, axis, best)
@@ -299,7 +299,7 @@ def fig_polyfit(fits: dict, fdir: Path, dpi: int):
     panels = [(k, False) for k in ("Fk", "Fc") if k in fits] + ([("Fk", True)] if "Fk" in fits else [])
     fig = Figure(figsize=(4.2 * len(panels), 4.4))
     axes = np.atleast_1d(fig.subplots(1, len(panels)))
-    fixed_margins(fig, top=0.35 + SUPTITLE_IN)
+    fixed_margins(fig, top=TOP_IN + SUPTITLE_IN)
     for ax, (key, zoomed) in zip(axes, panels):
         axis, sc, xlabel, title = _CHAR[key]
         tb, p5, p1 = fits[key]["table"], fits[key]["p5"], fits[key]["p1"]

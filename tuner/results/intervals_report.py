@@ -21,7 +21,7 @@ from matplotlib.figure import Figure
 from tuner.formatting import eng
 from tuner.identification.intervals import DETERMINED_WIDTH, TIE_CORRELATION, ModelIntervals
 from tuner.metrics import Z95
-from tuner.results.figure_layout import SUPTITLE_IN, fixed_margins
+from tuner.results.figure_layout import SUPTITLE_IN, TOP_IN, fixed_margins
 from tuner.results.fit_folder import FitFolder
 from tuner.results.html import MODEL_COLOR, MODEL_LABEL, esc, figure_html, model_label, table
 
@@ -110,7 +110,7 @@ def fig_characteristic_bands(ivs: dict, fdir: Path, dpi: int):
         return None
     fig = Figure(figsize=(10, 3.6 * len(rows)))
     axes = np.atleast_2d(fig.subplots(len(rows), 2, squeeze=False))
-    fixed_margins(fig, top=0.35 + SUPTITLE_IN)
+    fixed_margins(fig, top=TOP_IN + SUPTITLE_IN)
     for r, (m, keys) in enumerate(rows):
         for c in range(2):
             if c < len(keys):
