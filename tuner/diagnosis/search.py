@@ -882,10 +882,9 @@ class CandidateSearch:
             self.step_done("detection")
             self.log(f"diagnosis on the {self.kind} base: {self.eid.evaluations} simulations of the identification "
                      f"tests and {self.ev.evaluations} of the held-out ones in {time.perf_counter() - self.t_engines:.0f} s")
-        return self.result(end.cause, end.causes, end.best, end.unresolved, end.selection, limits, end.form_step,
-                           end.weighed)
+        return self.result(end, limits)
 
-    def conclude(self, refitted: list[str]) -> "Conclusion":
+    def conclude(self, refitted: list[str]) -> Conclusion:
         """From the candidates' rows (``refitted``: the effects refitted since the last ranking) to the causes:
         the ranking and its first decision (``rank``), the forms weighed with it, the forward selection, the base
         refit continued before an 'unexplained', the forms on top of what was found."""
@@ -906,10 +905,11 @@ class CandidateSearch:
         self.step_done("forms")
         return Conclusion(cause, causes, best, unresolved, selection, form_step, weighed)
 
-    def result(self, cause, causes, best, unresolved, selection, limits, form_step, weighed) -> dict:
-        """What the final model leaves (at the floor, or 'unexplained'), the validation before and after in the
-        Table 3 definition (the FMU at its own steps, so that "before" is the Table 3 figure of the same base
-        model), the verdict, and the result fields."""
+    def result(self, end: Conclusion, limits: dict) -> dict:
+        """What the final model of ``end`` leaves (at the floor, or 'unexplained'), the validation before and after
+        in the Table 3 definition (the FMU at its own steps, so that "before" is the Table 3 figure of the same base
+        model), the verdict with the detection ``limits``, and the result fields."""
+        cause, causes, best, form_step, weighed = end.cause, end.causes, end.best, end.form_step, end.weighed
         final_rmse = best["identification_rmse_n"] if causes else self.none_row["identification_rmse_n"]
         stroke_noise, floor = self.floor_of(causes)
         unexplained = None
@@ -922,11 +922,11 @@ class CandidateSearch:
         self.at("validation before and after", 0.98)
         validation, base_metrics, final_metrics = before_after(self.kind, self.base, after_params if causes else None,
                                                                self.data.sig_val, self.settings.engine)
-        verdict = verdict_text(causes, best, self.none_row, unresolved, unexplained, self.noise, limits, form_step)
+        verdict = verdict_text(causes, best, self.none_row, end.unresolved, unexplained, self.noise, limits, form_step)
         if not self.credible:
             verdict += (f". The remaining residual, {final_rmse:.3g} N rms, is not compared with the residual floor: "
                         f"{self.not_credible}")
-        return {"cause": cause, "causes": causes, "verdict": verdict, "selection": selection,
+        return {"cause": cause, "causes": causes, "verdict": verdict, "selection": end.selection,
                 "detection_limits": limits, "form": form_step["form"] if form_step else None,
                 "forms_tried": form_step["tried"] if form_step else None,
                 "forms_weighed": weighed["tried"] if weighed else None,
