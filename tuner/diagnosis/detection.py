@@ -29,10 +29,11 @@ the magnitude at which the linear model says the effect would be named.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["absorbed_signature", "limit_from_signature", "jacobian_columns", "detection_limits"]
+__all__ = ["absorbed_signature", "limit_from_signature", "detection_limits"]
 
 #: singular values of the identification Jacobian below this fraction of the largest are directions
 #: the data do not determine (the refit moves freely along them): not used to absorb a signature
@@ -59,25 +60,45 @@ def limit_from_signature(u: np.ndarray, j_id: np.ndarray, mse_ref: float, noise_
     return {"limit": max(by_score, by_noise), "by_score": by_score, "by_noise": by_noise}
 
 
-def jacobian_columns(engine, par, z0: np.ndarray, steps: np.ndarray) -> np.ndarray | None:
-    """Forward-difference Jacobian of ``engine``'s simulated force [N per scaled unit] with respect to the
-    scaled coordinates of ``par`` at ``z0`` (``steps``: one per coordinate, signed); one parallel batch.
-    None when z0 cannot be simulated; a column whose point fails is zero (no direction to absorb along)."""
-    pts = [z0] + [z0 + np.eye(len(z0))[i] * steps[i] for i in range(len(z0))]
-    res = engine.residuals_batch([par.to_params(p) for p in pts])
+def _columns(r0: np.ndarray, res: list, steps: np.ndarray) -> np.ndarray:
+    """Forward-difference Jacobian of the simulated force [N per scaled unit] from the residuals ``res`` at the
+    points stepped by ``steps`` (signed, one per coordinate) and ``r0`` at the point itself; a column whose point
+    failed is zero (no direction to absorb along). The residual is measured - simulated: the simulated force's
+    derivative is minus the residual's."""
+    return np.column_stack([(r0 - r) / h if r is not None else np.zeros_like(r0) for r, h in zip(res, steps)])
+
+
+@dataclass
+class _Linearisation:
+    """One engine's tests at the fitted base: its Jacobian [N per scaled unit] and, per effect, the residual [N]
+    with the effect's magnitude at zero."""
+
+    jacobian: np.ndarray
+    off: dict
+
+
+def _linearise(engine, par, z0: np.ndarray, steps: np.ndarray, parameters: dict[str, str]) -> _Linearisation | None:
+    """The base Jacobian on ``engine``'s tests (forward steps ``steps``) and each effect switched off, in one
+    parallel batch; None when the base cannot be simulated."""
+    base = par.to_params(z0)
+    stepped = [par.to_params(z0 + np.eye(len(z0))[i] * steps[i]) for i in range(len(z0))]
+    res = engine.residuals_batch([base, *stepped, *({**base, name: 0.0} for name in parameters.values())])
     if res[0] is None:
         return None
-    # residual = measured - simulated: the simulated force's derivative is minus the residual's
-    return np.column_stack([(res[0] - r) / h if r is not None else np.zeros_like(res[0])
-                            for r, h in zip(res[1:], steps)])
+    return _Linearisation(_columns(res[0], res[1:1 + len(z0)], steps), dict(zip(parameters, res[1 + len(z0):])))
 
 
-def _signature(engine, params: dict, name: str, magnitude: float) -> np.ndarray | None:
-    """Simulated force with ``name`` at ``magnitude`` minus without it, per unit magnitude [N per unit]."""
-    r_off, r_on = engine.residuals_batch([{**params, name: 0.0}, {**params, name: magnitude}])
-    if r_off is None or r_on is None:
-        return None
-    return (r_off - r_on) / magnitude
+def _row(u: np.ndarray, j_id: np.ndarray, m: float, edges: np.ndarray, test_names: list[str], mse_ref: float,
+         noise_n: float, accept: float, penalty: float) -> dict:
+    """``limit_from_signature`` pooled and per held-out test (``edges``: the tests' sample offsets), linearised
+    at the magnitude ``m``."""
+    row = limit_from_signature(u, j_id, mse_ref, noise_n, accept, penalty)
+    # per test against the pooled reference (a per-test reference would reward a noisy test)
+    row["per_test"] = {test: max(limit_from_signature(u[edges[k]:edges[k + 1]], j_id, mse_ref, noise_n, accept,
+                                                      penalty)["by_score"], row["by_noise"])
+                       for k, test in enumerate(test_names)}
+    row["linearised_at"] = m
+    return row
 
 
 def detection_limits(eid, ev, par, z0: np.ndarray, parameters: dict[str, str], reference: dict[str, float],
@@ -94,42 +115,44 @@ def detection_limits(eid, ev, par, z0: np.ndarray, parameters: dict[str, str], r
     range); bounds: parameter -> search bounds; smallest: parameter -> the smallest magnitude the diagnosis
     names (its physical range); mse_ref [N^2], noise_n [N], accept, penalty: as in
     ``limit_from_signature``; lengths_val: held-out samples per test, in ``ev``'s order; test_names: their
-    names; refine: times the signature is taken again at the current limit."""
+    names; refine: times the signature is taken again at the current limit. Every effect's signature is taken in
+    one parallel batch per engine and round."""
     steps = np.where(z0 + step <= 1.0, step, -step)
-    J_id, J_val = jacobian_columns(eid, par, z0, steps), jacobian_columns(ev, par, z0, steps)
-    if J_id is None or J_val is None:
+    lin_id, lin_val = _linearise(eid, par, z0, steps, parameters), _linearise(ev, par, z0, steps, parameters)
+    if lin_id is None or lin_val is None:
         return {}
     base = par.to_params(z0)
     edges = np.cumsum([0, *lengths_val])
-    out = {}
-    for effect, name in parameters.items():
-        lo, hi = bounds[name]
-        top = max(abs(lo), abs(hi))
-        m = min(reference[name], top)
-        row = None
-        for _ in range(1 + refine):
-            j_id, j_val = _signature(eid, base, name, m), _signature(ev, base, name, m)
-            if j_id is None or j_val is None:
-                break
-            u = absorbed_signature(j_id, j_val, J_id, J_val)
-            row = limit_from_signature(u, j_id, mse_ref, noise_n, accept, penalty)
-            # per test against the pooled reference (a per-test reference would reward a noisy test)
-            row["per_test"] = {test: max(limit_from_signature(u[edges[k]:edges[k + 1]], j_id, mse_ref, noise_n, accept,
-                                                              penalty)["by_score"], row["by_noise"])
-                               for k, test in enumerate(test_names)}
-            row["linearised_at"] = m
-            if not math.isfinite(row["limit"]) or row["limit"] >= top:
-                break
-            m = max(row["limit"], 1e-6 * top)
-        if row is None:
-            continue
-        row["parameter"] = name
-        row["by_range"] = smallest[name]
-        row["limited_by"] = max(("score", row["by_score"]), ("noise", row["by_noise"]), ("range", smallest[name]),
-                                key=lambda kv: kv[1])[0]
-        row["limit"] = max(row["limit"], smallest[name])
-        row["per_test"] = {t: max(v, smallest[name]) for t, v in row["per_test"].items()}
-        row["best_test"] = min(row["per_test"], key=row["per_test"].get) if row["per_test"] else None
-        row["reachable"] = bool(row["limit"] <= top)
-        out[effect] = row
-    return out
+    top = {e: max(abs(b) for b in bounds[name]) for e, name in parameters.items()}
+    m = {e: min(reference[name], top[e]) for e, name in parameters.items()}
+    active = [e for e in parameters if lin_id.off[e] is not None and lin_val.off[e] is not None]
+    rows = {}
+    for _ in range(1 + refine):
+        on_id, on_val = ([engine.residuals_batch([{**base, parameters[e]: m[e]} for e in active]) if active else []
+                         for engine in (eid, ev)])
+        still = []
+        for e, r_id, r_val in zip(active, on_id, on_val):
+            if r_id is None or r_val is None:
+                continue
+            j_id, j_val = (lin_id.off[e] - r_id) / m[e], (lin_val.off[e] - r_val) / m[e]
+            u = absorbed_signature(j_id, j_val, lin_id.jacobian, lin_val.jacobian)
+            rows[e] = _row(u, j_id, m[e], edges, test_names, mse_ref, noise_n, accept, penalty)
+            if math.isfinite(rows[e]["limit"]) and rows[e]["limit"] < top[e]:
+                m[e] = max(rows[e]["limit"], 1e-6 * top[e])
+                still.append(e)
+        active = still
+    return {e: _finish(rows[e], parameters[e], smallest[parameters[e]], top[e]) for e in parameters if e in rows}
+
+
+def _finish(row: dict, name: str, smallest: float, top: float) -> dict:
+    """The limit at least ``smallest`` (the physical range's meaningful floor), what limits it, the test that
+    would show it and whether it lies within the search bound ``top``."""
+    row["parameter"] = name
+    row["by_range"] = smallest
+    row["limited_by"] = max(("score", row["by_score"]), ("noise", row["by_noise"]), ("range", smallest),
+                            key=lambda kv: kv[1])[0]
+    row["limit"] = max(row["limit"], smallest)
+    row["per_test"] = {t: max(v, smallest) for t, v in row["per_test"].items()}
+    row["best_test"] = min(row["per_test"], key=row["per_test"].get) if row["per_test"] else None
+    row["reachable"] = bool(row["limit"] <= top)
+    return row
