@@ -22,6 +22,7 @@ setting given on the command line reaches the fit and the diagnosis alike.
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import ExitStack
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -31,6 +32,7 @@ from tuner.data.reading import RigTest
 from tuner import strict_json
 from tuner.diagnosis.bases import BaseRefinement, diagnosis_forecast
 from tuner.diagnosis.diagnose import Diagnosis, DiagnosisFailed, DiagnosisSettings, choose_base, diagnose
+from tuner.fleet.executors import FleetExecutor
 from tuner.identification.fit import FitResult, FitSettings, fit, full_rate_checks
 from tuner.identification.intervals import ModelIntervals
 from tuner.identification.problem import Problem
@@ -252,14 +254,22 @@ def vehicle_consequences(fmus: list[Path], out: Path, seed: int = 0, log=print, 
     ``intervals_for``: 'recommended' (``interval_models``) or 'all'."""
     stage(log, "vehicle")
     log(f"vehicle: {len(fmus)} tuned FMUs as the yaw dampers, scenarios {', '.join(SCENARIO_NAMES)} ...")
-    data = compare_fmus(fmus, Path(out) / VEHICLE_FOLDER, seed=seed,
-                        log=SubStages(log, len(fmus) * len(SCENARIO_NAMES)))
     models = interval_models(out, intervals_for, log) if draws > 0 else ()
-    if models is None or models:
-        stage(log, "vehicle intervals")
-        try:
-            propagate(out, PropagationSettings(draws=draws, seed=seed, irregularity_seed=seed, models=models),
-                      scheduler=scheduler, log=log)
-        except (ValueError, OSError, RuntimeError) as err:  # e.g. the Dask cluster went away: the rest stands
-            log(f"vehicle intervals not computed: {err}")
+    with ExitStack() as open_executor:
+        executor = FleetExecutor(scheduler) if scheduler else None
+        try:  # the FMUs side by side on the draws' workers, started once for both
+            executor = open_executor.enter_context(executor) if executor is not None else None
+        except (ValueError, OSError, RuntimeError) as err:  # e.g. no Dask cluster there: the scenarios still run
+            log(f"vehicle: {executor.description} not started ({err}): the scenarios run in this process, "
+                f"no intervals")
+            executor, models = None, ()
+        data = compare_fmus(fmus, Path(out) / VEHICLE_FOLDER, seed=seed, executor=executor,
+                            log=SubStages(log, len(fmus) * len(SCENARIO_NAMES)))
+        if models is None or models:
+            stage(log, "vehicle intervals")
+            try:
+                propagate(out, PropagationSettings(draws=draws, seed=seed, irregularity_seed=seed, models=models),
+                          executor=executor, log=log)
+            except (ValueError, OSError, RuntimeError) as err:  # e.g. the Dask cluster went away: the rest stands
+                log(f"vehicle intervals not computed: {err}")
     return data

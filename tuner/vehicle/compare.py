@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +30,8 @@ from tuner.vehicle.cosim import VehicleCosim, check_damper_fmu
 from tuner.vehicle.hunting import critical_speed_time_domain, eigen_critical_speed
 from tuner import strict_json
 
-__all__ = ["SCENARIO_NAMES", "compare_fmus", "scenario_runs", "run_figures", "summary_rows", "format_table",
+__all__ = ["SCENARIO_NAMES", "compare_fmus", "fmu_scenarios", "ScenarioTask", "FmuScenarios", "scenario_runs",
+           "run_figures", "summary_rows", "format_table",
            "VEHICLE_FOLDER", "fmu_labels", "maxwell_values"]
 
 SCENARIO_NAMES = ("critical_speed", "curve_entry", "straight_irregular")
@@ -93,13 +95,77 @@ def fmu_labels(paths) -> list[str]:
     return labels
 
 
+@dataclass(frozen=True)
+class ScenarioTask:
+    """One FMU's scenarios for ``fmu_scenarios`` (a worker's task): speeds in m/s, ``kick`` in m, ``step`` in s."""
+
+    label: str
+    fmu: str
+    scenarios: tuple
+    step: float
+    seed: int
+    v_min: float
+    v_max: float
+    tol: float
+    kick: float
+
+
+@dataclass
+class FmuScenarios:
+    """What ``fmu_scenarios`` found for one FMU: its ``vehicle.json`` entry per scenario, the time histories and
+    hunting searches the figures draw, and its log lines (said when the FMU is done)."""
+
+    label: str
+    entries: dict
+    histories: dict
+    lines: list
+
+
+def fmu_scenarios(task: ScenarioTask, log=None) -> FmuScenarios:
+    """Every scenario of ``task`` with its FMU as the four yaw dampers. ``log``: progress lines and stages as they
+    come (None, in a worker: the lines are kept in the result for the job's log)."""
+    lines, entries, histories = [], {"fmu": task.fmu}, {}
+    say = log if log is not None else lines.append
+    runs, lab = scenario_runs(), task.label
+    with VehicleCosim(Path(task.fmu), step=task.step) as co:
+        for name in task.scenarios:
+            stage(say, f"{lab}: {name}")
+            t0 = time.perf_counter()
+            if name == "critical_speed":
+                say(f"{lab}: critical speed, kick runs of 8 s between {task.v_min * 3.6:.0f} and "
+                    f"{task.v_max * 3.6:.0f} km/h")
+                res = critical_speed_time_domain(co, task.v_min, task.v_max, tol=task.tol, kick=task.kick, log=say)
+                entry = {"critical_speed_kmh": res.speed_kmh if math.isfinite(res.speed) else None,
+                         "stable_up_to_max": not math.isfinite(res.speed), "unstable_at_min": res.unstable_at_min,
+                         "runs": [{"speed_kmh": v * 3.6, "growth_rate_per_s": s, "completed": d}
+                                  for v, s, d in res.runs], "kick_m": task.kick}
+                mx = maxwell_values(Path(task.fmu))
+                if mx is not None:
+                    ve = eigen_critical_speed(mx["k_s"], mx["c"], co.params, v_max=task.v_max)
+                    entry["eigenvalue_critical_speed_kmh"] = ve * 3.6 if math.isfinite(ve) else None
+                histories[name] = res
+            else:
+                sc = runs[name]
+                run = co.run(sc.speed, sc.track(), _irregularity(sc, task.seed, co.params), sc.duration_s,
+                             s0=START_OFFSET)
+                entry = run_figures(run)
+                histories[name] = run
+            entry["wall_time_s"] = time.perf_counter() - t0
+            entries[name] = entry
+            advance(say, 1.0)
+            say(f"{lab}: {name} done in {entry['wall_time_s']:.1f} s")
+    return FmuScenarios(lab, entries, histories, lines)
+
+
 def compare_fmus(fmus, out: Path, *, scenarios=SCENARIO_NAMES, step: float = 1e-3, seed: int = 0,
                  v_min: float = 100 / 3.6, v_max: float = 1000 / 3.6, tol: float = 1 / 3.6, kick: float = 3e-3,
-                 log=print) -> dict:
+                 executor=None, log=print) -> dict:
     """Run ``scenarios`` with each damper FMU of ``fmus`` (paths), write ``vehicle.json`` and one figure per
     scenario (``<scenario>.png``) into ``out``; return the JSON content. Speeds in m/s, ``kick`` in m,
-    ``step`` in s; ``seed``: master seed of the irregularity realisations. ``log``: progress lines (a
-    :class:`tuner.progress.JobProgress` also gets the stages)."""
+    ``step`` in s; ``seed``: master seed of the irregularity realisations. ``executor``: an entered
+    ``tuner.fleet.executors.FleetExecutor`` on which the FMUs run side by side (None: one after the other in
+    this process; the results are the same). ``log``: progress lines (a :class:`tuner.progress.JobProgress`
+    also gets the stages; each FMU's lines come when it is done)."""
     paths = [Path(f) for f in fmus]
     if not paths:
         raise ValueError("give at least one damper FMU")
@@ -110,40 +176,23 @@ def compare_fmus(fmus, out: Path, *, scenarios=SCENARIO_NAMES, step: float = 1e-
         raise ValueError(f"unknown scenario(s) {unknown}; choose from {list(SCENARIO_NAMES)}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    labels = fmu_labels(paths)
-    runs = scenario_runs()
-    results: dict = {lab: {"fmu": str(p)} for lab, p in zip(labels, paths)}
-    histories: dict = {s: {} for s in scenarios}
-    for lab, p in zip(labels, paths):
-        with VehicleCosim(p, step=step) as co:
-            for name in scenarios:
-                stage(log, f"{lab}: {name}")
-                t0 = time.perf_counter()
-                if name == "critical_speed":
-                    log(f"{lab}: critical speed, kick runs of 8 s between {v_min * 3.6:.0f} and {v_max * 3.6:.0f} km/h")
-                    res = critical_speed_time_domain(co, v_min, v_max, tol=tol, kick=kick, log=log)
-                    entry = {"critical_speed_kmh": res.speed_kmh if math.isfinite(res.speed) else None,
-                             "stable_up_to_max": not math.isfinite(res.speed),
-                             "unstable_at_min": res.unstable_at_min,
-                             "runs": [{"speed_kmh": v * 3.6, "growth_rate_per_s": s, "completed": d}
-                                      for v, s, d in res.runs], "kick_m": kick}
-                    mx = maxwell_values(p)
-                    if mx is not None:
-                        ve = eigen_critical_speed(mx["k_s"], mx["c"], co.params, v_max=v_max)
-                        entry["eigenvalue_critical_speed_kmh"] = ve * 3.6 if math.isfinite(ve) else None
-                    histories[name][lab] = res
-                else:
-                    sc = runs[name]
-                    run = co.run(sc.speed, sc.track(), _irregularity(sc, seed, co.params), sc.duration_s,
-                                 s0=START_OFFSET)
-                    entry = run_figures(run)
-                    histories[name][lab] = run
-                entry["wall_time_s"] = time.perf_counter() - t0
-                results[lab][name] = entry
-                advance(log, 1.0)
-                log(f"{lab}: {name} done in {entry['wall_time_s']:.1f} s")
-    data = {"scenarios": {n: (runs[n].description if n in runs else "hunting critical speed, lateral kick "
-                              f"{kick * 1e3:g} mm, straight ideal track") for n in scenarios},
+    tasks = [ScenarioTask(lab, str(p), tuple(scenarios), step, seed, v_min, v_max, tol, kick)
+             for lab, p in zip(fmu_labels(paths), paths)]
+    done = {}
+    for k, found, err in (executor.run(fmu_scenarios, tasks) if executor is not None else
+                          ((k, fmu_scenarios(t, log), None) for k, t in enumerate(tasks))):
+        if err is not None:
+            raise RuntimeError(f"vehicle: {tasks[k].fmu}: {type(err).__name__}: {err}") from err
+        done[k] = found
+        for line in found.lines:
+            log(line)
+        for name in scenarios if executor is not None else ():
+            stage(log, f"{found.label}: {name}")
+            advance(log, 1.0)
+    results = {done[k].label: done[k].entries for k in sorted(done)}
+    histories = {s: {done[k].label: done[k].histories[s] for k in sorted(done)} for s in scenarios}
+    data = {"scenarios": {n: (scenario_runs()[n].description if n != "critical_speed" else "hunting critical speed, "
+                              f"lateral kick {kick * 1e3:g} mm, straight ideal track") for n in scenarios},
             "step_s": step, "seed": seed, "results": results}
     (out / "vehicle.json").write_text(strict_json.dumps(data, indent=1))
     _figures(histories, out)

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 import time
+from contextlib import nullcontext
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
@@ -410,20 +411,23 @@ def _plans(folder: Path, s: PropagationSettings, log) -> list[_Plan]:
 
 
 def propagate(folder, settings: PropagationSettings = PropagationSettings(), *, scheduler: str | None = None,
-              log=print) -> dict:
+              executor=None, log=print) -> dict:
     """The vehicle intervals of every tuned FMU of the fit output folder ``folder`` (module docstring), written
     to ``folder/vehicle/intervals.json`` and returned. ``scheduler``: where the draws run
-    (``tuner.fleet.executors.parse_scheduler``: pool:N, local:N, a Dask address), None: in this process.
+    (``tuner.fleet.executors.parse_scheduler``: pool:N, local:N, a Dask address), None: in this process;
+    ``executor``: an entered ``FleetExecutor`` to run them on instead (left open: the caller's).
     ``log``: progress lines (and, for a ``tuner.progress.JobProgress``, the stage's progress)."""
     folder = Path(folder)
     settings.check()
     plans = _plans(folder, settings, log)
     t0 = time.perf_counter()
-    executor = FleetExecutor(scheduler) if scheduler else _InProcess()
+    own = executor is None
+    if own:
+        executor = FleetExecutor(scheduler) if scheduler else _InProcess()
     if plans:
         log(f"vehicle intervals: up to {settings.draws} parameter sets per FMU ({len(plans)} FMUs) on "
             f"{executor.description} ...")
-        with executor:
+        with executor if own else nullcontext(executor):
             _run_rounds(plans, settings, executor, log)
     results, errors = {}, {}
     for p in plans:
