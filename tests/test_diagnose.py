@@ -213,8 +213,9 @@ def test_a_free_play_no_screen_passed_is_refitted_before_a_residual_above_the_fl
     """The profile screen re-balances the base linearly, which cannot give back a gap the base absorbed (a 0.54 mm
     gap in stiff two-chamber mounts screened at 1.3 %: 'unexplained' at 24 x the floor; refitted, named at the
     floor): with the base refit above UNEXPLAINED_RATIO x the floor, every nonsmooth candidate not refitted yet is
-    refitted and laddered; a smooth one screened out, or any candidate once the base is near the floor, is not.
-    ``benchmarks/blind_class.py --cases free_play_stiff`` runs the whole diagnosis on such dampers."""
+    laddered (the series element held) and, only when that leaves a residual above the floor or no cause's score,
+    refitted in full, the better fit kept; a smooth one screened out, or any candidate once the base is near the
+    floor, is not. ``benchmarks/blind_class.py --cases free_play_stiff`` runs the whole diagnosis on such dampers."""
     from tuner.diagnosis.cost_model import DiagnosisCost
     from tuner.diagnosis.rules import UNEXPLAINED_RATIO
     from tuner.diagnosis.search import CandidateSearch, Fit
@@ -224,27 +225,40 @@ def test_a_free_play_no_screen_passed_is_refitted_before_a_residual_above_the_fl
     search.par, search.settings = Parametrization("lumped", force_limit=4e4), DiagnosisSettings()
     search.cost = DiagnosisCost(reference=0.0, screen=0.0, refits=0.0, forms=0.0, detection=0.0)
     search.forecast = lambda: None
-    calls = []
+    calls, ladder_rmse = [], [0.0]
 
     def refit_candidate(effect, ext):
         calls.append(("refit", effect))
-        return {**_row(effect, 0.9, 300.0), "validation_mse_change_pct": -60.0, "identification_rmse_n": 21.0}
+        search.refits[effect] = Fit(None, np.ones(1), 100)
+        return {**_row(effect, 0.9, 300.0), "validation_mse_change_pct": -60.0, "identification_rmse_n": 50.0}
 
     def series_ladder(effect, ext, row):
         calls.append(("ladder", effect))
-        return row
+        search.refits[effect] = Fit(None, np.full(1, 2.0), 50)
+        return {**_row(effect, 1.2, 300.0), "validation_mse_change_pct": -70.0, "identification_rmse_n": ladder_rmse[0]}
 
     search.refit_candidate, search.series_ladder = refit_candidate, series_ladder
-    for rmse_none, expected in ((UNEXPLAINED_RATIO * 20.0 * 1.5, ["free_play"]), (UNEXPLAINED_RATIO * 20.0 * 0.9, [])):
+    above = UNEXPLAINED_RATIO * 20.0 * 1.5
+    for rmse_none, rmse_ladder, expected, steps, kept in (
+            (above, 35.0, ["free_play"], ("ladder",), 2.0),  # the ladder within 2 x the floor: no full refit
+            (above, 45.0, ["free_play"], ("ladder", "refit"), 2.0),  # above: refitted, the ladder's fit better
+            (above, 90.0, ["free_play"], ("ladder", "refit"), 1.0),  # ... the full refit's better
+            (UNEXPLAINED_RATIO * 20.0 * 0.9, 19.0, [], (), 0.0)):  # the base near the floor: nothing
         calls.clear()
+        ladder_rmse[0] = rmse_ladder
         search.none_row = {**_row("none", 0.0, 0.0), "identification_rmse_n": rmse_none}
         search.ranking = [{**_row(e, -0.02, 0.0), "refitted": refitted, "screen": None} for e, refitted in
                           (("friction", False), ("free_play", False), ("inertia", True))] + [search.none_row]
         search.refits = {r["effect"]: Fit(None, np.zeros(1), 1) for r in search.ranking}
         assert search.refit_unseen_nonsmooth() == expected
-        assert calls == [(kind, e) for e in expected for kind in ("refit", "ladder")]
+        assert calls == [(kind, e) for e in expected for kind in steps]
         free_play = next(r for r in search.ranking if r["effect"] == "free_play")
-        assert free_play["refitted"] == bool(expected) and (free_play["score"] == 0.9) == bool(expected)
+        assert free_play["refitted"] == bool(expected)
+        assert free_play.get("identification_rmse_n") == (min(rmse_ladder, 50.0 if "refit" in steps else 99.0)
+                                                          if expected else None)
+        assert float(search.refits["free_play"].z[0]) == kept
+        if "refit" in steps:
+            assert search.refits["free_play"].evaluations == free_play["evaluations"] == 150
 
 
 def test_an_effect_whose_interval_includes_zero_is_not_named():

@@ -371,7 +371,7 @@ class CandidateSearch:
         cost = series_cost(self.par.dimension, self.settings, len(held))
         self.cost.refits += cost
         self.forecast()
-        self.log(f"  {effect:14s} refit at {row['identification_rmse_n']:.1f} N, above the floor: profiled again "
+        self.log(f"  {effect:14s} at {row['identification_rmse_n']:.1f} N, above the floor: profiled "
                  f"with the {k} held at " + ", ".join(f"{h[k]:.3g}" for h in held) + f" N/m ({c} {self.guess[c]:.3g} "
                  f"N s/m), then released")
         start = ext.from_params({**self.base, **self.par.to_params(self.z_none)})
@@ -469,19 +469,38 @@ class CandidateSearch:
         rows = [r for r in self.ranking if r["effect"] != "none" and not r["refitted"]
                 and ALL_EFFECTS[r["effect"]].nonsmooth]
         for row in rows:
-            effect, ext = row["effect"], self.refits[row["effect"]].ext
-            cost = refit_cost(self.par.dimension, 1, self.settings, True)
-            self.cost.refits += cost
-            self.forecast()
+            effect = row["effect"]
             self.log(f"  {effect:14s} screened out, but nonsmooth and the base leaves "
                      f"{self.none_row['identification_rmse_n']:.1f} N: refitted before the residual is left without a "
                      f"cause")
-            new = self.series_ladder(effect, ext, self.refit_candidate(effect, ext))
-            self.cost.refits = max(0.0, self.cost.refits - cost)
+            new = self.refit_unseen(effect, self.refits[effect].ext, row)
             new["refitted"], new["screen"] = True, row["screen"]
             self.ranking[self.ranking.index(row)] = new
             self.log_row(new)
         return [r["effect"] for r in rows]
+
+    def refit_unseen(self, effect: str, ext: ExtendedParametrization, screened: dict) -> dict:
+        """``refit_unseen_nonsmooth``'s refit of one effect from its ``screened`` row: the ``series_ladder`` first
+        (what a screen that re-balances the base linearly misses is a gap the base absorbed into its mounts), then,
+        unless it leaves no residual above the floor with a cause's score, the full ``refit_candidate`` (the ladder
+        starts from the base whatever a refit found: it is not run again); the better identification fit is kept.
+        The 0.54 mm gap of ``refit_unseen_nonsmooth``: the full refit took 117 s to end at 473 N rms, the ladder
+        after it 211 s to reach 21 N."""
+        ladder = self.series_ladder(effect, ext, screened)
+        if scores(ladder) and not self.above_floor(ladder["identification_rmse_n"]):
+            return ladder
+        first = self.refits[effect]
+        cost = refit_cost(self.par.dimension, 1, self.settings, True)
+        self.cost.refits += cost
+        self.forecast()
+        row = self.refit_candidate(effect, ext)
+        self.cost.refits = max(0.0, self.cost.refits - cost)
+        if ladder["identification_rmse_n"] < row["identification_rmse_n"]:
+            self.refits[effect] = Fit(first.ext, first.z, first.evaluations + self.refits[effect].evaluations)
+            return {**ladder, "evaluations": self.refits[effect].evaluations}
+        fit = self.refits[effect]
+        self.refits[effect] = Fit(fit.ext, fit.z, fit.evaluations + first.evaluations)
+        return {**row, "evaluations": self.refits[effect].evaluations}
 
     def rank(self, refitted: list[str]) -> tuple:
         """From the candidates' rows: ``promote`` among the ``refitted`` effects, the lead's continuation, the
