@@ -131,10 +131,10 @@ def fmi2_model_structure(outputs: list[int], knowns: list[int]) -> Element:
     return ms
 
 
-def fmi2(kind: str, identifier: str, guid: str, start_values: dict, settings: dict, source_file: str,
+def fmi2(kind: str, identifier: str, guid: str, start_values: dict, settings: dict, source_files: list[str],
          notes: dict | None = None) -> bytes:
-    """modelDescription.xml of the native FMI 2.0 FMU of ``kind``; ``source_file``: the one
-    translation unit of ``sources/`` (value references: fmi2_damper.c); ``notes``: as ``variables``."""
+    """modelDescription.xml of the native FMI 2.0 FMU of ``kind``; ``source_files``: the files of ``sources/`` to
+    compile (value references: fmi2_damper.c); ``notes``: as ``variables``."""
     root = Element("fmiModelDescription", {
         "fmiVersion": "2.0", "modelName": identifier, "guid": guid,
         "description": _DESCRIPTION.format(kind=kind),
@@ -146,8 +146,10 @@ def fmi2(kind: str, identifier: str, guid: str, start_values: dict, settings: di
         "canSerializeFMUstate": "true", "providesDirectionalDerivative": "false",
         "canNotUseMemoryManagementFunctions": "true", "canBeInstantiatedOnlyOncePerProcess": "false"})
     files = SubElement(cs, "SourceFiles")
-    # one translation unit (the wrapper includes the rest): only the fmi2 functions have external linkage
-    SubElement(files, "File", {"name": source_file})
+    # the wrapper (it includes the rest, static: only the fmi2 functions have external linkage) and this FMU's
+    # generated values (hidden symbols named after the model identifier)
+    for name in source_files:
+        SubElement(files, "File", {"name": name})
     _common(root, kind)
     mv = SubElement(root, "ModelVariables")
     outputs, knowns = [], []

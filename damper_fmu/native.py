@@ -28,7 +28,7 @@ from .parameter_spec import check_rule
 from .parameters import MODEL_PARAMETERS
 
 __all__ = ["available", "reason", "library", "simulate", "parameter_header", "KINDS", "CFLAGS", "compiler",
-           "compile_library"]
+           "compile_object", "compile_library"]
 
 C_DIR = Path(__file__).resolve().parent / "c"
 KINDS = {"lumped": 0, "maxwell": 1, "maxwell_table": 2, "twochamber": 3}
@@ -103,6 +103,29 @@ def compile_library(source: Path, name: str, *, headers: dict[str, str] | None =
             if proc.returncode != 0:
                 raise OSError(f"compiling {source.name} failed ({' '.join(cmd)}):\n{proc.stderr.strip()}")
             os.replace(out, target)  # atomic: concurrent builders do not see half a library
+    return target
+
+
+def compile_object(source: Path, name: str, inputs: list[Path]) -> Path:
+    """Compile the C file ``source`` (``-c``, include path its folder) into an object file cached under
+    ``$DAMPER_NATIVE_DIR``, keyed by a hash of ``inputs`` (every file it is built from, the source included),
+    the flags and the compiler; return its path. Raises OSError without a compiler or when compilation fails."""
+    cc = compiler()
+    if cc is None:
+        raise OSError("no C compiler found (set CC or install gcc)")
+    h = hashlib.sha256(" ".join([cc, *CFLAGS]).encode())
+    for f in inputs:
+        h.update(f.name.encode() + b"\0" + f.read_bytes())
+    target = _cache_dir() / f"{name}_{h.hexdigest()[:16]}.o"
+    if not target.exists():
+        target.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(prefix=f"{name}_") as tmp:
+            out = Path(tmp) / target.name
+            cmd = [cc, *CFLAGS, "-c", "-I", str(source.parent), str(source), "-o", str(out)]
+            proc = subprocess.run(cmd, capture_output=True, text=True)
+            if proc.returncode != 0:
+                raise OSError(f"compiling {source.name} failed ({' '.join(cmd)}):\n{proc.stderr.strip()}")
+            os.replace(out, target)  # atomic: concurrent builders do not see half an object
     return target
 
 

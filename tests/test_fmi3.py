@@ -126,7 +126,7 @@ def test_build_description_declares_fmi3_and_the_fmi3_wrapper(fmu3_paths, tmp_pa
     """FMI 3.0 declares source files in sources/buildDescription.xml only (fmpy validates it
     against the standard's schema when it reads the model description)."""
     md = read_model_description(str(fmu3_paths["lumped"]))
-    assert md.buildConfigurations[0].sourceFileSets[0].sourceFiles == ["fmi3_damper.c"]
+    assert md.buildConfigurations[0].sourceFileSets[0].sourceFiles == ["fmi3_damper.c", "damper_fmu_values.c"]
     with zipfile.ZipFile(fmu3_paths["lumped"]) as z:
         root = ET.fromstring(z.read("sources/buildDescription.xml"))
         names = set(z.namelist())
@@ -373,8 +373,10 @@ def test_two_fmus_sources_compile_into_one_program_with_the_function_prefix(fmu_
             subprocess.run([CC, "-c", "-std=c99", "-O2", "-ffp-contract=off", f"-DFMI3_FUNCTION_PREFIX={ident}_",
                             "-I", str(d / "sources"), str(d / "sources" / name), "-o", str(obj)], check=True)
             objects.append(str(obj))
-        nm = subprocess.run(["nm", "--defined-only", "-g", str(objects[-1])], capture_output=True, text=True).stdout
-        assert all(line.split()[-1].startswith(f"{ident}_fmi3") for line in nm.splitlines() if line.strip())
+            # every global symbol carries the model identifier: the FMI functions their prefix, the generated
+            # values (damper_fmu_values.c) their names
+            nm = subprocess.run(["nm", "--defined-only", "-g", str(obj)], capture_output=True, text=True).stdout
+            assert all(line.split()[-1].startswith(f"{ident}_fmi3") for line in nm.splitlines() if line.strip())
         tokens.append(md.guid)
         ref[ident] = stroke_run(fmu_paths[kind], exact_and_jittered(500)[0])
     host = tmp_path / "host.c"

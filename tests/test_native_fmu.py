@@ -207,8 +207,10 @@ def test_the_bundled_sources_compile_into_an_equal_fmu(fmu_paths, tmp_path):
     binary = next((unzip / "binaries").rglob("*.so"))
     binary.unlink()
     src = unzip / "sources"
+    files = read_model_description(str(fmu_paths["lumped"])).buildConfigurations[0].sourceFileSets[0].sourceFiles
+    assert files == ["fmi2_damper.c", "damper_fmu_values.c"]  # the wrapper and this FMU's GUID and start values
     subprocess.run([cc, "-std=c99", "-O2", "-ffp-contract=off", "-shared", "-fPIC", "-I", str(src),
-                    str(src / "fmi2_damper.c"), "-o", str(binary), "-lm"], check=True)
+                    *(str(src / f) for f in files), "-o", str(binary), "-lm"], check=True)
     rebuilt = tmp_path / "rebuilt.fmu"
     with zipfile.ZipFile(rebuilt, "w") as z:
         for f in unzip.rglob("*"):

@@ -1,9 +1,9 @@
 /* FMI 3.0 co-simulation interface of the damper models (native FMU).
  *
  * The FMI 3.0 twin of fmi2_damper.c: the same FMI-independent part (fmu_common.c, with the kernel
- * damper_kernel.c, included here: one translation unit, compile this file alone) and the same
- * generated headers: damper_fmu_config.h (model kind, instantiation token, start values of the
- * settings) and damper_params.h (the parameters, from damper_fmu/parameters.py). Same life cycle,
+ * damper_kernel.c, included here; compile this file and damper_fmu_values.c, this FMU's generated
+ * instantiation token and start values) and the same generated headers: damper_fmu_config.h (model
+ * kind) and damper_params.h (the parameters, from damper_fmu/parameters.py). Same life cycle,
  * same checks, same messages, same calls into the kernel in the same order, so the forces equal the
  * FMI 2.0 FMU's bit for bit (tests/test_fmi3.py). What FMI 3.0 changes:
  *
@@ -95,10 +95,12 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String name, fmi3String token, fmi3
         return NULL;
     }
     if (!token || strcmp(token, DK_GUID) != 0) {
-        if (logMessage)
-            logMessage(env, fmi3Error, "logStatusError",
-                       "instantiation token does not match this binary's " DK_GUID
-                       " (modelDescription.xml and binary from different builds)");
+        if (logMessage) {
+            char msg[256];
+            snprintf(msg, sizeof msg, "instantiation token does not match this binary's %s (modelDescription.xml "
+                     "and binary from different builds)", DK_GUID);
+            logMessage(env, fmi3Error, "logStatusError", msg);
+        }
         return NULL;
     }
     cb.env = env;

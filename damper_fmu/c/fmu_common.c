@@ -1,7 +1,8 @@
 /* The FMI-independent part of the native FMUs, written once for fmi2_damper.c and fmi3_damper.c.
  *
- * Each wrapper includes this file (one translation unit: everything here is static, so a binary
- * exports the wrapper's fmi2* or fmi3* functions only) after defining
+ * Each wrapper includes this file (everything here is static, so a binary exports the wrapper's fmi2*
+ * or fmi3* functions only; this FMU's GUID and start values come from damper_fmu_values.c, hidden) after
+ * defining
  *   FMI            "fmi2" or "fmi3": the prefix of the function names in messages;
  *   STATE_MAGIC    the first word of a serialized FMU state (refuses another version's state);
  *   Callbacks      the type of what the importer passes to instantiate (logger and environment);
@@ -26,6 +27,16 @@
 #include "damper_kernel.c"
 #include "damper_params.h"
 #include "damper_fmu_config.h"
+
+/* This FMU's GUID and start values, defined in damper_fmu_values.c (generated per FMU: the rest of the
+   sources is the same for every FMU of a model and FMI version, so one compiled object serves them all).
+   Named after the model identifier and the FMI version (damper_fmu_config.h), hidden from the binary's
+   exported symbols. */
+DK_HIDDEN extern const char DK_GUID[];
+DK_HIDDEN extern const double DK_START_VALUES[];
+/* max_internal_step [s], internal_tolerance [-], stroke_limit [m], velocity_limit [m/s] */
+DK_HIDDEN extern const double DK_START_SETTINGS[4];
+DK_HIDDEN extern const int DK_START_INPUT_INTERPOLATION;
 
 #if DK_MODEL_KIND == DK_LUMPED
 #define NPAR DK_LUMPED_N
@@ -87,11 +98,11 @@ static void error_message(Instance *c, const char *fmt, const char *detail);
 static void defaults(Snapshot *s) {
     int i;
     memset(s, 0, sizeof *s);
-    for (i = 0; i < NPAR; i++) s->p[i] = SPECS[i].start;
-    s->max_step = DK_START_MAX_STEP;
-    s->tolerance = DK_START_TOLERANCE;
-    s->stroke_limit = DK_START_STROKE_LIMIT;
-    s->velocity_limit = DK_START_VELOCITY_LIMIT;
+    for (i = 0; i < NPAR; i++) s->p[i] = DK_START_VALUES[i];
+    s->max_step = DK_START_SETTINGS[0];
+    s->tolerance = DK_START_SETTINGS[1];
+    s->stroke_limit = DK_START_SETTINGS[2];
+    s->velocity_limit = DK_START_SETTINGS[3];
     s->input_interpolation = DK_START_INPUT_INTERPOLATION;
     s->thermal_source = 0;
     s->temperature = 20.0;
