@@ -311,3 +311,56 @@ def test_an_identification_tells_its_log_the_seconds_left_of_its_search_and_refi
     runs = sum("local refinement from" in m and "RMSE" in m for m in lines)
     assert runs == refinement_starts("lumped") and len(refining) == runs - 1
     assert all(s > 0.0 for s in refining)  # each before a run still to come
+
+
+def test_the_forms_are_not_forecast_after_a_lead_that_reaches_the_floor_and_long_steps_tick():
+    """The forms run only where the lead (or the base, when nothing scores) leaves a residual above twice the
+    floor (``weigh_forms``, ``forms_on_top``): a lead at the floor brings none to the forecast (the stiff-mount
+    gap's diagnosis said 2.8 min left for two passes that never ran, 32 s before its end). Every batch of
+    simulations ticks the display, so a long step is not a silence."""
+    from tuner.diagnosis.cost_model import DiagnosisCost, form_pass_cost
+    from tuner.diagnosis.search import CandidateSearch
+    from tuner.diagnosis.settings import DiagnosisSettings
+    from tuner.identification.parametrization import Parametrization
+
+    search = CandidateSearch.__new__(CandidateSearch)
+    search.credible, search.floor, search.forecast = True, 20.0, lambda: None
+    search.par, search.settings = Parametrization("lumped", force_limit=4e4), DiagnosisSettings()
+    search.none_row = {"effect": "none", "identification_rmse_n": 500.0, "score": 0.0}
+    lead = {"effect": "free_play", "score": 6.0, "effect_rms_n": 900.0, "resolved": True, "significant": True,
+            "parameters": {}}
+    forms = {}
+    for rmse in (21.0, 300.0):
+        search.cost = DiagnosisCost(reference=0.0, screen=0.0, refits=0.0, forms=0.0, detection=0.0)
+        search.ranking = [{**lead, "identification_rmse_n": rmse}]
+        search.expect_after_ranking()
+        forms[rmse] = search.cost.forms
+    assert forms[21.0] == 0.0 and forms[300.0] == pytest.approx(2 * form_pass_cost(search.par.dimension,
+                                                                                   search.settings))
+
+    clock = Clock()
+    out = io.StringIO()
+    log = JobProgress({"diagnosis": 1.0}, stream=out, clock=clock)
+    stage(log, "diagnosis")
+    log.expect(100.0)
+    search.log = log
+    lines = out.getvalue().count("progress")
+    clock.t += 30.0
+    search.tick()  # as after a batch, 30 s into a step that said nothing
+    assert out.getvalue().count("progress") == lines + 1
+    assert "about 1.2 min left" in out.getvalue().splitlines()[-1]
+
+
+def test_an_engine_calls_its_after_batch_once_per_batch(small_lumped):
+    """The diagnosis's tick (``CandidateSearch.tick``) rides on the engines: once after every batch."""
+    from damper_fmu import defaults
+    from tuner.identification.engine import Engine, fastest_engine
+    from tuner.identification.problem import DataSettings, Problem
+
+    problem = Problem.build(small_lumped[0], [], DataSettings())
+    calls = []
+    with Engine("lumped", problem.sig_id, engine=fastest_engine(), workers=0) as eng:
+        eng.after_batch = lambda: calls.append(eng.evaluations)
+        eng.residuals_batch([defaults("lumped")] * 2)
+        eng.sse_batch([defaults("lumped")])
+    assert calls == [2, 3]

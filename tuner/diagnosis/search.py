@@ -183,11 +183,20 @@ class CandidateSearch:
 
     def expect_after_ranking(self) -> None:
         """The cost of the steps the ranking decides (``tuner.diagnosis.cost_model.after_ranking``): a leading
-        candidate's continuation, the intervals, the forward selection, the passes of the forms."""
-        scoring = sum(1 for r in self.ranking if r["effect"] != "none" and scores(r))
-        after_ranking(self.cost, self.par.dimension, self.settings, scoring=scoring,
-                      forms_run=self.above_floor(self.none_row["identification_rmse_n"]))
+        candidate's continuation, the intervals, the forward selection, the passes of the forms (they run where
+        the lead, or the base when nothing scores, leaves a residual above the floor: ``weigh_forms``,
+        ``forms_on_top``)."""
+        scoring = [r for r in self.ranking if r["effect"] != "none" and scores(r)]
+        lead = max(scoring, key=lambda r: r["score"]) if scoring else self.none_row
+        after_ranking(self.cost, self.par.dimension, self.settings, scoring=len(scoring),
+                      forms_run=self.above_floor(self.none_row["identification_rmse_n"])
+                      and self.above_floor(lead["identification_rmse_n"]))
         self.forecast()
+
+    def tick(self) -> None:
+        """After every batch of simulations: the progress display may say the time left again (counting down
+        from the last forecast), so a long step (a ladder, a refit) is not a silence."""
+        advance(self.log, 0.0)
 
     def at(self, stage: str, fraction: float | None = None) -> None:
         self.record["stage"] = f"{stage} on the {self.kind} base"
@@ -876,6 +885,7 @@ class CandidateSearch:
         kw = dict(engine=self.settings.engine, workers=self.settings.workers,
                   fmu_path=ensure_fmu(self.kind) if self.settings.engine == "fmu" else None)
         with Engine(self.kind, self.data.sig_id, **kw) as self.eid, Engine(self.kind, self.data.sig_val, **kw) as self.ev:
+            self.eid.after_batch = self.ev.after_batch = self.tick
             self.at("candidate refits")
             self.record["partial"]["ranking"] = self.ranking
             self.t_engines = time.perf_counter()

@@ -218,7 +218,8 @@ class Engine:
     """Evaluates candidates of one model on the identification tests.
 
     model: a kind of damper_fmu.parameters.MODEL_KINDS; engine: 'fmu' | 'inprocess'; workers: number
-    of worker processes (0: evaluate in this process); fmu_path: the model's FMU (engine 'fmu').
+    of worker processes (0: evaluate in this process); fmu_path: the model's FMU (engine 'fmu');
+    ``after_batch``: None, or a function called after every batch (the diagnosis's progress tick).
     """
 
     def __init__(self, model: str, tests: list[Signals], *, engine: str = "fmu", workers: int = 2,
@@ -237,6 +238,7 @@ class Engine:
         self.evaluations = 0
         self.failures = 0  # candidates that could not be simulated
         self.last_failure = ""  # the reason the last of them gave
+        self.after_batch = None  # called with no argument after every batch (a progress display's tick)
         args = (model, engine, str(fmu_path) if fmu_path else None, max_internal_step, tolerance, tests)
         if self.workers == 0:
             self._local = _Simulator(*args[:5])
@@ -251,11 +253,13 @@ class Engine:
         self._blas = threadpool_limits(limits=1) if self.workers else None
 
     def _record(self, results: list[tuple]) -> list:
-        """Values of (value, reason) pairs; failures counted, the last reason kept."""
+        """Values of (value, reason) pairs; failures counted, the last reason kept; ``after_batch`` called."""
         for _, why in results:
             if why:
                 self.failures += 1
                 self.last_failure = why
+        if self.after_batch is not None:
+            self.after_batch()
         return [v for v, _ in results]
 
     def sse_batch(self, candidates: list[dict]) -> np.ndarray:
