@@ -8,8 +8,9 @@ coordinates is d + 1 simulations; a candidate's refit is its profile (``grid_poi
 by up to ``profile_steps`` batches: half of them on average, measured) and a joint polish of at most
 ``polish_jacobians / 2`` Jacobians; the screen is one batch of ``grid_points`` values per candidate; the
 forms screen their shapes (``tuner.diagnosis.forms.shape_grid``) and refit one shape; the detection limits
-take the Jacobian on both test sets and up to three signatures per candidate on each. Once the candidates are
-ranked (``after_ranking``), what a leading candidate brings follows: its continuation and the base's
+take the Jacobian on both test sets, each candidate switched off once and at up to three magnitudes on each.
+Once the candidates are ranked (``after_ranking``), what a leading candidate brings follows: its continuation
+and the base's
 (``CONTINUATION_JACOBIANS`` each), an interval (one Jacobian) per candidate that scores, the forward
 selection (each other scoring candidate refitted on top of the first, the best continued), and the forms
 twice (weighed with the cause on the base, then on top of the causes) when the base leaves a residual above
@@ -111,7 +112,7 @@ def expected_cost(d: int, settings, *, settled: bool, forms_run: bool, held_out_
     reference = jac if settled else jac + max(1, settings.polish_jacobians // 2) * (jac + 2)
     screen = n * settings.grid_points + (0 if settled else jac)
     forms = form_pass_cost(d, settings) if forms_run and settings.forms else 0.0
-    detection = jac * (1 + held_out_share) + 6 * n * (1 + held_out_share)
+    detection = jac * (1 + held_out_share) + 4 * n * (1 + held_out_share)  # each effect off, then at 3 magnitudes
     return DiagnosisCost(float(reference), float(screen), float(refits * refit_cost(d, 1, settings)), float(forms),
                          float(detection))
 
