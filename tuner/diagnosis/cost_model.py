@@ -10,8 +10,7 @@ by up to ``profile_steps`` batches: half of them on average, measured) and a joi
 forms screen their shapes (``tuner.diagnosis.forms.shape_grid``) and refit one shape; the detection limits
 take the Jacobian on both test sets, each candidate switched off once and at up to three magnitudes on each.
 Once the candidates are ranked (``after_ranking``), what a leading candidate brings follows: its continuation
-and the base's
-(``CONTINUATION_JACOBIANS`` each), an interval (one Jacobian) per candidate that scores, the forward
+and the base's (``CONTINUATION_JACOBIANS`` each), an interval (one Jacobian) per candidate that scores, the forward
 selection (each other scoring candidate refitted on top of the first, the best continued), and the forms
 twice (weighed with the cause on the base, then on top of the causes) when the base leaves a residual above
 the floor, each pass with the best form's continuation. Unknown before the step that decides it (how many
