@@ -158,3 +158,34 @@ def test_vehicle_command(maxwell_fmu, tmp_path, capsys):
     assert (out / "critical_speed.png").is_file() and (out / "curve_entry.png").is_file()
     assert main(["vehicle", "--fmus", str(tmp_path / "missing.fmu"), "--out", str(out)]) == 2
     assert "missing.fmu" in capsys.readouterr().err
+
+
+def test_fmus_side_by_side_on_workers_give_the_figures_of_one_process(tmp_path):
+    """The job runs the tuned FMUs' scenarios on the draws' workers, one FMU per worker
+    (``compare_fmus(..., executor=...)``): every figure of vehicle.json is the one-process run's (the same
+    simulations; the growth rates' least squares may round differently with another BLAS thread count, so to
+    1e-9), in the order of the FMUs given."""
+    from damper_fmu.fmu import build
+    from tuner.fleet.executors import FleetExecutor
+    from tuner.vehicle.compare import compare_fmus
+
+    fmus = [build("maxwell", tmp_path / name, start_values={"k_s": k_s, "c": c})
+            for name, k_s, c in (("soft", 4e6, 2e5), ("stiff", 1.4e7, 5e5))]
+    kw = dict(scenarios=("critical_speed", "curve_entry"), tol=5 / 3.6, log=lambda m: None)
+    alone = compare_fmus(fmus, tmp_path / "alone", **kw)
+    with FleetExecutor("pool:2") as ex:
+        pooled = compare_fmus(fmus, tmp_path / "pooled", executor=ex, **kw)
+    assert len(alone["results"]) == 2 and list(pooled["results"]) == list(alone["results"])
+
+    def figures(data):
+        out = []
+        for r in data["results"].values():
+            cs = r["critical_speed"]
+            out += [cs["critical_speed_kmh"], *(run["growth_rate_per_s"] for run in cs["runs"])]
+            out += [v for k, v in sorted(r["curve_entry"].items()) if k != "wall_time_s"]
+        return np.array(out, dtype=float)
+
+    speeds = [r["critical_speed"]["critical_speed_kmh"] for r in alone["results"].values()]
+    assert abs(speeds[0] - speeds[1]) > 10.0  # two dampers, two vehicles: the order is checked too
+    np.testing.assert_allclose(figures(pooled), figures(alone), rtol=1e-9, atol=0)
+    assert (tmp_path / "pooled" / "critical_speed.png").is_file()
