@@ -537,3 +537,29 @@ def test_a_cause_on_a_damper_30_times_smaller_is_named_at_its_own_scale(tmp_path
     assert p["value"] == pytest.approx(6.0, rel=0.2)
     lo, hi = p["plausible_range"]  # the catalogue's 50-300 N at this damper's peak force (~0.8 kN of 20 kN)
     assert 0.5 < lo < 3.0 and 8.0 < hi < 20.0 and p["plausible"], p
+
+
+def test_a_conclusion_a_rescue_replaces_is_kept_with_the_forms_it_tried():
+    """When nothing is named and a free play no screen passed is refitted and scores
+    (``refit_unseen_nonsmooth``), the diagnosis concludes again; the first conclusion's forms (tried on the base,
+    none named) stay in diagnosis.json under ``before_rescue``; without a rescue that field is null."""
+    from tuner.diagnosis.search import CandidateSearch, Conclusion, before_rescue
+
+    tried = [{"effect": "bypass", "score": -0.02}]
+    first = Conclusion("unexplained", [], {}, [], [], {"tried": tried, "form": None}, None)
+    second = Conclusion("free_play", ["free_play"], {}, [], [], None, None)
+    search = CandidateSearch.__new__(CandidateSearch)
+    for rescued_scores, expected in ((0.9, (second, first)), (-0.02, (first, None))):
+        ends = iter([first, second])
+        search.ranking = [{"effect": "free_play", "refitted": False, "score": 0.0}]
+        search.conclude = lambda refitted: next(ends)
+
+        def rescue(s=rescued_scores):
+            search.ranking[0] = {"effect": "free_play", "refitted": True, "score": s, "effect_rms_n": 900.0,
+                                 "resolved": True, "significant": True, "meaningful": True}
+            return ["free_play"]
+
+        search.refit_unseen_nonsmooth = rescue
+        assert search.concluded() == expected
+    assert before_rescue(first) == {"cause": "unexplained", "forms_tried": tried, "forms_weighed": None}
+    assert before_rescue(None) is None

@@ -898,11 +898,7 @@ class CandidateSearch:
             advance(self.log, 0.2)
             self.candidates()
             advance(self.log, 0.7)
-            end = self.conclude([r["effect"] for r in self.ranking if r["refitted"]])
-            if not end.causes:
-                rescued = self.refit_unseen_nonsmooth()
-                if any(scores(r) for r in self.ranking if r["effect"] in rescued):
-                    end = self.conclude(rescued)
+            end, first = self.concluded()
             self.at("detection limits", 0.95)
             limits = detection(self.eid, self.ev, self.par, self.z_none,
                                [e for e in self.settings.candidates if e not in end.causes], self.peak,
@@ -911,7 +907,19 @@ class CandidateSearch:
             self.step_done("detection")
             self.log(f"diagnosis on the {self.kind} base: {self.eid.evaluations} simulations of the identification "
                      f"tests and {self.ev.evaluations} of the held-out ones in {time.perf_counter() - self.t_engines:.0f} s")
-        return self.result(end, limits)
+        return {**self.result(end, limits), "before_rescue": before_rescue(first)}
+
+    def concluded(self) -> tuple[Conclusion, Conclusion | None]:
+        """The conclusion from the candidates' rows and, when it names nothing, again after the nonsmooth candidates
+        no screen passed are refitted (``refit_unseen_nonsmooth``) if one of them scores: (the conclusion, the one it
+        replaced or None)."""
+        end = self.conclude([r["effect"] for r in self.ranking if r["refitted"]])
+        if end.causes:
+            return end, None
+        rescued = self.refit_unseen_nonsmooth()
+        if any(scores(r) for r in self.ranking if r["effect"] in rescued):
+            return self.conclude(rescued), end
+        return end, None
 
     def conclude(self, refitted: list[str]) -> Conclusion:
         """From the candidates' rows (``refitted``: the effects refitted since the last ranking) to the causes:
@@ -970,6 +978,15 @@ class CandidateSearch:
                 "base_model": self.kind, "base_parameters": {k: self.base[k] for k in self.par.names},
                 "after_params": after_params, "final_validation_mse": pooled_mse(final_metrics),
                 "base_validation_mse": pooled_mse(base_metrics)}
+
+
+def before_rescue(first: Conclusion | None) -> dict | None:
+    """``diagnosis.json``'s record of a conclusion a rescue replaced (``CandidateSearch.concluded``): its cause and
+    the forms it tried and weighed (their rows), so that the forms tried before are not lost; None without one."""
+    if first is None:
+        return None
+    return {"cause": first.cause, "forms_tried": first.form_step["tried"] if first.form_step else None,
+            "forms_weighed": first.weighed["tried"] if first.weighed else None}
 
 
 @dataclass
