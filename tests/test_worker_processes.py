@@ -1,8 +1,10 @@
 """Worker pools (tuner.worker_processes): a run killed from outside leaves no worker behind."""
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import textwrap
 import time
 from pathlib import Path
@@ -56,8 +58,16 @@ def test_the_workers_of_a_killed_fit_remove_their_extracted_fmus(tmp_path):
     """An engine's workers on the FMU engine each extract the FMU into the temporary folder; killed with the run
     that opened them, they delete those folders before they end (before, each one stayed: a run stopped by a CI
     timeout or kill -9 left two per engine)."""
-    temp = tmp_path / "tmp"
-    temp.mkdir()
+    # a short folder of its own: the forkserver's socket lives in TMPDIR, and a Unix socket path is limited to 107
+    # bytes (under pytest's basetemp the path outgrew it once its run counter reached three digits)
+    temp = Path(tempfile.mkdtemp(prefix="wk_", dir="/tmp"))
+    try:
+        _killed_fit_cleans_up(tmp_path, temp)
+    finally:
+        shutil.rmtree(temp, ignore_errors=True)
+
+
+def _killed_fit_cleans_up(tmp_path: Path, temp: Path) -> None:
     script = tmp_path / "fit.py"
     script.write_text(textwrap.dedent("""
         import os, time
