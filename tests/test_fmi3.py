@@ -244,7 +244,8 @@ def test_wrong_instantiation_token_and_event_mode_are_refused(fmu3_paths):
     def logger(env, status, category, message):
         log.append(message.decode())
 
-    for guid, event_mode, text in ((md.guid[:-2] + "0}", False, "instantiation token"),
+    wrong = md.guid[:-2] + ("1" if md.guid[-2] == "0" else "0") + "}"  # differs from the token whatever it is
+    for guid, event_mode, text in ((wrong, False, "instantiation token"),
                                    (md.guid, True, "no event mode")):
         f = FMU3Slave(guid=guid, unzipDirectory=d, modelIdentifier="DamperLumped", instanceName="x")
         with pytest.raises(Exception, match="Failed to instantiate"):

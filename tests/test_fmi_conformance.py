@@ -515,3 +515,25 @@ def test_status_inquiries_the_slave_cannot_answer_are_discard_without_an_error_l
     assert dll.fmi2GetBooleanStatus(c, TERMINATED, ctypes.byref(b)) == 0 and b.value == 0
     assert not [m for st, m in s.log if st >= 3], s.log
     s.close()
+
+
+def test_a_wrong_guid_is_refused_with_a_message_naming_the_binarys(fmu_paths):
+    """fmi2Instantiate with another GUID returns NULL and says which GUID the binary has, as a plain message (a
+    logger written in Python reads no C varargs: the message must not carry a conversion)."""
+    md = read_model_description(str(fmu_paths["lumped"]))
+    d = extract(str(fmu_paths["lumped"]))
+    log = []
+
+    def logger(env, instance, status, category, message):
+        log.append(message.decode())
+
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+    callbacks.allocateMemory, callbacks.freeMemory = defaultCallbacks.allocateMemory, defaultCallbacks.freeMemory
+    wrong = md.guid[:-2] + ("1" if md.guid[-2] == "0" else "0") + "}"
+    f = FMU2Slave(guid=wrong, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="x")
+    with pytest.raises(Exception, match="Failed to instantiate"):
+        f.instantiate(callbacks=callbacks)
+    assert md.guid in log[-1] and "GUID does not match" in log[-1] and "%" not in log[-1]
+    f.freeLibrary()
+    shutil.rmtree(d, ignore_errors=True)

@@ -79,9 +79,11 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
         return NULL;
     }
     if (!guid || strcmp(guid, DK_GUID) != 0) {
-        cb->logger(cb->componentEnvironment, name, fmi2Error, "logStatusError",
-                   "GUID does not match this binary's %s (modelDescription.xml and binary from different builds)",
-                   DK_GUID);
+        /* formatted here and passed as the message, as logmsg does (loggers in other languages read no varargs) */
+        char msg[256];
+        snprintf(msg, sizeof msg, "GUID does not match this binary's %s (modelDescription.xml and binary from "
+                 "different builds)", DK_GUID);
+        cb->logger(cb->componentEnvironment, name, fmi2Error, "logStatusError", msg);
         return NULL;
     }
     return instance_new(name, cb, logging);
