@@ -74,14 +74,39 @@ def _cache_dir() -> Path:
     return Path(os.environ.get("DAMPER_NATIVE_DIR", Path.home() / ".cache" / "yaw-damper-toolchain"))
 
 
+def _require_compiler() -> str:
+    """The C compiler's path; OSError without one."""
+    cc = compiler()
+    if cc is None:
+        raise OSError("no C compiler found (set CC or install gcc)")
+    return cc
+
+
+def _compile_cached(target: Path, source: Path, command, files: dict[str, str] | None = None) -> Path:
+    """``target`` (a file of the cache), compiled unless it exists: ``command(tmp, out)`` is the compiler's
+    argument list for a temporary folder ``tmp`` holding the generated ``files`` (name -> text) and the output
+    path ``out``, moved into place atomically (concurrent builders never see half a file). OSError naming the
+    command and the compiler's message when it fails."""
+    if not target.exists():
+        target.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(prefix=f"{target.stem}_") as tmp:
+            for name, text in (files or {}).items():
+                (Path(tmp) / name).write_text(text)
+            out = Path(tmp) / target.name
+            cmd = command(tmp, out)
+            proc = subprocess.run(cmd, capture_output=True, text=True)
+            if proc.returncode != 0:
+                raise OSError(f"compiling {source.name} failed ({' '.join(cmd)}):\n{proc.stderr.strip()}")
+            os.replace(out, target)
+    return target
+
+
 def compile_library(source: Path, name: str, *, headers: dict[str, str] | None = None,
                     include_dirs=()) -> Path:
     """Compile the C file ``source`` (plus generated ``headers``: file name -> text) into a shared
     library cached under ``$DAMPER_NATIVE_DIR``, keyed by a hash of everything that goes in;
     return its path. Raises OSError without a compiler or when compilation fails."""
-    cc = compiler()
-    if cc is None:
-        raise OSError("no C compiler found (set CC or install gcc)")
+    cc = _require_compiler()
     h = hashlib.sha256(source.read_bytes())
     for hname, text in sorted((headers or {}).items()):
         h.update(hname.encode() + text.encode())
@@ -91,42 +116,22 @@ def compile_library(source: Path, name: str, *, headers: dict[str, str] | None =
     h.update(" ".join(CFLAGS).encode())
     suffix = ".dll" if sys.platform == "win32" else ".dylib" if sys.platform == "darwin" else ".so"
     target = _cache_dir() / f"{name}_{h.hexdigest()[:16]}{suffix}"
-    if not target.exists():
-        target.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(prefix=f"{name}_") as tmp:
-            for hname, text in (headers or {}).items():
-                (Path(tmp) / hname).write_text(text)
-            out = Path(tmp) / target.name
-            cmd = [cc, *CFLAGS, "-shared", "-I", tmp, *[f"-I{d}" for d in include_dirs], str(source),
-                   "-o", str(out), "-lm"]
-            proc = subprocess.run(cmd, capture_output=True, text=True)
-            if proc.returncode != 0:
-                raise OSError(f"compiling {source.name} failed ({' '.join(cmd)}):\n{proc.stderr.strip()}")
-            os.replace(out, target)  # atomic: concurrent builders do not see half a library
-    return target
+    return _compile_cached(target, source, lambda tmp, out: [
+        cc, *CFLAGS, "-shared", "-I", tmp, *[f"-I{d}" for d in include_dirs], str(source), "-o", str(out), "-lm"],
+        headers)
 
 
 def compile_object(source: Path, name: str, inputs: list[Path]) -> Path:
     """Compile the C file ``source`` (``-c``, include path its folder) into an object file cached under
     ``$DAMPER_NATIVE_DIR``, keyed by a hash of ``inputs`` (every file it is built from, the source included),
     the flags and the compiler; return its path. Raises OSError without a compiler or when compilation fails."""
-    cc = compiler()
-    if cc is None:
-        raise OSError("no C compiler found (set CC or install gcc)")
+    cc = _require_compiler()
     h = hashlib.sha256(" ".join([cc, *CFLAGS]).encode())
     for f in inputs:
         h.update(f.name.encode() + b"\0" + f.read_bytes())
     target = _cache_dir() / f"{name}_{h.hexdigest()[:16]}.o"
-    if not target.exists():
-        target.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(prefix=f"{name}_") as tmp:
-            out = Path(tmp) / target.name
-            cmd = [cc, *CFLAGS, "-c", "-I", str(source.parent), str(source), "-o", str(out)]
-            proc = subprocess.run(cmd, capture_output=True, text=True)
-            if proc.returncode != 0:
-                raise OSError(f"compiling {source.name} failed ({' '.join(cmd)}):\n{proc.stderr.strip()}")
-            os.replace(out, target)  # atomic: concurrent builders do not see half an object
-    return target
+    return _compile_cached(target, source, lambda tmp, out: [
+        cc, *CFLAGS, "-c", "-I", str(source.parent), str(source), "-o", str(out)])
 
 
 def _build() -> ctypes.CDLL:

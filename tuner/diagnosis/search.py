@@ -467,8 +467,8 @@ class CandidateSearch:
 
     def refit_unseen_nonsmooth(self) -> list[str]:
         """Before a residual above the floor is left without a cause (neither a catalogue effect nor a form named:
-        ``run``), every nonsmooth candidate (``Effect.nonsmooth``: a free play) that no screen passed is refitted as
-        if one had (``refit_candidate``, then ``series_ladder``), and the ranking concluded again if one scores:
+        ``run``), every nonsmooth candidate (``Effect.nonsmooth``: a free play) that no screen passed is refitted
+        (``refit_unseen``: the ladder first, the full refit if needed), and the ranking concluded again if one scores:
         the profile screen re-balances the base linearly, and what a base absorbed of a gap does not come back
         linearly. A 0.54 mm gap in stiff two-chamber mounts (1.8e8 N/m): screened at 1.3 % of the SSE, no signature
         kept by the joint screen, 'unexplained' at 528 N rms (24 x the floor); refitted with the ladder, 0.541 mm at
@@ -498,18 +498,17 @@ class CandidateSearch:
         ladder = self.series_ladder(effect, ext, screened)
         if scores(ladder) and not self.above_floor(ladder["identification_rmse_n"]):
             return ladder
-        first = self.refits[effect]
+        laddered = self.refits[effect]
         cost = refit_cost(self.par.dimension, 1, self.settings, True)
         self.cost.refits += cost
         self.forecast()
         row = self.refit_candidate(effect, ext)
         self.cost.refits = max(0.0, self.cost.refits - cost)
-        if ladder["identification_rmse_n"] < row["identification_rmse_n"]:
-            self.refits[effect] = Fit(first.ext, first.z, first.evaluations + self.refits[effect].evaluations)
-            return {**ladder, "evaluations": self.refits[effect].evaluations}
-        fit = self.refits[effect]
-        self.refits[effect] = Fit(fit.ext, fit.z, fit.evaluations + first.evaluations)
-        return {**row, "evaluations": self.refits[effect].evaluations}
+        evaluations = laddered.evaluations + self.refits[effect].evaluations
+        kept, row = (laddered, ladder) if ladder["identification_rmse_n"] < row["identification_rmse_n"] else (
+            self.refits[effect], row)
+        self.refits[effect] = Fit(kept.ext, kept.z, evaluations)
+        return {**row, "evaluations": evaluations}
 
     def rank(self, refitted: list[str]) -> tuple:
         """From the candidates' rows: ``promote`` among the ``refitted`` effects, the lead's continuation, the

@@ -191,8 +191,9 @@ def compare_fmus(fmus, out: Path, *, scenarios=SCENARIO_NAMES, step: float = 1e-
             advance(log, 1.0)
     results = {done[k].label: done[k].entries for k in sorted(done)}
     histories = {s: {done[k].label: done[k].histories[s] for k in sorted(done)} for s in scenarios}
-    data = {"scenarios": {n: (scenario_runs()[n].description if n != "critical_speed" else "hunting critical speed, "
-                              f"lateral kick {kick * 1e3:g} mm, straight ideal track") for n in scenarios},
+    runs = scenario_runs()
+    data = {"scenarios": {n: (runs[n].description if n in runs else "hunting critical speed, lateral kick "
+                              f"{kick * 1e3:g} mm, straight ideal track") for n in scenarios},
             "step_s": step, "seed": seed, "results": results}
     (out / "vehicle.json").write_text(strict_json.dumps(data, indent=1))
     _figures(histories, out)
