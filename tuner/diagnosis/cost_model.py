@@ -131,6 +131,7 @@ def after_ranking(cost: DiagnosisCost, d: int, settings, *, scoring: int, forms_
 
 def identification_cost(d: int, starts: int, iterations: int, population: int) -> float:
     """Simulations of a base identification of d coordinates (``tuner.identification.fit.identify``): the Firefly
-    search's ``iterations`` x ``population`` (at most: it stops early once at the data's resolution) and
-    ``starts`` local refinements of REFINEMENT_JACOBIANS Jacobians of d + 1 simulations each."""
-    return float(iterations * population + starts * REFINEMENT_JACOBIANS * (d + 1))
+    search's first population and ``iterations`` more of ``population`` each (at most: it stops early once at the
+    data's resolution) and ``starts`` local refinements of REFINEMENT_JACOBIANS Jacobians of d + 1 simulations
+    each."""
+    return float((iterations + 1) * population + starts * REFINEMENT_JACOBIANS * (d + 1))

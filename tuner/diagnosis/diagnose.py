@@ -7,8 +7,9 @@ CandidateSearch``, the decision rules are in ``tuner.diagnosis.rules``, the word
 1. Base model: the base form with the lowest held-out MSE among BASE_MODELS (the paper's lumped
    model and the two-chamber form of a twin-tube damper: a base that cannot represent the damper
    leaves a form error larger than the effects), identified on the identification tests (taken
-   from an earlier fit, ``choose_base``, or identified here: seeded Firefly + least-squares polish,
-   as ``tuner.identification.fit``). The choice is made before any effect is added; when the
+   from an earlier fit, ``choose_base``, or identified here: the seeded Firefly's first population and
+   least-squares refinements from its best and from the data-driven guess, as ``tuner.identification.fit``
+   with ``DiagnosisSettings.base_iterations``, default none). The choice is made before any effect is added; when the
    diagnosis on it (steps 2-5) leaves a residual above the floor, it is repeated on the other base
    form and the final model with the lowest held-out MSE is kept (a large effect can make both bare
    bases fit badly, and then the wrong form may validate better) - but only when the other form can

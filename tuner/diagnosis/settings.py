@@ -27,7 +27,12 @@ class DiagnosisSettings:
     workers: int = 2
     engine: str = "fmu"
     seed: int = 0
-    base_iterations: int = 30
+    #: Firefly iterations of a base form the diagnosis identifies itself (no fit given): none, its first population
+    #: only (the data-driven guess, the preset, random members), then the local refinements from its best and from
+    #: the guess (and the lumped form's restart ladder) do the work, as in the confusion benchmark. With 30, the
+    #: two-chamber search on seed 500 of benchmarks/blind_class.py took 39-57 s to end at 1479 N rms, its
+    #: refinement at 864 N, behind the guess's own (847 N), which the diagnosis kept
+    base_iterations: int = 0
     base_polish_jacobians: int = 100  # a cap: the base refinement stops when converged
     polish_jacobians: int = 16  # per candidate, split between the two starts
     grid_points: int = 7
