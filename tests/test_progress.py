@@ -364,3 +364,21 @@ def test_an_engine_calls_its_after_batch_once_per_batch(small_lumped):
         eng.residuals_batch([defaults("lumped")] * 2)
         eng.sse_batch([defaults("lumped")])
     assert calls == [2, 3]
+
+
+def test_the_search_is_forecast_to_its_likely_stop_not_its_whole_budget():
+    """The Firefly search can stop at the data's resolution once ``stop_start`` iterations are done and its best
+    has moved by less than FTOL over ``stop_window`` of them: while its best stays, the display counts to that
+    stop; a best that moves pushes it back; never beyond the budget; the whole budget without the stop rule."""
+    from tuner.identification.firefly import FireflyOptions
+    from tuner.identification.fit import search_iterations_left
+
+    opts = FireflyOptions(max_iterations=150, stop_start=20, stop_window=20)
+    flat = [1.0] * 6  # iterations 0-5, no progress since the first population
+    assert search_iterations_left(flat, 5, opts) == 15
+    moved = [1.0] * 18 + [2.0, 2.0]  # a better best found at iteration 18, none since
+    assert search_iterations_left(moved, 19, opts) == 18 + 20 - 19
+    within = [1.0] * 18 + [1.005, 1.005]  # a move within FTOL (1 %) counts as none
+    assert search_iterations_left(within, 19, opts) == 1
+    assert search_iterations_left(moved, 19, FireflyOptions(max_iterations=30, stop_start=20, stop_window=20)) == 11
+    assert search_iterations_left(flat, 5, FireflyOptions(max_iterations=150, stop_tol=None)) == 145

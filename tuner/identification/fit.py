@@ -45,7 +45,7 @@ from tuner.identification.floor import ResidualFloor
 from tuner.identification.full_rate import MIN_RATE_RATIO, comparison_rate, full_rate_check
 from tuner.identification.intervals import parameter_intervals, reached_ranges
 from tuner.identification.parametrization import Parametrization
-from tuner.identification.polish import TYPICAL_JACOBIANS, PolishResult, polish, resolution_stop, small_progress
+from tuner.identification.polish import FTOL, TYPICAL_JACOBIANS, PolishResult, polish, resolution_stop, small_progress
 from tuner.identification.problem import DataSettings, Problem, split_data_settings, to_signals
 from tuner.identification.runner import SimulationError
 from tuner.identification.validation import validation_run
@@ -53,8 +53,9 @@ from tuner.metrics import noise_std
 from tuner.progress import advance, expect, stage
 from tuner import strict_json
 
-__all__ = ["FitSettings", "FitResult", "Identified", "fit", "initial_guess", "validation_run", "identify", "quality_gate", "QUALITY_AME_PCT",
-           "RACE_RATIO", "RESTART_LADDER", "refinement_starts", "fit_order"]
+__all__ = ["FitSettings", "FitResult", "Identified", "fit", "initial_guess", "validation_run", "identify",
+           "search_iterations_left", "quality_gate", "QUALITY_AME_PCT", "RACE_RATIO", "RESTART_LADDER",
+           "refinement_starts", "fit_order"]
 
 #: Log-scaled parameters whose decade decides the basin a local refinement ends in: the data-driven
 #: start is refined again with each one a decade up and down (measured on random lumped dampers: one
@@ -233,8 +234,9 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
             log(f"[{model}] iter {st.iteration:3d}/{settings.iterations}  best G {best:.4e} (RMSE {rmse:7.1f} N)"
                 f"  mean G {st.history_mean[-1]:.4e}  {rate:5.1f} eval/s  search ~{left / 60:4.1f} min left at most")
             advance(log, 0.85 * st.iteration / max(settings.iterations, 1))
-            if rate > 0:  # the search at most, then the refinements at the measured cost per simulation
-                expect(log, left + refinement_starts(model) * TYPICAL_JACOBIANS * (par.dimension + 1) / rate)
+            if rate > 0:  # the search to its likely stop, then the refinements at the measured cost per simulation
+                likely = search_iterations_left(st.history_best, st.iteration, opts) * settings.population / rate
+                expect(log, likely + refinement_starts(model) * TYPICAL_JACOBIANS * (par.dimension + 1) / rate)
             return at_resolution(st)
 
         if state is not None and ckpt.exists():
@@ -254,6 +256,21 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         f"(RMSE {_rmse(result.fitness_best):.1f} N), {result.evaluations + ref.evaluations} evaluations, "
         f"{elapsed:.0f} s; identification RMSE {_rmse(ref.g):.1f} N")
     return Identified(par.to_params(ref.z), history, ivs)
+
+
+def search_iterations_left(history_best: list[float], iteration: int, opts: firefly.FireflyOptions) -> int:
+    """Iterations the Firefly search likely still runs after ``iteration``: to its earliest stop at the data's
+    resolution should its best (``history_best``: G = N / SSE [1/N^2] per iteration, the first population's
+    first) move no more (``small_progress``: not before ``opts.stop_start``, nor before ``opts.stop_window``
+    iterations after the first one within FTOL of the best now), never beyond ``opts.max_iterations``; all of
+    them without the stop rule. The progress display's forecast: counting the whole budget, the bundled job said
+    "about 8.3 min left" 13 s after its start and ended 1.6 min later (the search stopped after 20 of 150)."""
+    if opts.stop_tol is None:
+        return max(0, opts.max_iterations - iteration)
+    best = history_best[-1]
+    first = next((i for i, g in enumerate(history_best) if g > 0 and best / g - 1.0 < FTOL), iteration)
+    stop = max(opts.stop_start, first + opts.stop_window, iteration)
+    return max(0, min(opts.max_iterations, stop) - iteration)
 
 
 def fit_order(models, problem: Problem, engine: str) -> list[str]:
