@@ -125,7 +125,7 @@ class LumpedModel:
 
     def force_scale(self) -> float:
         """Force scale [N] of the integrator's error tolerance: the largest |Fc,O| ordinate."""
-        return max(abs(f) for f in self.fc.fs)
+        return self.fc.peak
 
     def error_norm(self, ya, yb) -> float:
         """Difference [N] between two states, as the silent-block forces they imply
@@ -332,7 +332,7 @@ class MaxwellTableModel(_SeriesSpringModel):
 
     def force_scale(self) -> float:
         """Force scale [N] of the integrator's error tolerance: the largest |Fc,O| ordinate."""
-        return max(abs(f) for f in self.fc.fs)
+        return self.fc.peak
 
     def stage(self, yb, g: float, x1: float, v1: float) -> list[float]:
         """Solve Fc(vd) = k_s (x1 - xdb - g vd) for the dashpot rate vd, then xd = xdb + g vd."""
@@ -473,7 +473,7 @@ class TwoChamberModel:
 
     def force_scale(self) -> float:
         """Force scale [N] of the integrator's error tolerance: the largest |Fc,O| ordinate."""
-        return max(abs(f) for f in self.fc.fs)
+        return self.fc.peak
 
     def mount(self, e: float, edot: float) -> tuple[float, float, float]:
         """Mount force [N] at elongation e [m] and rate edot [m/s] (tension +) with its partials

@@ -23,7 +23,7 @@ class PwlTable:
     ordinates : forces [N] at ``abscissae``.
     """
 
-    __slots__ = ("xs", "fs", "breaks", "intercept", "slope", "_p_anchor")
+    __slots__ = ("xs", "fs", "breaks", "intercept", "slope", "_p_anchor", "peak")
 
     def __init__(self, abscissae: Sequence[float], ordinates: Sequence[float]):
         if len(abscissae) != len(ordinates):
@@ -39,6 +39,8 @@ class PwlTable:
         xs.insert(k, 0.0)
         fs.insert(k, 0.0)
         self.xs, self.fs = xs, fs
+        #: the largest |ordinate| [N] (a model's force scale; the table does not change after it is made)
+        self.peak = max(abs(f) for f in fs)
         # Interior breakpoints: piece i covers [breaks[i-1], breaks[i]); pieces 0 and n-2 extend
         # to -inf / +inf (linear extrapolation with the end segments).
         self.breaks = xs[1:-1]
