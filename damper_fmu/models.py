@@ -401,6 +401,25 @@ def _abs_sum(r: list[float], n: int) -> float:
     return s
 
 
+def _solve_stage(jac: list[list[float]], r: list[float]) -> list[float] | None:
+    """Solve the full two-chamber stage system jac d = r (unknowns w, up, uf, fR, gC) by its pattern: rows 3
+    and 4 give gC from uf and fR from w and uf (unit pivots), the other rows then form a 3 x 3 system in
+    (w, up, uf) for ``_solve``; None when singular. Written as the C kernel's ``tc_solve_stage``."""
+    if abs(jac[3][4]) < 1e-300 or abs(jac[4][3]) < 1e-300:
+        return None
+    a3, b3 = r[3] / jac[3][4], -jac[3][2] / jac[3][4]  # d_gC = a3 + b3 d_uf
+    a4 = (r[4] - jac[4][4] * a3) / jac[4][3]  # d_fR = a4 + c4 d_w + b4 d_uf
+    c4, b4 = -jac[4][0] / jac[4][3], -jac[4][4] * b3 / jac[4][3]
+    a = [[jac[0][0] + jac[0][3] * c4, jac[0][1], jac[0][3] * b4],
+         [jac[1][0], jac[1][1], jac[1][2] + jac[1][4] * b3],
+         [jac[2][3] * c4, jac[2][1], jac[2][3] * b4 + jac[2][4] * b3]]
+    b = [r[0] - jac[0][3] * a4, r[1] - jac[1][4] * a3, r[2] - jac[2][3] * a4 - jac[2][4] * a3]
+    x = _solve(a, b)
+    if x is None:
+        return None
+    return [x[0], x[1], x[2], a4 + c4 * x[0] + b4 * x[2], a3 + b3 * x[2]]
+
+
 def _solve(a: list[list[float]], b: list[float]) -> list[float] | None:
     """Solve the n x n system a x = b (n <= 5) by Gaussian elimination with partial pivoting (a, b
     copied); None when singular. Written as the C kernel's ``solve_n``, operation for operation."""
@@ -570,7 +589,7 @@ class TwoChamberModel:
         for it in range(_TC_MAX_NEWTON):
             if rn <= self._tol:
                 break
-            d = _solve([row[held:] for row in jac[:n]], r[:n])
+            d = _solve_stage(jac, r) if held == 0 else _solve([row[held:] for row in jac[:n]], r[:n])
             if d is None:
                 return q, jac, rn, True
             if it < _TC_PLAIN:  # plain Newton
