@@ -246,6 +246,43 @@ def test_a_stage_forecast_in_seconds_counts_in_place_of_its_weight_before_and_wh
     assert p.remaining_s() == pytest.approx(100.0)
 
 
+def test_what_a_later_stage_may_add_is_said_beside_the_time_left_and_is_its_own_once_it_starts():
+    """The job prices the diagnosis without the forms (they run only where the base leaves a residual above the
+    floor: counted in, the bundled job's display said 107 s for a diagnosis of 26 s) and says what they would add
+    beside: not in the time left, in the shares; once the diagnosis starts, it is that stage's until it says its
+    own."""
+    from tuner.progress import expect, forecast
+
+    clock, out = Clock(), io.StringIO()
+    p = JobProgress({"fit": 50.0, "diagnosis": 50.0}, stream=out, tty=False, clock=clock)
+    stage(p, "fit")
+    forecast(p, "diagnosis", 30.0, (45.0, "the diagnosis tries the forms"))
+    clock.t = 25.0
+    advance(p, 0.5)
+    assert p.remaining_s() == pytest.approx(25.0 + 30.0)
+    assert "(45 s more if the diagnosis tries the forms)" in p.status()
+    assert p.completed() == pytest.approx(25.0 / (25.0 + 55.0 + 45.0))
+    assert p.stage_fraction() == pytest.approx(0.5)  # the fit's own share: the diagnosis's maybe is not the fit's
+    clock.t = 50.0
+    stage(p, "diagnosis")
+    assert "(45 s more if the diagnosis tries the forms)" in p.status()
+    expect(p, 20.0)  # it says its own: no forms
+    assert p.remaining_s() == pytest.approx(20.0) and "more if" not in p.status()
+
+
+def test_a_plan_part_counts_what_its_step_may_add():
+    """A diagnosis's base identification is a part of its plan: what its fit says may still run (the refinement's
+    restarts) is counted in the part's seconds (the plan says only its own conditional parts beside)."""
+    from tuner.progress import Plan, expect
+
+    clock, out = Clock(), io.StringIO()
+    p = JobProgress({"diagnosis": 100.0}, stream=out, tty=False, clock=clock)
+    stage(p, "diagnosis")
+    plan = Plan(p, {"identify": 1.0}, clock=clock)
+    expect(plan.part("identify"), 20.0, (30.0, "the refinement is restarted"))
+    assert p.remaining_s() == pytest.approx(50.0)
+
+
 def test_the_percentage_tells_the_time_left_and_never_goes_back_when_a_forecast_stage_starts():
     """The main job's case: the diagnosis priced in seconds from the start at far more than its planned share.
     The percentage is the elapsed time over itself and the time left, so the stage's start (where the forecast

@@ -246,3 +246,26 @@ def test_free_play_is_a_dead_band_in_the_mount_the_force_vanishes_for_gap_over_s
         assert quiet_none <= 0.1 * gap / v0, (t[k], quiet_none)
     tiny = simulate("twochamber", t, x, v, params={**base, "free_play": 1e-9}, tolerance=1e-7, max_step=1e-4)
     assert np.abs(tiny - f0).max() <= 1e-3 * peak
+
+
+def test_the_stage_system_solved_by_its_pattern_equals_a_general_solve():
+    """The two-chamber stage's Newton system (rows 3 and 4 eliminated by their unit pivots, a 3 x 3 left) against
+    numpy's LU solve, on random Jacobians of its pattern spanning the magnitudes a stage meets (stiffnesses times
+    the stage's step, damping slopes)."""
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        g = 10 ** rng.uniform(-5, -3)
+        k0, k3, sp, sf = 10 ** rng.uniform(6, 9), 10 ** rng.uniform(6, 9), 10 ** rng.uniform(3, 6), 10 ** rng.uniform(3, 6)
+        a = rng.uniform(0.1, 0.9)
+        jac = [[-g * k0 * rng.uniform(0.5, 2), g * k0, 0.0, 1.0 - rng.uniform(0, 0.2), 0.0],
+               [g * k3 * rng.uniform(0.5, 2), -g * k3 * a, g * k3, 0.0, 1.0 - rng.uniform(0, 0.2)],
+               [0.0, -sp, 0.0, 1.0, -a],
+               [0.0, 0.0, -sf, 0.0, 1.0],
+               [10 ** rng.uniform(2, 6), 0.0, 0.0, 1.0, -1.0]]
+        r = list(rng.normal(size=5) * 10 ** rng.uniform(-3, 3, size=5))
+        d = models._solve_stage(jac, r)
+        ref = np.linalg.solve(np.array(jac), np.array(r))
+        assert d is not None
+        np.testing.assert_allclose(np.array(jac) @ np.array(d), r, rtol=0, atol=1e-9 * np.abs(np.array(jac)).max()
+                                   * np.abs(ref).max())
+        np.testing.assert_allclose(d, ref, rtol=1e-7, atol=1e-12 * np.abs(ref).max())

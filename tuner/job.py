@@ -108,8 +108,9 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
     problem = Problem.build(identification, validation, settings.data)  # prepared once, for every stage
     if diagnose_after and wants_diagnosis(settings, validation) and hasattr(log, "forecast"):
         # the progress display prices the diagnosis from the start
-        forecast(log, "diagnosis", diagnosis_forecast(problem, diagnosis_settings(settings),
-                                                      [m for m in settings.models if m in EFFECT_MODELS]))
+        ahead = diagnosis_forecast(problem, diagnosis_settings(settings),
+                                   [m for m in settings.models if m in EFFECT_MODELS])
+        forecast(log, "diagnosis", ahead.seconds, (ahead.forms_s, "the diagnosis tries the forms"))
     result = fit(identification, validation, settings, checkpoints=out / "checkpoints", provenance=provenance,
                  problem=problem, log=log)
     result.write(out)

@@ -39,12 +39,13 @@ def advance(log, fraction: float) -> None:
         hook(fraction)
 
 
-def forecast(log, stage_name: str, seconds: float) -> None:
+def forecast(log, stage_name: str, seconds: float, maybe: tuple[float, str] | None = None) -> None:
     """Tell ``log`` that stage ``stage_name``, still to come, is expected to take ``seconds`` [s] on this machine
-    (in place of its planned weight), if it keeps progress."""
+    (in place of its planned weight), if it keeps progress; ``maybe``: (seconds [s], what) it may take more if
+    what happens (said beside the time left, as ``expect``'s)."""
     hook = getattr(log, "forecast", None)
     if hook is not None:
-        hook(stage_name, seconds)
+        hook(stage_name, seconds, maybe)
 
 
 def expect(log, seconds_left: float, maybe: tuple[float, str] | None = None) -> None:
@@ -161,8 +162,10 @@ class _PlanPart:
     def advance(self, fraction: float) -> None:
         self.plan.set(self.name, fraction)
 
-    def expect(self, seconds_left: float) -> None:
-        self.plan.expect(self.name, seconds_left)
+    def expect(self, seconds_left: float, maybe: tuple[float, str] | None = None) -> None:
+        """The part's seconds left [s]; what may still run (``maybe``: seconds, what) is counted in them: a part's
+        forecast is all it may take (the plan says its conditional parts beside, ``Plan.maybe``)."""
+        self.plan.expect(self.name, seconds_left + (maybe[0] if maybe is not None else 0.0))
 
 
 class JobProgress:
@@ -185,6 +188,7 @@ class JobProgress:
         self._said: tuple[float, float] | None = None  # (seconds left, when) the current stage said (``expect``)
         self._maybe: tuple[float, str] | None = None  # (seconds, what) of a part that may still run (``expect``)
         self.forecasts: dict[str, float] = {}  # stage -> seconds it is expected to take (``forecast``)
+        self.forecast_maybes: dict[str, tuple[float, str]] = {}  # stage -> (seconds, what) it may take more
         self._last_line = -float("inf")
         self._shown = 0.0  # the share the display last showed (``completed`` never goes below it)
         self._bar = None
@@ -217,7 +221,17 @@ class JobProgress:
         """Seconds [s] of a part that may still run (``expect``'s ``maybe``): not in the time left, which says it
         beside, but in the shares shown, so that no percentage stands near 100 while a repeat of minutes runs
         (a hidden free play: 96 % for 3 min before); when it does not run, the share jumps forward."""
-        return self._maybe[0] if self._maybe is not None and self._maybe[0] > 0 else 0.0
+        maybe = self.maybe_now()
+        return maybe[0] if maybe is not None else 0.0
+
+    def maybe_now(self) -> tuple[float, str] | None:
+        """(seconds [s], what) that may still run: the current stage's (``expect``) and the later stages'
+        (``forecast``), None when nothing may."""
+        later = [s for s in self.weights if s not in self.done and s != self.current]
+        parts = [m for m in (self._maybe, *(self.forecast_maybes.get(s) for s in later)) if m is not None and m[0] > 0]
+        if not parts:
+            return None
+        return sum(m[0] for m in parts), " or ".join(m[1] for m in parts)
 
     def _planned_share(self) -> float:
         """Share [0-1] of the planned weights done (the current stage by its fraction)."""
@@ -233,7 +247,8 @@ class JobProgress:
         if self._said is None:
             return self.fraction
         spent = self.clock() - self._started
-        left = max(0.0, self._said[0] - (self.clock() - self._said[1])) + self._may_still_run_s()
+        own_maybe = self._maybe[0] if self._maybe is not None and self._maybe[0] > 0 else 0.0
+        left = max(0.0, self._said[0] - (self.clock() - self._said[1])) + own_maybe
         return spent / (spent + left) if spent + left > 0 else 1.0
 
     def remaining_s(self) -> float | None:
@@ -256,9 +271,12 @@ class JobProgress:
         unplanned = sum(self.weights[s] for s in later if s in self.forecasts)
         return per_weight * (sum(self.weights.values()) * (1.0 - c) - unplanned) + foreseen
 
-    def forecast(self, stage_name: str, seconds: float) -> None:
-        """Stage ``stage_name`` (one still to come) is expected to take ``seconds`` [s] on this machine."""
+    def forecast(self, stage_name: str, seconds: float, maybe: tuple[float, str] | None = None) -> None:
+        """Stage ``stage_name`` (one still to come) is expected to take ``seconds`` [s] on this machine, and
+        ``maybe`` (seconds [s], what) more if what happens."""
         self.forecasts[stage_name] = max(0.0, float(seconds))
+        if maybe is not None:
+            self.forecast_maybes[stage_name] = maybe
 
     # -- hooks -----------------------------------------------------------------------------------
     def stage(self, name: str) -> None:
@@ -270,6 +288,7 @@ class JobProgress:
         self._started = self.clock()
         if name in self.forecasts:  # its forecast stands until it says its own
             self._said = (self.forecasts[name], self._started)
+            self._maybe = self.forecast_maybes.get(name)
         self._before_current = self._started - self.t0
         self._show(force=True)
 
@@ -311,8 +330,9 @@ class JobProgress:
         """``progress 37 % (stage: fit lumped 80 %), about 2.1 min left``."""
         left = self.remaining_s()
         eta = "estimating time left" if left is None else f"about {_duration(left)} left"
-        if left is not None and self._maybe is not None and self._maybe[0] > 0:
-            eta += f" ({_duration(self._maybe[0])} more if {self._maybe[1]})"
+        maybe = self.maybe_now()
+        if left is not None and maybe is not None:
+            eta += f" ({_duration(maybe[0])} more if {maybe[1]})"
         st = f" (stage: {self.current} {100 * self.stage_fraction():.0f} %)" if self.current else ""
         return f"progress {100 * self.completed():.0f} %{st}, {eta}"
 
@@ -323,7 +343,8 @@ class JobProgress:
             self._shown = self.completed()
             self._bar.n = int(1000 * self._shown)
             left = self.remaining_s()
-            maybe = f" (+{_duration(self._maybe[0])} if {self._maybe[1]})" if self._maybe and self._maybe[0] > 0 else ""
+            m = self.maybe_now()
+            maybe = f" (+{_duration(m[0])} if {m[1]})" if m is not None else ""
             self._bar.set_postfix_str(f"{self.current or ''} {100 * self.stage_fraction():.0f} %"
                                       + ("" if left is None else f", ~{_duration(left)} left{maybe}"), refresh=True)
             return

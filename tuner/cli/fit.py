@@ -40,6 +40,33 @@ def check_engine(args) -> None:
         log(note)
 
 
+#: seconds each stage of the bundled job takes on a 2-core machine (python -m tuner, 2026-11-28, after the
+#: two-chamber kernel's pattern solve: docs/measurements.md): what the progress display plans before a stage
+#: says its own time (``expect``) and scales by how the finished stages went against it. A base form's fit is
+#: 31 s first and 6 s second (the race: ``fit_order``), so each is planned at their mean; the vehicle intervals
+#: stop after the first round of 8 draws when the Monte-Carlo errors are small (10 s per drawn FMU).
+FIT_S = {"lumped": 18.0, "twochamber": 18.0, "maxwell": 3.0, "maxwell_table": 10.0}
+STAGE_S = {"validate and export": 3.0, "diagnosis": 26.0, "report": 7.0}
+VEHICLE_S_PER_FMU = 2.0
+DRAW_S, FIRST_ROUND_DRAWS = 1.25, 8
+
+
+def planned_seconds(args, models: tuple[str, ...]) -> dict[str, float]:
+    """The job's stages and their planned seconds [s] (``FIT_S``, ``STAGE_S``): the fits scaled by the Firefly
+    budget against the default one (20 fireflies, 150 iterations), the stages this command runs only."""
+    budget = args.population * args.iterations / (20 * 150)
+    weights = {f"fit {m}": FIT_S[m] * budget for m in models}
+    weights.update({"validate and export": STAGE_S["validate and export"], "report": STAGE_S["report"]})
+    if getattr(args, "vehicle", False):
+        weights["vehicle"] = VEHICLE_S_PER_FMU * len(models)
+        if args.vehicle_draws > 0:
+            drawn = len(models) if args.vehicle_intervals == "all" else 1
+            weights["vehicle intervals"] = DRAW_S * min(args.vehicle_draws, FIRST_ROUND_DRAWS) * drawn
+    if not args.no_diagnose and any(m in EFFECT_MODELS for m in models):
+        weights["diagnosis"] = STAGE_S["diagnosis"]
+    return weights
+
+
 def cmd_fit(args) -> int:
     check_engine(args)
 
@@ -54,18 +81,7 @@ def cmd_fit(args) -> int:
         raise ValueError("--population must be >= 2")
     vehicle_scheduler(args)  # --vehicle-draws and --vehicle-scheduler checked before anything runs
     t0 = time.perf_counter()
-    budget = args.population * args.iterations / (20 * 150)  # relative to the default run's
-    weights = {f"fit {m}": {"lumped": 60.0, "maxwell": 8.0, "maxwell_table": 30.0, "twochamber": 60.0}[m] * budget
-               for m in models}
-    weights.update({"validate and export": 12.0, "report": 8.0})
-    if getattr(args, "vehicle", False):
-        weights["vehicle"] = 8.0 * len(models)
-        if args.vehicle_draws > 0:
-            drawn = len(models) if args.vehicle_intervals == "all" else 1
-            weights["vehicle intervals"] = 1.0 * args.vehicle_draws * drawn  # 79 s measured, 24 draws, 3 models
-    if not args.no_diagnose and any(m in EFFECT_MODELS for m in models):
-        weights["diagnosis"] = 70.0
-    start_job(args, weights)
+    start_job(args, planned_seconds(args, models))
     failed = None
     try:
         out = _fit_job(args, models)

@@ -23,6 +23,7 @@ lumped-model data), which no damper parameter can fix.
 """
 from __future__ import annotations
 
+import collections
 import hashlib
 import json
 import math
@@ -63,6 +64,11 @@ __all__ = ["FitSettings", "FitResult", "Identified", "fit", "initial_guess", "va
 #: k_B 1e9 N/m; another at 1.4x in a "blocks as dashpots" basin from the four starts with k_B alone,
 #: and at the floor from c_B a decade up or down).
 RESTART_LADDER = {"lumped": ("k_B", "c_B")}
+
+
+#: iterations over which the Firefly's evaluation rate is measured for the progress display: the rate since the
+#: start (its first iterations wait for the worker processes: 5.5 eval/s against 20 later) overstated the time left
+RATE_WINDOW = 5
 
 
 def refinement_starts(model: str) -> int:
@@ -200,6 +206,7 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
     t_start = time.perf_counter()
     evals_start = state.evaluations if state else 0
     first_population = {}
+    recent = collections.deque([(t_start, evals_start)], maxlen=RATE_WINDOW + 1)  # (time [s], evaluations)
 
     search_stop = {}
     with Engine(model, signals, engine=settings.engine, workers=settings.workers, fmu_path=engine_path) as eng:
@@ -234,9 +241,8 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
             log(f"[{model}] iter {st.iteration:3d}/{settings.iterations}  best G {best:.4e} (RMSE {rmse:7.1f} N)"
                 f"  mean G {st.history_mean[-1]:.4e}  {rate:5.1f} eval/s  search ~{left / 60:4.1f} min left at most")
             advance(log, 0.85 * st.iteration / max(settings.iterations, 1))
-            if rate > 0:  # the search to its likely stop, then the refinements at the measured cost per simulation
-                likely = search_iterations_left(st.history_best, st.iteration, opts) * settings.population / rate
-                expect(log, likely + refinement_starts(model) * TYPICAL_JACOBIANS * (par.dimension + 1) / rate)
+            recent.append((time.perf_counter(), st.evaluations))
+            _expect_search(log, model, st, opts, settings.population, par.dimension, recent)
             return at_resolution(st)
 
         if state is not None and ckpt.exists():
@@ -256,6 +262,22 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         f"(RMSE {_rmse(result.fitness_best):.1f} N), {result.evaluations + ref.evaluations} evaluations, "
         f"{elapsed:.0f} s; identification RMSE {_rmse(ref.g):.1f} N")
     return Identified(par.to_params(ref.z), history, ivs)
+
+
+def _expect_search(log, model: str, st: firefly.FireflyState, opts: firefly.FireflyOptions, population: int, d: int,
+                   recent) -> None:
+    """Tell the progress ``log`` the seconds the Firefly search of ``model`` (``d`` coordinates) takes to its likely
+    stop (``search_iterations_left``) and the first two refinements after it (TYPICAL_JACOBIANS Jacobians of d + 1
+    simulations each), the other restarts said beside, at the evaluation rate over ``recent`` ((time [s],
+    evaluations) of the last RATE_WINDOW iterations)."""
+    (t0, n0), (t1, n1) = recent[0], recent[-1]
+    rate = (n1 - n0) / (t1 - t0) if t1 > t0 else 0.0  # [evaluations/s]
+    if rate <= 0:
+        return
+    likely = search_iterations_left(st.history_best, st.iteration, opts) * population / rate
+    one = TYPICAL_JACOBIANS * (d + 1) / rate  # [s] one refinement
+    starts, restarts = min(2, refinement_starts(model)), max(0, refinement_starts(model) - 2)
+    expect(log, likely + starts * one, (restarts * one, "the refinement is restarted") if restarts else None)
 
 
 def search_iterations_left(history_best: list[float], iteration: int, opts: firefly.FireflyOptions) -> int:

@@ -63,8 +63,9 @@ STALL_RTOL = 1e-2
 FTOL = 1e-2
 RESOLUTION_WINDOW = 3
 RESOLUTION_FRACTION = 0.25
-#: Jacobians a refinement typically takes to converge (for the progress display only)
-TYPICAL_JACOBIANS = 15
+#: Jacobians a refinement typically takes to converge (for the progress display only): 3-7 on the bundled data,
+#: median 7-13 on the benchmarks' random dampers (docs/measurements.md)
+TYPICAL_JACOBIANS = 10
 #: forward-difference step in the local coordinates (each spans its parameter's bounds)
 STEP = 1e-5
 #: ... and the step once the fine one stalls (module docstring)
