@@ -45,7 +45,7 @@ def check_engine(args) -> None:
 #: says its own time (``expect``) and scales by how the finished stages went against it. A base form's fit is
 #: 31 s first and 6 s second (the race: ``fit_order``), so each is planned at their mean; the vehicle intervals
 #: stop after the first round of 8 draws when the Monte-Carlo errors are small (10 s per drawn FMU).
-FIT_S = {"lumped": 18.0, "twochamber": 18.0, "maxwell": 3.0, "maxwell_table": 10.0}
+FIT_S = {"lumped": 18.0, "twochamber": 18.0, "maxwell": 3.0, "maxwell_table": 8.0}
 STAGE_S = {"validate and export": 3.0, "diagnosis": 26.0, "report": 7.0}
 VEHICLE_S_PER_FMU = 2.0
 DRAW_S, FIRST_ROUND_DRAWS = 1.25, 8

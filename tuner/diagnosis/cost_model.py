@@ -5,9 +5,9 @@ measured on other data).
 Counted in simulations of the identification tests (a held-out run counts by its share of the samples), from
 the same settings the steps use (``tuner.diagnosis.search.CandidateSearch``): a Jacobian of a model of ``d``
 coordinates is d + 1 simulations; a candidate's refit is its profile (``grid_points`` values, each re-balanced
-by up to ``profile_steps`` batches: half of them on average, measured) and a joint polish of at most
-``polish_jacobians / 2`` Jacobians; the screen is one batch of ``grid_points`` values per candidate; the
-forms screen their shapes (``tuner.diagnosis.forms.shape_grid``) and refit one shape; the detection limits
+by up to ``profile_steps`` batches: half of them on average, measured) and a joint polish of
+``JOINT_POLISH_JACOBIANS`` Jacobians (its cap ``polish_jacobians / 2``); the screen is one batch of
+``grid_points`` values per candidate; the forms screen their shapes (``tuner.diagnosis.forms.shape_grid``) and refit one shape; the detection limits
 take the Jacobian on both test sets, each candidate switched off once and at up to three magnitudes on each.
 Once the candidates are ranked (``after_ranking``), what a leading candidate brings follows: its continuation
 and the base's (``CONTINUATION_JACOBIANS`` each), an interval (one Jacobian) per candidate that scores, the forward
@@ -26,15 +26,20 @@ from dataclasses import dataclass
 from tuner.diagnosis.forms import shape_grid
 from tuner.diagnosis.refit import HELD_PROFILE_JACOBIANS, SERIES_HELD_JACOBIANS
 
-__all__ = ["EXPECTED_REFITS", "CONTINUATION_JACOBIANS", "REFINEMENT_JACOBIANS", "EXTENDED_COST", "DiagnosisCost",
+__all__ = ["EXPECTED_REFITS", "JOINT_POLISH_JACOBIANS", "CONTINUATION_JACOBIANS", "REFINEMENT_JACOBIANS",
+           "EXTENDED_COST", "DiagnosisCost",
            "shapes", "refit_cost", "form_pass_cost", "expected_cost", "after_ranking", "identification_cost"]
 
-#: catalogue candidates refitted after the screen, assumed before it (measured: 0 on clean data, 2 on the
-#: real MR damper, 1 where an effect is hidden)
+#: catalogue candidates refitted after the screen, assumed before it (measured: 0 on clean virtual-rig data, 2 on the
+#: real MR damper and on the bundled data, 1 where an effect is hidden)
 EXPECTED_REFITS = 2
 #: Jacobians a continuation (``final_jacobians`` cap) takes until its rule holds, assumed (measured on blind free
 #: plays: 4-5 on the lumped base, 6-7 on the two-chamber base)
 CONTINUATION_JACOBIANS = 5
+#: Jacobians a refit's joint polish takes after its profile, assumed (measured on the bundled data, clean: 1-2; on
+#: virtual-rig data with a friction hidden: 4-5; its cap is half the refit's budget, 8, which the forecast counted
+#: before: a clean diagnosis forecast at 2.4 x its time)
+JOINT_POLISH_JACOBIANS = 4
 #: Jacobians a base identification's local refinement takes from one start until it converges, assumed (measured
 #: on held-out-sized data, six 12-16 s tests: 9-12)
 REFINEMENT_JACOBIANS = 12
@@ -75,6 +80,11 @@ def shapes(form: str) -> int:
     return len(shape_grid(form, bounds, knee_m_s=0.1))
 
 
+def _joint_polish(settings) -> int:
+    """Jacobians a joint polish is counted at: JOINT_POLISH_JACOBIANS, within its cap (half the refit's budget)."""
+    return min(JOINT_POLISH_JACOBIANS, max(1, settings.polish_jacobians // 2))
+
+
 def refit_cost(d: int, extra: int, settings, nonsmooth: bool = False) -> float:
     """Simulations of one candidate's refit: the profile and the joint polish of a model of d base and
     ``extra`` effect coordinates; a ``nonsmooth`` effect's held profile besides (``tuner.diagnosis.refit.
@@ -82,7 +92,7 @@ def refit_cost(d: int, extra: int, settings, nonsmooth: bool = False) -> float:
     two trial steps)."""
     profile = settings.grid_points * (1 + settings.profile_steps / 2)
     held = settings.grid_points * HELD_PROFILE_JACOBIANS * (d + extra + 3) if nonsmooth else 0.0
-    return profile + held + max(1, settings.polish_jacobians // 2) * (d + extra + 1)
+    return profile + held + _joint_polish(settings) * (d + extra + 1)
 
 
 def series_cost(d: int, settings, held: int) -> float:
@@ -91,7 +101,7 @@ def series_cost(d: int, settings, held: int) -> float:
     Jacobians, counted at d + 1 simulations: an upper bound, as the series element and the magnitude are held) and
     the chained sweep from its release (about the grid's values again, HELD_PROFILE_JACOBIANS each)."""
     per_value = SERIES_HELD_JACOBIANS * (d + 1) + HELD_PROFILE_JACOBIANS * (d + 3)
-    return held * settings.grid_points * per_value + max(1, settings.polish_jacobians // 2) * (d + 2)
+    return held * settings.grid_points * per_value + _joint_polish(settings) * (d + 2)
 
 
 def form_pass_cost(d: int, settings) -> float:
