@@ -255,7 +255,8 @@ def test_the_stage_system_solved_by_its_pattern_equals_a_general_solve():
     rng = np.random.default_rng(7)
     for _ in range(200):
         g = 10 ** rng.uniform(-5, -3)
-        k0, k3, sp, sf = 10 ** rng.uniform(6, 9), 10 ** rng.uniform(6, 9), 10 ** rng.uniform(3, 6), 10 ** rng.uniform(3, 6)
+        k0, k3 = 10 ** rng.uniform(6, 9, size=2)  # chamber stiffnesses [N/m]
+        sp, sf = 10 ** rng.uniform(3, 6, size=2)  # valve damping slopes [N s/m]
         a = rng.uniform(0.1, 0.9)
         jac = [[-g * k0 * rng.uniform(0.5, 2), g * k0, 0.0, 1.0 - rng.uniform(0, 0.2), 0.0],
                [g * k3 * rng.uniform(0.5, 2), -g * k3 * a, g * k3, 0.0, 1.0 - rng.uniform(0, 0.2)],

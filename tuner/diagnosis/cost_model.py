@@ -2,22 +2,22 @@
 left is made of (``tuner.progress``: the job's stage then says its seconds left instead of a share of a plan
 measured on other data).
 
-Counted in simulations of the identification tests (a held-out run counts by its share of the samples), from
-the same settings the steps use (``tuner.diagnosis.search.CandidateSearch``): a Jacobian of a model of ``d``
-coordinates is d + 1 simulations; a candidate's refit is its profile (``grid_points`` values, each re-balanced
-by up to ``profile_steps`` batches: half of them on average, measured) and a joint polish of
+Counted in simulations of the identification tests (a held-out run counts by its share of the samples), from the
+same settings the steps use (``tuner.diagnosis.search.CandidateSearch``): a Jacobian of a model of ``d``
+coordinates is d + 1 simulations; a candidate's refit is its profile (``grid_points`` values, each re-balanced by
+up to ``profile_steps`` batches: half of them on average, measured) and a joint polish of
 ``JOINT_POLISH_JACOBIANS`` Jacobians (its cap ``polish_jacobians / 2``); the screen is one batch of
-``grid_points`` values per candidate; the forms screen their shapes (``tuner.diagnosis.forms.shape_grid``) and refit one shape; the detection limits
-take the Jacobian on both test sets, each candidate switched off once and at up to three magnitudes on each.
-Once the candidates are ranked (``after_ranking``), what a leading candidate brings follows: its continuation
-and the base's (``CONTINUATION_JACOBIANS`` each), an interval (one Jacobian) per candidate that scores, the forward
-selection (each other scoring candidate refitted on top of the first, the best continued), and the forms
-twice (weighed with the cause on the base, then on top of the causes) when the base leaves a residual above
-the floor, each pass with the best form's continuation. Unknown before the step that decides it (how many
-candidates the screen passes, whether the forms run), the count assumes ``EXPECTED_REFITS`` refits, no
-cause, and forms that run when the base leaves a residual above the floor; the search replaces each
-assumption by what happened as it goes, so the estimate is a forecast that is corrected at every step, never
-a share that stays at "100 %".
+``grid_points`` values per candidate; the forms screen their shapes (``tuner.diagnosis.forms.shape_grid``) and
+refit one shape; the detection limits take the Jacobian on both test sets, each candidate switched off once and at
+up to three magnitudes on each. Once the candidates are ranked (``after_ranking``), what a leading candidate
+brings follows: its continuation and the base's (``CONTINUATION_JACOBIANS`` each), an interval (one Jacobian) per
+candidate that scores, the forward selection (each other scoring candidate refitted on top of the first, the best
+continued), and the forms twice (weighed with the cause on the base, then on top of the causes) when the base
+leaves a residual above the floor, each pass with the best form's continuation. Unknown before the step that
+decides it (how many candidates the screen passes, whether the forms run), the count assumes ``EXPECTED_REFITS``
+refits, no cause, and forms that run when the base leaves a residual above the floor; the search replaces each
+assumption by what happened as it goes, so the estimate is a forecast that is corrected at every step, never a
+share that stays at "100 %".
 """
 from __future__ import annotations
 
