@@ -51,6 +51,33 @@ def test_a_clearly_wrong_base_form_gets_no_restart(tmp_path):
     assert hist["twochamber"]["race"]["ratio"] > RACE_RATIO
 
 
+def test_a_wrong_forms_search_stops_once_a_rival_at_the_floor_leaves_it_far_behind():
+    """The search of a base form stops after ``stop_start`` iterations when another base form's refinement ended
+    at the residual floor and this form's best stands more than RACE_RATIO x that form's RMSE behind (it cannot
+    win: the rival explains all but the noise); not before ``stop_start``, not with the stop off, not when it is
+    within RACE_RATIO, nor without a rival at the floor, while its best still moves."""
+    from types import SimpleNamespace
+
+    from tuner.identification.firefly import FireflyOptions
+    from tuner.identification.fit import RACE_RATIO, search_stop_now
+
+    opts = FireflyOptions(population=6, max_iterations=150)
+
+    def state(iteration: int, rmse_n: float):  # a best that still improves by 10 % an iteration
+        history = [1.0 / (rmse_n * 1.1 ** (iteration - k)) ** 2 for k in range(iteration + 1)]
+        return SimpleNamespace(iteration=iteration, best_fitness=history[-1], history_best=history, best_x=None)
+
+    rival = ("lumped", 20.0)
+    far = 20.0 * RACE_RATIO * 1.5
+    stop = search_stop_now(state(opts.stop_start, far), opts, None, None, rival)
+    assert stop["reason"] == "clearly the wrong form" and "lumped form's RMSE" in stop["text"]
+    assert search_stop_now(state(opts.stop_start - 1, far), opts, None, None, rival) == {}
+    off = FireflyOptions(population=6, max_iterations=150, stop_tol=None)
+    assert search_stop_now(state(opts.stop_start, far), off, None, None, rival) == {}
+    assert search_stop_now(state(opts.stop_start, 20.0 * RACE_RATIO * 0.9), opts, None, None, rival) == {}
+    assert search_stop_now(state(opts.stop_start, far), opts, None, None, None) == {}
+
+
 @pytest.mark.slow
 def test_a_refinement_at_the_residual_floor_is_not_restarted_and_one_above_it_is(tmp_path):
     """The preset lumped damper with 20 N of force noise (which dominates the floor, so the floor is well known),

@@ -55,7 +55,7 @@ from tuner.progress import advance, expect, stage
 from tuner import strict_json
 
 __all__ = ["FitSettings", "FitResult", "Identified", "fit", "initial_guess", "validation_run", "identify",
-           "search_iterations_left", "quality_gate", "QUALITY_AME_PCT", "RACE_RATIO", "RESTART_LADDER",
+           "search_stop_now", "search_iterations_left", "quality_gate", "QUALITY_AME_PCT", "RACE_RATIO", "RESTART_LADDER",
            "refinement_starts", "fit_order"]
 
 #: Log-scaled parameters whose decade decides the basin a local refinement ends in: the data-driven
@@ -185,13 +185,15 @@ class Identified:
 
 
 def identify(model: str, signals: list[Signals], settings: FitSettings, par: Parametrization,
-              ckpt: Path, digest: str, log, *, rival: tuple[str, float] | None = None,
+              ckpt: Path, digest: str, log, *, rival: tuple[str, float] | None = None, rival_at_floor: bool = False,
               intervals: bool = False, floor: ResidualFloor | None = None) -> Identified:
     """Run Firefly and the local refinements for one model.
 
     rival: (model, identification RMSE [N]) of another base form already fitted to the same data;
     when the first refinement leaves more than ``RACE_RATIO`` x its RMSE, this form is clearly the
-    wrong one and gets no restart (the effort goes to the contender). intervals: the parameters' intervals
+    wrong one and gets no restart (the effort goes to the contender); ``rival_at_floor``: the rival's refinement
+    ended at the residual floor, and this form's search stops once it is RACE_RATIO x behind (``search_stop``).
+    intervals: the parameters' intervals
     at the best point too, through the same engine's workers (d + 1 simulations in parallel). floor: the
     problem's residual floor; a first refinement within ``FLOOR_REACHED`` x of it is not restarted."""
     opts = firefly.FireflyOptions(population=settings.population, max_iterations=settings.iterations,
@@ -214,17 +216,10 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
             return eng.fitness_batch([par.to_params(z) for z in Z])
 
         def at_resolution(st: firefly.FireflyState) -> bool:
-            """The search's best has moved less than the data resolve over the last stop_window iterations
-            (``tuner.identification.polish.resolution_stop``): the basin is found, the refinement finishes."""
-            if opts.stop_tol is None or st.iteration < opts.stop_start or \
-                    not small_progress(st.history_best, opts.stop_window):
-                return False  # --no-stop: the whole budget, as the paper's stagnation test
-            r = eng.residuals_batch([par.to_params(st.best_x)])[0]
-            text = resolution_stop(st.history_best, r, opts.stop_window, "iterations") if r is not None else None
-            if text:
-                search_stop["text"] = "search " + text
+            search_stop.update(search_stop_now(st, opts, eng, par, rival if rival_at_floor else None))
+            if search_stop:
                 log(f"[{model}] Firefly {search_stop['text']}: the local refinement takes over")
-            return bool(text)
+            return bool(search_stop)
 
         def callback(st: firefly.FireflyState):
             if st.iteration == 0 and "pop" not in first_population:
@@ -262,6 +257,30 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         f"(RMSE {_rmse(result.fitness_best):.1f} N), {result.evaluations + ref.evaluations} evaluations, "
         f"{elapsed:.0f} s; identification RMSE {_rmse(ref.g):.1f} N")
     return Identified(par.to_params(ref.z), history, ivs)
+
+
+def search_stop_now(st: firefly.FireflyState, opts: firefly.FireflyOptions, eng, par: Parametrization,
+                    rival_at_floor: tuple[str, float] | None) -> dict:
+    """Why the Firefly search stops after iteration ``st.iteration`` ({} while it goes on; else 'reason' and
+    'text'), never before ``opts.stop_start`` iterations nor with the stop off (``--no-stop``: the whole budget,
+    as the paper's stagnation test): 'clearly the wrong form' when ``rival_at_floor`` (model, RMSE [N]), another
+    base form whose refinement ended at the residual floor, leaves this one's best more than RACE_RATIO x behind
+    (the rival explains all but the noise, this form cannot win: on lumped data the two-chamber search ran 110
+    iterations, 2 of the job's 4 minutes, to end 10 x the lumped form's RMSE); 'data resolution' when the best
+    has moved less than the data resolve over the last stop_window iterations
+    (``tuner.identification.polish.resolution_stop``): the basin is found, the refinement finishes."""
+    if opts.stop_tol is None or st.iteration < opts.stop_start:
+        return {}
+    rmse = _rmse(st.best_fitness)
+    if rival_at_floor is not None and rmse > RACE_RATIO * rival_at_floor[1]:
+        return {"reason": "clearly the wrong form",
+                "text": f"search stopped: {rmse / rival_at_floor[1]:.1f} x the {rival_at_floor[0]} form's RMSE, "
+                        f"which is at the residual floor (clearly the wrong form for this damper)"}
+    if not small_progress(st.history_best, opts.stop_window):
+        return {}
+    r = eng.residuals_batch([par.to_params(st.best_x)])[0]
+    text = resolution_stop(st.history_best, r, opts.stop_window, "iterations") if r is not None else None
+    return {"reason": "data resolution", "text": "search " + text} if text else {}
 
 
 def _expect_search(log, model: str, st: firefly.FireflyState, opts: firefly.FireflyOptions, population: int, d: int,
@@ -422,7 +441,7 @@ def _history(result, ref: Refinement, par: Parametrization, first_population: di
         "evaluations": list(map(int, st.history_evaluations)),
         "initial_population": [par.to_params(z) for z in first_population.get("pop", st.population)],
         "final_population": [par.to_params(z) for z in st.population],
-        "stop_reason": "data resolution" if search_stop else result.stop_reason,
+        "stop_reason": search_stop.get("reason", result.stop_reason),
         "search_stop": search_stop.get("text"),
         "iterations": int(result.iterations),
         "firefly_evaluations": int(result.evaluations),
@@ -627,8 +646,9 @@ def _fit_model(model: str, problem: Problem, settings: FitSettings, checkpoints:
     measurement noise in the fit band, what a fit of a model that can represent the data reaches."""
     par, noise = problem.parametrization(model), problem.noise_n
     fitted_bases = [(m, histories[m]["identification_rmse_n"]) for m in histories if m in EFFECT_MODELS]
+    rival = min(fitted_bases, key=lambda r: r[1]) if model in EFFECT_MODELS and fitted_bases else None
     found = identify(model, problem.sig_id, settings, par, checkpoints / f"{model}.json", problem.digest, log,
-                     rival=min(fitted_bases, key=lambda r: r[1]) if model in EFFECT_MODELS and fitted_bases else None,
+                     rival=rival, rival_at_floor=rival is not None and histories[rival[0]]["floor_stop"] is not None,
                      intervals=True, floor=floor)
     hist = found.history
     entry = {"values": found.values, "units": dict(par.units), "bounds": {n: list(par.bounds[n]) for n in par.names},
