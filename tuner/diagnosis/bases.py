@@ -200,31 +200,34 @@ def forecast_identified(plan, problem: Problem, settings: DiagnosisSettings, par
         ident = identification_cost(par.dimension, refinement_starts(kind), settings.base_iterations,
                                     FitSettings().population)
         plan.part(f"identification of the {kind} base").expect(ident * rate)
-        diagnosis[kind] = _diagnosis_seconds(par, problem, settings, rate)
+        diagnosis[kind] = _diagnosis_seconds(par, problem, settings, rate).total
     cheapest = min(diagnosis, key=diagnosis.get)
     for kind, seconds in diagnosis.items():
         plan.maybe(f"diagnosis on the {kind} base", None if kind == cheapest else f"the diagnosis runs on the {kind} base")
         plan.part(f"diagnosis on the {kind} base").expect(seconds)
 
 
-def _diagnosis_seconds(par: Parametrization, problem: Problem, settings: DiagnosisSettings, rate: float,
-                       forms_run: bool = True) -> float:
-    """Expected seconds [s] of a diagnosis on a base of ``par`` at ``rate`` [s per simulation of its identification]
-    (``tuner.diagnosis.cost_model``: its extended models EXTENDED_COST x slower; the forms counted if
-    ``forms_run``)."""
-    share = sum(int(s.mask.sum()) for s in problem.sig_val) / sum(int(s.mask.sum()) for s in problem.sig_id)
-    cost = expected_cost(par.dimension, settings, settled=True, forms_run=forms_run and bool(settings.forms),
-                         held_out_share=share)
-    return cost.total * rate * EXTENDED_COST
-
-
 @dataclass(frozen=True)
 class DiagnosisForecast:
-    """What a diagnosis after a fit is expected to take [s], before the fit: ``seconds`` without the forms, and
-    ``forms_s`` more if they run (only where the base leaves a residual above the floor: not on clean data)."""
+    """What a diagnosis is expected to take [s]: ``seconds`` without the forms, and ``forms_s`` more if they run
+    (only where the base leaves a residual above the floor: not on clean data); ``total`` both."""
 
     seconds: float
     forms_s: float
+
+    @property
+    def total(self) -> float:
+        return self.seconds + self.forms_s
+
+
+def _diagnosis_seconds(par: Parametrization, problem: Problem, settings: DiagnosisSettings,
+                       rate: float) -> DiagnosisForecast:
+    """Expected seconds of a diagnosis on a base of ``par`` at ``rate`` [s per simulation of its identification]
+    (``tuner.diagnosis.cost_model``: its extended models EXTENDED_COST x slower), the forms apart."""
+    share = sum(int(s.mask.sum()) for s in problem.sig_val) / sum(int(s.mask.sum()) for s in problem.sig_id)
+    cost = expected_cost(par.dimension, settings, settled=True, forms_run=bool(settings.forms), held_out_share=share)
+    per_simulation = rate * EXTENDED_COST
+    return DiagnosisForecast((cost.total - cost.forms) * per_simulation, cost.forms * per_simulation)
 
 
 def diagnosis_forecast(problem: Problem, settings: DiagnosisSettings, kinds) -> DiagnosisForecast:
@@ -234,11 +237,9 @@ def diagnosis_forecast(problem: Problem, settings: DiagnosisSettings, kinds) -> 
     while the fit runs, in place of a planned share, and says the forms beside: counted in, the bundled job's
     display said 107 s for a diagnosis of 26 s (the forms do not run on data the base fits to the floor)."""
     pars = {k: problem.parametrization(k, scheme="improved") for k in kinds}
-    rates = {k: seconds_per_simulation(k, par, problem, settings) for k, par in pars.items()}
-    without = {k: _diagnosis_seconds(par, problem, settings, rates[k], forms_run=False) for k, par in pars.items()}
-    full = {k: _diagnosis_seconds(par, problem, settings, rates[k]) for k, par in pars.items()}
-    worst = max(without, key=without.get)
-    return DiagnosisForecast(without[worst], full[worst] - without[worst])
+    ahead = [_diagnosis_seconds(par, problem, settings, seconds_per_simulation(k, par, problem, settings))
+             for k, par in pars.items()]
+    return max(ahead, key=lambda f: f.seconds)
 
 
 def why_not_repeated(kind: str, other: str, first_run: dict, other_values: dict, problem: Problem,
