@@ -11,10 +11,12 @@ import pandas as pd
 import pytest
 
 from campaign import effects as fx
-from campaign.rig import lumped_parameters, measure
+from campaign.rig import _run_lumped, lumped_parameters, measure
 from campaign.rig_damper import (BW_BETA, BW_GAMMA, BW_N, IZ, N_STATES, DamperConfig, DamperParams,
                                  RigDamper, StrokeInput, quasi_static_force, series_stiffness)
 from campaign.sensors import SensorChain
+from damper_fmu.integrator import REPLAY, Simulator
+from damper_fmu.models import make_model
 
 IDEAL = SensorChain.ideal()
 PAR = DamperParams()
@@ -543,6 +545,30 @@ def test_oil_temperature_scales_the_damping_only_when_it_depends_on_temperature(
     tw = measure(t, s, {"thermal_drift": beta}, sensors=IDEAL, oil_temperature=40.0)
     tw_ref = measure(t, s, {"thermal_drift": beta}, sensors=IDEAL)
     assert tw["force"].abs().max() < 0.95 * tw_ref["force"].abs().max()
+
+
+def test_the_lumped_damper_without_thermal_drift_runs_in_one_call_and_equals_the_stepped_reference():
+    """Without a thermal drift the rig simulates the lumped damper in one call (the C kernel where compiled) and
+    derives the oil temperature from the force: the Python reference stepped with the heat balance coupled, as
+    with a thermal drift, gives the same force (to 1e-9 of its peak) and oil temperature."""
+    t, s = random_stroke(3.0, seed=4)
+    t_int = np.arange(0.0, t[-1], 2.5e-4)
+    hidden = {"friction": 150.0, "free_play": 3e-4, "valve_lag": 2e-3, "inertia": 80.0}
+    x, force, temp = _run_lumped(t, s, t_int, hidden, PAR)
+    sim = Simulator(make_model("lumped", lumped_parameters(hidden, PAR)), max_step=2.5e-4 * (1 + 1e-9),
+                    input_mode=REPLAY)
+    v = StrokeInput(t, s)(t_int, 1)
+    ref_f, ref_t = np.empty(t_int.size), np.empty(t_int.size)
+    ref_t[0] = sim.temperature_input = PAR.ambient_temperature
+    ref_f[0] = sim.initialize(x[0], v[0])
+    for k in range(1, t_int.size):
+        h = t_int[k] - t_int[k - 1]
+        ref_f[k] = sim.step(h, x[k], v[k])
+        ref_t[k] = sim.temperature_input = ref_t[k - 1] + h * (
+            ref_f[k] * v[k] - PAR.heat_transfer * (ref_t[k - 1] - PAR.ambient_temperature)) / PAR.heat_capacity
+    assert np.abs(force - ref_f).max() <= 1e-9 * np.abs(ref_f).max()
+    assert temp[-1] > temp[0] + 1e-4  # the damper heated its oil
+    np.testing.assert_allclose(temp, ref_t, rtol=1e-12)
 
 
 def test_rig_rejects_an_unknown_damper_and_an_absurd_oil_temperature():
