@@ -47,7 +47,7 @@ def fleet(tmp_path_factory):
     base = tmp_path_factory.mktemp("fleet")
     for name, _, damper, seed, effects in DAMPERS:
         generate_dataset(base / "data" / name, seed=seed, damper=damper, t_end=5.0, effects=effects,
-                         scenarios=IDENTIFICATION + VALIDATION, log=lambda m: None)
+                         scenarios=IDENTIFICATION + VALIDATION, overview=False, log=lambda m: None)
     lines = ["# fleet of the batch test: two types, A3 with hidden friction, X9 with a missing file",
              "damper_id,type,identification,validation,seed"]
     lines += [f"{name},{typ},{_files(name, 'id')},{_files(name, 'val')},7" for name, typ, *_ in DAMPERS]

@@ -96,7 +96,7 @@ def test_bundled_dataset_has_the_six_scenarios_with_roles_and_plausible_forces()
 
 
 def test_effects_change_the_data_and_are_recorded(tmp_path):
-    kw = dict(seed=3, scenarios=["id3_switch_R190_43"], t_end=4.0, log=lambda m: None)
+    kw = dict(seed=3, scenarios=["id3_switch_R190_43"], t_end=4.0, overview=False, log=lambda m: None)
     clean = generate_dataset(tmp_path / "clean", **kw)
     fric = generate_dataset(tmp_path / "fric", effects={"friction": 200.0}, **kw)
     a, b = load_dataset(clean)[0], load_dataset(fric)[0]
@@ -110,7 +110,7 @@ def test_model_forms_are_generated_and_recorded_like_effects(tmp_path, capsys):
     and are recorded in the manifest with their units; the lumped damper refuses them up front."""
     from campaign.cli import main
 
-    kw = dict(seed=3, scenarios=["id1_straight_250"], t_end=2.0, log=lambda m: None)
+    kw = dict(seed=3, scenarios=["id1_straight_250"], t_end=2.0, overview=False, log=lambda m: None)
     clean = load_dataset(generate_dataset(tmp_path / "clean", **kw))[0]
     assert main(["generate", "--out", str(tmp_path / "forms"), "--t-end", "2", "--seed", "3",
                  "--effect", "bypass", "--effect", "hysteresis=300"]) == 0

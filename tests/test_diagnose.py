@@ -72,7 +72,7 @@ def run_diagnosis(tmp_path, effects, seed, damper="lumped", base_model="auto", c
     """A blind diagnosis of virtual-rig data; base_model 'lumped' skips identifying the two-chamber
     base on lumped-damper data (the clean tests check that 'auto' keeps the right one)."""
     data = generate_dataset(tmp_path / "data", seed=seed, effects=effects, t_end=6.0, damper=damper,
-                            oil_temperatures=CHAMBER_TEMPERATURES_C, log=lambda m: None)
+                            oil_temperatures=CHAMBER_TEMPERATURES_C, overview=False, log=lambda m: None)
     tests = load_dataset(data)
     res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
                    DiagnosisSettings(engine=fastest_engine(), base_iterations=0, base_model=base_model,
@@ -197,7 +197,8 @@ def test_clean_data_gives_no_false_cause_and_a_complete_diagnosis_json(tmp_path,
 
 
 def test_diagnose_command_needs_validation_tests_and_a_real_fit_folder(tmp_path, capsys):
-    data = generate_dataset(tmp_path / "d", seed=1, scenarios=["id1_straight_250"], t_end=3.0, log=lambda m: None)
+    data = generate_dataset(tmp_path / "d", seed=1, scenarios=["id1_straight_250"], t_end=3.0, overview=False,
+                            log=lambda m: None)
     assert main(["diagnose", "--identification", str(next(data.glob("*.csv"))), "--out", str(tmp_path / "o")]) == 2
     assert "validation" in capsys.readouterr().err
     assert main(["diagnose", "--from", str(tmp_path), "--out", str(tmp_path / "o2")]) == 2

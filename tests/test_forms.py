@@ -107,7 +107,7 @@ def test_a_form_error_the_forms_do_not_represent_stays_unexplained(tmp_path):
 def _blind(tmp_path, effects: dict, seed: int):
     """A blind diagnosis of the virtual twin-tube rig's data (the whole catalogue, then the forms)."""
     data = generate_dataset(tmp_path / "data", seed=seed, effects=effects, t_end=6.0, damper="twin-tube",
-                            oil_temperatures=CHAMBER_TEMPERATURES_C, log=lambda m: None)
+                            oil_temperatures=CHAMBER_TEMPERATURES_C, overview=False, log=lambda m: None)
     tests = load_dataset(data)
     return diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
                     DiagnosisSettings(engine=fastest_engine(), base_iterations=0), log=lambda m: None)
