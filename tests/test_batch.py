@@ -80,6 +80,8 @@ def _check_fleet(res: dict, out: Path) -> None:
     html = (out / "summary.html").read_text()
     assert "1.4826" in html and "A3" in html and "fc_A.png" in html
     assert (out / "figures" / "fc_A.png").stat().st_size > 1000 and (out / "figures" / "fc_B.png").exists()
+    # the rows' reports were written without their figures (--no-row-figures): each slot says so
+    assert "Figure not drawn" in (out / IDS[0] / "report.html").read_text() and not (out / IDS[0] / "figures").exists()
     for i in IDS:
         rec = json.loads((out / i / "done.json").read_text())
         assert rec["seed"] == 7 and rec["validation"]["val1_straight_250"]["lumped"]["ame"] > 0
@@ -93,14 +95,15 @@ def test_pool_dask_kill_and_restart(fleet, tmp_path):
     out_pool, lines = tmp_path / "pool", []
     one = fleet.with_name("first_row.csv")
     one.write_text("\n".join(fleet.read_text().splitlines()[:3]) + "\n")
-    res = run_batch(one, out_pool, scheduler="pool:2", settings=SMALL_SETTINGS, progress=False, log=lines.append)
+    res = run_batch(one, out_pool, scheduler="pool:2", settings=SMALL_SETTINGS, progress=False, figures=False,
+                    log=lines.append)
     assert res["ran"] == [IDS[0]] and [r["status"] for r in res["rows"]] == ["done"]
 
     # 2. the same batch on a Dask LocalCluster of 2 workers, killed (process group, SIGKILL) once a
     #    row has finished
     out = tmp_path / "dask"
     proc = subprocess.Popen([sys.executable, "-m", "tuner.cli.batch", str(fleet), "--out", str(out), "--scheduler",
-                             "local:2", *SMALL], cwd=ROOT, start_new_session=True,
+                             "local:2", "--no-row-figures", *SMALL], cwd=ROOT, start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     t0 = time.monotonic()
     try:
@@ -116,7 +119,8 @@ def test_pool_dask_kill_and_restart(fleet, tmp_path):
 
     # 3. restarted on Dask: only what had not finished runs; every row ends done, with exactly the
     #    pool's numbers
-    res = run_batch(fleet, out, scheduler="local:2", settings=SMALL_SETTINGS, progress=False, log=lines.append)
+    res = run_batch(fleet, out, scheduler="local:2", settings=SMALL_SETTINGS, progress=False, figures=False,
+                    log=lines.append)
     _check_fleet(res, out)
     assert sorted(res["ran"]) == sorted(set(IDS + ["X9"]) - set(finished))
     for i, mtime in finished.items():
@@ -126,7 +130,8 @@ def test_pool_dask_kill_and_restart(fleet, tmp_path):
     assert all(log.count(f"done {i} in") <= 1 for i in IDS), log  # no row finished twice
 
     # 4. a rerun with nothing to do runs nothing; the failed row is retried (and fails again)
-    res = run_batch(fleet, out, scheduler="pool:1", settings=SMALL_SETTINGS, progress=False, log=lines.append)
+    res = run_batch(fleet, out, scheduler="pool:1", settings=SMALL_SETTINGS, progress=False, figures=False,
+                    log=lines.append)
     assert res["ran"] == ["X9"]
 
 

@@ -132,7 +132,7 @@ def failed_diagnosis(metrics):
 
 def shown(out, capsys):
     """(the report's box, summary.json's recommendation, the printed recommendation lines) of ``out``."""
-    text = make_report(out, dpi=40).read_text(encoding="utf-8")
+    text = make_report(out, figures=False).read_text(encoding="utf-8")
     box = re.search(r"<div class='verdict' id='recommendation'.*?</div>", text, re.S).group(0)
     end_summary(out, 1.0)
     printed = capsys.readouterr().out
@@ -299,10 +299,10 @@ def test_damper_class_any_without_scenarios_has_no_railway_wording_and_no_empty_
     kwargs = dict(ame_pct={"lumped": 9.0, "maxwell": 9.5}, gains={"maxwell": 0.8},
                   diagnosis=diagnosis_json("lumped", unexplained=(26.3, 17.5, True)))
     write_run(tmp_path / "yaw", **kwargs)
-    railway = make_report(tmp_path / "yaw", dpi=40).read_text(encoding="utf-8")
+    railway = make_report(tmp_path / "yaw", figures=False).read_text(encoding="utf-8")
     assert "over-estimates the curving performance" in railway and "stability margins" in railway
     write_run(tmp_path / "any", scenarios=False, damper_class="any", **kwargs)
-    text = make_report(tmp_path / "any", dpi=40).read_text(encoding="utf-8")
+    text = make_report(tmp_path / "any", figures=False).read_text(encoding="utf-8")
     visible = html.unescape(re.sub(r"<[^>]+>", "", text)).lower()
     assert not [w for w in RAILWAY_WORDS if w in visible]
     assert "()" not in visible
@@ -314,7 +314,7 @@ def test_damper_class_any_without_scenarios_has_no_railway_wording_and_no_empty_
 def test_no_vehicle_or_diagnosis_section_nor_its_contents_entry_when_the_stage_did_not_run(tmp_path):
     out = tmp_path / "run"
     write_run(out, {"lumped": 2.0, "maxwell": 8.0})
-    text = make_report(out, dpi=40).read_text(encoding="utf-8")
+    text = make_report(out, figures=False).read_text(encoding="utf-8")
     assert "id='vehicle'" not in text and "href='#vehicle'" not in text
     assert "id='diagnosis'" not in text and "href='#diagnosis'" not in text
 

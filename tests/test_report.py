@@ -159,6 +159,23 @@ def test_report_names_every_test_and_model_and_figures_are_png(full_report):
     assert "skipped" not in text.lower()
 
 
+def test_a_report_without_figures_draws_none_and_keeps_every_caption_and_table(full_report, tmp_path):
+    """make_report(figures=False) (a fleet row's, --no-figures): no figure file, each figure's slot says it was not
+    drawn and how to draw it, with the caption the drawn report gives it; the tables are the drawn report's."""
+    full_out, full, _ = full_report
+    out = tmp_path / "fit"
+    _write_folder(out)  # the same folder as the drawn report's
+    text = make_report(out, figures=False).read_text(encoding="utf-8")
+    assert not (out / "figures").exists() and "<img" not in text
+    assert text.count("Figure not drawn") == len(_images(full, full_out))
+    assert "python -m tuner report FOLDER</code> draws them" in text
+    # a caption says what its figure shows, less the zoom window's largest error (found as the figure is drawn)
+    captions = [re.sub(r" Largest .*? error .*? at [0-9.]+ s\.", "", c)
+                for c in re.findall(r"<figcaption>(.*?)</figcaption>", full, re.S)]
+    assert captions and all(c in text for c in captions)
+    assert text.count("<table") == full.count("<table") and text.count("<tr") == full.count("<tr")
+
+
 def test_summary_numbers_equal_metrics_json(full_report):
     _, text, metrics = full_report
     summary = text.split('id="summary"')[1].split("</section>")[0]

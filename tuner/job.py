@@ -96,13 +96,15 @@ def export_fmus(result: FitResult, out: Path) -> list[Path]:
 
 def run(identification: list[RigTest], validation: list[RigTest], out: Path, settings: FitSettings, *,
         diagnose_after: bool = True, vehicle: bool = False, vehicle_draws: int = 0, vehicle_scheduler: str | None = None,
-        vehicle_intervals: str = "recommended", provenance: dict | None = None, log=print) -> JobResult:
+        vehicle_intervals: str = "recommended", provenance: dict | None = None, figures: bool = True,
+        log=print) -> JobResult:
     """The whole job into the existing folder ``out`` (checkpoints there are resumed).
 
     diagnose_after: diagnose the best-validated base form after the fit (when ``wants_diagnosis``);
     vehicle: the tuned FMUs as the yaw dampers of the campaign's vehicle (``vehicle_consequences``), with
     95 % intervals from up to ``vehicle_draws`` parameter sets per FMU (0: none) run on ``vehicle_scheduler``, for
-    the recommended model's FMU or ``vehicle_intervals`` 'all';
+    the recommended model's FMU or ``vehicle_intervals`` 'all'; figures: False writes the fit's report without its
+    figures (``make_report``; the diagnosis's residual figures are drawn still);
     log: a callable taking one line (or a ``tuner.progress.JobProgress``, whose stages it advances)."""
     out = Path(out)
     problem = Problem.build(identification, validation, settings.data)  # prepared once, for every stage
@@ -126,23 +128,24 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
             diagnosis = _diagnose(identification, validation, out, diagnosis_settings(settings), values, kind, choice,
                                   others, problem, log, refinements=base_refinements(result, settings))
         except DiagnosisFailed:
-            make_report(out)  # the fit's report with the failure said: the fit and its FMUs are safe
+            make_report(out, figures=figures)  # the fit's report with the failure said: the fit and its FMUs are safe
             raise
     if vehicle:
         vehicle_consequences(sorted((out / "fmu").glob("*_tuned.fmu")), out, settings.seed, log, draws=vehicle_draws,
                              scheduler=vehicle_scheduler, intervals_for=vehicle_intervals)
     stage(log, "report")
-    report = make_report(out)
+    report = make_report(out, figures=figures)
     return JobResult(out=out, fit=result, diagnosis=diagnosis, fmus=sorted((out / "fmu").glob("*.fmu")),
                      report=report)
 
 
 def run_diagnosis(identification: list[RigTest], validation: list[RigTest], out: Path,
                   settings: DiagnosisSettings, *, base_params: dict | None = None, base_model: str | None = None,
-                  base_choice: dict | None = None, other_bases: dict | None = None, log=print) -> Diagnosis:
+                  base_choice: dict | None = None, other_bases: dict | None = None, figures: bool = True,
+                  log=print) -> Diagnosis:
     """A diagnosis on its own into ``out`` (the base from an earlier fit, or identified here; its files by
-    ``write_diagnosis``), then the report: the full one when ``out`` holds that fit's files, the diagnosis
-    alone otherwise."""
+    ``write_diagnosis``), then the report: the full one when ``out`` holds that fit's files (``figures``: False
+    without the fit's figures), the diagnosis alone otherwise."""
     out = Path(out)
     try:
         result = _diagnose(identification, validation, out, settings, base_params, base_model, base_choice,
@@ -150,7 +153,10 @@ def run_diagnosis(identification: list[RigTest], validation: list[RigTest], out:
     finally:  # a failed diagnosis gets its report too: what was finished, the failing stage, --resume
         if (out / "diagnosis.json").exists():
             stage(log, "report")
-            (make_report if (out / "parameters.json").exists() else make_diagnosis_report)(out)
+            if (out / "parameters.json").exists():
+                make_report(out, figures=figures)
+            else:
+                make_diagnosis_report(out)
     return result
 
 

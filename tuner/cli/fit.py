@@ -46,7 +46,7 @@ def check_engine(args) -> None:
 #: 31 s first and 6 s second (the race: ``fit_order``), so each is planned at their mean; the vehicle intervals
 #: stop after the first round of 8 draws when the Monte-Carlo errors are small (10 s per drawn FMU).
 FIT_S = {"lumped": 18.0, "twochamber": 18.0, "maxwell": 3.0, "maxwell_table": 8.0}
-STAGE_S = {"validate and export": 3.0, "diagnosis": 26.0, "report": 7.0}
+STAGE_S = {"validate and export": 3.0, "diagnosis": 26.0, "report": 7.0, "report without figures": 0.5}
 VEHICLE_S_PER_FMU = 2.0
 DRAW_S, FIRST_ROUND_DRAWS = 1.25, 8
 
@@ -56,7 +56,8 @@ def planned_seconds(args, models: tuple[str, ...]) -> dict[str, float]:
     budget against the default one (20 fireflies, 150 iterations), the stages this command runs only."""
     budget = args.population * args.iterations / (20 * 150)
     weights = {f"fit {m}": FIT_S[m] * budget for m in models}
-    weights.update({"validate and export": STAGE_S["validate and export"], "report": STAGE_S["report"]})
+    report = STAGE_S["report without figures" if getattr(args, "no_figures", False) else "report"]
+    weights.update({"validate and export": STAGE_S["validate and export"], "report": report})
     if getattr(args, "vehicle", False):
         weights["vehicle"] = VEHICLE_S_PER_FMU * len(models)
         if args.vehicle_draws > 0:
@@ -117,7 +118,7 @@ def _fit_job(args, models) -> Path:
         progress().weights.pop("diagnosis", None)
     result = job.run(ident, valid, out, settings, diagnose_after=diagnosis, vehicle=args.vehicle,
                      vehicle_draws=args.vehicle_draws, vehicle_scheduler=vehicle_scheduler(args),
-                     vehicle_intervals=args.vehicle_intervals,
+                     vehicle_intervals=args.vehicle_intervals, figures=not args.no_figures,
                      provenance=provenance, log=job_log())  # the progress display when a job runs
     print_table3(result.fit.metrics)
     return out
@@ -159,7 +160,8 @@ def cmd_diagnose(args) -> int:
     failed = None
     try:  # the diagnosis states the verdict once
         job.run_diagnosis(ident, valid, out, job.diagnosis_settings(fit_settings(args)), base_params=base,
-                          base_model=base_kind, base_choice=base_choice, other_bases=others, log=job_log())
+                          base_model=base_kind, base_choice=base_choice, other_bases=others,
+                          figures=not args.no_figures, log=job_log())
     except DiagnosisFailed as err:
         failed = err
     finally:

@@ -33,8 +33,9 @@ def _now() -> str:
     return time.strftime("%Y-%m-%dT%H:%M:%S%z")
 
 
-def _task(row: Row, out: Path, base_settings: dict, diagnose: bool, row_workers: int) -> dict:
-    """The picklable description of one row's work (sent to a worker)."""
+def _task(row: Row, out: Path, base_settings: dict, diagnose: bool, row_workers: int, figures: bool) -> dict:
+    """The picklable description of one row's work (sent to a worker); ``key`` identifies the row's results
+    (not ``figures``: a report's figures are drawn again by ``python -m tuner report``)."""
     s = {**base_settings, **row.settings, "workers": int(row_workers)}
     s["models"] = list(s.get("models", FitSettings().models))
     do_diag = row.diagnose if row.diagnose is not None else diagnose
@@ -44,7 +45,7 @@ def _task(row: Row, out: Path, base_settings: dict, diagnose: bool, row_workers:
             "diagnose": bool(do_diag)}
     key = hashlib.sha256(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()[:16]
     return {**spec, "key": key, "row": row.number, "where": row.where, "folder": str(Path(out) / row.id),
-            "workers": int(row_workers)}
+            "workers": int(row_workers), "figures": bool(figures)}
 
 
 def _load_row_data(task: dict):
@@ -144,7 +145,8 @@ def run_row(task: dict) -> dict:
             if not job.wants_diagnosis(settings, valid):
                 raise ValueError(f"{task['where']}: the diagnosis needs one of {', '.join(EFFECT_MODELS)} "
                                  f"in 'models'")
-        job.run(ident, valid, folder, settings, diagnose_after=task["diagnose"], provenance=provenance, log=log)
+        job.run(ident, valid, folder, settings, diagnose_after=task["diagnose"], provenance=provenance,
+                figures=task["figures"], log=log)
         rec = _record(task, folder, started, time.perf_counter() - t0, n_lines)
         write_atomic(folder / "done.json", strict_json.dumps(rec, indent=1, sort_keys=True))
         (folder / "failed.json").unlink(missing_ok=True)
@@ -229,10 +231,12 @@ def _batch_settings(settings: dict | None, row_workers: int) -> dict:
 
 def run_batch(manifest, out, *, scheduler: str | None = None, settings: dict | None = None,
               diagnose: bool = False, row_workers: int = 0, outlier_k: float = OUTLIER_K,
-              outlier_tolerance: float = OUTLIER_TOLERANCE, progress: bool | None = None, log=print) -> dict:
+              outlier_tolerance: float = OUTLIER_TOLERANCE, progress: bool | None = None, figures: bool = True,
+              log=print) -> dict:
     """Run (or resume) the batch of ``manifest`` into ``out``; write the fleet summary.
 
-    settings: FitSettings fields used where the manifest leaves them open. Returns {"rows": [per
+    settings: FitSettings fields used where the manifest leaves them open; figures: False writes each row's
+    report without its figures (``tuner.results.report.make_report``: about 7 s less a row). Returns {"rows": [per
     manifest row: id, type, status ('done', 'failed', 'pending'), error, ran (bool: run now),
     record], "ran": [ids run now], "summary": paths, "outliers": {id: info}, "elapsed_s"}.
     """
@@ -240,7 +244,7 @@ def run_batch(manifest, out, *, scheduler: str | None = None, settings: dict | N
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     base = _batch_settings(settings, row_workers)
-    tasks = [_task(r, out, base, diagnose, row_workers) for r in rows]
+    tasks = [_task(r, out, base, diagnose, row_workers, figures) for r in rows]
     state = {t["id"]: {"row": t["row"], "id": t["id"], "damper_id": t["damper_id"], "session": t["session"],
                        "type": t["type"], "seed": t["settings"].get("seed"), "status": "pending", "error": "",
                        "ran": False, "record": None} for t in tasks}

@@ -9,7 +9,7 @@ from pathlib import Path
 from damper_fmu.parameters import MODEL_KINDS
 
 
-__all__ = ["MODEL_ORDER", "MODEL_LABEL", "MODEL_COLOR", "num", "model_label", "esc", "safe_name", "table", "figure_html", "write_page"]
+__all__ = ["MODEL_ORDER", "MODEL_LABEL", "MODEL_COLOR", "num", "model_label", "esc", "safe_name", "table", "figure_html", "NOT_DRAWN", "write_page"]
 
 MODEL_ORDER = MODEL_KINDS
 MODEL_LABEL = {"lumped": "lumped (proposed)", "maxwell": "Maxwell (linear)",
@@ -44,7 +44,23 @@ def table(header: list[str], rows: list[list[str]], cls: str = "", row_classes=N
     return "\n".join(out)
 
 
-def figure_html(src: str | None, caption: str, missing: str) -> str:
+class _NotDrawn:
+    """The ``src`` of a figure a report was written without (``make_report(figures=False)``)."""
+
+    def __repr__(self) -> str:
+        return "NOT_DRAWN"
+
+
+#: ``figure_html``'s ``src`` for a figure not drawn: the report was written without figures
+NOT_DRAWN = _NotDrawn()
+
+
+def figure_html(src, caption: str, missing: str) -> str:
+    """A figure with its caption; ``src`` None: the note that it was skipped and why (``missing``); ``NOT_DRAWN``:
+    the caption with the note that the report was written without figures and how to draw them."""
+    if src is NOT_DRAWN:
+        return (f'<p class="skip">Figure not drawn (this report was written without figures; '
+                f'<code>python -m tuner report FOLDER</code> draws them): {caption}</p>')
     if src is None:
         return f'<p class="skip">Figure skipped: {esc(missing)}</p>'
     return (f'<figure><a href="{esc(src)}"><img src="{esc(src)}" alt="{esc(caption)}"></a>'

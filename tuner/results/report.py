@@ -41,7 +41,7 @@ from tuner.formatting import eng, unit_html
 from tuner.results.diagnosis_report import diagnosis_section_html
 from tuner.results.fit_figures import bound_position, bounds_of, fig_constants, fig_fitness, fig_forces, fig_loops, fig_polyfit, fig_populations, is_log, polyfits
 from tuner.results.fit_folder import FitFolder
-from tuner.results.html import MODEL_LABEL, esc, figure_html, model_label, num, table, write_page
+from tuner.results.html import MODEL_LABEL, NOT_DRAWN, esc, figure_html, model_label, num, table, write_page
 from tuner.results.intervals_report import intervals_section_html
 from tuner.results.recommendation import railway_damper, recommend, recommendation_html
 from tuner.results.vehicle_report import vehicle_section_html
@@ -199,7 +199,7 @@ def _metrics_section(run: FitFolder) -> str:
                       "Max error", "Peak force", "Samples"], full, "metrics", cls) + "</section>")
 
 
-def _timeseries_section(run: FitFolder, fdir: Path, dpi: int) -> str:
+def _timeseries_section(run: FitFolder, fdir: Path | None, dpi: int) -> str:
     parts = ["<section id='time'><h2>3. Measured and simulated force (Figs. 9-10) and loops</h2>"]
     if run.sims is None:
         parts.append('<p class="skip">Figures skipped: simulations.npz not found.</p></section>')
@@ -213,14 +213,14 @@ def _timeseries_section(run: FitFolder, fdir: Path, dpi: int) -> str:
         parts.append(f"<h3>{esc(group)}</h3>")
         for test in names:
             scen = run.tests[test].get("scenario", "")
-            src, zoom = fig_forces(run, test, fdir, dpi, prefix)
+            src, zoom = fig_forces(run, test, fdir, dpi, prefix) if fdir else (NOT_DRAWN, None)
             cap = f"{_named(test, scen)}: forces, differences and zoom."
             if zoom:
                 cap += (f" Largest {esc(MODEL_LABEL.get(zoom['model'], zoom['model']))} error "
                         f"{eng(zoom['error'], 'N')} at {zoom['t']:.2f} s.")
             parts.append(figure_html(src, cap, f"no arrays for test {test} in simulations.npz"))
             if prefix == "fig09_10":
-                src = fig_loops(run, test, fdir, dpi)
+                src = fig_loops(run, test, fdir, dpi) if fdir else NOT_DRAWN
                 parts.append(figure_html(src, f"<b>{esc(test)}</b>: force-stroke and force-velocity loops, "
                                             "measured vs lumped (velocity by a cubic Savitzky-Golay "
                                             "derivative of the stroke over ~20 ms).",
@@ -229,9 +229,9 @@ def _timeseries_section(run: FitFolder, fdir: Path, dpi: int) -> str:
     return "".join(parts)
 
 
-def _fitness_section(run: FitFolder, fdir: Path, dpi: int) -> str:
+def _fitness_section(run: FitFolder, fdir: Path | None, dpi: int) -> str:
     missing = [m for m in run.models if not run.histories.get(m)]
-    src = fig_fitness(run, fdir, dpi)
+    src = fig_fitness(run, fdir, dpi) if fdir else NOT_DRAWN
     rows = []
     for m in run.models:
         h = run.histories.get(m)
@@ -254,11 +254,12 @@ def _fitness_section(run: FitFolder, fdir: Path, dpi: int) -> str:
                               "Best RMSE = 1/√G", "Stop reason"], rows) if rows else "") + "</section>")
 
 
-def _population_sections(run: FitFolder, fdir: Path, dpi: int) -> str:
+def _population_sections(run: FitFolder, fdir: Path | None, dpi: int) -> str:
     why = ("history_lumped.json not found or without populations" if "lumped" in run.models
            else "no lumped model in this fit")
-    src7 = fig_constants(run, fdir, dpi) if "lumped" in run.models else None
-    src8 = fig_populations(run, fdir, dpi) if "lumped" in run.models else None
+    src7 = src8 = None
+    if "lumped" in run.models:
+        src7, src8 = (fig_constants(run, fdir, dpi), fig_populations(run, fdir, dpi)) if fdir else (NOT_DRAWN,) * 2
     return ("<section id='constants'><h2>5. Constant parameters, initial vs final population (Fig. 7)</h2>"
             + figure_html(src7, "Each parameter normalised to its bounds (0 = lower, 1 = upper; log10 scale for "
                               "k_B and c_B); tick labels give the identified value and the bounds. A final "
@@ -269,12 +270,12 @@ def _population_sections(run: FitFolder, fdir: Path, dpi: int) -> str:
                               "right: the small-amplitude region.", why) + "</section>")
 
 
-def _poly_section(run: FitFolder, fdir: Path, dpi: int) -> str:
+def _poly_section(run: FitFolder, fdir: Path | None, dpi: int) -> str:
     head = "<section id='poly'><h2>7. Linearity and symmetry of Fk,O and Fc,O (Fig. 11, eqs. 9-10)</h2>"
     if "lumped" not in run.models:
         return head + '<p class="skip">Skipped: no lumped model in this fit.</p></section>'
     fits = polyfits(run)
-    src = fig_polyfit(fits, fdir, dpi)
+    src = fig_polyfit(fits, fdir, dpi) if fdir else NOT_DRAWN
     parts = [head, figure_html(src, "Identified tables (green) against a least-squares line (dashed), a "
                                   "5th-order least-squares polynomial (blue) fitted on the table points and the "
                                   "origin (as in the paper), and its odd (red +) and even (yellow x) parts at "
@@ -410,17 +411,20 @@ def _provenance_section(run: FitFolder) -> str:
             + "</section>")
 
 
-def make_report(out_dir, *, dpi: int = 110) -> Path:
+def make_report(out_dir, *, dpi: int = 110, figures: bool = True) -> Path:
     """Write ``out_dir/figures/*.png`` and ``out_dir/report.html`` from a fit output folder.
 
-    out_dir: folder written by tuner.identification.fit (see module docstring); dpi: figure resolution [dots/inch].
+    out_dir: folder written by tuner.identification.fit (see module docstring); dpi: figure resolution [dots/inch];
+    figures: False writes the page without its figures (each says so; about 0.5 s a figure less, ten to fifteen
+    figures): a fleet row's or a script's report, drawn later by ``python -m tuner report``.
     Returns the path of report.html. Raises ValueError when parameters.json or metrics.json is
     missing or unreadable, or when simulations.npz holds arrays of inconsistent length.
     """
     out = Path(out_dir)
     run = FitFolder(out)
-    fdir = out / "figures"
-    fdir.mkdir(exist_ok=True)
+    fdir = out / "figures" if figures else None
+    if fdir is not None:
+        fdir.mkdir(exist_ok=True)
     title = "Damper model identification report"
     ds = run.settings.get("dataset")
     diagnosis, vehicle = diagnosis_section_html(out), vehicle_section_html(out)  # '' when that stage did not run
