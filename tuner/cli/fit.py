@@ -14,8 +14,9 @@ from tuner.cli.options import add_fit_options, fit_settings, load_tests, vehicle
 from tuner.cli.summary import end_summary, print_table3
 from tuner.diagnosis.diagnose import DiagnosisFailed, choose_base
 from tuner import strict_json
+from tuner.worker_processes import pool_context
 
-__all__ = ["add_parsers", "cmd_fit", "cmd_diagnose", "check_engine"]
+__all__ = ["add_parsers", "cmd_fit", "cmd_diagnose", "check_engine", "start_workers_early"]
 
 
 def add_parsers(sub) -> None:
@@ -68,8 +69,16 @@ def planned_seconds(args, models: tuple[str, ...]) -> dict[str, float]:
     return weights
 
 
+def start_workers_early(args) -> None:
+    """With worker processes (``--workers``): start their fork server now (``tuner.worker_processes``), so that it
+    imports the simulation modules (about 2 s) while this process reads and prepares the data."""
+    if args.workers:
+        pool_context()
+
+
 def cmd_fit(args) -> int:
     check_engine(args)
+    start_workers_early(args)
 
     models = tuple(m.strip() for m in args.models.split(",") if m.strip())
     bad = [m for m in models if m not in MODEL_KINDS]
@@ -134,6 +143,7 @@ def _fitted_base(folder: Path) -> tuple:
 
 def cmd_diagnose(args) -> int:
     check_engine(args)
+    start_workers_early(args)
     if not args.dataset and not args.identification:
         args.dataset = DEFAULT_DATASET  # by default the bundled dataset
     ident, valid, name = load_tests(args)
