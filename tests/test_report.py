@@ -16,7 +16,9 @@ from damper_fmu.parameters import MODEL_PARAMETERS, defaults
 from tuner.metrics import error_metrics, variation_percent
 from tuner.formatting import eng
 from tuner.results.fit_figures import bound_position
+from tuner.results.fit_folder import FitFolder
 from tuner.results.report import make_report
+from tuner.results.report_figures import draw_figure
 from tuner.results.vehicle_report import vehicle_section_html
 
 RATE = 100.0      # [Hz]
@@ -139,7 +141,7 @@ def _spans(html_text, cls):
 def full_report(tmp_path_factory):
     out = tmp_path_factory.mktemp("fit_full")
     metrics = _write_folder(out)
-    path = make_report(out, dpi=60)
+    path = make_report(out, dpi=60, workers=2)  # the figures drawn in two worker processes, as the job does
     return out, path.read_text(encoding="utf-8"), metrics
 
 
@@ -174,6 +176,14 @@ def test_a_report_without_figures_draws_none_and_keeps_every_caption_and_table(f
                 for c in re.findall(r"<figcaption>(.*?)</figcaption>", full, re.S)]
     assert captions and all(c in text for c in captions)
     assert text.count("<table") == full.count("<table") and text.count("<tr") == full.count("<tr")
+
+
+def test_a_figure_drawn_by_a_worker_process_is_the_one_drawn_here(full_report, tmp_path):
+    """The report's figures drawn in worker processes (make_report(workers=2)) are the files this process draws."""
+    out, _, _ = full_report
+    for key, name in ((("fitness",), "fig06_fitness.png"), (("forces", "val_curve", "fig09_10"), "fig09_10_val_curve.png")):
+        draw_figure(key, FitFolder(out), tmp_path, 60)
+        assert (tmp_path / name).read_bytes() == (out / "figures" / name).read_bytes(), name
 
 
 def test_summary_numbers_equal_metrics_json(full_report):

@@ -151,6 +151,9 @@ def test_figures_are_png(tmp_path):
     for p in paths:
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert mpimg.imread(p).shape[0] > 100
+    # drawn in two worker processes (the job's way): the same files
+    again = residual_figures(tests, tmp_path / "workers", prefix="diag", workers=2)
+    assert [p.read_bytes() for p in again] == [p.read_bytes() for p in paths]
 
 
 def _with_residual(r_of, seed=3):

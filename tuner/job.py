@@ -134,7 +134,7 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
         vehicle_consequences(sorted((out / "fmu").glob("*_tuned.fmu")), out, settings.seed, log, draws=vehicle_draws,
                              scheduler=vehicle_scheduler, intervals_for=vehicle_intervals)
     stage(log, "report")
-    report = make_report(out, figures=figures)
+    report = make_report(out, figures=figures, workers=settings.workers)
     return JobResult(out=out, fit=result, diagnosis=diagnosis, fmus=sorted((out / "fmu").glob("*.fmu")),
                      report=report)
 
@@ -180,19 +180,19 @@ def _diagnose(identification, validation, out, settings, base_params, base_model
     except DiagnosisFailed as failed:
         write_diagnosis_failure(failed, out)
         raise
-    write_diagnosis(diagnosis, out, log)
+    write_diagnosis(diagnosis, out, log, workers=settings.workers)
     return diagnosis
 
 
-def write_diagnosis(diagnosis: Diagnosis, out: Path, log=print) -> list[Path]:
+def write_diagnosis(diagnosis: Diagnosis, out: Path, log=print, workers: int = 0) -> list[Path]:
     """The files of ``diagnosis`` into the output folder ``out``: the residual figures its record lists
-    (``tuner.results.diagnosis_figures``), the extended model as a tuned FMU when a cause was named
+    (``tuner.results.diagnosis_figures``, drawn in ``workers`` processes when >= 2), the extended model as a tuned FMU when a cause was named
     (``export_extended_fmu``) and ``diagnosis.json`` (the record, strict JSON). Returns the paths written.
     The export is the diagnosis's last stage: when it raises, ``diagnosis.json`` holds that failure
     (``write_diagnosis_failure``) and ``DiagnosisFailed`` is raised."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    paths = diagnosis_figures(diagnosis, out)
+    paths = diagnosis_figures(diagnosis, out, workers)
     if diagnosis.causes:
         try:
             paths.append(export_extended_fmu(diagnosis, out))

@@ -4,6 +4,7 @@
 - ``report``: the HTML report of a fit output folder;
 - ``fit_folder``: what the report reads (``FitFolder``);
 - ``fit_figures``: the fit report's figures (the paper's Figs. 6-11 and the loops);
+- ``report_figures``: the fit report's figures drawn in one go, in worker processes when the job has them;
 - ``intervals_report``: the identified parameters' intervals and flags (tables, characteristics with bands);
 - ``diagnosis_report``: the diagnosis section, and the report of a diagnosis on its own;
 - ``diagnosis_figures``: the diagnosis's figures (the base model's residual), drawn from a ``Diagnosis``;

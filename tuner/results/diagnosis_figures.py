@@ -8,6 +8,7 @@ Residual r = measured - simulated force [N] (+ tension), stroke [m] (+ extension
 """
 from __future__ import annotations
 
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -18,11 +19,14 @@ from tuner.diagnosis.residuals import (BANDS_HZ, FIGURE_TOPICS, GAP_WINDOW_S, Pr
                                        figure_files, residual_summary, spectra, true_runs)
 from tuner.diagnosis.result import Diagnosis
 from tuner.results.figure_layout import RIGHT_IN, TWIN_AXIS_IN, fixed_margins
+from tuner.worker_processes import exit_with_parent, pool_context, worker_environment
 
 __all__ = ["diagnosis_figures", "residual_figures"]
 
 REVERSAL_SPAN_S = (-0.100, 0.200)  # reversal-average figure span [s]
 DRIFT_WINDOW_S = 1.0             # windows of the drift figure [s]
+#: what a worker process draws from (``_start_worker``)
+_WORKER: dict = {}
 
 
 def _finish(ax, xlabel, ylabel, title="", legend=False):
@@ -45,31 +49,51 @@ def _drift_windows(p):
     return np.array(rows).reshape(-1, 4).T
 
 
-def diagnosis_figures(diagnosis: Diagnosis, out: Path) -> list[Path]:
+def diagnosis_figures(diagnosis: Diagnosis, out: Path, workers: int = 0) -> list[Path]:
     """The residual figures of every base form the diagnosis ran on (``Diagnosis.residuals``: the first base's
     in ``figures/``, a repeat's in ``figures/base_<kind>/``) into the output folder ``out``: the files its
-    record lists (``figures``). Returns their paths."""
-    return [p for folder, tests in diagnosis.residuals.items() for p in residual_figures(tests, Path(out) / folder)]
+    record lists (``figures``), drawn in ``workers`` processes when >= 2 (the same files). Returns their paths."""
+    return [p for folder, tests in diagnosis.residuals.items()
+            for p in residual_figures(tests, Path(out) / folder, workers=workers)]
 
 
-def residual_figures(tests: list[TestResidual], out_dir: Path, prefix: str = "diag") -> list[Path]:
+def residual_figures(tests: list[TestResidual], out_dir: Path, prefix: str = "diag", workers: int = 0) -> list[Path]:
     """Write five PNGs to ``out_dir`` (identification solid, validation dashed), named by
     ``tuner.diagnosis.residuals.figure_files``, and return their paths: residual [N] in time over the
     measured force (grey: outside the mask); residual vs velocity and stroke; residual x sign(v after)
     averaged around velocity reversals with -F_sim; Welch spectra of residual and force; windowed rms
-    residual and gain vs time and temperature."""
+    residual and gain vs time and temperature. ``workers`` >= 2: drawn in that many processes
+    (``tuner.worker_processes``), each figure on one core."""
     if not tests:
         raise ValueError("no tests given")
     preps, out_dir = [PreparedTest(t) for t in tests], Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     sty = [{"color": f"C{i % 10}", "ls": "-" if p.t.role == "identification" else "--",
             "label": f"{p.t.name} ({p.t.role[:5]}.)"} for i, p in enumerate(preps)]
-    paths = [Path(f) for f in figure_files(out_dir, prefix)]
-    for topic, path in zip(FIGURE_TOPICS, paths):
-        fig = DRAWINGS[topic](preps, sty)
-        FigureCanvasAgg(fig)
-        fig.savefig(path, dpi=110)
-    return paths
+    jobs = list(zip(FIGURE_TOPICS, (Path(f) for f in figure_files(out_dir, prefix))))
+    if workers < 2:
+        for topic, path in jobs:
+            _draw(topic, path, preps, sty)
+    else:
+        with worker_environment(), ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=pool_context(),
+                                                       initializer=_start_worker, initargs=(preps, sty)) as pool:
+            list(pool.map(_draw_in_worker, jobs))
+    return [path for _, path in jobs]
+
+
+def _draw(topic: str, path: Path, preps: list, sty: list) -> None:
+    fig = DRAWINGS[topic](preps, sty)
+    FigureCanvasAgg(fig)
+    fig.savefig(path, dpi=110)
+
+
+def _start_worker(preps: list, sty: list) -> None:
+    exit_with_parent()  # a killed run leaves no workers behind
+    _WORKER.update(preps=preps, sty=sty)
+
+
+def _draw_in_worker(job: tuple) -> None:
+    _draw(*job, _WORKER["preps"], _WORKER["sty"])
 
 
 def _figure_time(preps: list, sty: list) -> Figure:

@@ -23,7 +23,7 @@ from tuner.identification.intervals import DETERMINED_WIDTH, TIE_CORRELATION, Mo
 from tuner.metrics import Z95
 from tuner.results.figure_layout import SUPTITLE_IN, TOP_IN, fixed_margins
 from tuner.results.fit_folder import FitFolder
-from tuner.results.html import MODEL_COLOR, MODEL_LABEL, NOT_DRAWN, esc, figure_html, model_label, table
+from tuner.results.html import MODEL_COLOR, MODEL_LABEL, esc, figure_html, model_label, table
 
 __all__ = ["intervals_section_html", "fig_characteristic_bands", "model_intervals_of", "band"]
 
@@ -141,9 +141,10 @@ def _rows(iv: ModelIntervals) -> tuple[list, list]:
     return rows, classes
 
 
-def intervals_section_html(run: FitFolder, fdir: Path | None, dpi: int) -> str:
-    """The section (HTML): what the intervals are, the figure (drawn into ``fdir``; None: not drawn), one table per
-    model; a note for a fit without intervals (an output folder of an older version)."""
+def intervals_section_html(run: FitFolder, figure) -> str:
+    """The section (HTML): what the intervals are, the ``figure`` (its src from ``fig_characteristic_bands``, or
+    ``html.NOT_DRAWN``), one table per model; a note for a fit without intervals (an output folder of an older
+    version)."""
     head = "<section id='intervals'><h2>Identified parameters: intervals and identifiability</h2>"
     ivs = model_intervals_of(run)
     notes = [f"{model_label(m)}: {esc((run.params.get(m) or {}).get('intervals_note', 'no intervals'))}"
@@ -161,7 +162,7 @@ def intervals_section_html(run: FitFolder, fdir: Path | None, dpi: int) -> str:
              "<b>extrapolated</b>: a table point beyond the element rate or elongation the tests reach. The interval "
              "is local (linearised at the fit) and statistical: it does not include a bias of the model form or of "
              "the identification's own discretisation.</p>",
-             figure_html(fig_characteristic_bands(ivs, fdir, dpi) if fdir else NOT_DRAWN,
+             figure_html(figure,
                          "Identified characteristics with their 95 % bands; green span: the element rates "
                          "(elongations) the identification tests reach; open points: not determined or held by a "
                          "bound; orange edges: extrapolated.", "no fitted model has a table")]
