@@ -181,7 +181,8 @@ def test_a_report_without_figures_draws_none_and_keeps_every_caption_and_table(f
 def test_a_figure_drawn_by_a_worker_process_is_the_one_drawn_here(full_report, tmp_path):
     """The report's figures drawn in worker processes (make_report(workers=2)) are the files this process draws."""
     out, _, _ = full_report
-    for key, name in ((("fitness",), "fig06_fitness.png"), (("forces", "val_curve", "fig09_10"), "fig09_10_val_curve.png")):
+    for key, name in ((("fitness",), "fig06_fitness.png"),
+                      (("forces", "val_curve", "fig09_10"), "fig09_10_val_curve.png")):
         draw_figure(key, FitFolder(out), tmp_path, 60)
         assert (tmp_path / name).read_bytes() == (out / "figures" / name).read_bytes(), name
 

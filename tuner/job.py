@@ -186,8 +186,9 @@ def _diagnose(identification, validation, out, settings, base_params, base_model
 
 def write_diagnosis(diagnosis: Diagnosis, out: Path, log=print, workers: int = 0) -> list[Path]:
     """The files of ``diagnosis`` into the output folder ``out``: the residual figures its record lists
-    (``tuner.results.diagnosis_figures``, drawn in ``workers`` processes when >= 2), the extended model as a tuned FMU when a cause was named
-    (``export_extended_fmu``) and ``diagnosis.json`` (the record, strict JSON). Returns the paths written.
+    (``tuner.results.diagnosis_figures``, drawn in ``workers`` processes when >= 2), the extended model as a
+    tuned FMU when a cause was named (``export_extended_fmu``) and ``diagnosis.json`` (the record, strict JSON).
+    Returns the paths written.
     The export is the diagnosis's last stage: when it raises, ``diagnosis.json`` holds that failure
     (``write_diagnosis_failure``) and ``DiagnosisFailed`` is raised."""
     out = Path(out)
