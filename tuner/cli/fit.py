@@ -42,12 +42,13 @@ def check_engine(args) -> None:
 
 
 #: seconds each stage of the bundled job takes on a 2-core machine (python -m tuner, 2026-11-28, after the
-#: two-chamber kernel's pattern solve: docs/measurements.md): what the progress display plans before a stage
-#: says its own time (``expect``) and scales by how the finished stages went against it. A base form's fit is
+#: two-chamber kernel's pattern solve; the report's figures in the workers 2026-11-29: docs/measurements.md):
+#: what the progress display plans before a stage says its own time (``expect``) and scales by how the finished
+#: stages went against it. A base form's fit is
 #: 31 s first and 6 s second (the race: ``fit_order``), so each is planned at their mean; the vehicle intervals
 #: stop after the first round of 8 draws when the Monte-Carlo errors are small (10 s per drawn FMU).
 FIT_S = {"lumped": 18.0, "twochamber": 18.0, "maxwell": 3.0, "maxwell_table": 8.0}
-STAGE_S = {"validate and export": 3.0, "diagnosis": 26.0, "report": 7.0, "report without figures": 0.5}
+STAGE_S = {"validate and export": 3.0, "diagnosis": 26.0, "report": 5.5, "report without figures": 0.5}
 VEHICLE_S_PER_FMU = 2.0
 DRAW_S, FIRST_ROUND_DRAWS = 1.25, 8
 
