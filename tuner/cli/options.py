@@ -174,7 +174,7 @@ def add_fit_options(ap: argparse.ArgumentParser) -> None:
                    help="keep out/checkpoints after a successful run (by default they are removed: they only "
                         "serve --resume after an interruption)")
     g.add_argument("--no-figures", action="store_true",
-                   help="the report without the fit's figures (tables and verdicts; about 7 s less on the bundled "
+                   help="the report without the fit's figures (tables and verdicts; about 5 s less on the bundled "
                         "data); python -m tuner report OUT draws them")
     g.add_argument("--quiet", action="store_true", help="no progress and no log lines; only the final summary")
 
