@@ -31,6 +31,24 @@ def test_estimate_covers_the_whole_job_and_is_refined_as_stages_finish():
     assert p.fraction == pytest.approx(0.2)
 
 
+def test_the_first_of_a_group_to_start_takes_its_extra_cost_whichever_it_is():
+    """The base forms' fits: the first to run costs more (every restart), the others race it; which is first
+    follows from the data. Planned on the first listed, the extra moves to the one that starts first, so a fit
+    that took its planned time does not make the stages to come look slower."""
+    clock, out = Clock(), io.StringIO()
+    p = JobProgress({"fit a": 6.0, "fit b": 6.0, "report": 4.0}, stream=out, tty=False, clock=clock,
+                    first_of=(("fit a", "fit b"), 20.0))
+    assert p.weights["fit a"] == 26.0 and sum(p.weights.values()) == 36.0
+    stage(p, "fit b")  # b runs first
+    assert (p.weights["fit a"], p.weights["fit b"]) == (6.0, 26.0)
+    clock.t = 26.0
+    stage(p, "fit a")  # b took its 26 s: the 10 s planned after it are 10 s
+    assert p.remaining_s() == pytest.approx(10.0)
+    clock.t = 32.0
+    stage(p, "report")
+    assert (p.weights["fit a"], p.weights["fit b"]) == (6.0, 26.0)  # moved once only
+
+
 def test_plain_lines_when_not_a_terminal():
     clock, out = Clock(), io.StringIO()
     p = JobProgress({"a": 1.0, "b": 3.0}, stream=out, tty=False, clock=clock, interval_s=10.0)

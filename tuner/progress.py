@@ -169,13 +169,19 @@ class _PlanPart:
 
 
 class JobProgress:
-    """Progress over the stages of one job; ``weights``: stage name -> expected cost (relative)."""
+    """Progress over the stages of one job; ``weights``: stage name -> expected cost (relative); ``first_of``:
+    (stages, extra cost): whichever of these stages starts first costs ``extra`` more than its weight (the base
+    forms' fits: the first gets every refinement restart, the others race it, and which is first follows from
+    the data), planned on the first listed until then."""
 
     def __init__(self, weights: dict[str, float], *, quiet: bool = False, stream=None, tty: bool | None = None,
-                 interval_s: float = 10.0, clock=time.monotonic):
+                 interval_s: float = 10.0, clock=time.monotonic, first_of: tuple[tuple, float] = ((), 0.0)):
         if not weights or any(w <= 0 for w in weights.values()):
             raise ValueError("weights must be a non-empty dict of positive expected costs")
         self.weights = dict(weights)
+        self._first_of = (tuple(first_of[0]), float(first_of[1]))
+        if self._first_of[0]:
+            self.weights[self._first_of[0][0]] += self._first_of[1]
         self.quiet, self.stream = quiet, stream or sys.stdout
         self.tty = self.stream.isatty() if tty is None else tty
         self.interval_s, self.clock = interval_s, clock
@@ -282,6 +288,11 @@ class JobProgress:
     def stage(self, name: str) -> None:
         if self.current is not None and self.current not in self.done:
             self.done.append(self.current)
+        group, extra = self._first_of
+        if name in group:  # the first of the group to start: its extra cost moves to it
+            self.weights[group[0]] -= extra
+            self.weights[name] += extra
+            self._first_of = ((), 0.0)
         if name not in self.weights:  # an unplanned stage: give it the mean weight
             self.weights[name] = sum(self.weights.values()) / len(self.weights)
         self.current, self.fraction, self._said, self._maybe = name, 0.0, None, None

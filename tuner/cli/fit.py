@@ -45,17 +45,27 @@ def check_engine(args) -> None:
 #: two-chamber kernel's pattern solve; the report's figures in the workers 2026-11-29: docs/measurements.md):
 #: what the progress display plans before a stage says its own time (``expect``) and scales by how the finished
 #: stages went against it. A base form's fit is
-#: 31 s first and 6 s second (the race: ``fit_order``), so each is planned at their mean; the vehicle intervals
+#: 6 s when it races one fitted before it (``fit_order``) and ``FIRST_BASE_EXTRA_S`` more when it is the first
+#: (every refinement restart: 26-29 s), whichever that is (``JobProgress``'s ``first_of``); the vehicle intervals
 #: stop after the first round of 8 draws when the Monte-Carlo errors are small (10 s per drawn FMU).
-FIT_S = {"lumped": 18.0, "twochamber": 18.0, "maxwell": 3.0, "maxwell_table": 8.0}
+FIT_S = {"lumped": 6.0, "twochamber": 6.0, "maxwell": 3.0, "maxwell_table": 8.0}
+FIRST_BASE_EXTRA_S = 22.0
 STAGE_S = {"validate and export": 3.0, "diagnosis": 26.0, "report": 5.5, "report without figures": 0.5}
 VEHICLE_S_PER_FMU = 2.0
 DRAW_S, FIRST_ROUND_DRAWS = 1.25, 8
 
 
+def first_base_fit(args, models: tuple[str, ...]) -> tuple[tuple[str, ...], float]:
+    """(the base forms' fit stages, the extra seconds [s] of the first of them to run): ``JobProgress``'s
+    ``first_of``, scaled by the Firefly budget as ``planned_seconds``."""
+    budget = args.population * args.iterations / (20 * 150)
+    return tuple(f"fit {m}" for m in models if m in EFFECT_MODELS), FIRST_BASE_EXTRA_S * budget
+
+
 def planned_seconds(args, models: tuple[str, ...]) -> dict[str, float]:
     """The job's stages and their planned seconds [s] (``FIT_S``, ``STAGE_S``): the fits scaled by the Firefly
-    budget against the default one (20 fireflies, 150 iterations), the stages this command runs only."""
+    budget against the default one (20 fireflies, 150 iterations), the stages this command runs only; the first
+    base form's extra in ``first_base_fit``."""
     budget = args.population * args.iterations / (20 * 150)
     weights = {f"fit {m}": FIT_S[m] * budget for m in models}
     report = STAGE_S["report without figures" if getattr(args, "no_figures", False) else "report"]
@@ -92,7 +102,7 @@ def cmd_fit(args) -> int:
         raise ValueError("--population must be >= 2")
     vehicle_scheduler(args)  # --vehicle-draws and --vehicle-scheduler checked before anything runs
     t0 = time.perf_counter()
-    start_job(args, planned_seconds(args, models))
+    start_job(args, planned_seconds(args, models), first_base_fit(args, models))
     failed = None
     try:
         out = _fit_job(args, models)

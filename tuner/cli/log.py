@@ -16,10 +16,11 @@ def log(msg: str) -> None:
         print(msg, flush=True)
 
 
-def start_job(args, weights: dict) -> JobProgress:
-    """Progress display over the job's stages (``weights``: expected seconds); it is the log."""
+def start_job(args, weights: dict, first_of: tuple[tuple, float] = ((), 0.0)) -> JobProgress:
+    """Progress display over the job's stages (``weights``: expected seconds; ``first_of``: ``JobProgress``'s); it
+    is the log."""
     global _OUT
-    _OUT = JobProgress(weights, quiet=getattr(args, "quiet", False))
+    _OUT = JobProgress(weights, quiet=getattr(args, "quiet", False), first_of=first_of)
     return _OUT
 
 
