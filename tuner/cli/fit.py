@@ -44,10 +44,10 @@ def check_engine(args) -> None:
 #: seconds each stage of the bundled job takes on a 2-core machine (python -m tuner, 2026-11-28, after the
 #: two-chamber kernel's pattern solve; the report's figures in the workers 2026-11-29: docs/measurements.md):
 #: what the progress display plans before a stage says its own time (``expect``) and scales by how the finished
-#: stages went against it. A base form's fit is
-#: 6 s when it races one fitted before it (``fit_order``) and ``FIRST_BASE_EXTRA_S`` more when it is the first
-#: (every refinement restart: 26-29 s), whichever that is (``JobProgress``'s ``first_of``); the vehicle intervals
-#: stop after the first round of 8 draws when the Monte-Carlo errors are small (10 s per drawn FMU).
+#: stages went against it. A base form's fit is 6 s when it races one fitted before it (``fit_order``) and
+#: ``FIRST_BASE_EXTRA_S`` more when it is the first (every refinement restart: 26-29 s), whichever that is
+#: (``JobProgress``'s ``first_of``); the vehicle intervals stop after the first round of 8 draws when the
+#: Monte-Carlo errors are small (10 s per drawn FMU).
 FIT_S = {"lumped": 6.0, "twochamber": 6.0, "maxwell": 3.0, "maxwell_table": 8.0}
 FIRST_BASE_EXTRA_S = 22.0
 STAGE_S = {"validate and export": 3.0, "diagnosis": 26.0, "report": 5.5, "report without figures": 0.5}
