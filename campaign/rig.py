@@ -186,24 +186,26 @@ def _run_lumped(t, stroke, t_int, effects, params: DamperParams):
     force = np.empty(t_int.size)
     temp = np.empty(t_int.size)
     tl, xl, vl = t_int.tolist(), x.tolist(), v.tolist()
-    c, ha, t_amb = params.heat_capacity, params.heat_transfer, params.ambient_temperature
-    temp_now = temp[0] = t_amb
-    sim.temperature_input = temp_now
+    temp[0] = sim.temperature_input = params.ambient_temperature
     force[0] = sim.initialize(xl[0], vl[0])
     for k in range(1, t_int.size):
         h = tl[k] - tl[k - 1]
         force[k] = sim.step(h, xl[k], vl[k])
-        temp_now += h * (force[k] * vl[k] - ha * (temp_now - t_amb)) / c
-        temp[k] = sim.temperature_input = temp_now
+        temp[k] = sim.temperature_input = _heated(temp[k - 1], h, force[k] * vl[k], params)
     return x, force, temp
 
 
+def _heated(temp: float, h: float, power: float, params: DamperParams) -> float:
+    """Oil temperature [degC] h [s] after ``temp`` with the damper absorbing ``power`` [W]: one explicit Euler step of
+    the heat balance C dT/dt = F v - hA (T - T_amb)."""
+    return temp + h * (power - params.heat_transfer * (temp - params.ambient_temperature)) / params.heat_capacity
+
+
 def _oil_temperature(t_int, force, v, params: DamperParams) -> np.ndarray:
-    """Oil temperature [degC] on the grid t_int [s] of the heat balance of ``_run_lumped`` (explicit Euler, as
-    there) under the force [N] and stroke velocity [m/s] the damper saw."""
+    """Oil temperature [degC] on the grid t_int [s] from the ambient one (``_heated`` each step) under the force [N]
+    and stroke velocity [m/s] the damper saw."""
     tl, fl, vl = t_int.tolist(), force.tolist(), v.tolist()
-    c, ha, t_amb = params.heat_capacity, params.heat_transfer, params.ambient_temperature
-    temp = [t_amb] * len(tl)
+    temp = [params.ambient_temperature] * len(tl)
     for k in range(1, len(tl)):
-        temp[k] = temp[k - 1] + (tl[k] - tl[k - 1]) * (fl[k] * vl[k] - ha * (temp[k - 1] - t_amb)) / c
+        temp[k] = _heated(temp[k - 1], tl[k] - tl[k - 1], fl[k] * vl[k], params)
     return np.asarray(temp)

@@ -1,6 +1,6 @@
 """How this package starts its worker processes: the identification engines' pools
-(``tuner.identification.engine``) and the local pools of the fleets and the vehicle draws
-(``tuner.fleet.executors``).
+(``tuner.identification.engine``), the local pools of the fleets and the vehicle draws
+(``tuner.fleet.executors``) and the report's figures (``map_in_workers``).
 
 'forkserver' where the platform has it (Linux, macOS): a server process imports the simulation modules
 once (``PRELOAD``) and every pool's workers fork from it with them loaded. With 'spawn' each worker
@@ -26,11 +26,13 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing as mp
+from concurrent.futures import ProcessPoolExecutor
 import multiprocessing.connection
 import os
 import threading
 
-__all__ = ["pool_context", "worker_environment", "exit_with_parent", "on_orphan_exit", "PRELOAD", "WORKER_ENV"]
+__all__ = ["pool_context", "worker_environment", "exit_with_parent", "on_orphan_exit", "map_in_workers", "PRELOAD",
+           "WORKER_ENV"]
 
 #: the modules the fork server imports once: what a worker needs to simulate a damper or the vehicle
 PRELOAD = ("tuner.identification.engine", "tuner.vehicle.propagation")
@@ -38,6 +40,8 @@ PRELOAD = ("tuner.identification.engine", "tuner.vehicle.propagation")
 WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 #: what a worker whose owner has gone does before it exits (``on_orphan_exit``)
 _ON_ORPHAN_EXIT: list = []
+#: (function, context) of a ``map_in_workers`` worker
+_MAPPED: list = []
 
 
 @contextlib.contextmanager
@@ -94,3 +98,24 @@ def _end_with(sentinel) -> None:
         except OSError:  # the process ends anyway; a folder left behind is all that is lost
             pass
     os._exit(0)
+
+
+def map_in_workers(fn, items: list, workers: int, context: tuple = ()) -> list:
+    """``[fn(item, *context) for item in items]``, in ``min(workers, len(items))`` worker processes of this module
+    when ``workers`` >= 2 (``context`` sent once to each, ``fn`` a module-level function), in this process
+    otherwise. Independent CPU-bound items only (the report's figures)."""
+    if workers < 2 or len(items) < 2:
+        return [fn(item, *context) for item in items]
+    with worker_environment(), ProcessPoolExecutor(max_workers=min(workers, len(items)), mp_context=pool_context(),
+                                                   initializer=_start_mapped, initargs=(fn, context)) as pool:
+        return list(pool.map(_call_mapped, items))
+
+
+def _start_mapped(fn, context: tuple) -> None:
+    exit_with_parent()  # a killed run leaves no workers behind
+    _MAPPED[:] = [fn, context]
+
+
+def _call_mapped(item):
+    fn, context = _MAPPED
+    return fn(item, *context)

@@ -8,7 +8,6 @@ Residual r = measured - simulated force [N] (+ tension), stroke [m] (+ extension
 """
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -19,14 +18,12 @@ from tuner.diagnosis.residuals import (BANDS_HZ, FIGURE_TOPICS, GAP_WINDOW_S, Pr
                                        figure_files, residual_summary, spectra, true_runs)
 from tuner.diagnosis.result import Diagnosis
 from tuner.results.figure_layout import RIGHT_IN, TWIN_AXIS_IN, fixed_margins
-from tuner.worker_processes import exit_with_parent, pool_context, worker_environment
+from tuner.worker_processes import map_in_workers
 
 __all__ = ["diagnosis_figures", "residual_figures"]
 
 REVERSAL_SPAN_S = (-0.100, 0.200)  # reversal-average figure span [s]
 DRIFT_WINDOW_S = 1.0             # windows of the drift figure [s]
-#: what a worker process draws from (``_start_worker``)
-_WORKER: dict = {}
 
 
 def _finish(ax, xlabel, ylabel, title="", legend=False):
@@ -71,29 +68,16 @@ def residual_figures(tests: list[TestResidual], out_dir: Path, prefix: str = "di
     sty = [{"color": f"C{i % 10}", "ls": "-" if p.t.role == "identification" else "--",
             "label": f"{p.t.name} ({p.t.role[:5]}.)"} for i, p in enumerate(preps)]
     jobs = list(zip(FIGURE_TOPICS, (Path(f) for f in figure_files(out_dir, prefix))))
-    if workers < 2:
-        for topic, path in jobs:
-            _draw(topic, path, preps, sty)
-    else:
-        with worker_environment(), ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=pool_context(),
-                                                       initializer=_start_worker, initargs=(preps, sty)) as pool:
-            list(pool.map(_draw_in_worker, jobs))
+    map_in_workers(_draw, jobs, workers, (preps, sty))
     return [path for _, path in jobs]
 
 
-def _draw(topic: str, path: Path, preps: list, sty: list) -> None:
+def _draw(job: tuple, preps: list, sty: list) -> None:
+    """Draw the figure of ``job`` (topic, path) from the prepared tests and their line styles."""
+    topic, path = job
     fig = DRAWINGS[topic](preps, sty)
     FigureCanvasAgg(fig)
     fig.savefig(path, dpi=110)
-
-
-def _start_worker(preps: list, sty: list) -> None:
-    exit_with_parent()  # a killed run leaves no workers behind
-    _WORKER.update(preps=preps, sty=sty)
-
-
-def _draw_in_worker(job: tuple) -> None:
-    _draw(*job, _WORKER["preps"], _WORKER["sty"])
 
 
 def _figure_time(preps: list, sty: list) -> Figure:

@@ -8,19 +8,15 @@ when the folder lacks what it needs (``figure_html`` says why).
 """
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from tuner.results.fit_figures import (fig_constants, fig_fitness, fig_forces, fig_loops, fig_polyfit,
                                        fig_populations, polyfits)
 from tuner.results.fit_folder import FitFolder
 from tuner.results.intervals_report import fig_characteristic_bands, model_intervals_of
-from tuner.worker_processes import exit_with_parent, pool_context, worker_environment
+from tuner.worker_processes import map_in_workers
 
 __all__ = ["figure_keys", "draw_figure", "draw_report_figures"]
-
-#: what a worker process draws from (``_start_worker``)
-_WORKER: dict = {}
 
 
 def figure_keys(run: FitFolder) -> list[tuple]:
@@ -57,21 +53,8 @@ def draw_figure(key: tuple, run: FitFolder, fdir: Path, dpi: int):
     raise ValueError(f"no report figure {key!r}")
 
 
-def _start_worker(run: FitFolder, fdir: Path, dpi: int) -> None:
-    exit_with_parent()  # a killed run leaves no workers behind
-    _WORKER.update(run=run, fdir=fdir, dpi=dpi)
-
-
-def _draw_in_worker(key: tuple):
-    return draw_figure(key, _WORKER["run"], _WORKER["fdir"], _WORKER["dpi"])
-
-
 def draw_report_figures(run: FitFolder, fdir: Path, dpi: int, workers: int = 0) -> dict:
     """{key: what ``draw_figure`` gives} for every figure of ``run``'s report, drawn into ``fdir``; with ``workers``
     >= 2 in that many processes (the figures are the same files either way)."""
     keys = figure_keys(run)
-    if workers < 2:
-        return {key: draw_figure(key, run, fdir, dpi) for key in keys}
-    with worker_environment(), ProcessPoolExecutor(max_workers=min(workers, len(keys)), mp_context=pool_context(),
-                                                   initializer=_start_worker, initargs=(run, fdir, dpi)) as pool:
-        return dict(zip(keys, pool.map(_draw_in_worker, keys)))
+    return dict(zip(keys, map_in_workers(draw_figure, keys, workers, (run, fdir, dpi))))
