@@ -41,10 +41,10 @@ from tuner.formatting import eng, unit_html
 from tuner.results.diagnosis_report import diagnosis_section_html
 from tuner.results.fit_figures import bound_position, bounds_of, is_log, polyfits
 from tuner.results.fit_folder import FitFolder
-from tuner.results.html import MODEL_LABEL, NOT_DRAWN, esc, figure_html, model_label, num, table, write_page
+from tuner.results.html import MODEL_LABEL, esc, figure_html, model_label, num, table, write_page
 from tuner.results.intervals_report import intervals_section_html
 from tuner.results.recommendation import railway_damper, recommend, recommendation_html
-from tuner.results.report_figures import draw_report_figures
+from tuner.results.report_figures import draw_report_figures, undrawn_figures
 from tuner.results.vehicle_report import vehicle_section_html
 from tuner.results.design_report import design_section_html
 
@@ -200,7 +200,7 @@ def _metrics_section(run: FitFolder) -> str:
                       "Max error", "Peak force", "Samples"], full, "metrics", cls) + "</section>")
 
 
-def _timeseries_section(run: FitFolder, drawn: dict | None) -> str:
+def _timeseries_section(run: FitFolder, drawn: dict) -> str:
     parts = ["<section id='time'><h2>3. Measured and simulated force (Figs. 9-10) and loops</h2>"]
     if run.sims is None:
         parts.append('<p class="skip">Figures skipped: simulations.npz not found.</p></section>')
@@ -214,14 +214,14 @@ def _timeseries_section(run: FitFolder, drawn: dict | None) -> str:
         parts.append(f"<h3>{esc(group)}</h3>")
         for test in names:
             scen = run.tests[test].get("scenario", "")
-            src, zoom = drawn["forces", test, prefix] if drawn is not None else (NOT_DRAWN, None)
+            src, zoom = drawn["forces", test, prefix]
             cap = f"{_named(test, scen)}: forces, differences and zoom."
             if zoom:
                 cap += (f" Largest {esc(MODEL_LABEL.get(zoom['model'], zoom['model']))} error "
                         f"{eng(zoom['error'], 'N')} at {zoom['t']:.2f} s.")
             parts.append(figure_html(src, cap, f"no arrays for test {test} in simulations.npz"))
             if prefix == "fig09_10":
-                src = drawn["loops", test] if drawn is not None else NOT_DRAWN
+                src = drawn["loops", test]
                 parts.append(figure_html(src, f"<b>{esc(test)}</b>: force-stroke and force-velocity loops, "
                                             "measured vs lumped (velocity by a cubic Savitzky-Golay "
                                             "derivative of the stroke over ~20 ms).",
@@ -230,9 +230,9 @@ def _timeseries_section(run: FitFolder, drawn: dict | None) -> str:
     return "".join(parts)
 
 
-def _fitness_section(run: FitFolder, drawn: dict | None) -> str:
+def _fitness_section(run: FitFolder, drawn: dict) -> str:
     missing = [m for m in run.models if not run.histories.get(m)]
-    src = drawn["fitness",] if drawn is not None else NOT_DRAWN
+    src = drawn["fitness",]
     rows = []
     for m in run.models:
         h = run.histories.get(m)
@@ -255,12 +255,12 @@ def _fitness_section(run: FitFolder, drawn: dict | None) -> str:
                               "Best RMSE = 1/√G", "Stop reason"], rows) if rows else "") + "</section>")
 
 
-def _population_sections(run: FitFolder, drawn: dict | None) -> str:
+def _population_sections(run: FitFolder, drawn: dict) -> str:
     why = ("history_lumped.json not found or without populations" if "lumped" in run.models
            else "no lumped model in this fit")
     src7 = src8 = None
     if "lumped" in run.models:
-        src7, src8 = (drawn["constants",], drawn["tables",]) if drawn is not None else (NOT_DRAWN,) * 2
+        src7, src8 = drawn["constants",], drawn["tables",]
     return ("<section id='constants'><h2>5. Constant parameters, initial vs final population (Fig. 7)</h2>"
             + figure_html(src7, "Each parameter normalised to its bounds (0 = lower, 1 = upper; log10 scale for "
                               "k_B and c_B); tick labels give the identified value and the bounds. A final "
@@ -271,12 +271,12 @@ def _population_sections(run: FitFolder, drawn: dict | None) -> str:
                               "right: the small-amplitude region.", why) + "</section>")
 
 
-def _poly_section(run: FitFolder, drawn: dict | None) -> str:
+def _poly_section(run: FitFolder, drawn: dict) -> str:
     head = "<section id='poly'><h2>7. Linearity and symmetry of Fk,O and Fc,O (Fig. 11, eqs. 9-10)</h2>"
     if "lumped" not in run.models:
         return head + '<p class="skip">Skipped: no lumped model in this fit.</p></section>'
     fits = polyfits(run)
-    src = drawn["poly",] if drawn is not None else NOT_DRAWN
+    src = drawn["poly",]
     parts = [head, figure_html(src, "Identified tables (green) against a least-squares line (dashed), a "
                                   "5th-order least-squares polynomial (blue) fitted on the table points and the "
                                   "origin (as in the paper), and its odd (red +) and even (yellow x) parts at "
@@ -424,10 +424,9 @@ def make_report(out_dir, *, dpi: int = 110, figures: bool = True, workers: int =
     """
     out = Path(out_dir)
     run = FitFolder(out)
-    drawn = None
     if figures:
         (out / "figures").mkdir(exist_ok=True)
-        drawn = draw_report_figures(run, out / "figures", dpi, workers)
+    drawn = draw_report_figures(run, out / "figures", dpi, workers) if figures else undrawn_figures(run)
     title = "Damper model identification report"
     ds = run.settings.get("dataset")
     diagnosis, vehicle = diagnosis_section_html(out), vehicle_section_html(out)  # '' when that stage did not run
@@ -450,7 +449,7 @@ def make_report(out_dir, *, dpi: int = 110, figures: bool = True, workers: int =
             diagnosis, vehicle, _metrics_section(run),
             _timeseries_section(run, drawn), _fitness_section(run, drawn),
             _population_sections(run, drawn), _poly_section(run, drawn), _params_section(run),
-            intervals_section_html(run, drawn["intervals",] if drawn is not None else NOT_DRAWN), design,
+            intervals_section_html(run, drawn["intervals",]), design,
             _provenance_section(run)]
     return write_page(out, title, body)
 

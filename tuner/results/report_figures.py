@@ -13,10 +13,11 @@ from pathlib import Path
 from tuner.results.fit_figures import (fig_constants, fig_fitness, fig_forces, fig_loops, fig_polyfit,
                                        fig_populations, polyfits)
 from tuner.results.fit_folder import FitFolder
+from tuner.results.html import NOT_DRAWN
 from tuner.results.intervals_report import fig_characteristic_bands, model_intervals_of
 from tuner.worker_processes import map_in_workers
 
-__all__ = ["figure_keys", "draw_figure", "draw_report_figures"]
+__all__ = ["figure_keys", "draw_figure", "draw_report_figures", "undrawn_figures"]
 
 
 def figure_keys(run: FitFolder) -> list[tuple]:
@@ -58,3 +59,9 @@ def draw_report_figures(run: FitFolder, fdir: Path, dpi: int, workers: int = 0) 
     >= 2 in that many processes (the figures are the same files either way)."""
     keys = figure_keys(run)
     return dict(zip(keys, map_in_workers(draw_figure, keys, workers, (run, fdir, dpi))))
+
+
+def undrawn_figures(run: FitFolder) -> dict:
+    """The figures of a report written without them: ``draw_report_figures``'s keys, each ``html.NOT_DRAWN`` (the
+    forces' with no zoom)."""
+    return {key: (NOT_DRAWN, None) if key[0] == "forces" else NOT_DRAWN for key in figure_keys(run)}
