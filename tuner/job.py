@@ -154,7 +154,7 @@ def run_diagnosis(identification: list[RigTest], validation: list[RigTest], out:
         if (out / "diagnosis.json").exists():
             stage(log, "report")
             if (out / "parameters.json").exists():
-                make_report(out, figures=figures)
+                make_report(out, figures=figures, workers=settings.workers)
             else:
                 make_diagnosis_report(out)
     return result
