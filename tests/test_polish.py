@@ -153,3 +153,41 @@ def test_a_slow_valley_where_no_model_reaches_the_noise_ends_on_the_resolution_r
     assert res.rule == "data resolution" and res.jacobians < off.jacobians, (res.stop, off.stop)
     g, g_off = res.fitness, off.fitness
     assert g ** -0.5 - g_off ** -0.5 <= 0.25 * rmse_standard_error(form_error), (g ** -0.5, g_off ** -0.5)
+
+
+def test_a_gain_is_resolvable_when_it_lowers_the_rmse_by_one_standard_error():
+    """``resolvable_gain`` on a white residual of known RMSE sigma (standard error sigma / sqrt(2 N)): a share p of
+    the SSE lowers the RMSE by sigma (1 - sqrt(1 - p)); just above one standard error it is resolvable, just
+    below it is not."""
+    from tuner.identification.polish import resolvable_gain
+
+    rng = np.random.default_rng(3)
+    r = rng.normal(scale=10.0, size=20000)
+    rmse = math.sqrt(float(r @ r) / r.size)
+    se = rmse / math.sqrt(2 * r.size)
+    share = lambda drop: 1.0 - (1.0 - drop / rmse) ** 2  # noqa: E731 - the share of the SSE a fall ``drop`` [N] is
+    assert resolvable_gain(share(1.2 * se), r)
+    assert not resolvable_gain(share(0.8 * se), r)
+
+
+def test_a_refinement_whose_steps_achieve_far_less_than_predicted_is_stalled_not_converged():
+    """White noise plus a fine ripple in every coordinate (a rough objective, as the two-chamber model's root
+    switching makes): the Gauss-Newton step keeps predicting most of the SSE while the steps achieve little. The
+    refinement must not call that convergence: it ends 'stalled' (not converged), and whatever it ends on, it
+    never says converged while its last step predicts a gain of more than one standard error of the RMSE."""
+    from tuner.identification.polish import resolvable_gain
+
+    n, d = 4000, 4
+    noise = np.random.default_rng(0).normal(scale=5.0, size=n)
+    t = np.linspace(0.0, 40.0, n)
+    basis = np.column_stack([np.sin((k + 1) * 0.37 * t + k) for k in range(d)])
+    target = np.array([0.3, 0.6, 0.4, 0.5])
+    for ripple, amplitude in ((1e4, 0.3), (3e4, 1.0), (3e3, 0.5)):
+        def residual(u, ripple=ripple, amplitude=amplitude):
+            u = np.asarray(u)
+            return noise + basis @ (30.0 * (u - target) + amplitude * np.sin(ripple * u))
+
+        res = polish(FakeEngine(residual, n), IdentityPar(d), np.full(d, 0.95), max_jacobians=100, log=lambda m: None)
+        assert not (res.converged and resolvable_gain(res.predicted, residual(res.z))), (ripple, res.stop)
+        if ripple == 1e4:
+            assert res.rule == "stalled" and not res.converged, res.stop

@@ -7,6 +7,7 @@
 - ``reference``: the converged ODE reference (scipy's LSODA);
 - ``firefly``: the Firefly algorithm;
 - ``polish``: the local solver (projected Levenberg-Marquardt);
+- ``restart_check``: whether a refined fit is the minimum or only its basin's (restarts from elsewhere);
 - ``intervals``: 95 % intervals and identifiability flags of every identified parameter at the fit;
 - ``parameter_draws``: parameter sets drawn from a fitted model's covariance (for the vehicle's intervals);
 - ``rig_test_design``: the rig tests that would shrink the intervals of the parameters not determined;

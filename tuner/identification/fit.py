@@ -48,6 +48,7 @@ from tuner.identification.intervals import parameter_intervals, reached_ranges
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.polish import FTOL, TYPICAL_JACOBIANS, PolishResult, polish, resolution_stop, small_progress
 from tuner.identification.problem import DataSettings, Problem, split_data_settings, to_signals
+from tuner.identification.restart_check import ROUNDS, TYPICAL_RESTARTS, RestartCheck, restart_check
 from tuner.identification.runner import SimulationError
 from tuner.identification.validation import validation_run
 from tuner.metrics import noise_std
@@ -55,7 +56,8 @@ from tuner.progress import advance, expect, stage
 from tuner import strict_json
 
 __all__ = ["FitSettings", "FitResult", "Identified", "fit", "initial_guess", "validation_run", "identify",
-           "search_stop_now", "search_iterations_left", "quality_gate", "QUALITY_AME_PCT", "RACE_RATIO", "RESTART_LADDER",
+           "search_stop_now", "first_improvement", "search_iterations_left", "quality_gate", "QUALITY_AME_PCT",
+           "RACE_RATIO", "RESTART_LADDER",
            "refinement_starts", "fit_order"]
 
 #: Log-scaled parameters whose decade decides the basin a local refinement ends in: the data-driven
@@ -218,7 +220,8 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         def at_resolution(st: firefly.FireflyState) -> bool:
             search_stop.update(search_stop_now(st, opts, eng, par, rival if rival_at_floor else None))
             if search_stop:
-                log(f"[{model}] Firefly {search_stop['text']}: the local refinement takes over")
+                log(f"[{model}] Firefly {search_stop['text']}: the local refinement takes over"
+                    + (" (and its restart check)" if search_stop["reason"] == "stall" else ""))
             return bool(search_stop)
 
         def callback(st: firefly.FireflyState):
@@ -263,12 +266,21 @@ def search_stop_now(st: firefly.FireflyState, opts: firefly.FireflyOptions, eng,
                     rival_at_floor: tuple[str, float] | None) -> dict:
     """Why the Firefly search stops after iteration ``st.iteration`` ({} while it goes on; else 'reason' and
     'text'), never before ``opts.stop_start`` iterations nor with the stop off (``--no-stop``: the whole budget,
-    as the paper's stagnation test): 'clearly the wrong form' when ``rival_at_floor`` (model, RMSE [N]), another
-    base form whose refinement ended at the residual floor, leaves this one's best more than RACE_RATIO x behind
-    (the rival explains all but the noise, this form cannot win: on lumped data the two-chamber search ran 110
-    iterations, 2 of the job's 4 minutes, to end 10 x the lumped form's RMSE); 'data resolution' when the best
-    has moved less than the data resolve over the last stop_window iterations
-    (``tuner.identification.polish.resolution_stop``): the basin is found, the refinement finishes."""
+    as the paper's stagnation test).
+
+    'clearly the wrong form' when ``rival_at_floor`` (model, RMSE [N]), another base form whose refinement ended
+    at the residual floor, leaves this one's best more than RACE_RATIO x behind (the rival explains all but the
+    noise, this form cannot win: on lumped data the two-chamber search ran 110 iterations, 2 of the job's 4
+    minutes, to end 10 x the lumped form's RMSE).
+
+    The paper's brightest firefly does not move, so a seeded start that no firefly has passed stands still
+    whatever the swarm does: no change of the best is then no convergence. 'stall' when no firefly has improved
+    on the first generation's best (``first_improvement``) in ``opts.stop_window`` iterations: said as such, and
+    the refinement's restart check (``tuner.identification.restart_check``) looks elsewhere. Running such a
+    search on bought nothing on a real MR damper (docs/identification.md, "The global stage"): refined from its
+    best after 40-150 iterations the two-chamber fit ended no lower than from its start after 20. Once a firefly
+    has passed the start, 'data resolution' when the best has moved less than the data resolve over the last
+    stop_window iterations, all after that first move (``tuner.identification.polish.resolution_stop``)."""
     if opts.stop_tol is None or st.iteration < opts.stop_start:
         return {}
     rmse = _rmse(st.best_fitness)
@@ -276,27 +288,42 @@ def search_stop_now(st: firefly.FireflyState, opts: firefly.FireflyOptions, eng,
         return {"reason": "clearly the wrong form",
                 "text": f"search stopped: {rmse / rival_at_floor[1]:.1f} x the {rival_at_floor[0]} form's RMSE, "
                         f"which is at the residual floor (clearly the wrong form for this damper)"}
-    if not small_progress(st.history_best, opts.stop_window):
+    moved = first_improvement(st.history_best)
+    if moved is None:
+        if st.iteration < opts.stop_window:
+            return {}
+        return {"reason": "stall",
+                "text": f"search stalled: no firefly improved on the start ({rmse:.4g} N) in {st.iteration} "
+                        f"iterations (the brightest firefly does not move; the swarm is drawn to it): not a "
+                        f"convergence"}
+    if st.iteration - moved < opts.stop_window or not small_progress(st.history_best, opts.stop_window):
         return {}
     r = eng.residuals_batch([par.to_params(st.best_x)])[0]
     text = resolution_stop(st.history_best, r, opts.stop_window, "iterations") if r is not None else None
     return {"reason": "data resolution", "text": "search " + text} if text else {}
 
 
+def first_improvement(history_best: list[float]) -> int | None:
+    """The first generation whose best-ever fitness (``history_best``: G = N / SSE [1/N^2] per generation, the
+    first population's first) exceeds the first population's (a firefly passed the start), None if none does."""
+    return next((k for k, g in enumerate(history_best) if g > history_best[0]), None)
+
+
 def _expect_search(log, model: str, st: firefly.FireflyState, opts: firefly.FireflyOptions, population: int, d: int,
                    recent) -> None:
     """Tell the progress ``log`` the seconds the Firefly search of ``model`` (``d`` coordinates) takes to its likely
     stop (``search_iterations_left``) and the first two refinements after it (TYPICAL_JACOBIANS Jacobians of d + 1
-    simulations each), the other restarts said beside, at the evaluation rate over ``recent`` ((time [s],
-    evaluations) of the last RATE_WINDOW iterations)."""
+    simulations each), the other restarts and the restart check's (TYPICAL_RESTARTS) said beside, at the evaluation
+    rate over ``recent`` ((time [s], evaluations) of the last RATE_WINDOW iterations)."""
     (t0, n0), (t1, n1) = recent[0], recent[-1]
     rate = (n1 - n0) / (t1 - t0) if t1 > t0 else 0.0  # [evaluations/s]
     if rate <= 0:
         return
     likely = search_iterations_left(st.history_best, st.iteration, opts) * population / rate
     one = TYPICAL_JACOBIANS * (d + 1) / rate  # [s] one refinement
-    starts, restarts = min(2, refinement_starts(model)), max(0, refinement_starts(model) - 2)
-    expect(log, likely + starts * one, (restarts * one, "the refinement is restarted") if restarts else None)
+    starts = min(2, refinement_starts(model))
+    restarts = max(0, refinement_starts(model) - 2) + TYPICAL_RESTARTS  # and the restart check's
+    expect(log, likely + starts * one, (restarts * one, "the refinement is restarted"))
 
 
 def search_iterations_left(history_best: list[float], iteration: int, opts: firefly.FireflyOptions) -> int:
@@ -365,6 +392,26 @@ class Refinement:
     race: dict | None
     elapsed_s: float = 0.0  # wall time of the refinements [s]
     floor_stop: dict | None = None
+    check: RestartCheck | None = None  # the restart check (None: not run, at the floor or a clearly wrong form)
+
+    @property
+    def converged(self) -> bool:
+        """Whether the fit is converged (``converged_by`` says by what)."""
+        return self.converged_by is not None
+
+    @property
+    def converged_by(self) -> str | None:
+        """What shows the fit converged: the winning refinement's rule ('first-order', 'data resolution',
+        'stationary') with no restart of the check ending lower by one standard error, or, for a refinement that
+        stalled (its steps achieve less than they predict), the restart check alone ('restart check': every restart
+        ends in the same place, within one standard error); None when not converged (a spent budget, a restart
+        check whose last round still found a lower point, or a stall with no check: at the floor or the wrong
+        form)."""
+        if self.check is not None and not self.check.survived:
+            return None
+        if self.polished.converged:
+            return self.polished.rule
+        return "restart check" if self.check is not None and self.polished.rule == "stalled" else None
 
 
 def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result, guess: np.ndarray, guess_p: dict,
@@ -411,8 +458,30 @@ def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result
         log(f"[{model}] local refinement from the {label}: RMSE {ref.runs[-1]['rmse_n']:.2f} N, {pol.stop}")
         if len(ref.runs) == 1 or g > ref.g:  # polish never returns a point worse than its start
             ref.z, ref.g, ref.polished = pol.z, g, pol
+    if ref.race is None and ref.floor_stop is None:
+        _check_restarts(eng, model, par, settings, ref, result.state, log)
     ref.elapsed_s = time.perf_counter() - t0
     return ref
+
+
+def _check_restarts(eng, model: str, par: Parametrization, settings: FitSettings, ref: Refinement,
+                    state: firefly.FireflyState, log) -> None:
+    """The restart check (``tuner.identification.restart_check``) of the best refinement in ``ref``, from the
+    Firefly's last generation (``state``); a lower point it finds becomes ``ref``'s, and ``ref.check`` records it."""
+    log(f"[{model}] restart check: is {_rmse(ref.g):.2f} N the fit's minimum or its basin's? (restarts from the "
+        f"bounds' mid-ranges and the brightest firefly elsewhere; a restart that ends lower by more than one "
+        f"standard error of the RMSE continues the fit)")
+    population = state.population[np.argsort(-state.fitness)]
+    check = restart_check(eng, par, ref.z, ref.g, population, settings.polish_jacobians, log)
+    ref.evaluations += check.evaluations
+    ref.check = check
+    if check.polished is not None:
+        ref.z, ref.g, ref.polished = check.z, check.g, check.polished
+    moved = f"a restart ended lower, at {_rmse(ref.g):.2f} N; " if check.polished is not None else ""
+    log(f"[{model}] restart check: {moved}" + (
+        f"{_rmse(ref.g):.2f} N stands: no restart ended more than one standard error ({check.standard_error_n:.2g} "
+        f"N) lower" if check.survived else
+        f"the last of its {ROUNDS} rounds still ended lower: NOT converged"))
 
 
 def _at_floor(ref: Refinement, model: str, par: Parametrization, floor: ResidualFloor, skipped: list, log) -> bool:
@@ -453,7 +522,9 @@ def _history(result, ref: Refinement, par: Parametrization, first_population: di
         "local_refinements": ref.runs,
         "race": ref.race,  # None, or the restarts skipped as a clearly wrong form (RACE_RATIO)
         "floor_stop": ref.floor_stop,  # None, or the restarts skipped at the residual floor (FLOOR_REACHED)
-        "converged": bool(ref.polished.converged),
+        "converged": ref.converged,
+        "converged_by": ref.converged_by,  # the rule that shows it (Refinement.converged_by), None when not
+        "restart_check": ref.check.to_dict() if ref.check is not None else None,
         "polish_evaluations": int(ref.evaluations),
         "polish_elapsed_s": ref.elapsed_s,  # with polish_evaluations: the cost of a full simulation near the fit
         "evaluation_count": int(result.evaluations + ref.evaluations),
@@ -660,7 +731,7 @@ def _fit_model(model: str, problem: Problem, settings: FitSettings, checkpoints:
     against = (f"= {rmse_id / noise:.1f} x the measurement noise in the fit band ({noise:.1f} N)"
                if hist["noise_credible"] else f"({problem.noise.get('text')})")
     log(f"[{model}] identification RMSE {rmse_id:.1f} N {against}; local refinement "
-        f"{'converged' if hist['converged'] else 'NOT converged'}")
+        + (f"converged ({hist['converged_by']})" if hist["converged"] else "NOT converged"))
     return ModelFit(entry, hist)
 
 
