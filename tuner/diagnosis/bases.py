@@ -15,6 +15,7 @@ from tuner.identification.engine import Engine
 from tuner.identification.floor import ResidualFloor
 from tuner.identification.fit import (RACE_RATIO, FitSettings, fit_order, identify, initial_guess, refinement_starts,
                                       validation_run)
+from tuner.identification.restart_check import TYPICAL_RESTARTS
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.problem import Problem
 from tuner.diagnosis.settings import DiagnosisSettings
@@ -45,8 +46,11 @@ class BaseRefinement:
     def from_history(cls, history: dict, scheme: str = "improved") -> "BaseRefinement":
         """From an identification's history (``tuner.identification.fit.identify``) in ``scheme``."""
         n, t = history.get("polish_evaluations") or 0, history.get("polish_elapsed_s") or 0.0
-        return cls(history.get("polish_stop") if history.get("converged") and scheme == "improved" else None,
-                   t / n if n and t > 0 else None)
+        settled = history.get("polish_stop") if history.get("converged") and scheme == "improved" else None
+        if settled and history.get("converged_by") == "restart check":
+            settled = (f"{settled}; every restart of its restart check ended within one standard error of it "
+                       f"({history['restart_check']['standard_error_n']:.2g} N)")
+        return cls(settled, t / n if n and t > 0 else None)
 
 
 @dataclass(frozen=True)
@@ -197,8 +201,8 @@ def forecast_identified(plan, problem: Problem, settings: DiagnosisSettings, par
     diagnosis = {}
     for kind, par in pars.items():
         rate = seconds_per_simulation(kind, par, problem, settings)
-        ident = identification_cost(par.dimension, refinement_starts(kind), settings.base_iterations,
-                                    FitSettings().population)
+        ident = identification_cost(par.dimension, refinement_starts(kind) + TYPICAL_RESTARTS,
+                                    settings.base_iterations, FitSettings().population)
         plan.part(f"identification of the {kind} base").expect(ident * rate)
         diagnosis[kind] = _diagnosis_seconds(par, problem, settings, rate).total
     cheapest = min(diagnosis, key=diagnosis.get)
