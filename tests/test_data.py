@@ -504,6 +504,26 @@ def test_temperature_column_by_name_and_a_warning_for_an_unused_one(tmp_path):
         load_test(path, temperature_col="oil")
 
 
+def test_reading_warnings_are_given_once_each_naming_its_file(tmp_path):
+    """A file of two tests (a test-id column) whose unused 'Temp (C)' column warns for each test: the job's
+    list holds that warning once; a warning that does not name its file gets the file in front."""
+    from tuner.data.reading import load_tests, reading_warnings
+
+    t = np.arange(0.0, 2.0, 1e-3)
+    frame = pd.DataFrame({"run": np.repeat(["a", "b"], t.size), "time": np.concatenate([t, t]),
+                          "stroke": np.tile(1e-3 * np.sin(6 * t), 2), "force": np.tile(1e3 * np.cos(6 * t), 2),
+                          "Temp (C)": 20.0})
+    path = tmp_path / "two_runs.csv"
+    frame.to_csv(path, index=False)
+    a, b = load_tests(path, test_col="run", damper_class="any")
+    assert a.metadata["warnings"] == b.metadata["warnings"] and len(a.metadata["warnings"]) == 1
+    (warning,) = a.metadata["warnings"]
+    assert warning.startswith(f"{path}: ") and "Temp (C)" in warning
+    b.metadata["warnings"].append("time stamps repaired")
+    assert reading_warnings([a, b]) == [warning, f"{path}: time stamps repaired"]
+    assert reading_warnings([RigTest("c", None, "", t, t, t)]) == []
+
+
 def _sine_test(freq_hz, amp_m, rate=2000.0, noise_m=1e-6, seconds=6.0):
     t = np.arange(0.0, seconds, 1.0 / rate)
     x = amp_m * np.sin(2 * np.pi * freq_hz * t) + np.random.default_rng(3).normal(0.0, noise_m, t.size)

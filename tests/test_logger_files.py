@@ -7,7 +7,8 @@ signals of known truth: a damper at rest for a lead-in, then a stroke of known s
 linear damper, written as volts through a known scale and offset, with a load-cell zero offset. Each
 is read back and compared with the truth (to the file's 4 decimals). The real file's first 6000 rows
 (``tests/data/mr-damper-0.5A``, MIT, its LICENSE beside it) are read with the user's calibrations and
-checked against the same rows parsed independently here.
+checked against the same rows parsed independently here; so are 400 rows of it ending with two events
+written with the column delimiter (issue 63 item 2: the trailing text column takes the rest of the row).
 """
 from __future__ import annotations
 
@@ -36,6 +37,10 @@ CALIBRATED = dict(COLUMNS, stroke_scale=STROKE_MM_PER_V, stroke_offset=STROKE_OF
                   force_scale=FORCE_N_PER_V, force_unit="N")
 VOLT_STEP = 1e-4              # the logger writes 4 decimals
 REAL = Path(__file__).resolve().parent / "data" / "mr-damper-0.5A" / "15Hz0x5A_first6000.txt.gz"
+#: 400 rows from the middle of the same file, the last one's Events cell holding two events ('DAQ Pause, DAQ Stop')
+TWO_EVENTS = REAL.parent / "15Hz0x5A_rows20001-20400_two_events.txt.gz"
+REAL_CALIBRATED = dict(time_col="Date/Time", stroke_col="CHANNEL0", stroke_scale=10, stroke_unit="mm",
+                       force_col="CHANNEL1", force_scale=980.665, force_unit="N", damper_class="any")
 
 
 def truth(n: int = N):
@@ -60,16 +65,17 @@ def stamps(start: str, n: int, order: str = "mdy", twelve: bool = True) -> list[
 
 
 def write_logger(path, start="2022-05-25 11:59:58", order="mdy", twelve=True, n=N, preamble=None,
-                 before_header=(), extra_row=None):
+                 before_header=(), extra_row=None, events=None):
     """The logger's file: a 7-line preamble, the header, then per row the sample number, the stamp,
     CHANNEL0 (stroke, V), CHANNEL1 (force, V, with the load cell's zero offset), CHANNEL2 (the command,
     V) and an event on the first, a middle and the last row only (the other rows have 5 fields).
-    ``before_header``: extra preamble lines; ``extra_row``: (row index, text) of a damaged row."""
+    ``before_header``: extra preamble lines; ``extra_row``: (row index, text) of a damaged row;
+    ``events``: {row index: text} of more events."""
     t, x, f = truth(n)
     x_mm = 1e3 * x
     v0 = (x_mm - STROKE_OFFSET_MM) / STROKE_MM_PER_V
     v1 = (f + LOAD_CELL_ZERO_N) / FORCE_N_PER_V
-    events = {0: "DAQ Start", n // 2: "Marker", n - 1: "DAQ Pause"}
+    events = {0: "DAQ Start", n // 2: "Marker", n - 1: "DAQ Pause", **(events or {})}
     lines = preamble or ["Header Size:  7", "Version:  2", "Sampling Interval:  0.001", "Sampling Rate:  1000",
                          f"Sample Count:  {n}", "Device Serial Number:  0"]
     lines = list(lines) + list(before_header) + [HEADER]
@@ -239,14 +245,29 @@ def test_the_header_line_option_overrides_a_misleading_preamble(tmp_path):
         assert g.metadata["read"]["header_line"] == 8 and g.metadata["read"]["preamble"]["Channels"] == listed
 
 
-def test_a_damaged_row_is_named_with_its_line_and_the_header_line(tmp_path):
-    damaged = "  100, 05/25/2022 11:59:58.099 AM, 2.5, 0.02, 0.0, x, y"  # two fields too many
+@pytest.mark.parametrize("damaged, fields, why", [
+    # a number more among the numeric columns, then an event: the number falls where 'Events' starts
+    ("  100, 05/25/2022 11:59:58.099 AM, 2.5, 0.02, 0.02, 0.0, Marker", 7, "its field 6 ('0.0') is a number"),
+    ("  100, 05/25/2022 11:59:58.099 AM, 2.5, 0.02", 4, "not a row of that table"),  # fields missing
+])
+def test_a_damaged_row_is_named_with_its_line_and_the_header_line(tmp_path, damaged, fields, why):
     path = write_logger(tmp_path / "damaged.txt", extra_row=(99, damaged))
     with pytest.raises(DataError) as err:
         load_test(path, **CALIBRATED)
     msg = str(err.value)
-    for s in ("damaged.txt", "line 108 has 7 field(s)", "the header (line 7) has 6", "--header-line N"):
+    for s in ("damaged.txt", f"line 108 has {fields} field(s)", "the header (line 7) has 6", why, "--header-line N"):
         assert s in msg, (s, msg)
+
+
+def test_an_events_cell_holding_the_delimiter_reads_as_one_event(tmp_path):
+    """Rows whose 'Events' text holds the delimiter, the first row's too (the header is found over it): the
+    trailing text column takes the rest of the row, the text joined back; the signals are the truth's."""
+    path = write_logger(tmp_path / "two_events.txt", events={0: "DAQ Start, Trigger", 1999: "Marker, trigger 2"})
+    g = load_test(path, **CALIBRATED, force_zero=0.8)
+    _same_as_truth(g)
+    assert g.metadata["read"]["header_line"] == 7
+    assert g.metadata["read"]["text_columns"] == {
+        "Events": "'DAQ Start, Trigger', 'Marker, trigger 2', 'Marker' ... on 4 of 4000 rows"}
 
 
 @pytest.mark.parametrize("options, expected", [
@@ -344,8 +365,7 @@ def test_the_real_logger_slice_reads_with_the_users_calibrations():
     at 1 kHz, stroke in mm (10 mm/V), force in N (980.665 N/V), the load cell's zero removed over the
     4.7 s lead-in before the press moves."""
     numbers, stamp_text, v0, v1, events = _real_rows()
-    g = load_test(REAL, time_col="Date/Time", stroke_col="CHANNEL0", stroke_scale=10, stroke_unit="mm",
-                  force_col="CHANNEL1", force_scale=980.665, force_unit="N", damper_class="any", force_zero=4.0)
+    g = load_test(REAL, **REAL_CALIBRATED, force_zero=4.0)
     first, last = (datetime.strptime(s, "%m/%d/%Y %I:%M:%S.%f %p") for s in (stamp_text[0], stamp_text[-1]))
     assert len(g.time) == len(numbers) == 6000 and g.sample_rate == pytest.approx(1000.0, rel=1e-12)
     assert g.duration == pytest.approx((last - first).total_seconds(), abs=1e-9)
@@ -373,3 +393,39 @@ def test_inspect_on_the_real_logger_slice(capsys):
     assert main(["inspect", str(REAL)]) == 2  # no column named: the message lists what the file holds
     err = capsys.readouterr().err
     assert "15Hz0x5A_first6000.txt.gz" in err and "'Date/Time'" in err and "--time-col" in err
+
+
+def _file_lines(path) -> list[str]:
+    with gzip.open(path, "rt", encoding="utf-8", newline="") as fh:
+        return fh.read().splitlines()
+
+
+def test_the_real_logger_with_two_events_in_the_last_row_reads_every_row(tmp_path):
+    """Another of the lab's files ends with two events in the 'Events' cell, written with the column
+    delimiter: every row reads, the last row's numbers in their columns, its events as one text. A row with
+    a field more among the numbers is still refused naming its line."""
+    lines = _file_lines(TWO_EVENTS)
+    rows = [[c.strip() for c in line.split(",")] for line in lines[7:]]  # parsed here, independently
+    last = rows[-1]
+    assert len(last) == 7 and all(len(r) == 5 for r in rows[:-1])  # the fixture as described
+    g = load_test(TWO_EVENTS, **REAL_CALIBRATED)
+    numbers = np.array([int(r[0]) for r in rows])
+    assert len(g.time) == len(rows) == 400
+    np.testing.assert_allclose(g.time, (numbers - numbers[0]) / 1000.0, rtol=0, atol=1e-9)
+    assert g.stroke[-1] == pytest.approx(10e-3 * float(last[2]), abs=1e-12)
+    assert g.force[-1] == pytest.approx(980.665 * float(last[3]), abs=1e-9)
+    assert g.channels["CHANNEL2"][-1] == float(last[4]) and g.channels["Sample Number"][-1] == numbers[-1]
+    assert g.metadata["read"]["text_columns"] == {"Events": f"{', '.join(last[5:])!r} on 1 of 400 rows"}
+    assert not g.metadata.get("warnings")
+
+    k = 100  # row 101, file line 108: a number more among the numeric columns, its event after it
+    cells = lines[7 + k].split(",")
+    damaged = tmp_path / "damaged.txt"
+    damaged.write_text("\n".join(lines[:7 + k] + [",".join(cells[:3] + cells[2:] + [" Marker"])]
+                                 + lines[8 + k:]) + "\n", encoding="utf-8")
+    with pytest.raises(DataError) as err:
+        load_test(damaged, **REAL_CALIBRATED)
+    msg = str(err.value)
+    for s in ("damaged.txt", f"line {8 + k} has 7 field(s)", "the header (line 7) has 6",
+              f"its field 6 ({cells[4].strip()!r}) is a number", "--header-line N"):
+        assert s in msg, (s, msg)

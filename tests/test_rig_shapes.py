@@ -332,3 +332,7 @@ def test_fit_on_header_less_press_files(tmp_path):
         assert (out / name).is_file(), name
     assert next((out / "fmu").glob("DamperLumped*_tuned.fmu"))
     assert "lumped" in json.loads((out / "parameters.json").read_text())
+    # the force low-passed before writing, said per file at the top of the log, is among the warnings at the end
+    warnings = json.loads((out / "summary.json").read_text())["warnings"]
+    filtered = [w.split(": the force looks filtered")[0] for w in warnings if "the force looks filtered" in w]
+    assert filtered == [str(f) for f in files] and all("--prefilter" in w for w in warnings)

@@ -1,4 +1,5 @@
 """The tuner end to end: a small identification through the FMU, resume, outputs, error paths."""
+import html
 import json
 import re
 import subprocess
@@ -8,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from campaign.synthetic import write_model_dataset
+from campaign.synthetic import model_tests, write_model_dataset
 from damper_fmu import defaults
 from damper_fmu.fmu import native_reason, validate
 from tuner.__main__ import main
@@ -242,6 +243,34 @@ def test_end_summary_and_summary_json(maxwell_data, tmp_path, capsys):
     passes = summary["quality"]["maxwell"]["describes_data"]
     assert (rec["status"], rec["model"]) == (("recommended", "maxwell") if passes else ("nothing_passes", None))
     assert not passes or (rec["fmu_exists"] and rec["fmu"] in summary["fmus"])
+
+
+def test_reading_warnings_reach_the_end_summary_summary_json_and_the_report(tmp_path, capsys):
+    """A force written in kN under an 'N' header: reading warns that the apparent damping is below a yaw
+    damper's ('Is it in kN?'), at the top of the log; the end summary, summary.json's ``warnings`` and the
+    report's data section repeat each warning once, naming its file."""
+    files = []
+    for test in model_tests("maxwell", {"k_s": 5.0e7, "c": 1.0e6}, seed=2, durations=(6.0, 4.0),
+                            roles=("identification", "validation")):
+        files.append(tmp_path / f"{test['name']}.csv")
+        frame = test["frame"].assign(force=test["frame"]["force"] / 1e3)  # kN, declared N
+        frame.columns = ["time [s]", "stroke [m]", "force [N]"]
+        frame.to_csv(files[-1], index=False, float_format="%.9g")
+    out = tmp_path / "o"
+    assert run_cli("fit", "--identification", files[0], "--validation", files[1], "--out", out, "--models", "maxwell",
+                   "--population", 4, "--iterations", 2, "--workers", 0, "--polish", 0) == 0
+    text = capsys.readouterr().out
+    tail = text[text.index("done in"):]
+    summary = json.loads((out / "summary.json").read_text(), parse_constant=lambda c: pytest.fail(f"summary.json: {c}"))
+    report = html.unescape((out / "report.html").read_text(encoding="utf-8"))
+    data = report[report.index("id='data'"):]
+    data = data[:data.index("</section>")]
+    in_kn = [w for w in summary["warnings"] if "Is it in 'kN'?" in w]
+    assert [w.split(": apparent damping")[0] for w in in_kn] == [str(f) for f in files]
+    for w in in_kn:
+        assert text[:text.index("done in")].count(w) == 1  # the top of the log, as before
+        assert tail.count(w) == 1 and report.count(w) == 1 and w in data
+    assert all(w in tail and w in data for w in summary["warnings"])
 
 
 def test_quiet_prints_only_the_summary(maxwell_data, tmp_path, capsys):

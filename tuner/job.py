@@ -6,7 +6,9 @@ what ``python -m tuner diagnose`` does. The stages hand their results on in memo
 checkpoints, the job writes their files; each output file is written once (metrics.json a second time with
 the full-rate check, which runs after the results are safe on disk):
 
-    parameters.json, metrics.json, history_<model>.json, simulations.npz   the fit (FitResult.write)
+    parameters.json, metrics.json, history_<model>.json, simulations.npz   the fit (FitResult.write); metrics.json's
+                                                                            "warnings": the reading's, each once
+                                                                            (``reading_warnings``)
     fmu/<Model>_tuned.fmu                                                   the tuned FMUs (export_fmus)
     diagnosis.json, figures/ (diag_residual_*), fmu/<Model>_<causes>_tuned.fmu
                                                                             the diagnosis (write_diagnosis; a
@@ -28,7 +30,7 @@ from pathlib import Path
 
 from damper_fmu.fmu import SLAVES, build
 from damper_fmu.parameters import EFFECT_MODELS, MODEL_PARAMETERS
-from tuner.data.reading import RigTest
+from tuner.data.reading import RigTest, reading_warnings
 from tuner import strict_json
 from tuner.diagnosis.bases import BaseRefinement, diagnosis_forecast
 from tuner.diagnosis.diagnose import Diagnosis, DiagnosisFailed, DiagnosisSettings, choose_base, diagnose
@@ -115,6 +117,7 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
         forecast(log, "diagnosis", ahead.seconds, (ahead.forms_s, "the diagnosis tries the forms"))
     result = fit(identification, validation, settings, checkpoints=out / "checkpoints", provenance=provenance,
                  problem=problem, log=log)
+    result.metrics["warnings"] = reading_warnings([*identification, *validation])  # for the summary and report
     result.write(out)
     log("exporting tuned FMUs ...")
     export_fmus(result, out)

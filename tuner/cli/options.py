@@ -8,7 +8,7 @@ from pathlib import Path
 from campaign.cli import float_list  # the one argparse type for number lists
 from tuner.cli.log import log
 from tuner.data.reading import DEFAULT_DAMPER_CLASS, load_dataset, load_files, read_column_mapping
-from tuner.data.summary import format_summary
+from tuner.data.summary import filter_warning, summarize, summary_text
 from tuner.fleet.executors import parse_scheduler
 from tuner.identification.fit import FitSettings
 from tuner.identification.problem import DataSettings
@@ -239,7 +239,11 @@ def load_tests(args, file_role: str | None = "identification"):
     if not getattr(args, "json", False):  # inspect --json: the JSON alone on stdout
         log("data as read:")
         for t in ident + valid:
-            log(format_summary(t, rate, band))
+            s = summarize(t, rate, band)
+            log(summary_text(s))
+            note = filter_warning(s)
+            if note:  # a warning of the reading, kept with the reader's own: the job's end repeats them
+                t.metadata["warnings"] = [*t.metadata.get("warnings", []), note]
     names = [t.name for t in ident + valid]
     if len(set(names)) != len(names):
         raise ValueError(f"test names must be unique, got {names}")

@@ -60,9 +60,10 @@ def vehicle_interval_summary(out: Path) -> dict:
 def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
     """Write ``summary.json`` and print the end-of-run summary once, after everything is written: the
     recommendation (``tuner.results.recommendation``: the model and FMU to use and why, the same as the
-    report's box), verdict, causes, validation AME per test and model, quality gate, how well the tests
-    determine each model's parameters (``interval_summary``), where the report and FMUs are. ``seconds``:
-    the run's time [s]."""
+    report's box), the warnings of reading the data (metrics.json's ``warnings``: each once, naming its
+    file), verdict, causes, validation AME per test and model, quality gate, how well the tests determine
+    each model's parameters (``interval_summary``), where the report and FMUs are. ``seconds``: the run's
+    time [s]."""
     metrics = strict_json.loads((out / "metrics.json").read_text()) if (out / "metrics.json").exists() else {}
     diag = strict_json.loads((out / "diagnosis.json").read_text()) if (out / "diagnosis.json").exists() else {}
     vpath = out / VEHICLE_FOLDER / "vehicle.json"
@@ -86,6 +87,7 @@ def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
         "critical_speed_kmh": {k: (r.get("critical_speed") or {}).get("critical_speed_kmh")
                                for k, r in vehicle.get("results", {}).items()},
         "vehicle_intervals": vehicle_interval_summary(out),
+        "warnings": [str(w) for w in metrics.get("warnings") or []],
         "report": str(out / "report.html") if (out / "report.html").exists() else None,
         "fmus": sorted(str(f) for f in out.rglob("*.fmu")),
         "total_time_s": seconds, "output_folder": str(out),
@@ -95,6 +97,9 @@ def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
     tmp.replace(out / "summary.json")
     lines = ["", "=" * 72, f"done in {seconds / 60:.1f} min: {out}", f"  recommendation: {rec.headline()}",
              *(f"    {text}" for text in (rec.reason, rec.action) if text)]
+    if summary["warnings"]:
+        lines.append(f"  warnings of reading the data ({len(summary['warnings'])}):")
+        lines.extend(f"    {w}" for w in summary["warnings"])
     for m, q in summary["quality"].items():
         lines.append(f"  {m}: {'describes the data' if q['describes_data'] else 'does NOT describe the data'} "
                      f"(worst held-out AME {q['worst_ame_pct_of_peak']:.3g} % of peak, gate {q['gate_pct']:g} %)")

@@ -649,6 +649,22 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
     return out
 
 
+def reading_warnings(tests: list[RigTest]) -> list[str]:
+    """The warnings of reading ``tests`` (each test's ``metadata['warnings']``: units, plausibility and
+    damper class, repaired clocks, declared rates, columns left out; the command line adds a force that
+    looks filtered), each once, in the tests' order, and each naming its file (a warning that does not
+    start with it gets the test's file, or name, in front). What the job keeps in metrics.json for the
+    end summary, ``summary.json`` and the report."""
+    out = []
+    for t in tests:
+        where = str(t.source) if t.source is not None else t.name
+        for w in t.metadata.get("warnings", []):
+            text = str(w) if str(w).startswith(where) else f"{where}: {w}"
+            if text not in out:
+                out.append(text)
+    return out
+
+
 def load_test(path, **options) -> RigTest:
     """Read a rig file holding one test (options as in :func:`load_tests`)."""
     tests = load_tests(path, **options)

@@ -13,8 +13,10 @@ Accepted files
   own, or one fewer on rows that leave out a trailing text column (a logger's ``Events``, written
   on a few rows only). Lines before it are a preamble (a data logger's ``Sampling Rate:  1000``
   ...): its ``key: value`` pairs are kept as metadata. ``--header-line N`` (the file's 1-based
-  line number) names the header when the detection fails; a row with another number of fields
-  is refused naming its line, the header's line and that option. Units may be given in the
+  line number) names the header when the detection fails. A trailing text column takes the rest
+  of a row whose text holds the delimiter (two events ``DAQ Pause, DAQ Stop`` in a comma-separated
+  ``Events`` column); any other row with another number of fields (a field more among the numeric
+  columns) is refused naming its line, the header's line and that option. Units may be given in the
   header (``force [kN]``, ``force (kN)``, ``force in kN``) or in a units row right under it
   (every cell non-numeric, e.g. ``s, mm, kN`` or ``[s], [mm], [kN]``). A first line of numbers
   only is data, not a
@@ -29,7 +31,6 @@ from __future__ import annotations
 
 import csv
 import gzip
-import io
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -170,11 +171,16 @@ def _heads_table(h: int, counts: list[int], rows: list[str], split) -> bool:
     """True when row ``h`` of ``rows`` can be the header of the rows after it (row 0 may also be the
     first sample of a table without a header). It has n >= 2 fields; the next row and at least
     ``1 - _ODD_ROWS`` of the later ones have n, or n - 1 (a trailing text column such as a logger's
-    'Events' left out on most rows; the odd rows are refused later, naming their lines). It is not a
-    data row (below row 0, a header has fewer numbers than the rows under it), nor a metadata line over
-    a header of one field fewer (a next row of n - 1 fields without a number)."""
+    'Events' left out on most rows; the odd rows are read or refused later by :func:`_table_rows`). The
+    next row may also be longer: a data row (a number among its first n - 1 fields) with text where that
+    column starts (two events written with the delimiter). It is not a data row (below row 0, a header
+    has fewer numbers than the rows under it), nor a metadata line over a header of one field fewer (a
+    next row of n - 1 fields without a number)."""
     n, rest = counts[h], counts[h + 1:]
-    if n < 2 or not rest or rest[0] not in (n, n - 1):
+    if n < 2 or not rest or rest[0] < n - 1:
+        return False
+    first = split(rows[h + 1])
+    if rest[0] > n and (_is_number(first[n - 1], ",") or not _numbers(first[:n - 1])):
         return False
     if sum(c != n and c != n - 1 for c in rest) > _ODD_ROWS * len(rest):
         return False
@@ -235,17 +241,49 @@ def _preamble(rows: list[str], delim: str | None) -> dict:
     return out
 
 
-def _check_fields(body: list[str], body_lines: list[int], n: int, split, delim, head: str, source: str) -> None:
-    """Every row has the header's ``n`` fields, or one fewer (a trailing text column left out). DataError
-    naming the first other line, the header's line and ``--header-line``."""
-    for s, k in zip(body, body_lines):
-        m = len(split(s))
-        if m != n and m != n - 1:
-            raise DataError(
-                f"{source}: line {k} has {m} field(s) but {head} has {n} ({_delimiter_name(delim)}-separated): "
-                f"not a row of that table (a row may only leave out a trailing text column such as 'Events'). "
-                f"If the column names are on another line (metadata lines before them), give its line "
-                f"number with --header-line N; otherwise line {k} is damaged")
+def _number_in_last(rows: list[list[str]], lines: list[int], n: int, decimal: str) -> tuple[int, str] | None:
+    """(file line, cell) of the first row of exactly ``n`` fields with a number in its last column; None
+    when there is none: that column may then be a trailing text column (a logger's 'Events')."""
+    return next(((k, r[-1].strip()) for r, k in zip(rows, lines)
+                 if len(r) == n and r[-1].strip() and _is_number(r[-1], decimal)), None)
+
+
+def _table_rows(body: list[str], body_lines: list[int], header: list[str], split, delim, decimal: str, head: str,
+                source: str) -> list[list[str]]:
+    """Each row's fields, as many as the ``header``'s n. A row may leave out a trailing text column (n - 1
+    fields: an empty cell there) or hold the delimiter in that column's text (``..., 0.0021, DAQ Pause,
+    DAQ Stop``): when the last column holds no number on the rows of n fields (:func:`_number_in_last`)
+    and a longer row has text where that column starts, the column takes the rest of the row, joined
+    back with the delimiter. Any other row (a field more among the numeric columns, fields missing)
+    raises DataError naming its line, ``head`` (the header's line) and ``--header-line``."""
+    n = len(header)
+    rows = [split(s) for s in body]
+    numeric_last = _number_in_last(rows, body_lines, n, decimal)
+    for i, (r, k) in enumerate(zip(rows, body_lines)):
+        m = len(r)
+        if m == n:
+            continue
+        if m == n - 1:
+            r.append("")
+            continue
+        starts = r[n - 1].strip() if m > n else ""
+        if m > n and starts and not _is_number(starts, decimal) and numeric_last is None:
+            rows[i] = r[:n - 1] + [(delim or " ").join(r[n - 1:])]
+            continue
+        if m > n and starts and _is_number(starts, decimal):
+            why = (f"its field {n} ({starts!r}) is a number where the last column {header[-1]!r} starts: a field "
+                   f"more among the numeric columns")
+        elif m > n and starts and numeric_last is not None:
+            why = (f"the last column {header[-1]!r} holds a number (line {numeric_last[0]}: {numeric_last[1]!r}), "
+                   f"so it is no text column whose text may hold the delimiter")
+        else:
+            why = ("not a row of that table (a row may only leave out a trailing text column such as 'Events', "
+                   "or hold the delimiter in that column's text)")
+        raise DataError(
+            f"{source}: line {k} has {m} field(s) but {head} has {n} ({_delimiter_name(delim)}-separated): "
+            f"{why}. If the column names are on another line (metadata lines before them), give its line "
+            f"number with --header-line N; otherwise line {k} is damaged")
+    return rows
 
 
 def _text_lines(path: Path, source: str) -> tuple[list[str], list[int], int]:
@@ -265,19 +303,13 @@ def _text_lines(path: Path, source: str) -> tuple[list[str], list[int], int]:
     return kept, lines, len(raw)
 
 
-def _frame(body: list[str], header: list[str], delim, decimal: str, source: str) -> pd.DataFrame:
-    """The rows as a table of stripped strings (a decimal comma turned into a point); a row without its
-    trailing field gets NaN there."""
-    try:
-        df = pd.read_csv(io.StringIO("\n".join(body)), header=None, names=header,
-                         sep=delim if delim else r"\s+", decimal=decimal, skipinitialspace=True,
-                         engine="python" if delim is None else "c", dtype=str, keep_default_na=False)
-    except (pd.errors.ParserError, ValueError) as exc:
-        raise DataError(f"{source}: malformed table: {exc}") from exc
+def _frame(rows: list[list[str]], header: list[str], decimal: str) -> pd.DataFrame:
+    """The rows (:func:`_table_rows`) as a table of stripped strings (a decimal comma turned into a
+    point); a row without its trailing field has an empty cell there."""
+    df = pd.DataFrame(rows, columns=header, dtype=str)
     df = df.apply(lambda s: s.str.strip())
     if decimal == ",":
         df = df.apply(lambda s: s.str.replace(",", ".", regex=False))
-    df.columns = header
     return df
 
 
@@ -312,8 +344,7 @@ def _read_text(path: Path, source: str, header_line=None) -> RawTable:
     if twice:
         raise DataError(f"{source}: {head} names column(s) {twice} more than once: name each column once, or, if "
                         f"the column names are on another line, give its line number with --header-line N")
-    _check_fields(body, body_lines, len(header), split, delim, head, source)
-    df = _frame(body, header, delim, decimal, source)
+    df = _frame(_table_rows(body, body_lines, header, split, delim, decimal, head, source), header, decimal)
     units, names = {}, {}
     for i, col in enumerate(header):
         names[col], units[col] = split_unit(col)

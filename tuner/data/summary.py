@@ -18,7 +18,7 @@ from tuner.data.differentiator import Differentiator
 from tuner.data.noise import FLATNESS, force_noise
 from tuner.data.preprocess import stroke_band_hz
 
-__all__ = ["summarize", "format_summary"]
+__all__ = ["summarize", "format_summary", "summary_text", "filter_warning"]
 
 
 def summarize(test: RigTest, fit_rate_hz: float, diff_band_hz: float | None = None) -> dict:
@@ -139,9 +139,23 @@ def _logger_lines(s: dict) -> list[str]:
     return out
 
 
+def filter_warning(s: dict) -> str | None:
+    """The warning a test's summary (:func:`summarize`) gives when its force looks filtered and no lab
+    filter was declared, naming the file; None otherwise."""
+    if s["prefilter"] or not s["looks_filtered"]:
+        return None
+    return (f"{s['file'] or s['name']}: the force looks filtered ({s['looks_filtered']}); if the lab low-passed "
+            "or smoothed its channels, declare the filter with --prefilter (a model compared with filtered data "
+            "meets an error the filter made)")
+
+
 def format_summary(test: RigTest, fit_rate_hz: float, diff_band_hz: float | None = None) -> str:
     """Plain-text summary of :func:`summarize` (a few lines per test)."""
-    s = summarize(test, fit_rate_hz, diff_band_hz)
+    return summary_text(summarize(test, fit_rate_hz, diff_band_hz))
+
+
+def summary_text(s: dict) -> str:
+    """Plain-text form of one test's :func:`summarize` figures (a few lines)."""
     cols = ", ".join(f"{k} <- {v!r}" for k, v in s["columns"].items()) or "time, stroke, force"
     units = ", ".join(f"{k} in {v}" for k, v in s["units_read"].items())
     signs = s["signs"]

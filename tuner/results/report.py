@@ -4,14 +4,15 @@
 
     parameters.json       {model: {values, units, bounds, parametrization, intervals}}
     metrics.json          {settings, tests: {name: {role, scenario, models: {model: metrics}}}, table3,
-                           quality, full_rate}
+                           quality, full_rate, warnings (of reading the data, each once)}
     history_<model>.json  mean/best fitness per generation, initial and final populations (optional)
     simulations.npz       <test>__time [s], __stroke [m], __force [N], __<model> [N] (optional)
 
 and writes PNG figures to ``out_dir/figures/`` and ``out_dir/report.html``: the summary with the one
 recommendation of what to use (``tuner.results.recommendation``, also in the end summary and summary.json),
-the paper's Table 3 with further indices, Figs. 9-10 (forces, differences, a zoom on the largest
-error), force-stroke and force-velocity loops, Fig. 6 (fitness), Fig. 7 (constant parameters),
+the data as read (the warnings of reading it, each once), the paper's Table 3 with further indices,
+Figs. 9-10 (forces, differences, a zoom on the largest error), force-stroke and force-velocity loops,
+Fig. 6 (fitness), Fig. 7 (constant parameters),
 Fig. 8 (tables of the populations), Fig. 11 with eqs. 9-10 (5th-order fit, odd/even parts), the
 Table 2 form of the parameters with bound flags, how well the tests determine each parameter (95 %
 intervals, identifiability flags and the characteristics with their bands: ``intervals_report``), and
@@ -157,8 +158,28 @@ def _summary(run: FitFolder) -> str:
     if items:
         paper = ("<p>The paper's comparison, lumped against Maxwell, on the validation tests (not used in the fit):</p>"
                  f"<ul class='summary'>{''.join(items)}</ul>" + (f"<p>{esc(comparison)}</p>" if comparison else ""))
-    return (f'<section id="summary"><h2>1. Summary</h2>{recommendation_html(recommend(run.out))}{gate}{paper}'
-            f'{_amplitude(run, railway_damper(run.metrics))}</section>')
+    n_warned = len(run.metrics.get("warnings") or [])
+    warned = (f"<p>Reading the data gave {n_warned} warning{'s' if n_warned > 1 else ''}: see "
+              "<a href='#data'>the data as read</a>.</p>" if n_warned else "")
+    return (f'<section id="summary"><h2>1. Summary</h2>{recommendation_html(recommend(run.out))}{warned}{gate}'
+            f'{paper}{_amplitude(run, railway_damper(run.metrics))}</section>')
+
+
+def _data_section(run: FitFolder) -> str:
+    """The data as read: the warnings of reading the tests (metrics.json's ``warnings``, written by the job:
+    units, plausibility and damper class, repaired clocks, declared rates, columns left out, a force that
+    looks filtered), each once and naming its file, as the end summary and summary.json give them."""
+    warnings = run.metrics.get("warnings")
+    if warnings is None:
+        said = ("<p class='skip'>No warnings of reading the data are recorded in this folder's metrics.json "
+                "(written before the job kept them).</p>")
+    elif not warnings:
+        said = "<p>Reading the data gave no warning.</p>"
+    else:
+        said = (f"<p>Reading the data gave {len(warnings)} warning{'s' if len(warnings) > 1 else ''}, each once: "
+                "the fit ran on the data as read, so check each before using the results.</p>"
+                "<ul class='warnings'>" + "".join(f"<li>{esc(w)}</li>" for w in warnings) + "</ul>")
+    return "<section id='data'><h2>The data as read</h2>" + said + "</section>"
 
 
 def _metrics_section(run: FitFolder) -> str:
@@ -432,7 +453,8 @@ def make_report(out_dir, *, dpi: int = 110, figures: bool = True, workers: int =
     diagnosis, vehicle = diagnosis_section_html(out), vehicle_section_html(out)  # '' when that stage did not run
     design = design_section_html(out)  # '' before python -m tuner design
     toc = "".join(f"<li><a href='#{a}'>{t}</a></li>" for a, t, shown in (
-        ("summary", "Summary", True), ("diagnosis", "Diagnosis", diagnosis), ("vehicle", "In the vehicle", vehicle),
+        ("summary", "Summary", True), ("data", "The data as read", True), ("diagnosis", "Diagnosis", diagnosis),
+        ("vehicle", "In the vehicle", vehicle),
         ("metrics", "Accuracy tables", True), ("time", "Force time histories and loops", True),
         ("fitness", "Fitness evolution", True), ("constants", "Constant parameters", True),
         ("tables", "Oil characteristics", True), ("poly", "Polynomial fits", True),
@@ -445,7 +467,7 @@ def make_report(out_dir, *, dpi: int = 110, figures: bool = True, workers: int =
              f"{esc(', '.join(run.validation) or 'none')}. Sign convention: stroke positive in extension, "
              "force positive in tension. SI units with engineering prefixes.</p>")
 
-    body = [f"<h1>{title}</h1>", intro, f"<ol class='toc'>{toc}</ol>", _summary(run),
+    body = [f"<h1>{title}</h1>", intro, f"<ol class='toc'>{toc}</ol>", _summary(run), _data_section(run),
             diagnosis, vehicle, _metrics_section(run),
             _timeseries_section(run, drawn), _fitness_section(run, drawn),
             _population_sections(run, drawn), _poly_section(run, drawn), _params_section(run),
