@@ -7,7 +7,8 @@ filters), so each estimate is checked against the injected value.
 import numpy as np
 import pytest
 
-from tuner.diagnosis.residuals import EFFECTS, PreparedTest, TestResidual, evidence, figure_files, knee_velocity
+from tuner.diagnosis.residuals import (EFFECTS, FIGURE_TOPICS, PreparedTest, TestResidual, evidence, figure_files,
+                                       knee_velocity)
 from tuner.results.diagnosis_figures import residual_figures
 
 FS, DUR = 500.0, 40.0                       # sample rate [Hz], test length [s]
@@ -145,7 +146,7 @@ def test_bad_input_is_named():
 def test_figures_are_png(tmp_path):
     tests = pair("thermal_drift") + [make("free_play", "validation", 3)]
     paths = residual_figures(tests, tmp_path / "fig", prefix="diag")
-    assert len(paths) == 5 and len(set(paths)) == 5
+    assert len(paths) == len(FIGURE_TOPICS) and len(set(paths)) == len(FIGURE_TOPICS) and "map" in FIGURE_TOPICS
     assert [str(p) for p in paths] == figure_files(tmp_path / "fig")  # the names the diagnosis's record lists
     import matplotlib.image as mpimg
     for p in paths:

@@ -57,8 +57,8 @@ BANDS_HZ = {"<1 Hz": (0.0, 1.0), "1-5 Hz": (1.0, 5.0), "5-20 Hz": (5.0, 20.0), "
 MIN_T_SPAN_K = 0.5               # temperature span needed for the beta regression [K]
 #: the figures of a base model's residual, one file each (``figure_files``; drawn by
 #: ``tuner.results.diagnosis_figures``): in time, against velocity and stroke, around velocity reversals,
-#: spectra, drift against time and temperature
-FIGURE_TOPICS = ("time", "loops", "reversals", "spectra", "drift")
+#: spectra, drift against time and temperature, the restoring-force map (``residual_map``)
+FIGURE_TOPICS = ("time", "loops", "reversals", "spectra", "drift", "map")
 
 
 def figure_files(folder: str | Path, prefix: str = "diag") -> list[str]:
