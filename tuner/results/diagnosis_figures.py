@@ -198,9 +198,9 @@ def _map_title(summary: dict) -> str:
 def _figure_map(preps: list, sty: list) -> Figure:
     """The restoring-force map of the identification tests' residual (``residual_map``): rms residual [N] over
     stroke x velocity, and mean and rms residual [N] over velocity on the a >= 0 and a < 0 branches."""
-    fig = Figure(figsize=(12, 5.2))
+    fig = Figure(figsize=(12.5, 5.2))
     a1, a2 = fig.subplots(1, 2)
-    fixed_margins(fig, top=TOP_IN + 2 * SUPTITLE_IN, wgap=WGAP_IN + 1.0)  # the colour bar between the panels
+    fixed_margins(fig, top=TOP_IN + 2 * SUPTITLE_IN, wgap=WGAP_IN + 1.5)  # the colour bar between the panels
     ids = identification_only(preps)
     if not ids:
         fig.suptitle("no identification test: no map", fontsize=10)
