@@ -87,9 +87,13 @@ def test_a_force_limit_on_the_command_line_reaches_the_diagnosis(tmp_path):
                      "--workers", "0", "--engine", fastest_engine(), "--quiet", "--seed", "1",
                      "--fit-rate", "100"])
     assert code == 0
-    d = json.loads((out / "diagnosis.json").read_text())
+    d = json.loads((out / "diagnosis.json").read_text(), parse_constant=lambda c: pytest.fail(f"diagnosis.json: {c}"))
     assert d["settings"]["problem"]["force_limit_n_used"] == pytest.approx(29000.0)
     assert d["settings"]["problem"]["data_settings"]["fit_rate_hz"] == 100.0
+    # where the base model's error lives on the restoring-force plane: of the identification test, strict JSON
+    where = d["evidence"]["residual_map"]
+    assert where["tests"] == ["lumped_ide1"]
+    assert set(where["regions"]) == {"near_reversal", "stroke_ends", "stroke_band", "above_knee"}
 
 
 def test_a_failed_export_of_the_extended_fmu_is_recorded_as_the_diagnosis_failed_stage(tmp_path, monkeypatch):

@@ -411,3 +411,29 @@ def test_vehicle_nonlinear_command_into_a_fit_folder_rebuilds_its_report(monkeyp
     assert "<td>360 / 324 (324)</td>" in section
     assert "the nonlinear critical speed with DamperLumped is 324 km/h" in section and "10 % below" in section
     assert _images(section, run) == ["vehicle/hunting_bifurcation.png", "vehicle/critical_speed_conicity.png"]
+
+
+def test_the_diagnosis_map_has_a_caption_and_a_missing_map_is_said_not_shown(tmp_path):
+    """The diagnosis section shows the restoring-force map (``figures/diag_residual_map.png``) with a caption that
+    says what to look for; the other residual figures as before; a map whose file is not there is not an <img>
+    that does not load but a note."""
+    from tuner import strict_json
+    from tuner.diagnosis.residuals import figure_files
+    from tuner.results.diagnosis_report import diagnosis_section_html
+
+    figures = figure_files("figures")
+    record = {"cause": "none", "causes": [], "verdict": "cause: none", "ranking": [], "validation": {},
+              "effect_parameters": {}, "settings": {"penalty_per_parameter": 0.02, "accept_score": 0.05},
+              "figures": figures}
+    (tmp_path / "diagnosis.json").write_text(strict_json.dumps(record))
+    (tmp_path / "figures").mkdir()
+    for f in figures:
+        (tmp_path / f).write_bytes(b"\x89PNG")
+    text = diagnosis_section_html(tmp_path)
+    assert all(f"src='{f}'" in text or f'src="{f}"' in text for f in figures)
+    captions = re.findall(r"<figcaption>(.*?)</figcaption>", text, re.S)
+    assert len(captions) == 1 and "restoring-force plane" in captions[0] and "hysteresis" in captions[0]
+    (tmp_path / "figures" / "diag_residual_map.png").unlink()
+    text = diagnosis_section_html(tmp_path)
+    assert not any("diag_residual_map" in img for img in re.findall(r"<img [^>]*>", text))
+    assert "Figure skipped: figures/diag_residual_map.png is not in the output folder" in text

@@ -7,7 +7,8 @@ filters), so each estimate is checked against the injected value.
 import numpy as np
 import pytest
 
-from tuner.diagnosis.residuals import EFFECTS, PreparedTest, TestResidual, evidence, figure_files, knee_velocity
+from tuner.diagnosis.residuals import (EFFECTS, FIGURE_TOPICS, PreparedTest, TestResidual, evidence, figure_files,
+                                       knee_velocity)
 from tuner.results.diagnosis_figures import residual_figures
 
 FS, DUR = 500.0, 40.0                       # sample rate [Hz], test length [s]
@@ -145,7 +146,7 @@ def test_bad_input_is_named():
 def test_figures_are_png(tmp_path):
     tests = pair("thermal_drift") + [make("free_play", "validation", 3)]
     paths = residual_figures(tests, tmp_path / "fig", prefix="diag")
-    assert len(paths) == 5 and len(set(paths)) == 5
+    assert len(paths) == len(FIGURE_TOPICS) and len(set(paths)) == len(FIGURE_TOPICS) and "map" in FIGURE_TOPICS
     assert [str(p) for p in paths] == figure_files(tmp_path / "fig")  # the names the diagnosis's record lists
     import matplotlib.image as mpimg
     for p in paths:
@@ -213,3 +214,126 @@ def test_joint_screen_keeps_nothing_on_noise():
     samples: R^2 ~ 7 / n)."""
     scr = evidence([make("none", "identification", 3)], noise_n=5.0)["joint_screen"]
     assert scr["kept"] == [] and scr["r2_all"] < 0.01, scr
+
+
+# --------------------------------------------------------------------------- the restoring-force map
+# A sine stroke x = A sin(w t) at the fit rate, so that the truth of every share is analytic: the time share of
+# |v| < s x peak is (2 / pi) arcsin(s), of the stroke band [x1, x2] (arcsin(x2 / A) - arcsin(x1 / A)) / pi.
+
+SINE_A, SINE_W, SINE_FS = 0.02, 2 * np.pi * 0.5, 200.0   # amplitude [m], angular frequency [rad/s], rate [Hz]
+SINE_VPK = SINE_A * SINE_W                                # peak velocity [m/s]
+
+
+def _sine(r_of, role="identification", name="sine"):
+    """A 40 s sine test whose measured force is the simulated one plus r_of(x [m], v [m/s]) [N]."""
+    t = np.arange(int(40 * SINE_FS)) / SINE_FS
+    x, v = SINE_A * np.sin(SINE_W * t), SINE_VPK * np.cos(SINE_W * t)
+    sim = damper(v)
+    return TestResidual(name, role, t, x, v, sim + r_of(x, v), sim, t > 1.0)
+
+
+def _where(r_of):
+    return evidence([_sine(r_of)])["residual_map"]
+
+
+def test_the_map_bins_the_residual_over_stroke_and_velocity_and_leaves_thin_bins_empty():
+    """A residual of 100 N in extension (x > 0), 0 in compression: every bin wholly at x > 0 reads 100 N rms, every
+    bin wholly at x < 0 reads 0; the counts hold every usable sample once; a bin is empty (NaN) exactly when it
+    has fewer than MIN_BIN_SAMPLES. A missing spring r = k x on the sine is -k |x| on the a >= 0 branch (x <= 0
+    there) and +k |x| on the a < 0 one, |x| = A sqrt(1 - (v / v_peak)^2) at velocity v."""
+    from tuner.diagnosis.residuals import MIN_BIN_SAMPLES, residual_map
+
+    p = PreparedTest(_sine(lambda x, v: np.where(x > 0, 100.0, 0.0)))
+    m = residual_map([p])
+    assert m.count.sum() == p.use.sum() and m.branch_count.sum() == p.use.sum()
+    assert np.array_equal(np.isnan(m.rms_n), m.count < MIN_BIN_SAMPLES)
+    full = ~np.isnan(m.rms_n)
+    above, below = m.stroke_edges_m[:-1] > 0, m.stroke_edges_m[1:] < 0
+    assert full[above].any() and full[below].any()
+    assert np.allclose(m.rms_n[above][full[above]], 100.0) and np.allclose(m.rms_n[below][full[below]], 0.0)
+
+    k = 2e4                                                   # [N/m]
+    m = residual_map([PreparedTest(_sine(lambda x, v: k * x))])
+    vc = 0.5 * (m.velocity_edges_m_s[1:] + m.velocity_edges_m_s[:-1])
+    mid = np.abs(vc) < 0.5 * SINE_VPK                         # where |x| hardly changes across a bin
+    expected = k * SINE_A * np.sqrt(1 - (vc[mid] / SINE_VPK) ** 2)
+    assert m.branch_mean_n[0, mid] == pytest.approx(-expected, rel=0.03)
+    assert m.branch_mean_n[1, mid] == pytest.approx(expected, rel=0.03)
+
+
+def test_a_residual_near_velocity_reversal_is_placed_there_with_its_true_share():
+    """400 N more while |v| < 0.1 v_peak (a step the base's smooth tables cannot follow, as a friction they
+    absorbed leaves) on a 100 N offset: the near-reversal region (|v| < 0.2 v_peak) holds the analytic share of
+    the power, and the verdict names it with its shares."""
+    from tuner.diagnosis.verdict import map_text, unexplained_record, verdict_text
+
+    ev = evidence([_sine(lambda x, v: 100.0 + np.where(np.abs(v) < 0.1 * SINE_VPK, 400.0, 0.0))])
+    s = ev["residual_map"]
+    t1, t2 = (2 / np.pi) * np.arcsin(0.1), (2 / np.pi) * np.arcsin(0.2)
+    true = (t1 * 500 ** 2 + (t2 - t1) * 100 ** 2) / (t1 * 500 ** 2 + (1 - t1) * 100 ** 2)
+    rev = s["regions"]["near_reversal"]
+    assert rev["power_share"] == pytest.approx(true, abs=0.03)
+    assert rev["time_share"] == pytest.approx(t2, abs=0.01)
+    assert s["concentrated_in"][0] == "near_reversal" and not s["branch_asymmetry"]["hysteresis"]
+    said = (f"near velocity reversal ({100 * rev['power_share']:.0f} % of the power in "
+            f"{100 * rev['time_share']:.0f} % of the time)")
+    assert said in map_text(s)
+    record = unexplained_record(300.0, 20.0, 25.0, 15.0, ev, True)
+    assert record["residual_map"] == s
+    assert said in verdict_text([], {}, {}, [], record, 20.0)
+
+
+def test_a_residual_that_differs_between_the_branches_shows_the_hysteresis():
+    """A missing spring (r = k x: on the sine the F-v loop opens) is all branch difference at equal velocity;
+    a residual of the velocity alone (a characteristic's shape, r = 300 N (v / v_peak)^3) has none."""
+    from tuner.diagnosis.verdict import map_text
+
+    loop = _where(lambda x, v: 2e4 * x)["branch_asymmetry"]
+    assert loop["power_share"] > 0.9 and loop["hysteresis"]
+    assert loop["time_share"] == pytest.approx(1.0, abs=0.05)
+    assert "(a hysteresis)" in map_text(_where(lambda x, v: 2e4 * x))
+    shape = _where(lambda x, v: 300.0 * (v / SINE_VPK) ** 3)
+    assert shape["branch_asymmetry"]["power_share"] < 0.02 and not shape["branch_asymmetry"]["hysteresis"]
+    assert "hysteresis" not in map_text(shape)
+
+
+def test_a_residual_at_one_stroke_position_is_located_there():
+    """300 N within 1 mm of x = +6 mm (a groove) on a +-20 mm sine: the band found holds x = 6 mm and all the
+    power in the band's analytic time share; nothing near reversal or at the ends."""
+    from tuner.diagnosis.verdict import map_text
+
+    x0 = 0.3 * SINE_A
+    s = _where(lambda x, v: np.where(np.abs(x - x0) < 0.05 * SINE_A, 300.0, 0.0))
+    band = s["regions"]["stroke_band"]
+    assert band["stroke_from_m"] < x0 < band["stroke_to_m"]
+    assert band["power_share"] > 0.99
+    x1, x2 = band["stroke_from_m"] / SINE_A, band["stroke_to_m"] / SINE_A
+    assert band["time_share"] == pytest.approx((np.arcsin(x2) - np.arcsin(x1)) / np.pi, abs=0.01)
+    assert s["concentrated_in"] == ["stroke_band"]
+    assert s["regions"]["near_reversal"]["power_share"] < 0.01 and s["regions"]["stroke_ends"]["power_share"] < 0.01
+    assert f"at one stroke position, {1e3 * band['stroke_from_m']:.3g} to" in map_text(s)
+
+
+def test_white_noise_lives_nowhere_in_particular():
+    """50 N of white noise: every region's power share is its time share (ratio near 1), no region holds it and
+    the branches do not differ; the verdict adds nothing."""
+    from tuner.diagnosis.verdict import map_text
+
+    s = _where(lambda x, v: np.random.default_rng(4).normal(0.0, 50.0, x.size))
+    assert all(0.8 < d["ratio"] < 1.25 for d in s["regions"].values()), s["regions"]
+    assert s["concentrated_in"] == [] and s["branch_asymmetry"]["power_share"] < 0.02
+    assert map_text(s) == ""
+
+
+def test_the_map_summary_is_of_the_identification_tests_and_strict_json():
+    """The map shows the residual the model was fitted on: a validation test's residual does not enter it, and
+    without an identification test there is no map (None)."""
+    import json
+
+    ident = _sine(lambda x, v: np.where(np.abs(v) < 0.1 * SINE_VPK, 400.0, 0.0), name="id")
+    valid = _sine(lambda x, v: 2e4 * x, role="validation", name="val")
+    s = evidence([ident, valid])["residual_map"]
+    assert s["tests"] == ["id"] and not s["branch_asymmetry"]["hysteresis"]
+    assert s == evidence([ident])["residual_map"]
+    json.loads(json.dumps(s, allow_nan=False))
+    assert evidence([valid])["residual_map"] is None

@@ -11,7 +11,7 @@ from tuner.diagnosis.rules import ACCEPT_SCORE, FORM_EXCESS_SHARE, earned
 from tuner.formatting import fmt_quantity
 
 __all__ = ["UNITS", "NOTES", "ACQUISITION_CAUSES", "unexplained_record", "effect_parameters", "interval_text",
-           "limit_text", "verdict_text", "why_not"]
+           "limit_text", "verdict_text", "why_not", "map_text"]
 
 UNITS = {p.name: p.unit for p in EFFECT_PARAMETERS}
 
@@ -25,9 +25,15 @@ NOTES = {e.name: e.note for e in ALL_EFFECTS.values() if e.note}
 ACQUISITION_CAUSES = tuple(e.name for e in ALL_EFFECTS.values() if e.acquisition)
 
 
+#: the regions of ``tuner.diagnosis.residuals.map_summary`` in the verdict's words
+REGION_WORDS = {"near_reversal": "near velocity reversal", "stroke_ends": "at the stroke ends",
+                "stroke_band": "at one stroke position", "above_knee": "above the blow-off knee"}
+
+
 def unexplained_record(final_rmse: float, noise: float, floor: float, stroke_noise_n: float, evidence: dict,
                  fit_converged: bool | None) -> dict:
-    """The record of a residual left above the floor [N]: where it lies (band, loop, linear share) and how
+    """The record of a residual left above the floor [N]: where it lies (band, loop, linear share, the
+    restoring-force map's regions: ``residual_map``, the base model's, None without one) and how
     much of it the closest catalogue signature and all of them together explain (``evidence``)."""
     pooled = (evidence.get("general") or {}).get("pooled") or {}
     bands = pooled.get("band_fraction") or {}
@@ -38,7 +44,7 @@ def unexplained_record(final_rmse: float, noise: float, floor: float, stroke_noi
             "band_fraction": bands, "best_signature": max(r2, key=r2.get) if r2 else None,
             "best_signature_r2": max(r2.values()) if r2 else None,
             "linear_share": pooled.get("linear_share"), "band_linear_share": pooled.get("band_linear_share"),
-            "loop": pooled.get("loop"),
+            "loop": pooled.get("loop"), "residual_map": evidence.get("residual_map"),
             "catalogue_r2_all": (evidence.get("joint_screen") or {}).get("r2_all"),
             "fit_converged": fit_converged}
 
@@ -105,6 +111,7 @@ def verdict_text(causes: list[str], best: dict, none_row: dict, rejected: list[d
         text = f"cause: none ({none_inner}){limits_text}"
     if unexplained:
         where = (f"; most of it in the {unexplained['dominant_band']} band" if unexplained["dominant_band"] else "")
+        where += map_text(unexplained.get("residual_map"))
         sig = (f"; the closest catalogue signature ({unexplained['best_signature']}) explains "
                f"{100 * unexplained['best_signature_r2']:.0f} % of the base model's residual"
                if unexplained["best_signature"] else "")
@@ -170,3 +177,23 @@ def _form_tried_text(row: dict, noise: float) -> str:
                 f"identification residual, too little to be named; not refitted)")
     return (f"{row['form']} {row['validation_mse_change_pct']:+.0f} % held-out MSE (score {row['score']:+.3f}"
             + (", " + why_not(row, noise) if row["score"] > ACCEPT_SCORE and "interval" in row else "") + ")")
+
+
+def map_text(summary: dict | None) -> str:
+    """Where the residual lives on the restoring-force plane (``residuals.map_summary``), for the verdict: each
+    region holding a disproportionate share of its power, with that share and its share of the time, and the
+    difference between the loop's branches when it is a hysteresis; '' when neither (or no summary)."""
+    if not summary:
+        return ""
+    parts = []
+    for k in summary["concentrated_in"]:
+        d = summary["regions"][k]
+        at = (f", {1e3 * d['stroke_from_m']:.3g} to {1e3 * d['stroke_to_m']:.3g} mm" if k == "stroke_band" else "")
+        parts.append(f"{REGION_WORDS[k]}{at} ({100 * d['power_share']:.0f} % of the power in "
+                     f"{100 * d['time_share']:.0f} % of the time)")
+    text = "; concentrated " + " and ".join(parts) if parts else ""
+    branches = summary["branch_asymmetry"]
+    if branches["hysteresis"]:
+        text += (f"; {100 * branches['power_share']:.0f} % of its power differs between the accelerating and "
+                 "decelerating branches at equal velocity (a hysteresis)")
+    return text

@@ -1,7 +1,8 @@
 """The diagnosis's figures: the base model's residual (``tuner.diagnosis.residuals``) in time, against
-velocity and stroke, around velocity reversals, against frequency, and its drift over the test and against
-the temperature channel, one set per base form diagnosed. The job draws them (``tuner.job.write_diagnosis``)
-from the residual series a ``Diagnosis`` carries, into the files its record lists.
+velocity and stroke, around velocity reversals, against frequency, its drift over the test and against
+the temperature channel, and its map over the restoring-force plane, one set per base form diagnosed. The
+job draws them (``tuner.job.write_diagnosis``) from the residual series a ``Diagnosis`` carries, into the
+files its record lists.
 
 Residual r = measured - simulated force [N] (+ tension), stroke [m] (+ extension), velocity [m/s], time
 [s], temperature [degC]; the axes show mm, mm/s and kN where they say so.
@@ -14,10 +15,11 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from tuner.diagnosis.residuals import (BANDS_HZ, FIGURE_TOPICS, GAP_WINDOW_S, PreparedTest, TestResidual, dot,
-                                       figure_files, residual_summary, spectra, true_runs)
+from tuner.diagnosis.residuals import (BANDS_HZ, FIGURE_TOPICS, GAP_WINDOW_S, MIN_BIN_SAMPLES, PreparedTest,
+                                       TestResidual, dot, figure_files, identification_only, knee_velocity,
+                                       map_summary, residual_map, residual_summary, spectra, true_runs)
 from tuner.diagnosis.result import Diagnosis
-from tuner.results.figure_layout import RIGHT_IN, TWIN_AXIS_IN, fixed_margins
+from tuner.results.figure_layout import RIGHT_IN, SUPTITLE_IN, TOP_IN, TWIN_AXIS_IN, WGAP_IN, fixed_margins
 from tuner.worker_processes import map_in_workers
 
 __all__ = ["diagnosis_figures", "residual_figures"]
@@ -55,12 +57,12 @@ def diagnosis_figures(diagnosis: Diagnosis, out: Path, workers: int = 0) -> list
 
 
 def residual_figures(tests: list[TestResidual], out_dir: Path, prefix: str = "diag", workers: int = 0) -> list[Path]:
-    """Write five PNGs to ``out_dir`` (identification solid, validation dashed), named by
+    """Write six PNGs to ``out_dir`` (identification solid, validation dashed), named by
     ``tuner.diagnosis.residuals.figure_files``, and return their paths: residual [N] in time over the
     measured force (grey: outside the mask); residual vs velocity and stroke; residual x sign(v after)
     averaged around velocity reversals with -F_sim; Welch spectra of residual and force; windowed rms
-    residual and gain vs time and temperature. ``workers`` >= 2: drawn in that many processes
-    (``tuner.worker_processes``), each figure on one core."""
+    residual and gain vs time and temperature; the restoring-force map of the identification tests (``map``).
+    ``workers`` >= 2: drawn in that many processes (``tuner.worker_processes``), each figure on one core."""
     if not tests:
         raise ValueError("no tests given")
     preps, out_dir = [PreparedTest(t) for t in tests], Path(out_dir)
@@ -178,6 +180,48 @@ def _figure_drift(preps: list, sty: list) -> Figure:
     return fig
 
 
+def _map_title(summary: dict) -> str:
+    """The map's shares (``map_summary``) in two lines: each region's share of the power and of the time."""
+    reg, b = summary["regions"], summary["branch_asymmetry"]
+    band = reg["stroke_band"]
+
+    def share(name, d):
+        return f"{name} {100 * d['power_share']:.0f} % of the power in {100 * d['time_share']:.0f} % of the time"
+    return (" | ".join([share("near reversal", reg["near_reversal"]), share("stroke ends", reg["stroke_ends"]),
+                        share(f"stroke {1e3 * band['stroke_from_m']:.3g} to {1e3 * band['stroke_to_m']:.3g} mm",
+                              band)]) + "\n"
+            + share(f"above the knee ({1e3 * reg['above_knee']['knee_velocity_m_s']:.3g} mm/s)", reg["above_knee"])
+            + f" | the branches differ by {100 * b['power_share']:.0f} % of the power"
+            + (" (a hysteresis)" if b["hysteresis"] else ""))
+
+
+def _figure_map(preps: list, sty: list) -> Figure:
+    """The restoring-force map of the identification tests' residual (``residual_map``): rms residual [N] over
+    stroke x velocity, and mean and rms residual [N] over velocity on the a >= 0 and a < 0 branches."""
+    fig = Figure(figsize=(12.5, 5.2))
+    a1, a2 = fig.subplots(1, 2)
+    fixed_margins(fig, top=TOP_IN + 2 * SUPTITLE_IN, wgap=WGAP_IN + 1.5)  # the colour bar between the panels
+    ids = identification_only(preps)
+    if not ids:
+        fig.suptitle("no identification test: no map", fontsize=10)
+        return fig
+    m = residual_map(ids)
+    mesh = a1.pcolormesh(m.velocity_edges_m_s * 1e3, m.stroke_edges_m * 1e3, np.ma.masked_invalid(m.rms_n),
+                         cmap="viridis", shading="flat")
+    fig.colorbar(mesh, cax=a1.inset_axes([1.03, 0.0, 0.035, 1.0]), label="rms residual [N]")
+    _finish(a1, "damper velocity [mm/s] (+ extension)", "stroke [mm] (+ extension)",
+            f"rms residual over stroke x velocity (blank: < {MIN_BIN_SAMPLES} samples)")
+    v = 0.5 * (m.velocity_edges_m_s[1:] + m.velocity_edges_m_s[:-1]) * 1e3
+    for row, (label, color) in enumerate((("acceleration >= 0", "C0"), ("acceleration < 0", "C3"))):
+        a2.plot(v, m.branch_mean_n[row], marker="o", ms=3, color=color, label=f"mean, {label}")
+        a2.plot(v, m.branch_rms_n[row], ls="--", lw=0.9, color=color, label=f"rms, {label}")
+    a2.axhline(0.0, color="k", lw=0.6)
+    _finish(a2, "damper velocity [mm/s] (+ extension)", "residual [N] (+ tension)",
+            "residual on the two branches of the loop", legend=True)
+    fig.suptitle(_map_title(map_summary(ids, knee_velocity(preps))), fontsize=9)
+    return fig
+
+
 #: the drawing of each figure topic (``FIGURE_TOPICS``): (prepared tests, line styles) -> Figure
 DRAWINGS = {"time": _figure_time, "loops": _figure_loops, "reversals": _figure_reversals,
-            "spectra": _figure_spectra, "drift": _figure_drift}
+            "spectra": _figure_spectra, "drift": _figure_drift, "map": _figure_map}

@@ -7,7 +7,8 @@ import math
 from pathlib import Path
 
 from tuner.formatting import effect_value, fmt_quantity
-from tuner.results.html import MODEL_LABEL, esc, table, write_page
+from tuner.diagnosis.residuals import MIN_BIN_SAMPLES
+from tuner.results.html import MODEL_LABEL, esc, figure_html, table, write_page
 from tuner.results.recommendation import recommend, recommendation_html
 from tuner import strict_json
 
@@ -38,6 +39,39 @@ def detection_html(limits: dict) -> str:
             "force the base refit cannot absorb, against the acceptance score and the noise), and the held-out "
             "test that shows it best. A verdict 'none' means nothing above these sizes.</p>"
             + table(["effect", "the kind it covers", "detectable from", "best test", "limited by"], rows))
+
+
+#: the captions of the diagnosis's figures by topic (``tuner.diagnosis.residuals.FIGURE_TOPICS``, the file
+#: ``<prefix>_residual_<topic>.png``); a figure without one is shown bare
+FIGURE_CAPTIONS = {"map": (
+    "Where the base model's error lives: its residual on the identification tests over the restoring-force "
+    f"plane. Left, the rms residual in each stroke x velocity bin (blank: fewer than {MIN_BIN_SAMPLES} samples): "
+    "a bright column at zero velocity is an error near velocity reversal (friction, a free play, a valve that "
+    "cracks open late), bright rows at the top or bottom an error at the stroke ends (an end stop, a top-out "
+    "spring), a bright row across every velocity an error at one stroke position (a groove, a scored stretch of "
+    "the tube), bright outer columns an error above the blow-off knee (the valves' characteristic). Right, the "
+    "mean (solid) and rms (dashed) residual over velocity on the two branches of the loop: where the two means "
+    "part at equal velocity, the error depends on whether the damper speeds up or slows down, a hysteresis (a "
+    "lag, a missing spring or Maxwell branch); where they coincide away from zero, it is a function of the "
+    "velocity alone (the characteristic's shape). The title gives each region's share of the residual power "
+    "beside its share of the time (<code>diagnosis.json</code>: <code>evidence.residual_map</code>); a share "
+    "well above the time share is where to look. On a single sine the reversals are the stroke ends and each "
+    "branch one half of the stroke, so these regions coincide there; a test whose reversals spread over the "
+    "stroke tells them apart.")}
+
+
+def _figures_html(figures: list[str], out: Path) -> str:
+    """The diagnosis's figures (``diagnosis.json`` ``figures``, relative to the output folder ``out``): a figure
+    with a caption (``FIGURE_CAPTIONS``) as the report's figures are, with a note when its file is missing."""
+    parts = []
+    for f in figures:
+        caption = FIGURE_CAPTIONS.get(Path(f).stem.rsplit("_residual_", 1)[-1])
+        if caption is None:
+            parts.append(f"<figure><img src='{esc(f)}' alt='{esc(f)}'></figure>")
+        else:
+            parts.append(figure_html(f if (out / f).is_file() else None, caption,
+                                     f"{f} is not in the output folder (the diagnosis draws it with its figures)"))
+    return "".join(parts)
 
 
 #: the head of a ranking table ({ref}: what the validation MSE change is measured against)
@@ -174,7 +208,7 @@ def diagnosis_section_html(out_dir) -> str:
     rows = _ranking_rows(d["ranking"], causes[0] if causes else None)
     val, eff = _tables_html(d)
     ev_rows, s, noise = _evidence_html(d), d["settings"], d.get("noise") or {}
-    figs = "".join(f"<figure><img src='{e(f)}' alt='{e(f)}'></figure>" for f in d.get("figures", []))
+    figs = _figures_html(d.get("figures", []), path.parent)
     return (
         "<section id='diagnosis'><h2>Diagnosis: what the model gets wrong, and why</h2>"
         f"<p class='verdict'>{e(d['verdict'])}{'. ' + e(d['note']) if d.get('note') else ''}</p>"
