@@ -388,7 +388,7 @@ class CandidateSearch:
         self.forecast()
         self.log(f"  {effect:14s} at {row['identification_rmse_n']:.1f} N, above the floor: profiled "
                  f"with the {k} held at " + ", ".join(f"{h[k]:.3g}" for h in held) + f" N/m ({c} {self.guess[c]:.3g} "
-                 f"N s/m), then released")
+                 f"N s/m), released where a gap fits better")
         start = ext.from_params({**self.base, **self.par.to_params(self.z_none)})
         enough = self.eid.n_samples * (UNEXPLAINED_RATIO * self.floor) ** 2 if self.credible else 0.0
         sse_none = self.eid.n_samples / self.g_none
