@@ -109,3 +109,27 @@ def test_a_seeded_start_that_no_firefly_has_passed_is_a_stall_not_convergence():
     assert search_stop_now(moved, opts, eng, par, None) == {}
     settled = state([12.0] * 31 + [10.0] * 21)  # 20 flat iterations after the move
     assert search_stop_now(settled, opts, eng, par, None)["reason"] == "data resolution"
+
+
+def test_a_fit_is_converged_by_its_rule_or_by_a_restart_check_that_a_stall_survived():
+    """Refinement.converged_by: a refinement's rule counts only when no restart of the check ended lower; a stall
+    counts only through a check it survived; a check whose last round still moved the fit, a spent budget, or a
+    stall without a check (at the floor, the wrong form) is no convergence."""
+    from tuner.identification.fit import Refinement
+    from tuner.identification.polish import PolishResult
+    from tuner.identification.restart_check import RestartCheck
+
+    def refinement(rule, converged, survived):
+        pol = PolishResult(np.zeros(2), 1.0, 10, stop=rule, converged=converged, rule=rule, jacobians=3,
+                           predicted=0.1, budget_spent=rule == "budget")
+        check = None if survived is None else RestartCheck(np.zeros(2), 1.0, 0.5, survived=survived)
+        return Refinement(np.zeros(2), 1.0, 10, pol, [], None, check=check)
+
+    assert refinement("data resolution", True, True).converged_by == "data resolution"
+    assert refinement("data resolution", True, None).converged_by == "data resolution"
+    assert refinement("data resolution", True, False).converged_by is None
+    assert refinement("stalled", False, True).converged_by == "restart check"
+    assert refinement("stalled", False, None).converged_by is None
+    assert refinement("stalled", False, False).converged_by is None
+    assert refinement("budget", False, True).converged_by is None
+    assert not refinement("budget", False, True).converged
