@@ -18,6 +18,7 @@ At the top:
 - ``strict_json``: strict JSON for every file written (non-finite values as ``null``);
 - ``progress``: the one progress display over a whole job;
 - ``worker_processes``: how the worker pools start (a fork server with the simulation modules loaded);
+- ``executors``: where independent tasks run (a local process pool or Dask): the fleet's rows, the vehicle's draws;
 - ``__main__``: the parser of ``python -m tuner``.
 
 No import circle; modules import each other's public names by absolute path.

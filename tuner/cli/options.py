@@ -9,7 +9,7 @@ from campaign.cli import float_list  # the one argparse type for number lists
 from tuner.cli.log import log
 from tuner.data.reading import DEFAULT_DAMPER_CLASS, load_dataset, load_files, read_column_mapping
 from tuner.data.summary import filter_warning, summarize, summary_text
-from tuner.fleet.executors import parse_scheduler
+from tuner.executors import parse_scheduler
 from tuner.identification.fit import FitSettings
 from tuner.identification.problem import DataSettings
 from tuner.vehicle.propagation import INTERVALS_FOR, PropagationSettings
@@ -195,7 +195,7 @@ def fit_settings(args, models: tuple | None = None) -> "object":
 
 
 def vehicle_scheduler(args) -> str | None:
-    """Where the vehicle's draws run (``tuner.fleet.executors.parse_scheduler``'s spec, None: in this process)
+    """Where the vehicle's draws run (``tuner.executors.parse_scheduler``'s spec, None: in this process)
     from --vehicle-scheduler and --workers; ValueError naming the option for a bad value."""
     if getattr(args, "vehicle_draws", 0) < 0 or getattr(args, "vehicle_draws", 0) == 1:
         raise ValueError(f"--vehicle-draws must be 0 (no intervals) or at least 2, got {args.vehicle_draws}")

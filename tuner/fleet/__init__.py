@@ -1,8 +1,9 @@
 """Fleet batch identification (``python -m tuner batch MANIFEST``, command line in ``tuner.cli.batch``).
 
 - ``manifest``: the rows of a manifest (CSV or TOML), read and checked;
-- ``executors``: where the rows run (a local process pool or Dask);
 - ``batch``: one row, the whole batch, and its resumption.
+
+Where the rows run (a local process pool or Dask) is ``tuner.executors``, shared with the job's vehicle runs.
 
 One manifest row per damper test session; every row runs the tuner's job (``tuner.job.run``: fit, and
 with ``--diagnose`` the diagnosis) into its own folder

@@ -18,7 +18,7 @@ from damper_fmu.fmu import ensure_fmu
 from damper_fmu.parameters import EFFECT_MODELS
 from tuner import job
 from tuner.data.reading import DataError, load_dataset, load_files
-from tuner.fleet.executors import FleetExecutor
+from tuner.executors import FleetExecutor
 from tuner.fleet.manifest import Row, check_setting, read_fleet_manifest
 from tuner.identification.fit import FitSettings
 from tuner.results.fleet_summary import OUTLIER_K, OUTLIER_TOLERANCE, write_atomic, write_summary
