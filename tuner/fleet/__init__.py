@@ -21,10 +21,10 @@ CSV (a header row; ``#`` comment lines and blank lines ignored) or TOML. Columns
 * ``identification``, ``validation``: test files, paths relative to the manifest's folder, several
   separated by ``;`` (TOML: a list or such a string); or ``dataset``: a dataset folder with a
   ``manifest.json`` (its roles are used);
-* column mapping and units, passed to ``tuner.data.reading.load_files``: ``time_col``, ``stroke_col``,
-  ``force_col``, ``temperature_col``, ``time_unit``, ``stroke_unit``, ``force_unit``,
-  ``temperature_unit`` (and any other loader option of ``tuner.data.reading`` ending in ``_col``,
-  ``_unit`` or ``_sign``);
+* column mapping and units, passed to ``tuner.data.reading.load_files`` as a ``ReadOptions``
+  (``tuner.data.read_options``): ``time_col``, ``stroke_col``, ``force_col``, ``temperature_col``,
+  ``time_unit``, ``stroke_unit``, ``force_unit``, ``temperature_unit`` (and any other of its options
+  ending in ``_col``, ``_unit`` or ``_sign``);
 * per-row settings: ``seed``, ``models`` (``lumped+maxwell``; ``+``, ``;`` or spaces between),
   ``population``, ``iterations``, ``polish``, ``fit_rate`` [Hz], ``warmup`` [s], ``engine``,
   ``parametrization``, ``init``, ``force_limit`` [N], ``diagnose`` (true/false);
