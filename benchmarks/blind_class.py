@@ -38,7 +38,7 @@ sys.path.insert(0, str(ROOT))
 from campaign.damper_class import random_damper, write_class_dataset  # noqa: E402
 from tuner.data.reading import load_dataset  # noqa: E402
 from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose  # noqa: E402
-from tuner.fleet.executors import FleetExecutor  # noqa: E402
+from tuner.executors import FleetExecutor  # noqa: E402
 from tuner.identification.engine import fastest_engine  # noqa: E402
 from tuner.results.fleet_summary import write_atomic  # noqa: E402
 

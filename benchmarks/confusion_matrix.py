@@ -19,7 +19,7 @@ validation tests, printed beside the measured noise. The decision is the held-ou
 whose effect moves the validation force by less than the noise cannot be named; the detection
 rate is also given without those runs.
 
-The runs are independent and go to the fleet executor of ``tuner.fleet.executors`` (one run = one task):
+The runs are independent and go to the fleet executor of ``tuner.executors`` (one run = one task):
 by default a local process pool of ``os.cpu_count()`` processes, ``--scheduler local:N`` a Dask
 LocalCluster, ``--scheduler tcp://HOST:PORT`` a running Dask cluster (so a cluster can run the
 large matrix). Each run evaluates in its own process (``--workers 0``). The dataset seed and the
@@ -50,7 +50,7 @@ from campaign.effects import FORMS, SPECS  # noqa: E402
 from campaign.generate import CHAMBER_TEMPERATURES_C, generate_dataset  # noqa: E402
 from tuner.data.reading import load_dataset  # noqa: E402
 from tuner.identification.engine import fastest_engine  # noqa: E402
-from tuner.fleet.executors import FleetExecutor  # noqa: E402
+from tuner.executors import FleetExecutor  # noqa: E402
 from tuner.results.fleet_summary import write_atomic  # noqa: E402
 from damper_fmu.effect_catalogue import FORM_EFFECTS  # noqa: E402
 from tuner.diagnosis.diagnose import CANDIDATES, DiagnosisSettings, diagnose  # noqa: E402

@@ -41,6 +41,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from damper_fmu.fmu import ensure_fmu  # noqa: E402
+from tuner.data.read_options import ReadOptions  # noqa: E402
 from tuner.data.reading import load_dataset, load_files  # noqa: E402
 from tuner.identification.engine import Engine  # noqa: E402
 from tuner.identification.fit import FitSettings, identify, initial_guess  # noqa: E402
@@ -50,8 +51,7 @@ from tuner.metrics import rmse_standard_error  # noqa: E402
 
 #: the lab smoothed each sine test with a causal moving average over a tenth of its period (docs/real-data.md)
 MR_IDENTIFICATION = ("25mm0x1Hz", "25mm0x5Hz", "5mm3Hz")
-MR_OPTIONS = {"time_col": 1, "stroke_col": 2, "force_col": 4, "stroke_unit": "mm", "force_unit": "N",
-              "damper_class": "any"}
+MR_OPTIONS = ReadOptions(time_col=1, stroke_col=2, force_col=4, stroke_unit="mm", force_unit="N", damper_class="any")
 
 
 def mr_tests(folder: Path) -> list:
@@ -63,7 +63,7 @@ def mr_tests(folder: Path) -> list:
             raise SystemExit(f"{folder / 'sine'}: no test {stem}*.txt (expected the shared MR damper's layout)")
         hz = float(re.match(r"\d+mm([\dx]+)Hz", path.name).group(1).replace("x", "."))
         window = max(1, round(1000.0 / (10.0 * hz)))  # a tenth of the period at the lab's 1 kHz
-        tests += load_files([path], "identification", **MR_OPTIONS, prefilter=f"moving-average:{window}@1000")
+        tests += load_files([path], "identification", MR_OPTIONS.merged(prefilter=f"moving-average:{window}@1000"))
     return tests
 
 

@@ -55,9 +55,12 @@ def small_lumped(tmp_path):
 
 @pytest.fixture
 def prepared_names(monkeypatch):
-    """The names of the tests ``tuner.identification.problem`` prepares, in order (a spy on ``prepare``)."""
+    """The (name, rate [Hz]) of every test ``tuner.identification.problem`` prepares, in order (a spy on
+    ``prepare``: every stage prepares its tests there, the fit's and the diagnosis's at the fit rate, the full-rate
+    check at its comparison rate)."""
     import tuner.identification.problem as problem_module
 
     names, real = [], problem_module.prepare
-    monkeypatch.setattr(problem_module, "prepare", lambda t, *a, **k: names.append(t.name) or real(t, *a, **k))
+    monkeypatch.setattr(problem_module, "prepare",
+                        lambda t, rate, *a, **k: names.append((t.name, rate)) or real(t, rate, *a, **k))
     return names

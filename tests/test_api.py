@@ -14,7 +14,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: what the README and docs/ examples use, at least
 DOCUMENTED = ("fit", "diagnose", "Problem", "DataSettings", "FitSettings", "FitResult", "DiagnosisSettings",
               "DiagnosisFailed", "run", "run_diagnosis", "JobResult", "export_fmus", "load_dataset", "load_files",
-              "load_tests", "RigTest", "DataError")
+              "load_tests", "ReadOptions", "RigTest", "DataError")
 
 
 @pytest.mark.parametrize("name", tuner.__all__)

@@ -209,3 +209,34 @@ def test_outlier_rule():
     assert [i for i, d in res["dampers"].items() if d["outlier"]] == ["odd"]
     assert res["dampers"]["odd"]["worst_rate_m_s"] == -0.01
     assert not find_outliers({k: curves[k] for k in ("d0", "odd")})["judged"]  # two dampers: not judged
+
+
+def test_a_rows_column_mapping_reaches_the_reader(tmp_path):
+    """A row's *_col / *_unit / *_sign cells are the reader's options (``ReadOptions``) of its files: the
+    bundled tests written in mm, kN under another name and with the force's sign flipped read back as the
+    dataset does; a column the mapping does not name fails the row, naming it."""
+    import numpy as np
+    import pandas as pd
+
+    from tuner.data.reading import DataError, load_dataset
+    from tuner.fleet.batch import _load_row_data, _task
+
+    truth = {t.name: t for t in load_dataset(ROOT / "data" / "default")}
+    for name in ("id1_straight_250", "val1_straight_250"):
+        t = truth[name]
+        pd.DataFrame({"time": t.time, "stroke": 1e3 * t.stroke, "F_kN": -1e-3 * t.force}).to_csv(
+            tmp_path / f"{name}.csv", index=False, float_format="%.12g")
+    m = tmp_path / "fleet.csv"
+    m.write_text("damper_id,type,identification,validation,stroke_unit,force_col,force_unit,force_sign\n"
+                 "A1,A,id1_straight_250.csv,val1_straight_250.csv,mm,F_kN,kN,-1\n"
+                 "A2,A,id1_straight_250.csv,,mm,Kraft,kN,-1\n")
+    good, bad = read_fleet_manifest(m)
+    ident, valid = _load_row_data(_task(good, tmp_path / "out", {}, False, 0, False))
+    for got in (*ident, *valid):
+        want = truth[got.name]
+        assert got.role == want.role and got.metadata["read"]["signs"] == {"stroke": 1, "force": -1}
+        np.testing.assert_allclose(got.stroke, want.stroke, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(got.force, want.force, rtol=1e-9, atol=1e-9)
+    with pytest.raises(DataError, match="Kraft") as err:
+        _load_row_data(_task(bad, tmp_path / "out", {}, False, 0, False))
+    assert "fleet.csv row 2" in str(err.value) and "*_col" in str(err.value)

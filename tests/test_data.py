@@ -338,6 +338,81 @@ def test_unknown_role_in_load_files(tmp_path):
         load_files([p], "fit")
 
 
+def _same_test(a: RigTest, b: RigTest):
+    assert (a.name, a.role, a.scenario, a.sample_rate, a.channel_units) == (b.name, b.role, b.scenario,
+                                                                           b.sample_rate, b.channel_units)
+    for x, y in ((a.time, b.time), (a.stroke, b.stroke), (a.force, b.force)):
+        np.testing.assert_array_equal(x, y)
+    assert a.metadata == b.metadata
+
+
+def test_the_reader_options_as_one_record_read_as_the_keywords_do(tmp_path):
+    """``ReadOptions`` (issue 64): its defaults are the reader's, a file read with the record is the file read
+    with the same options by keyword (``load_tests``, ``load_test``, ``load_files``), keywords go over a
+    record, and the record is frozen."""
+    import dataclasses
+
+    from tuner.data.reading import ReadOptions, load_tests
+
+    fr = _frame(n=500)
+    p = _csv(tmp_path / "a.csv", {"t_ms": fr["time"] * 1e3, "x_mm": fr["stroke"] * 1e3, "F_kN": -fr["force"] / 1e3})
+    kw = dict(time_col="t_ms", stroke_col="x_mm", force_col="F_kN", time_unit="ms", stroke_unit="mm",
+              force_unit="kN", force_sign=-1, t_start=0.1, damper_class="any")
+    record = ReadOptions(**kw)
+    _same_test(load_test(p, record), load_test(p, **kw))
+    _same_test(load_tests(p, record)[0], load_tests(p, **kw)[0])
+    (a,), (b,) = load_files([p], "validation", record), load_files(p, "validation", **kw)
+    _same_test(a, b)
+    assert a.role == "validation" and a.metadata["read"]["signs"] == {"stroke": 1, "force": -1}
+    assert load_test(p, record, t_start=0.2).duration == pytest.approx(a.duration - 0.1, abs=2 / FS)
+    q = _csv(tmp_path / "plain.csv", dict(fr))
+    _same_test(load_test(q), load_test(q, ReadOptions()))
+    assert record.merged({"force_sign": 1}, t_start=None) == ReadOptions(**{**kw, "force_sign": 1, "t_start": None})
+    assert record.merged() is record and record.signs == {"stroke": 1, "force": -1}
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        record.force_sign = 1
+
+
+def test_an_unknown_reader_option_is_named_with_the_known_ones(tmp_path):
+    """By keyword, in a record or in a record's overrides: TypeError naming the option and listing the known
+    ones; a mapping given where the record goes is refused (keywords take single options)."""
+    from tuner.data.reading import ReadOptions
+
+    p = _raw(tmp_path / "a.csv", _good_cols())
+    for call in (lambda: ReadOptions(stroke_units="mm"), lambda: ReadOptions().merged({"stroke_units": "mm"}),
+                 lambda: load_files([p], "identification", stroke_units="mm"),
+                 lambda: load_test(p, ReadOptions(), stroke_units="mm")):
+        with pytest.raises(TypeError, match=r"unknown reader option\(s\) \['stroke_units'\]; known: time_col, "
+                                            r"stroke_col, .*stroke_unit, .*damper_class"):
+            call()
+    with pytest.raises(TypeError, match="must be a ReadOptions"):
+        load_test(p, {"stroke_unit": "mm"})
+
+
+def test_the_mapping_file_and_the_command_line_give_one_record_per_file(tmp_path):
+    """``column_options``: the defaults, then the mapping file's [columns], then its entry for the file, then
+    the command line (which wins); every option of a mapping file is a field of the record, and every one
+    the command line names by itself has its option."""
+    import argparse
+
+    from tuner.cli.options import DATA_OPTIONS, add_data_options, column_options
+    from tuner.data.reading import COLUMN_OPTIONS, READ_OPTIONS, ReadOptions
+
+    mapping = tmp_path / "columns.toml"
+    mapping.write_text('[columns]\ntime_col = "Zeit"\nstroke_unit = "mm"\nforce_sign = -1\n'
+                       '[files."run_07.csv"]\nstroke_unit = "cm"\nforce_zero = 0.5\nprefilter = "moving-average:0.02"\n')
+    ap = argparse.ArgumentParser()
+    add_data_options(ap)
+    every, per_file = column_options(ap.parse_args(["--columns", str(mapping), "--force-zero", "0.25", "--rate",
+                                                    "500", "--accept-implausible"]))
+    assert every == ReadOptions(time_col="Zeit", stroke_unit="mm", force_sign=-1, force_zero=0.25, rate_hz=500.0,
+                                check_plausible=False)
+    assert per_file == {"run_07.csv": every.merged(stroke_unit="cm", prefilter="moving-average:0.02")}
+    assert column_options(ap.parse_args(["--time-col", "none"]))[0] == ReadOptions(time_col=None)
+    assert set(COLUMN_OPTIONS) <= set(READ_OPTIONS)
+    assert set(DATA_OPTIONS) <= {a.dest for a in ap._actions}
+
+
 # --------------------------------------------------------------------------- differentiator
 
 def _lsq_derivative_coeffs(window, fs, order=3):

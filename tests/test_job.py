@@ -60,7 +60,10 @@ def test_the_job_prepares_once_writes_each_stage_and_reports_last(tmp_path, monk
     out = tmp_path / "out"
     out.mkdir()
     res = job.run(ident, valid, out, settings, log=lambda m: None)
-    assert sorted(prepared_names) == sorted(t.name for t in ident + valid)
+    fit_rate = settings.data.fit_rate_hz  # each test prepared once for the fit and the diagnosis; the full-rate
+    assert sorted(n for n, rate in prepared_names if rate == fit_rate) == sorted(t.name for t in ident + valid)
+    full_rate = [(n, rate) for n, rate in prepared_names if rate != fit_rate]  # check's own, at its rate, once each
+    assert full_rate and len(set(full_rate)) == len(full_rate) and all(rate > fit_rate for _, rate in full_rate)
     metrics = json.loads((out / "metrics.json").read_text())
     diagnosis = json.loads((out / "diagnosis.json").read_text())
     assert set(metrics["full_rate"]) == {"lumped", "maxwell"}

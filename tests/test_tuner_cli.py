@@ -204,7 +204,7 @@ def test_fit_and_diagnosis_share_one_problem_prepared_once(tmp_path, small_lumpe
     res = diagnose(ident, valid, DiagnosisSettings(engine=fastest_engine(), workers=0, candidates=(),
                                                    polish_jacobians=1),
                    base_params=base, problem=problem, log=lambda m: None)
-    assert sorted(prepared_names) == sorted(t.name for t in ident + valid)  # each test prepared once
+    assert sorted(prepared_names) == sorted((t.name, settings.data.fit_rate_hz) for t in ident + valid)  # once each
     assert metrics["settings"]["force_limit_n_used"] == res["settings"]["problem"]["force_limit_n_used"] == 31000.0
     with pytest.raises(ValueError, match="problem"):
         fit(ident, valid, FitSettings(models=("lumped",), data=DataSettings(fit_rate_hz=100.0)), problem=problem,

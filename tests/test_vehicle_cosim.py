@@ -166,7 +166,7 @@ def test_fmus_side_by_side_on_workers_give_the_figures_of_one_process(tmp_path):
     simulations; the growth rates' least squares may round differently with another BLAS thread count, so to
     1e-9), in the order of the FMUs given."""
     from damper_fmu.fmu import build
-    from tuner.fleet.executors import FleetExecutor
+    from tuner.executors import FleetExecutor
     from tuner.vehicle.compare import compare_fmus
 
     fmus = [build("maxwell", tmp_path / name, start_values={"k_s": k_s, "c": c})

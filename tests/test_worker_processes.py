@@ -27,7 +27,7 @@ def test_the_workers_of_a_killed_run_end_with_it(tmp_path):
     script = tmp_path / "run.py"
     script.write_text(textwrap.dedent("""
         import os, sys, time
-        from tuner.fleet.executors import FleetExecutor
+        from tuner.executors import FleetExecutor
 
         def pid(_):
             time.sleep(0.2)

@@ -18,6 +18,7 @@ At the top:
 - ``strict_json``: strict JSON for every file written (non-finite values as ``null``);
 - ``progress``: the one progress display over a whole job;
 - ``worker_processes``: how the worker pools start (a fork server with the simulation modules loaded);
+- ``executors``: where independent tasks run (a local process pool or Dask): the fleet's rows, the vehicle's draws;
 - ``__main__``: the parser of ``python -m tuner``.
 
 No import circle; modules import each other's public names by absolute path.
@@ -30,10 +31,12 @@ import importlib
 #: stages import scipy, pandas and fmpy (1.7 s), and every worker process and ``python -m tuner --help``
 #: imports this package first.
 _EXPORTS = {
-    # reading rig data (tuner.data.reading) and its error (damper_dataset.format)
+    # reading rig data (tuner.data.reading), its options (tuner.data.read_options) and its error
+    # (damper_dataset.format)
     "RigTest": "tuner.data.reading", "load_tests": "tuner.data.reading", "load_test": "tuner.data.reading",
     "load_files": "tuner.data.reading", "load_dataset": "tuner.data.reading",
-    "read_column_mapping": "tuner.data.reading", "DataError": "damper_dataset.format",
+    "ReadOptions": "tuner.data.read_options", "read_column_mapping": "tuner.data.read_options",
+    "DataError": "damper_dataset.format",
     # the identification problem, the fit and its result
     "Problem": "tuner.identification.problem", "DataSettings": "tuner.identification.problem",
     "FitSettings": "tuner.identification.fit", "FitResult": "tuner.identification.fit",

@@ -34,7 +34,7 @@ from tuner.data.reading import RigTest, reading_warnings
 from tuner import strict_json
 from tuner.diagnosis.bases import BaseRefinement, diagnosis_forecast
 from tuner.diagnosis.diagnose import Diagnosis, DiagnosisFailed, DiagnosisSettings, choose_base, diagnose
-from tuner.fleet.executors import FleetExecutor
+from tuner.executors import FleetExecutor
 from tuner.identification.fit import FitResult, FitSettings, fit, full_rate_checks
 from tuner.identification.intervals import ModelIntervals
 from tuner.identification.problem import Problem

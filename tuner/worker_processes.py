@@ -1,6 +1,6 @@
 """How this package starts its worker processes: the identification engines' pools
 (``tuner.identification.engine``), the local pools of the fleets and the vehicle draws
-(``tuner.fleet.executors``) and the report's figures (``map_in_workers``).
+(``tuner.executors``) and the report's figures (``map_in_workers``).
 
 'forkserver' where the platform has it (Linux, macOS): a server process imports the simulation modules
 once (``PRELOAD``) and every pool's workers fork from it with them loaded. With 'spawn' each worker

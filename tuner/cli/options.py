@@ -1,5 +1,5 @@
-"""The command line's data and fit options, and the one mapping of them to settings (``fit_settings``)
-and to tests read (``load_tests``)."""
+"""The command line's data and fit options, and the one mapping of them to settings (``fit_settings``),
+to the reader's options (``column_options``: ``ReadOptions`` records) and to tests read (``load_tests``)."""
 from __future__ import annotations
 
 import argparse
@@ -7,9 +7,10 @@ from pathlib import Path
 
 from campaign.cli import float_list  # the one argparse type for number lists
 from tuner.cli.log import log
-from tuner.data.reading import DEFAULT_DAMPER_CLASS, load_dataset, load_files, read_column_mapping
+from tuner.data.read_options import COLUMN_OPTIONS, DEFAULT_DAMPER_CLASS, ReadOptions, read_column_mapping
+from tuner.data.reading import load_dataset, load_files
 from tuner.data.summary import filter_warning, summarize, summary_text
-from tuner.fleet.executors import parse_scheduler
+from tuner.executors import parse_scheduler
 from tuner.identification.fit import FitSettings
 from tuner.identification.problem import DataSettings
 from tuner.vehicle.propagation import INTERVALS_FOR, PropagationSettings
@@ -86,15 +87,15 @@ def add_data_options(g) -> None:
                         "outside that class's range is read with a warning (a force in kN read as N)")
 
 
-DATA_OPTIONS = ("time_col", "stroke_col", "force_col", "velocity_col", "temperature_col", "test_col", "time_unit",
-                 "stroke_unit", "force_unit", "velocity_unit", "temperature_unit", "stroke_sign", "force_sign",
-                 "t_start", "t_end", "damper_class", "header_line", "date_order", "stroke_scale", "stroke_offset",
-                 "force_scale", "force_offset", "velocity_scale", "velocity_offset", "force_zero", "prefilter")
+#: the reader's options (``ReadOptions`` fields) that have an option of the same name (``--time-col`` ...):
+#: those of a mapping file but ``rate_hz`` (``--rate``) and ``check_plausible`` (``--accept-implausible``)
+DATA_OPTIONS = tuple(k for k in COLUMN_OPTIONS if k not in ("rate_hz", "check_plausible"))
 
 
-def column_options(args) -> tuple[dict, dict]:
-    """(options for every file, file name -> its own options) from the mapping file and the command line;
-    the command line wins."""
+def column_options(args) -> tuple[ReadOptions, dict[str, ReadOptions]]:
+    """The reader's options (``ReadOptions``) from the ``--columns`` mapping file and the command line: (those
+    of every file, file name -> that file's own). Each is the defaults, then the mapping file's ``[columns]``,
+    then its entry for the file, then the command line's options given: the command line wins."""
     common, per_file = read_column_mapping(args.columns) if args.columns else ({}, {})
     given = {k: getattr(args, k) for k in DATA_OPTIONS if getattr(args, k) is not None}
     if given.get("time_col", "").lower() == "none":
@@ -103,7 +104,8 @@ def column_options(args) -> tuple[dict, dict]:
         given["rate_hz"] = args.rate
     if args.accept_implausible:
         given["check_plausible"] = False
-    return {**common, **given}, {name: {**opts, **given} for name, opts in per_file.items()}
+    every = ReadOptions().merged(common)
+    return every.merged(given), {name: every.merged(opts).merged(given) for name, opts in per_file.items()}
 
 
 def add_fit_options(ap: argparse.ArgumentParser) -> None:
@@ -195,7 +197,7 @@ def fit_settings(args, models: tuple | None = None) -> "object":
 
 
 def vehicle_scheduler(args) -> str | None:
-    """Where the vehicle's draws run (``tuner.fleet.executors.parse_scheduler``'s spec, None: in this process)
+    """Where the vehicle's draws run (``tuner.executors.parse_scheduler``'s spec, None: in this process)
     from --vehicle-scheduler and --workers; ValueError naming the option for a bad value."""
     if getattr(args, "vehicle_draws", 0) < 0 or getattr(args, "vehicle_draws", 0) == 1:
         raise ValueError(f"--vehicle-draws must be 0 (no intervals) or at least 2, got {args.vehicle_draws}")
@@ -217,7 +219,7 @@ def load_tests(args, file_role: str | None = "identification"):
     common, per_file = column_options(args)
 
     def read(paths, role):
-        return [t for p in paths for t in load_files([p], role, **{**common, **per_file.get(Path(p).name, {})})]
+        return [t for p in paths for t in load_files([p], role, per_file.get(Path(p).name, common))]
 
     if args.dataset and (args.identification or args.validation):
         raise ValueError("give either --dataset or --identification/--validation files, not both")

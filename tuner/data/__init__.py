@@ -2,6 +2,7 @@
 
 - ``rigfile``: raw files as written (delimiters, a logger's preamble, the header, units);
 - ``reading``: reading to SI units, signs, plausibility and datasets (``load_tests``, ``load_dataset``);
+- ``read_options``: the reader's options as one record (``ReadOptions``) and the column mapping file;
 - ``stamps``: date-time stamps and their day-month order;
 - ``calibration``: a logger's channel calibration (scale, offset) and the force tare;
 - ``prefilter``: the lab's declared filter, applied to the simulated force and undone on the stroke;

@@ -4,12 +4,12 @@ Reads files as rigs write them (``tuner.data.rigfile``) and datasets in the form
 ``damper_dataset.format`` (the one definition, shared with the campaign's writer), converts to SI
 and checks that the data is physically a damper on a rig.
 
-Preprocessing (resampling, ``prepare``): ``tuner.data.preprocess``; the stroke differentiator:
+The options of a read travel in one record, ``ReadOptions`` (``tuner.data.read_options``, with the column
+mapping file). Preprocessing (resampling, ``prepare``): ``tuner.data.preprocess``; the stroke differentiator:
 ``tuner.data.differentiator``.
 """
 from __future__ import annotations
 
-import json
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,6 +23,9 @@ from damper_dataset.format import (FORCE_UNITS, MANIFEST_TEST_KEYS, ROLES, STROK
                                    suggest_unit)
 from tuner.data.calibration import apply as calibrate, calibration, force_zero as tare_force
 from tuner.data.prefilter import parse_prefilter
+# the record of the reader's options and the mapping file, also reachable here (the reader's API in one module)
+from tuner.data.read_options import (COLUMN_OPTIONS, DEFAULT_DAMPER_CLASS, READ_OPTIONS, ReadOptions,  # noqa: F401
+                                     read_column_mapping)
 from tuner.data.rigfile import RawTable, read_raw, split_unit
 from tuner.data.stamps import check_date_order, is_stamp, stamp_seconds
 
@@ -40,7 +43,6 @@ MAX_DAMPING_N_S_PER_M = 1e8
 #: dampers are an order of magnitude softer. 'any' checks only the hard limits above.
 DAMPER_CLASSES = {"yaw": (3e4, 3e6), "primary": (3e3, 3e5), "secondary": (3e3, 3e5),
                   "any": (MIN_DAMPING_N_S_PER_M, MAX_DAMPING_N_S_PER_M)}
-DEFAULT_DAMPER_CLASS = "yaw"
 #: the railway damper classes: data declared as another class ('any') is not read as a railway damper's
 #: (the report then leaves out the railway wording: curving, stability)
 RAILWAY_DAMPER_CLASSES = ("yaw", "primary", "secondary")
@@ -302,12 +304,13 @@ def _temperature_column(raw: RawTable, use: dict, source: str, warn: list) -> st
     return in_temperature[0] if in_temperature else None  # 'Temperature (V)' beside it is a channel
 
 
-def _pick_columns(raw: RawTable, source: str, names: dict, rate_hz, extra_cols) -> tuple:
-    """Which column is which. ``names``: role -> the ``*_col`` option (time, stroke, force, velocity,
-    temperature, test). Returns (use: role -> column, no_time, extra columns to read, whether they were
+def _pick_columns(raw: RawTable, source: str, opts: ReadOptions) -> tuple:
+    """Which column is which (``opts.columns``: role -> the ``*_col`` option; ``opts.rate_hz``,
+    ``opts.extra_cols``). Returns (use: role -> column, no_time, extra columns to read, whether they were
     asked for, unused columns, warnings). Raises DataError naming the option for a missing column."""
     found = list(raw.frame.columns)
     warn = []
+    names, rate_hz, extra_cols = opts.columns, opts.rate_hz, opts.extra_cols
     time_col = names["time"]
     no_time = time_col is None or (rate_hz is not None and time_col == "time" and "time" not in found
                                    and not any(raw.names[c].lower() == "time" for c in found))
@@ -343,15 +346,17 @@ def _pick_columns(raw: RawTable, source: str, names: dict, rate_hz, extra_cols) 
     return use, no_time, extra_cols, asked_extra, rest, warn
 
 
-def _signals(raw: RawTable, use: dict, source: str, given: dict, signs: dict, channel_units, cal: dict) -> tuple:
+def _signals(raw: RawTable, use: dict, source: str, opts: ReadOptions, cal: dict) -> tuple:
     """Stroke [m, + extension], force [N, + tension], the measured velocity [m/s] and the oil
-    temperature [degC] of the columns in ``use``, in SI with our signs. ``given``: role -> unit option
-    (None: as the file declares, else SI); ``signs``: stroke and force sign (+1/-1); ``cal``: channel ->
+    temperature [degC] of the columns in ``use``, in SI with our signs. ``opts.units``: role -> unit
+    option (None: as the file declares, else SI); ``opts.signs``: stroke and force sign (+1/-1);
+    ``opts.channel_units``: the temperature's unit when not given otherwise; ``cal``: channel ->
     scale and offset (:func:`tuner.data.calibration.calibration`): scale x raw + offset is in the
     channel's unit, and with a scale the unit a column declares is the raw one (not used). Returns
     (columns by role, the temperature as ``'ch:temperature'``, the raw values of calibrated channels
     as ``'raw:NAME'``; units read)."""
     cols, units, raws = {}, {}, {}
+    given, signs, channel_units = opts.units, opts.signs, opts.channel_units
     for what, table, default in (("stroke", STROKE_UNITS, "m"), ("force", FORCE_UNITS, "N"),
                                  ("velocity", VELOCITY_UNITS, None)):
         if what not in use:
@@ -413,9 +418,11 @@ def _rate_check(label: str, preamble: dict, rate: float, dt_tol: float) -> tuple
                    f"gives {rate:.6g} Hz; check --time-col/--time-unit, or the logger's settings")
 
 
-def _time_base(raw: RawTable, use: dict, no_time: bool, rate_hz, time_unit, date_order, source: str) -> tuple:
+def _time_base(raw: RawTable, use: dict, no_time: bool, opts: ReadOptions, source: str) -> tuple:
     """(time [s] of every row, what it came from, the time unit read or None, how stamps were read).
-    Without a time column: ``rate_hz`` [Hz], else the rate the preamble declares."""
+    Without a time column: ``opts.rate_hz`` [Hz], else the rate the preamble declares; with one, in
+    ``opts.time_unit`` (or as declared) or date-time stamps in ``opts.date_order``."""
+    rate_hz = opts.rate_hz
     if no_time:
         declared = _declared_rates(raw.preamble)
         if rate_hz is None and declared:
@@ -425,8 +432,8 @@ def _time_base(raw: RawTable, use: dict, no_time: bool, rate_hz, time_unit, date
         if rate_hz is None or not float(rate_hz) > 0:
             raise DataError(f"{source}: no time column: give the sample rate with --rate HZ")
         return np.arange(len(raw.frame)) / float(rate_hz), f"none: samples at --rate {float(rate_hz):g} Hz", None, {}
-    unit = _unit(time_unit, raw.units.get(use["time"]), "s", "time", use["time"], source, "--time-unit")
-    t, kind, how = _time_seconds(raw, use["time"], unit, source, date_order)
+    unit = _unit(opts.time_unit, raw.units.get(use["time"]), "s", "time", use["time"], source, "--time-unit")
+    t, kind, how = _time_seconds(raw, use["time"], unit, source, opts.date_order)
     return t, kind, "timestamp" if kind == "timestamp" else unit, how
 
 
@@ -494,22 +501,21 @@ def _segment(tg: np.ndarray, cg: dict, lines, t_start, t_end, regularised: bool)
     return tg[sel], {k: v[sel] for k, v in cg.items()}, lines
 
 
-def _one_test_signals(label: str, t: np.ndarray, cols: dict, rows: np.ndarray, lines, dt_tol: float, t_start,
-                      t_end, force_zero) -> tuple:
+def _one_test_signals(label: str, t: np.ndarray, cols: dict, rows: np.ndarray, lines, opts: ReadOptions) -> tuple:
     """One test's ``rows`` of the file's time [s] and columns (``lines``: the file line of each row, or
     None): NaN/inf refused (named before any resampling), the time base regularised from 0
-    (:func:`_regularise`), the force tared over its first ``force_zero`` seconds (None: not;
-    :func:`tuner.data.calibration.force_zero`), the segment selected. Returns (time [s], columns, file
-    lines, regularisation note, tare)."""
+    (:func:`_regularise`, within ``opts.dt_tol``), the force tared over its first ``opts.force_zero``
+    seconds (None: not; :func:`tuner.data.calibration.force_zero`), the segment ``opts.t_start`` to
+    ``opts.t_end`` [s] selected. Returns (time [s], columns, file lines, regularisation note, tare)."""
     lines = None if lines is None else [lines[i] for i in rows]
     t, cols = t[rows] - t[rows][0], {k: v[rows] for k, v in cols.items()}
     for k, v in cols.items():
         check_finite(label, k.removeprefix("ch:"), v, lines)
-    t, cols, note = _regularise(label, t, cols, dt_tol, lines)
+    t, cols, note = _regularise(label, t, cols, opts.dt_tol, lines)
     zero = None
-    if force_zero is not None:
-        cols["force"], zero = tare_force(label, t, cols["force"], cols["stroke"], force_zero)
-    t, cols, lines = _segment(t, cols, lines, t_start, t_end, note is not None)
+    if opts.force_zero is not None:
+        cols["force"], zero = tare_force(label, t, cols["force"], cols["stroke"], opts.force_zero)
+    t, cols, lines = _segment(t, cols, lines, opts.t_start, opts.t_end, note is not None)
     return t, cols, lines, note, zero
 
 
@@ -527,33 +533,36 @@ def _calibration_read(cal: dict, use: dict, raw: RawTable, units: dict, cols: di
     return out or None
 
 
-def _checked_options(source: str, role, signs: dict, date_order, velocity_col, cal_options: dict) -> dict:
+def _checked_options(source: str, opts: ReadOptions) -> dict:
     """DataError naming the option for a bad role, sign, date order or calibration; returns the
     calibration (:func:`tuner.data.calibration.calibration`)."""
-    if role is not None and role not in ROLES:
-        raise DataError(f"{source}: unknown role {role!r}; expected one of {ROLES}")
-    for what, sign in signs.items():
+    if opts.role is not None and opts.role not in ROLES:
+        raise DataError(f"{source}: unknown role {opts.role!r}; expected one of {ROLES}")
+    for what, sign in opts.signs.items():
         if sign not in (1, -1):
             raise DataError(f"{source}: {what}_sign must be +1 or -1, got {sign!r}")
-    check_date_order(date_order, source)
-    cal = calibration(cal_options, source)
-    if "velocity" in cal and velocity_col is None:
+    check_date_order(opts.date_order, source)
+    cal = calibration(opts.calibration, source)
+    if "velocity" in cal and opts.velocity_col is None:
         raise DataError(f"{source}: --velocity-scale/--velocity-offset given without a velocity column: "
                         f"name it with --velocity-col")
     return cal
 
 
-def _test_checks(label: str, t, cols: dict, channels: dict, lines, units: dict, dt_tol: float, sample_rate_hz,
-                 preamble: dict, damper_class) -> tuple[float, dict, list]:
-    """The checks of one test in SI: its signals (``check_signals``), the manifest's and the preamble's
-    sample rate, and, unless ``damper_class`` is None, plausibility and the damper class. Returns (the
-    sample rate [Hz], {'declared_rate', 'plausibility'}, warnings)."""
+def _test_checks(label: str, t, cols: dict, channels: dict, lines, units: dict, preamble: dict,
+                 opts: ReadOptions) -> tuple[float, dict, list]:
+    """The checks of one test in SI: its signals (``check_signals``, within ``opts.dt_tol``), the manifest's
+    (``opts.sample_rate_hz`` [Hz]) and the preamble's sample rate, and, when ``opts.check_plausible``,
+    plausibility and the damper class. Returns (the sample rate [Hz], {'declared_rate', 'plausibility'},
+    warnings)."""
+    dt_tol, sample_rate_hz = opts.dt_tol, opts.sample_rate_hz
     rate = check_signals(label, t, cols["stroke"], cols["force"], channels, dt_tol=dt_tol, lines=lines, units=units)
     if sample_rate_hz is not None and abs(rate / float(sample_rate_hz) - 1.0) > dt_tol:
         raise DataError(f"{label}: time column gives {rate:.6g} Hz but the manifest "
                         f"says sample_rate_hz = {sample_rate_hz}")
     declared, rate_note = _rate_check(label, preamble, rate, dt_tol)
     read_checks, class_note = None, None
+    damper_class = opts.damper_class if opts.check_plausible else None
     if damper_class is not None:
         read_checks = plausibility(label, t, cols["stroke"], cols["force"], cols.get("velocity"), rate, units)
         class_note = class_warning(label, read_checks, damper_class, units)
@@ -568,58 +577,41 @@ def _groups(raw: RawTable, use: dict) -> list:
     return [(g, np.flatnonzero(ids == g)) for g in dict.fromkeys(ids)]
 
 
-def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force", velocity_col=None,
-               temperature_col=None, test_col=None, time_unit=None, stroke_unit=None, force_unit=None,
-               velocity_unit=None, temperature_unit=None, stroke_sign=1, force_sign=1, rate_hz=None,
-               t_start=None, t_end=None, extra_cols=None, channel_units=None, name=None, role=None,
-               scenario=None, sample_rate_hz=None, metadata=None, dt_tol=0.01,
-               check_plausible=True, damper_class=DEFAULT_DAMPER_CLASS, header_line=None, date_order=None,
-               stroke_scale=None, stroke_offset=None, force_scale=None, force_offset=None,
-               velocity_scale=None, velocity_offset=None, force_zero=None, prefilter=None) -> list[RigTest]:
-    """Read one rig file; return its test(s) in SI units (one per value of ``test_col``).
+def load_tests(path, options: ReadOptions | None = None, **changes) -> list[RigTest]:
+    """Read one rig file with ``options`` (``ReadOptions``; None: the defaults) and return its test(s) in SI
+    units, one per value of ``options.test_col``. ``changes``: single options by keyword, over ``options``
+    (``load_tests(path, stroke_unit="mm")``); TypeError naming an unknown one.
 
-    Columns (``*_col``): a header, a header without its unit, or a 1-based position.
-    ``time_col=None`` (or a file without that column) with ``rate_hz`` [Hz] (else the rate a logger's
-    preamble declares): samples at that rate. Time may be numbers (``time_unit`` s/ms) or date-time
-    stamps (``date_order`` 'mdy'/'dmy' for year-last dates, None: from the data, see
-    :mod:`tuner.data.stamps`). ``header_line``: the 1-based file line of the column names (None: detected
-    after any preamble, :mod:`tuner.data.rigfile`). Units (``*_unit``): given here or declared in the file
-    (header ``force [kN]`` or a units row; both must agree), else SI. ``velocity_col``: a measured stroke
-    velocity (default unit: stroke unit per second), used instead of differentiating the stroke.
-    ``temperature_col``: the oil temperature (degC or K), loaded as channel ``temperature``
-    (without it the column named ``temperature`` in degC or K, or in no declared unit, is that
-    channel -- ``Temperature (V)`` beside ``Temperature (degC)`` stays a channel in V -- and another
-    column that looks like a temperature gives a warning). Every other channel keeps the unit its
-    own header declares; a text-only column (a logger's 'Events') is left out with a note.
-    Calibration (``stroke_scale``/``stroke_offset``, ``force_*``, ``velocity_*``): engineering value =
-    scale x raw + offset in the channel's unit; ``force_zero`` [s]: the force's mean over the first
-    seconds of each test is removed (:mod:`tuner.data.calibration`). ``prefilter``: the filter the lab
-    applied to the channels before writing them (:mod:`tuner.data.prefilter`, e.g. 'moving-average:0.02'),
-    recorded in ``metadata['read']['prefilter']``: the simulated force passes it before every comparison.
-    Signs: ``stroke_sign``/``force_sign`` = -1 for rigs writing compression positive. ``t_start``/``t_end``
-    [s from the first sample] select a segment. Duplicated or irregular stamps are regularised with a warning
-    (see :func:`_regularise`). ``extra_cols``: channel columns to keep (None: every other column).
-    ``check_plausible``: refuse physically implausible strokes/forces (:func:`check_plausible`);
-    ``damper_class``: warn when the apparent damping is outside that class's range (:func:`class_warning`).
-    What was understood goes to ``metadata['read']`` (with the damper class declared, checked or not),
-    warnings to ``metadata['warnings']``. Raises DataError on any problem."""
+    What the options mean: ``ReadOptions``. In short: a column is found by header, header without unit or
+    1-based position; without a time column the samples are at ``rate_hz`` [Hz] (else the rate a logger's
+    preamble declares); time may be numbers or date-time stamps (:mod:`tuner.data.stamps`); units are given
+    or declared in the file (both must agree), else SI; ``velocity_col`` is used instead of differentiating
+    the stroke; the oil temperature is channel ``temperature`` [degC] (without ``temperature_col`` the
+    column named ``temperature`` in degC or K, or in no declared unit -- ``Temperature (V)`` beside
+    ``Temperature (degC)`` stays a channel in V -- and another column that looks like a temperature gives a
+    warning). Every other channel keeps the unit its own header declares; a text-only column (a logger's
+    'Events') is left out with a note. Calibration: engineering value = scale x raw + offset, the force tared
+    over its first ``force_zero`` [s] (:mod:`tuner.data.calibration`); ``prefilter`` (the lab's filter,
+    :mod:`tuner.data.prefilter`) is recorded in ``metadata['read']['prefilter']``: the simulated force passes
+    it before every comparison. Duplicated or irregular stamps are regularised with a warning (see
+    :func:`_regularise`); ``t_start``/``t_end`` [s from the first sample] select a segment. ``check_plausible``:
+    refuse physically implausible strokes/forces (:func:`plausibility`); ``damper_class``: warn when the
+    apparent damping is outside that class's range (:func:`class_warning`). What was understood goes to
+    ``metadata['read']`` (with the damper class declared, checked or not), warnings to
+    ``metadata['warnings']``. Raises DataError on any problem."""
+    opts = ReadOptions.of(options, **changes)
     path = Path(path)
     source = str(path)
-    signs = {"stroke": stroke_sign, "force": force_sign}
-    cal = _checked_options(source, role, signs, date_order, velocity_col, dict(
-        stroke_scale=stroke_scale, stroke_offset=stroke_offset, force_scale=force_scale, force_offset=force_offset,
-        velocity_scale=velocity_scale, velocity_offset=velocity_offset))
-    lab_filter = parse_prefilter(prefilter, f"{source}: prefilter")
-    raw = read_raw(path, source, header_line)
-    use, no_time, extra_cols, asked_extra, rest, warn = _pick_columns(
-        raw, source, {"time": time_col, "stroke": stroke_col, "force": force_col, "velocity": velocity_col,
-                      "temperature": temperature_col, "test": test_col}, rate_hz, extra_cols)
-    given = {"stroke": stroke_unit, "force": force_unit, "velocity": velocity_unit, "temperature": temperature_unit}
-    t, time_kind, tu, stamps = _time_base(raw, use, no_time, rate_hz, time_unit, date_order, source)
-    cols, units = _signals(raw, use, source, given, signs, channel_units, cal)
+    cal = _checked_options(source, opts)
+    lab_filter = parse_prefilter(opts.prefilter, f"{source}: prefilter")
+    raw = read_raw(path, source, opts.header_line)
+    use, no_time, extra_cols, asked_extra, rest, warn = _pick_columns(raw, source, opts)
+    t, time_kind, tu, stamps = _time_base(raw, use, no_time, opts, source)
+    cols, units = _signals(raw, use, source, opts, cal)
     if tu is not None:
         units["time"] = tu
-    extra, ch_units, dropped, text_cols = _extra_channels(raw, extra_cols, asked_extra, channel_units, source, warn)
+    extra, ch_units, dropped, text_cols = _extra_channels(raw, extra_cols, asked_extra, opts.channel_units, source,
+                                                          warn)
     cols.update(extra)
     ch_units = {"temperature": "degC", **ch_units} if "temperature" in use else ch_units
     stem = re.sub(r"\.(csv|tsv|txt|dat)(\.gz)?$|\.(parquet|pq)$", "", path.name, flags=re.IGNORECASE)
@@ -629,22 +621,22 @@ def load_tests(path, *, time_col="time", stroke_col="stroke", force_col="force",
     out = []
     for gid, rows in _groups(raw, use):
         label = source if gid is None else f"{source} [test {gid}]"
-        tg, cg, lines, note, zero = _one_test_signals(label, t, cols, rows, raw.lines, dt_tol, t_start, t_end,
-                                                      force_zero)
+        tg, cg, lines, note, zero = _one_test_signals(label, t, cols, rows, raw.lines, opts)
         channels = {k[3:]: v for k, v in cg.items() if k.startswith("ch:")}
-        rate, checks, notes = _test_checks(label, tg, cg, channels, lines, units, dt_tol, sample_rate_hz,
-                                           raw.preamble, damper_class if check_plausible else None)
-        read = {"channels": list(channels), "units": units, "time": time_kind, "signs": dict(signs),
+        rate, checks, notes = _test_checks(label, tg, cg, channels, lines, units, raw.preamble, opts)
+        read = {"channels": list(channels), "units": units, "time": time_kind, "signs": opts.signs,
                 "delimiter": raw.delimiter, "decimal": raw.decimal, "regularised": note,
-                "segment_s": [t_start, t_end] if (t_start is not None or t_end is not None) else None,
-                **checks, **file_read, "calibration": _calibration_read(cal, use, raw, units, cg), "force_zero": zero,
-                "prefilter": lab_filter.to_dict() if lab_filter else None, "damper_class": damper_class}
+                "segment_s": [opts.t_start, opts.t_end] if (opts.t_start is not None or opts.t_end is not None)
+                else None, **checks, **file_read, "calibration": _calibration_read(cal, use, raw, units, cg),
+                "force_zero": zero, "prefilter": lab_filter.to_dict() if lab_filter else None,
+                "damper_class": opts.damper_class}
         warns = list(warn) + ([f"{label}: {note}"] if note else []) + notes
         out.append(RigTest(
-            name=(name or stem) + ("" if gid is None else f"-{gid}"), role=role,
-            scenario="" if scenario is None else str(scenario), time=tg, stroke=cg["stroke"], force=cg["force"],
-            channels=channels, sample_rate=float(sample_rate_hz) if sample_rate_hz else rate, source=path,
-            metadata={**dict(metadata or {}), "read": read, **({"warnings": warns} if warns else {})},
+            name=(opts.name or stem) + ("" if gid is None else f"-{gid}"), role=opts.role,
+            scenario="" if opts.scenario is None else str(opts.scenario), time=tg, stroke=cg["stroke"],
+            force=cg["force"], channels=channels, source=path,
+            sample_rate=float(opts.sample_rate_hz) if opts.sample_rate_hz else rate,
+            metadata={**dict(opts.metadata or {}), "read": read, **({"warnings": warns} if warns else {})},
             channel_units=ch_units, velocity=cg.get("velocity")))
     return out
 
@@ -665,70 +657,22 @@ def reading_warnings(tests: list[RigTest]) -> list[str]:
     return out
 
 
-def load_test(path, **options) -> RigTest:
-    """Read a rig file holding one test (options as in :func:`load_tests`)."""
-    tests = load_tests(path, **options)
+def load_test(path, options: ReadOptions | None = None, **changes) -> RigTest:
+    """Read a rig file holding one test (``options`` and ``changes`` as in :func:`load_tests`)."""
+    tests = load_tests(path, options, **changes)
     if len(tests) != 1:
         raise DataError(f"{path}: holds {len(tests)} tests (test-id column); use load_tests")
     return tests[0]
 
 
-def load_files(paths, role, **column_options) -> list[RigTest]:
-    """Read loose files (no manifest), all with ``role``; options as in :func:`load_tests`."""
+def load_files(paths, role, options: ReadOptions | None = None, **changes) -> list[RigTest]:
+    """Read loose files (no manifest), all with ``role``, each with ``options`` (``ReadOptions``) and the
+    single options ``changes`` by keyword over them, as in :func:`load_tests`
+    (``load_files(paths, "identification", stroke_unit="mm", force_col="Kraft")``)."""
     if isinstance(paths, (str, Path)):
         paths = [paths]
-    return [t for p in paths for t in load_tests(p, role=role, **column_options)]
-
-
-COLUMN_OPTIONS = ("time_col", "stroke_col", "force_col", "velocity_col", "temperature_col", "test_col",
-                  "time_unit", "stroke_unit", "force_unit", "velocity_unit", "temperature_unit", "stroke_sign",
-                  "force_sign", "rate_hz", "t_start", "t_end", "check_plausible", "damper_class", "header_line",
-                  "date_order", "stroke_scale", "stroke_offset", "force_scale", "force_offset", "velocity_scale",
-                  "velocity_offset", "force_zero", "prefilter")
-
-
-def read_column_mapping(path) -> tuple[dict, dict]:
-    """Read a column mapping file (TOML or JSON) for campaigns of many files.
-
-    Layout (TOML; JSON alike)::
-
-        [columns]                # every file
-        time_col = "Zeit"
-        stroke_unit = "mm"
-        [files."run_07.csv"]     # one file (by name), over [columns]
-        force_sign = -1
-
-    Keys: the options of :func:`load_tests` listed in ``COLUMN_OPTIONS``. Returns (every file,
-    file name -> options). Raises DataError naming the file and the unknown key.
-    """
-    import tomllib
-
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise DataError(f"{path}: cannot read the column mapping: {exc}") from exc
-    try:
-        data = json.loads(text) if path.suffix.lower() == ".json" else tomllib.loads(text)
-    except (json.JSONDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise DataError(f"{path}: invalid {'JSON' if path.suffix.lower() == '.json' else 'TOML'}: {exc}") from exc
-    extra = [k for k in data if k not in ("columns", "files")]
-    if extra:
-        raise DataError(f"{path}: unknown section(s) {extra}; expected 'columns' and 'files'")
-
-    def check(opts, where):
-        if not isinstance(opts, dict):
-            raise DataError(f"{path}: {where} must be a table of options")
-        bad = [k for k in opts if k not in COLUMN_OPTIONS]
-        if bad:
-            raise DataError(f"{path}: {where}: unknown option(s) {bad}; known: {', '.join(COLUMN_OPTIONS)}")
-        return dict(opts)
-
-    common = check(data.get("columns", {}), "[columns]")
-    files = data.get("files", {})
-    if not isinstance(files, dict):
-        raise DataError(f"{path}: [files] must map file names to options")
-    return common, {name: check(o, f"[files.{name!r}]") for name, o in files.items()}
+    opts = ReadOptions.of(options, **changes).merged(role=role)
+    return [t for p in paths for t in load_tests(p, opts)]
 
 
 def load_dataset(folder, *, dt_tol=0.01, check_plausible=True, damper_class=DEFAULT_DAMPER_CLASS) -> list[RigTest]:
@@ -738,14 +682,12 @@ def load_dataset(folder, *, dt_tol=0.01, check_plausible=True, damper_class=DEFA
     man = read_manifest(folder)
     units = man.get("units", {})
     known = {"time", "stroke", "force"}
+    read = ReadOptions(stroke_unit=units.get("stroke", "m"), force_unit=units.get("force", "N"),
+                       time_unit=units.get("time", "s"),
+                       channel_units={k: v for k, v in units.items() if k not in known}, dt_tol=dt_tol, check_plausible=check_plausible, damper_class=damper_class)
     out = []
     for e in man["tests"]:
-        out.append(load_test(
-            folder / e["file"], stroke_unit=units.get("stroke", "m"),
-            force_unit=units.get("force", "N"), time_unit=units.get("time", "s"),
-            channel_units={k: v for k, v in units.items() if k not in known},
-            name=e["name"], role=e["role"], scenario=e["scenario"],
-            sample_rate_hz=e["sample_rate_hz"], dt_tol=dt_tol, check_plausible=check_plausible,
-            damper_class=damper_class,
-            metadata={k: v for k, v in e.items() if k not in MANIFEST_TEST_KEYS}))
+        out.append(load_test(folder / e["file"], read.merged(
+            name=e["name"], role=e["role"], scenario=e["scenario"], sample_rate_hz=e["sample_rate_hz"],
+            metadata={k: v for k, v in e.items() if k not in MANIFEST_TEST_KEYS})))
     return out

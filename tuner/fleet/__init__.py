@@ -1,8 +1,9 @@
 """Fleet batch identification (``python -m tuner batch MANIFEST``, command line in ``tuner.cli.batch``).
 
 - ``manifest``: the rows of a manifest (CSV or TOML), read and checked;
-- ``executors``: where the rows run (a local process pool or Dask);
 - ``batch``: one row, the whole batch, and its resumption.
+
+Where the rows run (a local process pool or Dask) is ``tuner.executors``, shared with the job's vehicle runs.
 
 One manifest row per damper test session; every row runs the tuner's job (``tuner.job.run``: fit, and
 with ``--diagnose`` the diagnosis) into its own folder
@@ -20,10 +21,10 @@ CSV (a header row; ``#`` comment lines and blank lines ignored) or TOML. Columns
 * ``identification``, ``validation``: test files, paths relative to the manifest's folder, several
   separated by ``;`` (TOML: a list or such a string); or ``dataset``: a dataset folder with a
   ``manifest.json`` (its roles are used);
-* column mapping and units, passed to ``tuner.data.reading.load_files``: ``time_col``, ``stroke_col``,
-  ``force_col``, ``temperature_col``, ``time_unit``, ``stroke_unit``, ``force_unit``,
-  ``temperature_unit`` (and any other loader option of ``tuner.data.reading`` ending in ``_col``,
-  ``_unit`` or ``_sign``);
+* column mapping and units, passed to ``tuner.data.reading.load_files`` as a ``ReadOptions``
+  (``tuner.data.read_options``): ``time_col``, ``stroke_col``, ``force_col``, ``temperature_col``,
+  ``time_unit``, ``stroke_unit``, ``force_unit``, ``temperature_unit`` (and any other of its options
+  ending in ``_col``, ``_unit`` or ``_sign``);
 * per-row settings: ``seed``, ``models`` (``lumped+maxwell``; ``+``, ``;`` or spaces between),
   ``population``, ``iterations``, ``polish``, ``fit_rate`` [Hz], ``warmup`` [s], ``engine``,
   ``parametrization``, ``init``, ``force_limit`` [N], ``diagnose`` (true/false);

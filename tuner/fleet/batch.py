@@ -17,8 +17,9 @@ from tqdm import tqdm
 from damper_fmu.fmu import ensure_fmu
 from damper_fmu.parameters import EFFECT_MODELS
 from tuner import job
+from tuner.data.read_options import ReadOptions
 from tuner.data.reading import DataError, load_dataset, load_files
-from tuner.fleet.executors import FleetExecutor
+from tuner.executors import FleetExecutor
 from tuner.fleet.manifest import Row, check_setting, read_fleet_manifest
 from tuner.identification.fit import FitSettings
 from tuner.results.fleet_summary import OUTLIER_K, OUTLIER_TOLERANCE, write_atomic, write_summary
@@ -64,8 +65,9 @@ def _load_row_data(task: dict):
                     raise DataError(f"{where}, column {col!r}: file {f} not found (paths are relative to the "
                                     f"manifest's folder; several files are separated by ';')")
         try:
-            ident = load_files(task["identification"], "identification", **task["columns"])
-            valid = load_files(task["validation"], "validation", **task["columns"]) if task["validation"] else []
+            read = ReadOptions.of(**task["columns"])
+            ident = load_files(task["identification"], "identification", read)
+            valid = load_files(task["validation"], "validation", read) if task["validation"] else []
         except DataError as err:
             raise DataError(f"{where}: {err} (column mapping and units: the manifest's *_col / *_unit columns)") from err
     if not ident:

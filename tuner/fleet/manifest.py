@@ -9,7 +9,7 @@ import tomllib
 from pathlib import Path
 
 from damper_fmu.parameters import MODEL_KINDS
-from tuner.data.reading import load_tests
+from tuner.data.read_options import READ_OPTIONS
 from tuner.identification.engine import ENGINES
 
 __all__ = ["Row", "ManifestError", "read_fleet_manifest", "convert_cell", "check_setting", "SETTING_COLUMNS",
@@ -47,11 +47,8 @@ class Row:
 
 
 def _loader_options() -> set:
-    """Column/unit options the data reader of this version accepts (tuner.data.reading, public names)."""
-    import inspect
-
-    names = set(inspect.signature(load_tests).parameters)
-    names = {n for n in names if n.endswith(("_col", "_unit", "_sign"))}
+    """Column/unit/sign options the data reader of this version accepts (``ReadOptions`` fields)."""
+    names = {n for n in READ_OPTIONS if n.endswith(("_col", "_unit", "_sign"))}
     return names | {"time_col", "stroke_col", "force_col", "temperature_col", "time_unit", "stroke_unit",
                     "force_unit", "temperature_unit"}
 

@@ -38,7 +38,6 @@ from damper_fmu.fmu import ensure_fmu
 from damper_fmu.models import ConvergenceError
 from damper_fmu.parameters import EFFECT_MODELS, defaults
 
-from tuner.data.preprocess import prepare
 from tuner.data.reading import RigTest
 from tuner.identification import firefly
 from tuner.identification.engine import IDENTIFICATION_STEP, Engine, Signals
@@ -47,7 +46,7 @@ from tuner.identification.full_rate import MIN_RATE_RATIO, comparison_rate, full
 from tuner.identification.intervals import parameter_intervals, reached_ranges
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.polish import FTOL, TYPICAL_JACOBIANS, PolishResult, polish, resolution_stop, small_progress
-from tuner.identification.problem import DataSettings, Problem, split_data_settings, to_signals
+from tuner.identification.problem import DataSettings, Problem, prepared_signals, split_data_settings
 from tuner.identification.restart_check import ROUNDS, TYPICAL_RESTARTS, RestartCheck, restart_check
 from tuner.identification.runner import SimulationError
 from tuner.identification.validation import validation_run
@@ -544,7 +543,7 @@ def full_rate_checks(tests: list[RigTest], params: dict, settings: FitSettings, 
         if rate is None:
             continue
         # the velocity accurate over the compared band (stroke_band_hz at the comparison rate)
-        s = to_signals(prepare(t, rate, diff_band_hz=settings.data.diff_band_hz), settings.data.warmup_s)
+        s = prepared_signals([t], settings.data, rate)[1][0]
         sigma = noise_std(t.force, t.sample_rate)
         for model in settings.models:
             rows[model][t.name] = full_rate_check(model, params[model]["values"], s, settings.data.fit_rate_hz,

@@ -63,8 +63,8 @@ def full_rate_check(model: str, params: dict, s: Signals, fit_rate_hz: float, fi
                     file_noise_n: float, *, engine: str | None = None) -> dict:
     """The check for one test.
 
-    ``s``: the test prepared at ``comparison_rate`` (``tuner.data.preprocess.prepare`` then
-    ``tuner.identification.problem.to_signals``, band-limited); ``file_noise_n``: the white-equivalent force noise
+    ``s``: the test prepared at ``comparison_rate`` (``tuner.identification.problem.prepared_signals``,
+    band-limited); ``file_noise_n``: the white-equivalent force noise
     of the file [N] over 0 .. ``file_rate_hz`` / 2 (``tuner.metrics.noise_std``).
     Returns forces [N] and frequencies [Hz]: ``fit_band_hz``, ``upper_hz``, ``rmse_in_fit_band_n``
     (mean removed), ``noise_std_n`` (the white-equivalent noise used: the lower of

@@ -1,9 +1,9 @@
 """The identification problem: the rig tests prepared once, for every stage that uses them.
 
 ``Problem.build(identification, validation, DataSettings(...))`` resamples and differentiates every
-test (``tuner.data.preprocess.prepare``), turns them into engine signals, and derives what the fit,
-the diagnosis, the batch runner and the benchmarks all need from the data: the peak force [N], the
-stroke range [m], the force noise in the fit band [N rms], the table abscissae, the Fc,O force
+test (``prepared_signals``, over ``tuner.data.preprocess.prepare``), turns them into engine signals, and
+derives what the fit, the diagnosis, the batch runner and the benchmarks all need from the data: the peak
+force [N], the stroke range [m], the force noise in the fit band [N rms], the table abscissae, the Fc,O force
 limit [N] and a digest for resuming. ``problem.parametrization(kind)`` gives the design space of a
 model on it. One place, so that the stages cannot disagree about the data (before: the fit and the
 diagnosis each prepared the tests, and the diagnosis ignored ``--force-limit``).
@@ -25,8 +25,8 @@ from tuner.identification.engine import Signals, oversampling
 from tuner.identification.floor import ResidualFloor, stroke_sigmas
 from tuner.identification.parametrization import Parametrization
 
-__all__ = ["DataSettings", "split_data_settings", "Problem", "to_signals", "table_abscissae", "model_abscissae",
-           "default_force_limit", "data_digest", "STRETCH_BEYOND"]
+__all__ = ["DataSettings", "split_data_settings", "Problem", "prepared_signals", "to_signals", "table_abscissae",
+           "model_abscissae", "default_force_limit", "data_digest", "STRETCH_BEYOND"]
 
 #: The tables keep the paper's Table 2 abscissae until the data reach this many times the last one.
 STRETCH_BEYOND = 1.5
@@ -99,6 +99,19 @@ def to_signals(p, warmup_s: float, oversample: int | None = None) -> Signals:
     if mask.sum() < 10:
         raise ValueError(f"test {p.name!r}: warm-up of {warmup_s} s leaves fewer than 10 samples")
     return s
+
+
+def prepared_signals(tests: list[RigTest], settings: DataSettings,
+                     rate_hz: float | None = None) -> tuple[list, list[Signals]]:
+    """The ``tests`` as the fit prepares them: (PreparedTests, their engine signals). Resampled to ``rate_hz``
+    [Hz] (None: the settings' ``fit_rate_hz``; the full-rate check compares at another rate), the stroke
+    differentiated within the settings' ``diff_band_hz`` [Hz] (``tuner.data.preprocess.prepare``), then
+    :func:`to_signals` (the first ``warmup_s`` [s] do not count). The one place the tests are prepared:
+    ``Problem.build``, the full-rate check and the rig test design's candidates all come here. Every test
+    is prepared before any becomes signals."""
+    rate = settings.fit_rate_hz if rate_hz is None else rate_hz
+    prepared = [prepare(t, rate, diff_band_hz=settings.diff_band_hz) for t in tests]
+    return prepared, [to_signals(p, settings.warmup_s) for p in prepared]
 
 
 def _given(name: str, values, preset: tuple) -> tuple:
@@ -212,10 +225,9 @@ class Problem:
         settings = settings or DataSettings()
         if not identification:
             raise ValueError("no identification test given")
-        prep_id = [prepare(t, settings.fit_rate_hz, diff_band_hz=settings.diff_band_hz) for t in identification]
-        prep_val = [prepare(t, settings.fit_rate_hz, diff_band_hz=settings.diff_band_hz) for t in validation]
-        sig_id = [to_signals(p, settings.warmup_s) for p in prep_id]
-        sig_val = [to_signals(p, settings.warmup_s) for p in prep_val]
+        n = len(identification)
+        prep, sig = prepared_signals([*identification, *validation], settings)
+        prep_id, prep_val, sig_id, sig_val = prep[:n], prep[n:], sig[:n], sig[n:]
         peak = max(float(np.abs(s.force[s.mask]).max()) for s in sig_id)
         axes = table_abscissae(sig_id, peak, settings.spring_reference_n_per_m, settings.damping_abscissae_m_s,
                                settings.elastic_abscissae_m)

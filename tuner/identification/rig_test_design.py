@@ -63,12 +63,11 @@ from damper_dataset.writer import write_dataset
 from damper_fmu.fmu import ensure_fmu
 from damper_fmu.parameters import MODEL_PARAMETERS
 from tuner import strict_json
-from tuner.data.preprocess import prepare
 from tuner.data.reading import RigTest
 from tuner.identification.engine import IDENTIFICATION_STEP, IDENTIFICATION_TOLERANCE, Engine, fastest_engine
 from tuner.identification.intervals import (DETERMINED_WIDTH, ModelIntervals, classify, free_coordinates,
                                              representation_difference, residual_jacobian)
-from tuner.identification.problem import to_signals
+from tuner.identification.problem import DataSettings, prepared_signals
 from tuner.identification.runner import FmuRunner
 from tuner.metrics import Z95
 from tuner.progress import advance, stage
@@ -325,7 +324,9 @@ def rank_candidates(model: str, values: dict, iv: ModelIntervals, candidates: li
     info0 = _prior_information(iv)
     cov0 = _inverse(info0)
     shift0 = _fit_shift(iv)
-    signals = [to_signals(prepare(c.rig_test(), fit_rate_hz), warmup_s) for c in candidates]
+    # as the fit prepares its tests (the differentiator's band from the data, as by default)
+    _, signals = prepared_signals([c.rig_test() for c in candidates],
+                                  DataSettings(fit_rate_hz=fit_rate_hz, warmup_s=warmup_s))
     with Engine(model, signals, engine=engine or fastest_engine(), workers=0) as eng:
         r, J, G, failed = residual_jacobian(eng, space, u0, names)
         d = representation_difference(eng, space.to_params(u0))  # the candidates' d_c, the fit's definition

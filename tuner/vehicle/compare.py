@@ -163,7 +163,7 @@ def compare_fmus(fmus, out: Path, *, scenarios=SCENARIO_NAMES, step: float = 1e-
     """Run ``scenarios`` with each damper FMU of ``fmus`` (paths), write ``vehicle.json`` and one figure per
     scenario (``<scenario>.png``) into ``out``; return the JSON content. Speeds in m/s, ``kick`` in m,
     ``step`` in s; ``seed``: master seed of the irregularity realisations. ``executor``: an entered
-    ``tuner.fleet.executors.FleetExecutor`` on which the FMUs run side by side (None: one after the other in
+    ``tuner.executors.FleetExecutor`` on which the FMUs run side by side (None: one after the other in
     this process; the results are the same). ``log``: progress lines (a :class:`tuner.progress.JobProgress`
     also gets the stages; each FMU's lines come when it is done)."""
     paths = [Path(f) for f in fmus]

@@ -17,7 +17,7 @@ Per tuned FMU of a fit output folder (``fmu/<Model>_tuned.fmu``, its model's ent
   the nominal value the intervals are quoted with (within about 1 km/h of ``vehicle.json``'s bisection),
   searched also from half a bracket below and above: half the range of the three is the search's own
   scatter, stated beside the interval;
-* the draws run in rounds of ``batch`` on a ``tuner.fleet.executors.FleetExecutor`` (a local process pool,
+* the draws run in rounds of ``batch`` on a ``tuner.executors.FleetExecutor`` (a local process pool,
   a Dask LocalCluster or a Dask cluster), or in this process when no scheduler is given; an FMU stops
   drawing once both intervals' Monte-Carlo errors are below their targets, or at ``draws``;
 * the 95 % interval (``figure_interval``): with enough draws for a distribution-free confidence interval
@@ -43,7 +43,7 @@ import numpy as np
 
 from damper_fmu.fmu import SLAVES
 from tuner import strict_json
-from tuner.fleet.executors import FleetExecutor
+from tuner.executors import FleetExecutor
 from tuner.identification.parameter_draws import draw_parameter_sets
 from tuner.metrics import Z95
 from tuner.progress import advance
@@ -157,7 +157,7 @@ def close_cached() -> None:
 
 def run_draw(task: DrawTask) -> DrawOutcome:
     """The critical speed and the curve's peak damper force with the parameters of ``task`` (a worker
-    function of the fleet executors; the vehicle is kept open for the next draw of the same FMU)."""
+    function of the executors, ``tuner.executors``; the vehicle is kept open for the next draw of the same FMU)."""
     s = task.settings
     t0, c0 = time.perf_counter(), time.process_time()
     try:
@@ -414,7 +414,7 @@ def propagate(folder, settings: PropagationSettings = PropagationSettings(), *, 
               executor=None, log=print) -> dict:
     """The vehicle intervals of every tuned FMU of the fit output folder ``folder`` (module docstring), written
     to ``folder/vehicle/intervals.json`` and returned. ``scheduler``: where the draws run
-    (``tuner.fleet.executors.parse_scheduler``: pool:N, local:N, a Dask address), None: in this process;
+    (``tuner.executors.parse_scheduler``: pool:N, local:N, a Dask address), None: in this process;
     ``executor``: an entered ``FleetExecutor`` to run them on instead (left open: the caller's).
     ``log``: progress lines (and, for a ``tuner.progress.JobProgress``, the stage's progress)."""
     folder = Path(folder)

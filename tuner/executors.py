@@ -1,4 +1,10 @@
-"""Where the rows run: a local process pool or a Dask cluster (``--scheduler``), results as they finish."""
+"""Where independent tasks run: a local process pool or a Dask cluster (``--scheduler``,
+``--vehicle-scheduler``), results as they finish.
+
+Used by the fleet's rows (``tuner.fleet.batch``), the job's vehicle scenarios (``tuner.job``) and the
+vehicle's parameter draws (``tuner.vehicle.propagation``); at the top of the package, beside
+``tuner.worker_processes`` (how the pools start), so that each of them imports it downward.
+"""
 from __future__ import annotations
 
 import os
@@ -32,8 +38,8 @@ def parse_scheduler(spec: str | None) -> tuple[str, object]:
 
 
 def _in_worker(fn, arg):
-    """Run fn(arg) in a worker process of this module's executors (every FMU a row opens is freed by
-    the row, or at the worker's exit by ``tuner.identification.runner``)."""
+    """Run fn(arg) in a worker process of this module's executors (every FMU a task opens is freed by
+    the task, or at the worker's exit by ``tuner.identification.runner``)."""
     return fn(arg)
 
 
