@@ -203,3 +203,167 @@ def run_as_exported(model: BoucWen, tests: list, rtol: float) -> dict:
         mask = t.time - t.time[0] >= WARMUP_S
         out[t.name] = {**_figures(t.name, t.force[mask], sim[mask]), "prefilter": None, "oversample": 1}
     return out
+
+
+def integrator_check(model: BoucWen, test, rtol: float) -> dict:
+    """The largest difference [N] of the force between LSODA at ``rtol`` and Radau at rtol / 1000 on
+    ``test`` as exported (a convergence check of the integration on real input)."""
+    args = (model, test.time, 1e3 * test.stroke, 1e3 * test.velocity)
+    a, b = simulate(*args, rtol)["force"], simulate(*args, rtol * 1e-3, "Radau")["force"]
+    return {"test": test.name, "lsoda_rtol": rtol, "radau_rtol": rtol * 1e-3,
+            "max_abs_difference_n": float(np.max(np.abs(a - b)))}
+
+
+def our_run(pattern: str | None, tag: str) -> dict | None:
+    """Our fit's metrics.json (``pattern`` with ``{tag}`` replaced) as a dict, None without ``--ours``."""
+    if not pattern:
+        return None
+    path = Path(pattern.format(tag=tag)) / "metrics.json"
+    return strict_json.loads(path.read_text())
+
+
+def run_current(current_a: float, args) -> tuple[list, dict]:
+    """(rows, extra) of one current: every sine test run three ways (module docstring); extra: the mapping
+    file, the settings, the integrator check and our run's metrics (or None)."""
+    tag = current_tag(current_a)
+    folder = Path(args.realdata) / f"mr-damper-{current_a:g}A" / "sine"
+    mapping = Path(args.columns_dir) / f"mr-sine-{tag}.toml"
+    mapping = mapping if mapping.exists() else Path(args.columns_dir) / "mr-sine.toml"
+    ours = our_run(args.ours, tag)
+    settings = split_data_settings(ours["settings"])[0] if ours else DataSettings()
+    model = BoucWen.at_current(current_a)
+    with_v, derived = read_current(folder, mapping, True), read_current(folder, mapping, False)
+    runs = {("ours", "file velocity"): run_ours(model, with_v, settings, args.rtol),
+            ("ours", "reader derivative"): run_ours(model, derived, settings, args.rtol),
+            ("as exported", "file velocity"): run_as_exported(model, with_v, args.rtol)}
+    rows = []
+    for (comparison, rate), per_test in runs.items():
+        for name, f in per_test.items():
+            role = (ours["tests"][name]["role"] if ours else
+                    "validation" if sine_hz(name) in HELD_OUT_HZ else "identification")
+            same = None if not (ours and comparison == "ours") else \
+                all(f["n"] == m["n"] for m in ours["tests"][name]["models"].values())
+            rows.append({"current_a": current_a, "test": name, "hz": sine_hz(name), "role": role,
+                         "comparison": comparison, "rate": rate, **f, "same_samples_as_ours": same})
+    shortest = min(with_v, key=lambda t: t.duration)
+    extra = {"mapping": str(mapping), "settings": settings.to_dict(), "model": vars(model),
+             "integrator_check": integrator_check(model, shortest, args.rtol), "ours": ours}
+    return rows, extra
+
+
+def pooled(rows: list, models: list | None = None) -> dict:
+    """Pooled RMSE [N] (``pooled_mse``, sample-weighted) and the worst AME [% of peak] (``quality_gate``)
+    of ``rows`` (dicts with 'test' and the error metrics; per model under 'models' when ``models`` given)."""
+    tests = {r["test"]: {"role": "validation", "models": r["models"] if models else {"bw": r}} for r in rows}
+    out = {}
+    for m in models or ["bw"]:
+        gate = quality_gate(tests, [m])[m]
+        out[m] = {"rmse_n": math.sqrt(pooled_mse([t["models"][m] for t in tests.values()])),
+                  "worst_ame_pct_of_peak": gate["worst_ame_pct_of_peak"], "worst_test": gate["worst_test"],
+                  "tests": sorted(tests)}
+    return out if models else out["bw"]
+
+
+def summarise(rows: list, ours_by_current: dict) -> list:
+    """Pooled figures per current, comparison, rate and role (held-out / identification tests of our fits);
+    our models' (two-chamber, lumped) held-out figures pooled alike, where ``--ours`` gave them."""
+    out = []
+    for cur in sorted({r["current_a"] for r in rows}):
+        for key in dict.fromkeys((r["comparison"], r["rate"]) for r in rows):
+            for role in ("validation", "identification"):
+                sel = [r for r in rows if r["current_a"] == cur and (r["comparison"], r["rate"]) == key
+                       and r["role"] == role]
+                out.append({"current_a": cur, "model": "lab Bouc-Wen", "comparison": key[0], "rate": key[1],
+                            "role": role, **pooled(sel)})
+        ours = ours_by_current.get(cur)
+        if ours:
+            held = [{"test": n, "models": t["models"]} for n, t in ours["tests"].items() if t["role"] == "validation"]
+            for m, p in pooled(held, [m for m in ("twochamber", "lumped") if m in held[0]["models"]]).items():
+                out.append({"current_a": cur, "model": m, "comparison": "ours", "rate": "reader derivative",
+                            "role": "validation", **p})
+    return out
+
+
+def print_current(rows: list, extra: dict, current_a: float) -> None:
+    """Per test of one current: RMSE [N] and AME [% of peak] of each comparison, the correlation of the
+    model's force with the measured one."""
+    s, chk = extra["settings"], extra["integrator_check"]
+    print(f"\n{current_a:g} A: {extra['mapping']}; fit rate {s['fit_rate_hz']:g} Hz, warm-up {s['warmup_s']:g} s; "
+          f"integration: LSODA against Radau at rtol/1000 on {chk['test']}: "
+          f"max |dF| {chk['max_abs_difference_n']:.2g} N")
+    keys = list(dict.fromkeys((r["comparison"], r["rate"]) for r in rows))
+    print(f"{'test':16s} {'role':14s} " + " ".join(f"{c + ', ' + v:>30s}" for c, v in keys))
+    print(f"{'':31s} " + " ".join(f"{'RMSE [N] AME [%] corr':>30s}" for _ in keys))
+    for name in dict.fromkeys(r["test"] for r in rows):
+        by = {(r["comparison"], r["rate"]): r for r in rows if r["test"] == name}
+        role = "held-out" if by[keys[0]]["role"] == "validation" else "identification"
+        print(f"{name:16s} {role:14s} " + " ".join(
+            f"{by[k]['rmse']:12.1f} {by[k]['ame_pct_of_peak']:8.2f} {by[k]['correlation']:8.4f}" for k in keys))
+
+
+def print_summary(summary: list) -> None:
+    """The pooled figures, and the table of docs/real-data.md (held-out tests, like for like)."""
+    print("\npooled per current (RMSE sample-weighted over the tests; AME: the worst test, % of its peak force)")
+    for p in summary:
+        role = "held-out" if p["role"] == "validation" else "identification"
+        print(f"{p['current_a']:5g} A  {p['model']:13s} {p['comparison'] + ', ' + p['rate']:30s} {role:14s} "
+              f"RMSE {p['rmse_n']:7.1f} N   worst AME {p['worst_ame_pct_of_peak']:6.2f} % ({p['worst_test']})")
+    bw = [(c, r) for c, r in (("ours", "file velocity"), ("ours", "reader derivative"))]
+    models = [m for m in ("twochamber", "lumped") if any(p["model"] == m for p in summary)]
+    head = [f"lab's Bouc-Wen, {r}" for _, r in bw] + [{"twochamber": "two-chamber"}.get(m, m) for m in models]
+    print("\nthe held-out tests of our fits, compared as our validation compares: "
+          "pooled RMSE [N] / worst AME [% of peak]")
+    print("| current | " + " | ".join(head) + " |\n| --- |" + " --- |" * len(head))
+    for cur in sorted({p["current_a"] for p in summary}):
+        cells = []
+        for want in [("lab Bouc-Wen", c, r) for c, r in bw] + [(m, "ours", "reader derivative") for m in models]:
+            p = next(p for p in summary if p["current_a"] == cur and p["role"] == "validation"
+                     and (p["model"], p["comparison"], p["rate"]) == want)
+            cells.append(f"{p['rmse_n']:.1f} / {p['worst_ame_pct_of_peak']:.2f}")
+        print(f"| {cur:g} A | " + " | ".join(cells) + " |")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--realdata", default="../shared/realdata", help="folder of mr-damper-<current>A/sine/")
+    ap.add_argument("--currents", default="0.25,0.5,0.75", help="coil currents [A], comma-separated")
+    ap.add_argument("--columns-dir", default=str(ROOT / "docs" / "real-data"),
+                    help="folder of the mapping files mr-sine-<tag>.toml (mr-sine.toml for 0.5 A)")
+    ap.add_argument("--ours", help="our fits' output folders, '{tag}' for 0x25A, 0x5A, 0x75A (their settings, "
+                                   "roles and held-out figures)")
+    ap.add_argument("--rtol", type=float, default=1e-8, help="solve_ivp's relative tolerance")
+    ap.add_argument("--out", help="write the rows as strict JSON here")
+    a = ap.parse_args(argv)
+    t0 = time.perf_counter()
+    print("the lab's modified Bouc-Wen model (README of the shared data; one parameter set for five currents, "
+          "fitted on all six tests of each: in-sample on every file)")
+    for k, text in COMPARISONS.items():
+        print(f"  {k}: {text}")
+    rows, extras = [], {}
+    for cur in (float(c) for c in a.currents.split(",")):
+        r, extras[cur] = run_current(cur, a)
+        rows += r
+        print_current(r, extras[cur], cur)
+    summary = summarise(rows, {c: e["ours"] for c, e in extras.items()})
+    print_summary(summary)
+    worst = min(rows, key=lambda r: r["correlation"])
+    print(f"\nsigns: the model's force and the measured one correlate at {worst['correlation']:+.4f} at worst "
+          f"({worst['test']}, {worst['comparison']}, {worst['rate']}): "
+          + ("the files' conventions and the model's agree" if worst["correlation"] > 0 else "OPPOSITE SIGNS"))
+    if a.out:
+        Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+        strict_json.write(a.out, {
+            "model": {"equations": __doc__.split("::")[1].split("k0 = p1")[0].strip(), "lab_parameters": LAB_P,
+                      "A": LAB_A, "n": LAB_N, "units": "x, y, z [mm], x' [mm/s], F [N], t [s], i [A]"},
+            "integrator": f"solve_ivp LSODA, rtol {a.rtol:g}, inputs interpolated linearly, step <= one sample",
+            "comparisons": COMPARISONS, "rows": rows, "pooled": summary,
+            "per_current": {f"{c:g}": {k: v for k, v in e.items() if k != "ours"} for c, e in extras.items()},
+            "ours": {f"{c:g}": a.ours.format(tag=current_tag(c)) if a.ours else None for c in extras},
+            "command": " ".join(sys.argv), "seconds": time.perf_counter() - t0})
+        print(f"wrote {a.out}")
+    print(f"{time.perf_counter() - t0:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -12,7 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from benchmarks.mr_bouc_wen import BoucWen, current_tag, sine_hz, simulate
+from benchmarks.mr_bouc_wen import BoucWen, current_tag, pooled, sine_hz, simulate
+from tuner.metrics import error_metrics
 
 
 def test_linear_case_matches_the_transfer_function():
@@ -58,3 +59,11 @@ def test_lab_parameters_and_integrator():
 def test_names():
     assert [current_tag(c) for c in (0.25, 0.5, 0.75)] == ["0x25A", "0x5A", "0x75A"]
     assert [sine_hz(n) for n in ("25mm0x25Hz0x5A", "10mm1Hz0x75A", "2mm5Hz0x25A")] == [0.25, 1.0, 5.0]
+
+
+def test_pooled_is_sample_weighted_and_the_worst_ame_is_per_test():
+    a = {"test": "a", **error_metrics([100.0, -100.0], [90.0, -90.0]).to_dict()}  # 10 N, 10 % of peak
+    b = {"test": "b", **error_metrics([50.0, -50.0, 50.0, -50.0], [30.0, -30.0, 30.0, -30.0]).to_dict()}  # 20 N, 40 %
+    p = pooled([a, b])
+    assert p["rmse_n"] == pytest.approx(math.sqrt((2 * 100 + 4 * 400) / 6))
+    assert (p["worst_ame_pct_of_peak"], p["worst_test"]) == (pytest.approx(40.0), "b")
