@@ -299,6 +299,10 @@ def print_current(rows: list, extra: dict, current_a: float) -> None:
         role = "held-out" if by[keys[0]]["role"] == "validation" else "identification"
         print(f"{name:16s} {role:14s} " + " ".join(
             f"{by[k]['rmse']:12.1f} {by[k]['ame_pct_of_peak']:8.2f} {by[k]['correlation']:8.4f}" for k in keys))
+    same = [r["same_samples_as_ours"] for r in rows if r["same_samples_as_ours"] is not None]
+    if same:
+        print("the 'ours' rows count the same samples as our fits' metrics.json on every test: "
+              + ("yes" if all(same) else "NO (settings or data differ)"))
 
 
 def print_summary(summary: list) -> None:
