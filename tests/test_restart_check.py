@@ -113,23 +113,25 @@ def test_a_seeded_start_that_no_firefly_has_passed_is_a_stall_not_convergence():
 
 def test_a_fit_is_converged_by_its_rule_or_by_a_restart_check_that_a_stall_survived():
     """Refinement.converged_by: a refinement's rule counts only when no restart of the check ended lower; a stall
-    counts only through a check it survived; a check whose last round still moved the fit, a spent budget, or a
-    stall without a check (at the floor, the wrong form) is no convergence."""
+    counts only through a check it survived or at the residual floor (where the check is not run); a check whose
+    last round still moved the fit, a spent budget, or a stall of the wrong form (no check) is no convergence."""
     from tuner.identification.fit import Refinement
     from tuner.identification.polish import PolishResult
     from tuner.identification.restart_check import RestartCheck
 
-    def refinement(rule, converged, survived):
+    def refinement(rule, converged, survived, at_floor=False):
         pol = PolishResult(np.zeros(2), 1.0, 10, stop=rule, converged=converged, rule=rule, jacobians=3,
                            predicted=0.1, budget_spent=rule == "budget")
         check = None if survived is None else RestartCheck(np.zeros(2), 1.0, 0.5, survived=survived)
-        return Refinement(np.zeros(2), 1.0, 10, pol, [], None, check=check)
+        floor_stop = {"rmse_n": 1.0, "residual_floor_n": 1.0, "skipped": ["the restart check"]} if at_floor else None
+        return Refinement(np.zeros(2), 1.0, 10, pol, [], None, check=check, floor_stop=floor_stop)
 
     assert refinement("data resolution", True, True).converged_by == "data resolution"
     assert refinement("data resolution", True, None).converged_by == "data resolution"
     assert refinement("data resolution", True, False).converged_by is None
     assert refinement("stalled", False, True).converged_by == "restart check"
     assert refinement("stalled", False, None).converged_by is None
+    assert refinement("stalled", False, None, at_floor=True).converged_by == "residual floor"
     assert refinement("stalled", False, False).converged_by is None
     assert refinement("budget", False, True).converged_by is None
     assert not refinement("budget", False, True).converged

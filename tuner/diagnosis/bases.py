@@ -50,6 +50,8 @@ class BaseRefinement:
         if settled and history.get("converged_by") == "restart check":
             settled = (f"{settled}; every restart of its restart check ended within one standard error of it "
                        f"({history['restart_check']['standard_error_n']:.2g} N)")
+        elif settled and history.get("converged_by") == "residual floor":
+            settled = f"{settled}; it ends at the residual floor ({history['floor_stop']['residual_floor_n']:.3g} N)"
         return cls(settled, t / n if n and t > 0 else None)
 
 

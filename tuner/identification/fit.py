@@ -404,14 +404,18 @@ class Refinement:
         """What shows the fit converged: the winning refinement's rule ('first-order', 'data resolution',
         'stationary') with no restart of the check ending lower by one standard error, or, for a refinement that
         stalled (its steps achieve less than they predict), the restart check alone ('restart check': every restart
-        ends in the same place, within one standard error); None when not converged (a spent budget, a restart
-        check whose last round still found a lower point, or a stall with no check: at the floor or the wrong
-        form)."""
+        ends in the same place, within one standard error) or the residual floor ('residual floor': it ends within
+        FLOOR_REACHED x the noise, where no start can end lower by more than the noise); None when not converged (a
+        spent budget, a restart check whose last round still found a lower point, a stall of the wrong form)."""
         if self.check is not None and not self.check.survived:
             return None
         if self.polished.converged:
             return self.polished.rule
-        return "restart check" if self.check is not None and self.polished.rule == "stalled" else None
+        if self.polished.rule != "stalled":
+            return None
+        if self.check is not None:
+            return "restart check"
+        return "residual floor" if self.floor_stop is not None else None
 
 
 def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result, guess: np.ndarray, guess_p: dict,
@@ -458,7 +462,8 @@ def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result
         log(f"[{model}] local refinement from the {label}: RMSE {ref.runs[-1]['rmse_n']:.2f} N, {pol.stop}")
         if len(ref.runs) == 1 or g > ref.g:  # polish never returns a point worse than its start
             ref.z, ref.g, ref.polished = pol.z, g, pol
-    if ref.race is None and ref.floor_stop is None:
+    if ref.g > 0.0 and ref.race is None and ref.floor_stop is None and not (  # (g = 0: nothing could be simulated)
+            floor is not None and _at_floor(ref, model, par, floor, ["the restart check"], log)):
         _check_restarts(eng, model, par, settings, ref, result.state, log)
     ref.elapsed_s = time.perf_counter() - t0
     return ref
@@ -485,10 +490,10 @@ def _check_restarts(eng, model: str, par: Parametrization, settings: FitSettings
 
 
 def _at_floor(ref: Refinement, model: str, par: Parametrization, floor: ResidualFloor, skipped: list, log) -> bool:
-    """Whether the first refinement of ``ref`` ends at the residual ``floor`` of the model at its point
-    (``ResidualFloor.reached``: within ``FLOOR_REACHED`` x); if so the restarts
+    """Whether the best refinement of ``ref`` so far ends at the residual ``floor`` of the model at its point
+    (``ResidualFloor.reached``: within ``FLOOR_REACHED`` x); if so the restarts (or the restart check)
     ``skipped`` (their labels) are recorded in ``ref.floor_stop`` and the ``log`` says why."""
-    rmse = ref.runs[0]["rmse_n"]
+    rmse = _rmse(ref.g)
     level = floor.reached(model, par.to_params(ref.z), rmse)
     if level is None:
         return False
