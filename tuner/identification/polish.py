@@ -30,9 +30,10 @@ two-chamber classes, ``benchmarks/convergence.py``, docs/identification.md, "Con
   test is never met and only the cap ended it; a change the data cannot show is no progress. But only where
   the Gauss-Newton step, too, predicts less than the data can show (``resolvable_gain``: one standard error of
   the RMSE): a step that predicts 13-41 % of the SSE and achieves 0.3 % is stalled, not converged (the
-  two-chamber fit of a real MR damper ended there 18 % above a point a restart reached). A stall switches to
-  the coarse differences; stalled with them, the refinement ends as 'stalled' (not converged) and the fit's
-  restart check (``tuner.identification.fit``) decides.
+  two-chamber fit of a real MR damper at 0.25 A ended there at 18.15 N; switched to the coarse differences,
+  the same start reaches 14.10 N). A stall switches to the coarse differences; stalled with them, the
+  refinement ends as 'stalled' (not converged) and the fit's restart check
+  (``tuner.identification.restart_check``) decides.
 * finite differences of ``STEP`` first, ``COARSE_STEP`` once no damped step lowers the sum. The
   two-chamber model's force is not smooth on the scale of ``STEP``: its stage equations (air
   stiffness that falls with the chamber force) can switch between roots at a valve opening, so any
@@ -244,7 +245,7 @@ def resolvable_gain(predicted: float, r: np.ndarray) -> bool:
     ``r`` [N] by at least one standard error (``tuner.metrics.rmse_standard_error``): a gain the data can show. A
     refinement whose steps achieve far less than that is stalled (a rough objective, a variable held at a bound),
     not converged: on a real MR damper its last three Jacobians moved the two-chamber fit by 0.06 N while each
-    predicted 13-41 % of the SSE, and a restart ended 18 % lower."""
+    predicted 13-41 % of the SSE, and the same start with coarse differences ended 22 % lower."""
     rmse = math.sqrt(float(r @ r) / r.size)
     return rmse * (1.0 - math.sqrt(max(0.0, 1.0 - predicted))) >= rmse_standard_error(r)
 
