@@ -1,8 +1,9 @@
 """Blind diagnoses of random dampers of the model classes with a hidden free play or form gap.
 
     python benchmarks/blind_class.py [--seeds 3] [--cases free_play_soft,free_play_stiff,bypass,none]
-                                     [--model lumped|twochamber] [--noise 25] [--out results/blind_class]
+                                     [--model lumped|twochamber] [--noise 25] [--broad] [--out results/blind_class]
                                      [--scheduler pool | pool:N | local:N | tcp://HOST:PORT]
+    python benchmarks/blind_class.py --broad --cases pairs --seeds 10     # the fault pairs, data as broad as users'
 
 Each run draws a damper of the class (``campaign.damper_class.random_damper``: unlike the preset),
 six tests of 12-16 s at 500 Hz with ``--noise`` N rms on the force (``class_tests``), hides one effect
@@ -13,7 +14,17 @@ identified, the better one on held-out data kept). Cases:
   silent blocks as drawn (soft contact) or ten times stiffer (impact-like contact);
 * ``bypass``: a bypass groove (damping lowered by 15-35 % within 4-10 mm of mid-stroke): a form gap
   the catalogue cannot represent and the bypass form can;
-* ``none``: clean data.
+* ``none``: clean data;
+* pairs of faults hidden together (``PAIRS``; ``--cases pairs`` lists them all): ``free_play+friction``
+  (a worn damper: free play and rod-seal friction), ``free_play+preload``, ``free_play+valve_lag``,
+  ``friction+time_delay`` and ``valve_lag+preload``, each magnitude drawn in its catalogue's typical range
+  (free play log-uniform 0.1-1 mm, friction 50-300 N, preload 30-400 N of either sign, valve lag and delay
+  1-10 ms).
+
+``--broad``: the data as broad as users' (``broad_data``): the silent blocks' (lumped) or mounts'
+(two-chamber) stiffness and damping drawn over decades, from soft, heavily damped contact to impact-like
+contact (damping far below critical), the sampling rate 500, 1000 or 2000 Hz and the force noise uniform
+in 10-50 N rms, per seed; without it the damper's own draw, 500 Hz and ``--noise``.
 
 Printed per run: what was hidden, the causes named, the base form kept, the fitted magnitude and the
 time; then per case the share named correctly, named "unexplained", and the false causes (a catalogue
@@ -42,18 +53,55 @@ from tuner.executors import FleetExecutor  # noqa: E402
 from tuner.identification.engine import fastest_engine  # noqa: E402
 from tuner.results.fleet_summary import write_atomic  # noqa: E402
 
-CASES = ("free_play_soft", "free_play_stiff", "bypass", "none")
-#: the parameter a case's magnitude is read from (None: clean data)
-MAGNITUDE = {"free_play_soft": "free_play", "free_play_stiff": "free_play", "bypass": "bypass_ratio", "none": None}
-#: the name the diagnosis should give
-EXPECTED = {"free_play_soft": "free_play", "free_play_stiff": "free_play", "bypass": "bypass", "none": "none"}
+SINGLES = ("free_play_soft", "free_play_stiff", "bypass", "none")
+PAIRS = ("free_play+friction", "free_play+preload", "free_play+valve_lag", "friction+time_delay", "valve_lag+preload")
+CASES = SINGLES + PAIRS
+#: the magnitude parameter of each catalogue effect a case can hide
+MAGNITUDE_OF = {"free_play": "free_play", "friction": "friction_force", "preload": "preload_force",
+                "valve_lag": "valve_tau", "time_delay": "time_delay", "bypass": "bypass_ratio"}
+
+
+def expected(case: str) -> tuple[str, ...]:
+    """The effects the diagnosis should name for ``case`` (empty: nothing)."""
+    if case == "none":
+        return ()
+    if case.startswith("free_play_"):
+        return ("free_play",)
+    return tuple(case.split("+"))
+
+
+def _typical_draw(rng, effect: str) -> float:
+    """One magnitude [SI] of ``effect`` in its catalogue's typical range (the module docstring)."""
+    if effect == "free_play":
+        return float(math.exp(rng.uniform(math.log(0.1e-3), math.log(1e-3))))
+    if effect == "friction":
+        return float(rng.uniform(50.0, 300.0))
+    if effect == "preload":
+        return float(rng.choice([-1.0, 1.0]) * rng.uniform(30.0, 400.0))
+    return float(rng.uniform(1e-3, 10e-3))  # valve_lag, time_delay [s]
 
 
 def case_seed(case: str, k: int) -> int:
     """The seed of a case's k-th run: the same whichever other cases are listed (free_play_stiff: 601, 612, ...)."""
     if case not in CASES:
-        raise ValueError(f"unknown case {case!r}: choose from {', '.join(CASES)}")
+        raise ValueError(f"unknown case {case!r}: choose from {', '.join(CASES)} (or 'pairs')")
     return 500 + 11 * k + 101 * CASES.index(case)
+
+
+#: silent-block (lumped) or mount (two-chamber) stiffness [N/m] and damping [N s/m] of the broad data:
+#: log-uniform over decades within the models' bounds (critical damping of the contact is ~1e5 N s/m)
+BROAD_SERIES = {"lumped": {"k_B": (3e7, 1e9), "c_B": (1e3, 1e7)},
+                "twochamber": {"k_M": (3e6, 3e9), "c_M": (1e2, 1e6)}}
+BROAD_RATES_HZ = (500.0, 1000.0, 2000.0)
+BROAD_NOISE_N = (10.0, 50.0)
+
+
+def broad_data(model: str, seed: int) -> dict:
+    """The seed's broad draw: {"series": {parameter: value}, "sample_rate": Hz, "noise_n": N rms}."""
+    rng = np.random.default_rng([seed, 7177])
+    series = {k: float(math.exp(rng.uniform(math.log(lo), math.log(hi)))) for k, (lo, hi) in BROAD_SERIES[model].items()}
+    return {"series": series, "sample_rate": float(rng.choice(BROAD_RATES_HZ)),
+            "noise_n": float(rng.uniform(*BROAD_NOISE_N))}
 
 
 def hidden_parameters(case: str, model: str, seed: int) -> dict:
@@ -61,6 +109,8 @@ def hidden_parameters(case: str, model: str, seed: int) -> dict:
     rng = np.random.default_rng([seed, CASES.index(case), 4242])
     if case == "none":
         return {}
+    if case in PAIRS:
+        return {MAGNITUDE_OF[e]: _typical_draw(rng, e) for e in expected(case)}
     if case.startswith("free_play"):
         hidden = {"free_play": float(math.exp(rng.uniform(math.log(0.05e-3), math.log(1e-3))))}
         if case.endswith("stiff"):
@@ -71,35 +121,77 @@ def hidden_parameters(case: str, model: str, seed: int) -> dict:
             "bypass_width": float(rng.uniform(4e-3, 10e-3))}
 
 
+def _case(name: str, k: int, a: argparse.Namespace) -> dict:
+    """The k-th run of case ``name`` under the command line ``a`` (the row's inputs)."""
+    seed = case_seed(name, k)
+    hidden = hidden_parameters(name, a.model, seed)
+    rate, noise = 500.0, a.noise
+    if a.broad:
+        draw = broad_data(a.model, seed)
+        hidden = {**draw["series"], **hidden}  # a stiff case's tenfold stiffness stays
+        rate, noise = draw["sample_rate"], draw["noise_n"]
+    return {"case": name, "model": a.model, "seed": seed, "noise_n": noise, "sample_rate": rate,
+            "workers": a.workers, "hidden": hidden}
+
+
 def run_case(case: dict) -> dict:
     """One blind diagnosis (``case``: case name, model, seed, noise_n, workers); the row of the table."""
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         data = write_class_dataset(Path(tmp) / "data", case["model"], case["seed"], noise_n=case["noise_n"],
-                                   sample_rate=500.0, hidden=case["hidden"])
+                                   sample_rate=case["sample_rate"], hidden=case["hidden"])
         tests = load_dataset(data)
         res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
                        DiagnosisSettings(engine=fastest_engine(), workers=case["workers"]),
                        log=lambda m: None)
-    name = MAGNITUDE[case["case"]]
-    fitted = (res["effect_parameters"].get(name) or {}).get("value") if name else None
+    names = [MAGNITUDE_OF[e] for e in expected(case["case"])]
+    fitted = {n: (res["effect_parameters"].get(n) or {}).get("value") for n in names}
     return {**case, "causes": res["causes"], "named": res["cause"], "base": res["base_model"],
-            "fitted": fitted, "truth": case["hidden"].get(name) if name else None,
-            "elapsed_s": time.perf_counter() - t0}
+            "fitted": fitted, "truth": {n: case["hidden"][n] for n in names}, "elapsed_s": time.perf_counter() - t0}
 
 
-def main(argv=None) -> int:
+def _arguments(argv) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, default=3)
-    ap.add_argument("--cases", default=",".join(CASES))
+    ap.add_argument("--cases", default=",".join(SINGLES), help="comma-separated; 'pairs' stands for every pair")
     ap.add_argument("--model", choices=("lumped", "twochamber"), default="lumped")
-    ap.add_argument("--noise", type=float, default=25.0, help="force noise [N rms]")
+    ap.add_argument("--noise", type=float, default=25.0, help="force noise [N rms] (without --broad)")
+    ap.add_argument("--broad", action="store_true", help="series element, sampling rate and noise drawn per seed")
     ap.add_argument("--workers", type=int, default=0, help="evaluation processes inside each run")
     ap.add_argument("--scheduler", default=None, metavar="SPEC")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "blind_class")
     a = ap.parse_args(argv)
-    cases = [{"case": c, "model": a.model, "seed": case_seed(c, k), "noise_n": a.noise, "workers": a.workers,
-              "hidden": hidden_parameters(c, a.model, case_seed(c, k))} for c in a.cases.split(",") for k in range(a.seeds)]
+    a.case_names = [n for c in a.cases.split(",") for n in (PAIRS if c == "pairs" else (c,))]
+    return a
+
+
+def _row_line(row: dict) -> str:
+    hid = ", ".join(f"{k} {v:.3g}" for k, v in row["hidden"].items()) or "nothing"
+    fit = ", ".join(f"{k} {v:.3g}" for k, v in row["fitted"].items() if v is not None)
+    return (f"{row['case']:20s} seed {row['seed']:4d} {row['sample_rate']:5.0f} Hz {row['noise_n']:3.0f} N  hidden {hid:60s}"
+            f" -> {'+'.join(row['causes']) or row['named']:22s} base {row['base']:10s}"
+            + (f" fitted {fit}" if fit else "") + f"  [{row['elapsed_s']:.0f} s]")
+
+
+def _table(rows: list[dict], names: list[str], model: str) -> None:
+    """Per case: runs, every hidden effect named, some named, on the base that made the data, unexplained,
+    a false cause (an effect named that was not hidden), median time."""
+    print(f"\n{'case':20s} {'runs':>5s} {'all named':>10s} {'some named':>11s} {'on its base':>12s} "
+          f"{'unexplained':>12s} {'false cause':>12s} {'median s':>9s}")
+    for c in names:
+        sub = [r for r in rows if r["case"] == c]
+        want = set(expected(c))
+        right = [r for r in sub if want <= set(r["causes"]) and (want or not r["causes"])]
+        some = [r for r in sub if want & set(r["causes"])]
+        false = [r for r in sub if set(r["causes"]) - want]
+        print(f"{c:20s} {len(sub):5d} {len(right):10d} {len(some):11d} {sum(r['base'] == model for r in right):12d} "
+              f"{sum(r['named'] == 'unexplained' for r in sub):12d} {len(false):12d} "
+              f"{float(np.median([r['elapsed_s'] for r in sub])):9.0f}")
+
+
+def main(argv=None) -> int:
+    a = _arguments(argv)
+    cases = [_case(c, k, a) for c in a.case_names for k in range(a.seeds)]
     rows = []
     with FleetExecutor(a.scheduler) as ex:
         print(f"{len(cases)} blind diagnoses of random {a.model} dampers on a {ex.description}", flush=True)
@@ -107,21 +199,10 @@ def main(argv=None) -> int:
             if err is not None:
                 raise RuntimeError(f"run {i} ({cases[i]['case']}, seed {cases[i]['seed']}) failed: {err}") from err
             rows.append(row)
-            hid = ", ".join(f"{k} {v:.3g}" for k, v in row["hidden"].items()) or "nothing"
-            print(f"{row['case']:16s} seed {row['seed']:4d}  hidden {hid:40s} -> {'+'.join(row['causes']) or row['named']:22s}"
-                  f" base {row['base']:10s}" + (f" fitted {row['fitted']:.3g}" if row["fitted"] is not None else "")
-                  + f"  [{row['elapsed_s']:.0f} s]", flush=True)
+            print(_row_line(row), flush=True)
     a.out.mkdir(parents=True, exist_ok=True)
     write_atomic(a.out / "blind_class.json", json.dumps({"rows": rows}, indent=1))
-    print(f"\n{'case':16s} {'runs':>5s} {'named right':>12s} {'on its base':>12s} {'unexplained':>12s} {'false cause':>12s}"
-          f" {'median s':>9s}")
-    for c in a.cases.split(","):
-        sub = [r for r in rows if r["case"] == c]
-        right = [r for r in sub if EXPECTED[c] in r["causes"] or (c == "none" and not r["causes"])]
-        false = [r for r in sub if any(x != EXPECTED[c] for x in r["causes"])]
-        print(f"{c:16s} {len(sub):5d} {len(right):12d} {sum(r['base'] == a.model for r in right):12d} "
-              f"{sum(r['named'] == 'unexplained' for r in sub):12d} {len(false):12d} "
-              f"{float(np.median([r['elapsed_s'] for r in sub])):9.0f}")
+    _table(rows, a.case_names, a.model)
     return 0
 
 
