@@ -26,10 +26,11 @@ identified, the better one on held-out data kept). Cases:
 contact (damping far below critical), the sampling rate 500, 1000 or 2000 Hz and the force noise uniform
 in 10-50 N rms, per seed; without it the damper's own draw, 500 Hz and ``--noise``.
 
-Printed per run: what was hidden, the causes named, the base form kept, the fitted magnitude and the
-time; then per case the share named correctly, named "unexplained", and the false causes (a catalogue
-effect named that was not hidden, in particular one at its search bound). A free play must be named on
-the base that made the data (``--model``). Writes ``blind_class.json``.
+Printed per run: what was hidden, the sampling rate and noise, the causes named, the base form kept, the
+fitted magnitudes and the time; then per case the runs with every hidden effect named, with some named, with
+all named on the base that made the data (``--model``: a free play must be found there), named
+"unexplained", and with a false cause (a catalogue effect named that was not hidden). Writes
+``blind_class.json`` and each run's diagnosis log (``logs/<case>-<seed>.log``) into ``--out``.
 """
 from __future__ import annotations
 
@@ -131,7 +132,7 @@ def _case(name: str, k: int, a: argparse.Namespace) -> dict:
         hidden = {**draw["series"], **hidden}  # a stiff case's tenfold stiffness stays
         rate, noise = draw["sample_rate"], draw["noise_n"]
     return {"case": name, "model": a.model, "seed": seed, "noise_n": noise, "sample_rate": rate,
-            "workers": a.workers, "hidden": hidden}
+            "workers": a.workers, "hidden": hidden, "log_dir": str(a.out / "logs")}
 
 
 def run_case(case: dict) -> dict:
@@ -141,9 +142,12 @@ def run_case(case: dict) -> dict:
         data = write_class_dataset(Path(tmp) / "data", case["model"], case["seed"], noise_n=case["noise_n"],
                                    sample_rate=case["sample_rate"], hidden=case["hidden"])
         tests = load_dataset(data)
-        res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
-                       DiagnosisSettings(engine=fastest_engine(), workers=case["workers"]),
-                       log=lambda m: None)
+        log_file = Path(case["log_dir"]) / f"{case['case']}-{case['seed']}.log" if case.get("log_dir") else None
+        with open(log_file or "/dev/null", "w") as out:
+            res = diagnose([t for t in tests if t.role == "identification"],
+                           [t for t in tests if t.role == "validation"],
+                           DiagnosisSettings(engine=fastest_engine(), workers=case["workers"]),
+                           log=lambda m: print(m, file=out, flush=True))
     names = [MAGNITUDE_OF[e] for e in expected(case["case"])]
     fitted = {n: (res["effect_parameters"].get(n) or {}).get("value") for n in names}
     return {**case, "causes": res["causes"], "named": res["cause"], "base": res["base_model"],
@@ -191,6 +195,7 @@ def _table(rows: list[dict], names: list[str], model: str) -> None:
 
 def main(argv=None) -> int:
     a = _arguments(argv)
+    (a.out / "logs").mkdir(parents=True, exist_ok=True)
     cases = [_case(c, k, a) for c in a.case_names for k in range(a.seeds)]
     rows = []
     with FleetExecutor(a.scheduler) as ex:

@@ -41,6 +41,7 @@ __all__ = [
     "MODEL_PARAMETERS",
     "MODEL_KINDS",
     "EFFECT_MODELS",
+    "parameter_group",
     "EFFECTS_INSIDE",
     "defaults",
     "tunable_names",
@@ -185,6 +186,24 @@ EFFECTS_INSIDE = ("twochamber",)
 #: the lumped model's silent blocks, the two-chamber model's mount. A free play and a soft or dashpot-like
 #: series element trade for each other in a fit (``tuner.diagnosis.refit.series_profiles``).
 SERIES_ELEMENT = {"lumped": ("k_B", "c_B"), "twochamber": ("k_M", "c_M")}
+#: The two-chamber model's chamber parameters (the oil's compliance and what stiffens it)
+CHAMBER_PARAMETERS = ("k_R", "k_C", "area_ratio", "L_R", "L_C", "air", "f_res")
+
+
+def parameter_group(model: str, name: str) -> str:
+    """The physical element a base parameter of ``model`` belongs to, as reports name it ("the damping table",
+    "the series elasticity (k_B, c_B)", ...); a parameter of no group is named by itself."""
+    if name.startswith("Fc_"):
+        return "the damping table"
+    if name.startswith("Fk_"):
+        return "the elastic table"
+    if name in SERIES_ELEMENT.get(model, ()):
+        return f"the series elasticity ({', '.join(SERIES_ELEMENT[model])})"
+    if name.startswith("M_"):
+        return "the masses"
+    if model == "twochamber" and name in CHAMBER_PARAMETERS:
+        return "the chambers' oil stiffness"
+    return name
 
 MODEL_PARAMETERS: dict[str, tuple[Parameter, ...]] = {
     "lumped": LUMPED_PARAMETERS,

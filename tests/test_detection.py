@@ -68,3 +68,30 @@ def test_the_held_out_score_crosses_the_threshold_where_the_limit_says(tmp_path)
     score = {f: next(r for r in run(f"x{f}", f * limit)["ranking"] if r["effect"] == "friction")["score"]
              for f in (0.5, 2.0)}
     assert score[0.5] < ACCEPT_SCORE < score[2.0], (limit, score)
+
+
+def test_absorption_is_the_share_of_the_signature_the_base_can_make_and_names_its_columns():
+    """Closed forms: a signature made by base columns 1 and 3 only is absorbed whole, credited to those columns in
+    proportion to their parts; one orthogonal to every column is not absorbed; a mix absorbs |in-span|^2 / |j|^2."""
+    from tuner.diagnosis.detection import absorption
+
+    n = 2000
+    t = np.linspace(0.0, 1.0, n)
+    J = np.column_stack([np.sin(2 * math.pi * k * t) for k in (1, 2, 3, 4)])  # orthogonal columns
+    share, parts = absorption(3.0 * J[:, 1] + 1.0 * J[:, 3], J)
+    assert share == pytest.approx(1.0, abs=1e-9)
+    assert parts == pytest.approx([0.0, 0.9, 0.0, 0.1], abs=1e-9)  # 9 : 1 of the absorbed power
+    off = np.sin(2 * math.pi * 9 * t)  # orthogonal to the span
+    assert absorption(off, J)[0] == pytest.approx(0.0, abs=1e-9)
+    mix = J[:, 0] + off  # half its power in the span
+    assert absorption(mix, J)[0] == pytest.approx(0.5, rel=1e-6)
+
+
+def test_parameter_groups_name_the_physical_elements():
+    from damper_fmu.parameters import parameter_group, tunable_names
+
+    lumped = {parameter_group("lumped", n) for n in tunable_names("lumped")}
+    assert {"the damping table", "the elastic table", "the series elasticity (k_B, c_B)", "the masses"} <= lumped
+    two = {parameter_group("twochamber", n) for n in tunable_names("twochamber")}
+    assert "the series elasticity (k_M, c_M)" in two and "the chambers' oil stiffness" in two
+    assert parameter_group("lumped", "k_M") == "k_M"  # another model's element is not the lumped one's

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["absorbed_signature", "limit_from_signature", "detection_limits"]
+__all__ = ["absorbed_signature", "absorption", "limit_from_signature", "detection_limits"]
 
 #: singular values of the identification Jacobian below this fraction of the largest are directions
 #: the data do not determine (the refit moves freely along them): not used to absorb a signature
@@ -45,6 +45,20 @@ def absorbed_signature(j_id: np.ndarray, j_val: np.ndarray, J_id: np.ndarray, J_
     effect's held-out signature (all per unit magnitude [N per unit]; J columns: the same base steps)."""
     delta, *_ = np.linalg.lstsq(J_id, j_id, rcond=RCOND)
     return j_val - J_val @ delta
+
+
+def absorption(j_id: np.ndarray, J_id: np.ndarray) -> tuple[float, np.ndarray]:
+    """(the share of the effect's identification signature ``j_id`` that the base refit absorbs, in [0, 1]; each
+    base coordinate's part of that absorbed force, summing to 1): the least-squares step ``delta`` of the base
+    (``J_id`` columns) reproduces ``J_id delta`` of the signature; coordinate k's part is ``(J_k delta_k) .
+    (J_id delta) / |J_id delta|^2``. An effect whose signature is absorbed almost whole cannot be told apart
+    from the base parameters that absorb it on these tests."""
+    delta, *_ = np.linalg.lstsq(J_id, j_id, rcond=RCOND)
+    absorbed = J_id @ delta
+    aa, jj = float(absorbed @ absorbed), float(j_id @ j_id)
+    if aa <= 0.0 or jj <= 0.0:
+        return 0.0, np.zeros(J_id.shape[1])
+    return min(aa / jj, 1.0), (J_id * delta).T @ absorbed / aa
 
 
 def limit_from_signature(u: np.ndarray, j_id: np.ndarray, mse_ref: float, noise_n: float, accept: float,
@@ -107,7 +121,8 @@ def detection_limits(eid, ev, par, z0: np.ndarray, parameters: dict[str, str], r
                      refine: int = 2, step: float = 1e-4) -> dict:
     """Detection limit of every effect: {effect: {"parameter", "limit", "by_score", "by_noise",
     "by_range", "limited_by", "best_test", "per_test": {test: limit}, "reachable": limit within the search
-    bounds, "linearised_at"}}.
+    bounds, "linearised_at", "absorbed_share", "absorbed_by_coordinate" (``absorption`` at that magnitude, per
+    coordinate of ``par``)}}.
 
     eid, ev: engines of the base model on the identification and held-out tests (``residuals_batch``);
     par: the base parametrization, z0: the fitted base (scaled); parameters: effect -> its magnitude
@@ -137,6 +152,8 @@ def detection_limits(eid, ev, par, z0: np.ndarray, parameters: dict[str, str], r
             j_id, j_val = (lin_id.off[e] - r_id) / m[e], (lin_val.off[e] - r_val) / m[e]
             u = absorbed_signature(j_id, j_val, lin_id.jacobian, lin_val.jacobian)
             rows[e] = _row(u, j_id, m[e], edges, test_names, mse_ref, noise_n, accept, penalty)
+            share, parts = absorption(j_id, lin_id.jacobian)
+            rows[e]["absorbed_share"], rows[e]["absorbed_by_coordinate"] = share, parts.tolist()
             if math.isfinite(rows[e]["limit"]) and rows[e]["limit"] < top[e]:
                 m[e] = max(rows[e]["limit"], 1e-6 * top[e])
                 still.append(e)

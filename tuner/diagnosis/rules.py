@@ -11,7 +11,7 @@ import math
 
 __all__ = ["PENALTY_PER_PARAMETER", "ACCEPT_SCORE", "UNEXPLAINED_RATIO", "FORM_EXCESS_SHARE", "AT_BOUND",
            "DELAY_AGREEMENT", "score", "rescore", "excess_explained", "cross_check", "earned", "scores",
-           "within_bounds", "decide"]
+           "within_bounds", "decide", "CONFOUNDED_SHARE", "indistinguishable"]
 
 PENALTY_PER_PARAMETER = 0.02
 
@@ -28,6 +28,11 @@ UNEXPLAINED_RATIO = 2.0
 #: took 34 % of a lumped base's error on two-chamber-model data, leaving 119 x the floor) is not the
 #: missing element
 FORM_EXCESS_SHARE = 0.5
+
+
+#: an effect whose force the base refit absorbs to at least this share (``tuner.diagnosis.detection.absorption``)
+#: cannot be told apart from the base parameters that absorb it on the tests given
+CONFOUNDED_SHARE = 0.9
 
 
 #: a magnitude within this share of its search bound is at the bound (``within_bounds``)
@@ -121,3 +126,23 @@ def decide(ranking: list[dict]) -> tuple[str, dict, list[dict]]:
     if named:
         return named[0]["effect"], named[0], rejected
     return "none", next((r for r in ranking if r["effect"] == "none"), ranking[0]), rejected
+
+
+def indistinguishable(ranking: list[dict], selection: list[dict], limits: dict) -> list[dict]:
+    """The candidates left unnamed that explain part of a residual the base explains as well: their refit lowered
+    the held-out MSE (on the base, or on top of the causes named: the latest such row counts) and the base refit
+    absorbs at least CONFOUNDED_SHARE of their force (``limits``: the detection limits with ``absorbed_share`` and
+    ``absorbed_by``). One record each: {"effect", "parameters", "validation_mse_change_pct", "absorbed_share",
+    "absorbed_by"}, largest held-out gain first."""
+    rows = {r["effect"]: r for r in ranking if r["effect"] != "none" and "+" not in r["effect"]}
+    for step in selection:
+        rows.update({r["added"]: r for r in step.get("tried", []) if "added" in r})
+    out = []
+    for effect, lim in limits.items():
+        row = rows.get(effect)
+        if row is None or lim.get("absorbed_share", 0.0) < CONFOUNDED_SHARE or not row["validation_mse_change_pct"] < 0:
+            continue
+        out.append({"effect": effect, "parameters": dict(row["parameters"]),
+                    "validation_mse_change_pct": row["validation_mse_change_pct"],
+                    "absorbed_share": lim["absorbed_share"], "absorbed_by": dict(lim.get("absorbed_by") or {})})
+    return sorted(out, key=lambda r: r["validation_mse_change_pct"])

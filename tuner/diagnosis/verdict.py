@@ -11,7 +11,7 @@ from tuner.diagnosis.rules import ACCEPT_SCORE, FORM_EXCESS_SHARE, earned
 from tuner.formatting import fmt_quantity
 
 __all__ = ["UNITS", "NOTES", "ACQUISITION_CAUSES", "unexplained_record", "effect_parameters", "interval_text",
-           "limit_text", "verdict_text", "why_not", "map_text"]
+           "limit_text", "verdict_text", "why_not", "map_text", "told_apart_text"]
 
 UNITS = {p.name: p.unit for p in EFFECT_PARAMETERS}
 
@@ -133,8 +133,8 @@ def verdict_text(causes: list[str], best: dict, none_row: dict, rejected: list[d
             low_t = sum(v["time_share"] for k, v in loop.items() if k.startswith("below"))
             sig += (f"; {100 * low:.0f} % of it at speeds below the blow-off knee ({100 * low_t:.0f} % of the time), "
                     f"{100 * (1 - low):.0f} % beyond")
-        what = ("a model-form error that no catalogue effect explains" if unexplained.get("fit_converged") is not False
-                else "but the refit did not converge within its Jacobian cap, so this may be an unfinished fit: "
+        what = ("a model-form error that no catalogue effect explains" + told_apart_text(unexplained.get("indistinguishable"))
+                if unexplained.get("fit_converged") is not False else "but the refit did not converge within its Jacobian cap, so this may be an unfinished fit: "
                      "it is NOT shown to be a model-form error")
         text = ("unexplained: " if not causes else text + ". Not explained: ") + (
             f"the remaining residual, {unexplained['identification_rmse_n']:.3g} N rms, is "
@@ -142,6 +142,22 @@ def verdict_text(causes: list[str], best: dict, none_row: dict, rejected: list[d
             f"{noise:.2g} N, stroke noise through the model {unexplained['stroke_noise_force_n']:.2g} N): "
             f"{what}{where}{sig}") + ("" if causes else f"; no named cause: {none_inner}{limits_text}")
     return text
+
+
+def told_apart_text(records: list[dict] | None) -> str:
+    """What cannot be told apart (``rules.indistinguishable``), for the verdict: each effect with its refit's
+    magnitude and held-out change and the base elements that absorb it; '' when none."""
+    if not records:
+        return ""
+    parts = []
+    for r in records:
+        by = " and ".join(f"{g} ({100 * v:.0f} %)" for g, v in r["absorbed_by"].items()) or "the base parameters"
+        values = ", ".join(f"{n} = {fmt_quantity(v, UNITS[n])}" for n, v in r["parameters"].items())
+        parts.append(f"{ALL_EFFECTS[r['effect']].label} ({values}; held-out MSE {r['validation_mse_change_pct']:+.0f} %) "
+                     f"and {by} explain the same residual: the base refit absorbs {100 * r['absorbed_share']:.0f} % of "
+                     f"its force")
+    return (" apart from what these tests cannot tell from the base model's own elements: " + "; ".join(parts)
+            + " (a test that separates them, e.g. other frequencies or amplitudes, would tell which)")
 
 
 def why_not(row: dict, noise: float) -> str:

@@ -1,0 +1,33 @@
+"""'Cannot be told apart' (tuner.diagnosis.rules.indistinguishable, verdict.told_apart_text): pure rules."""
+from tuner.diagnosis.rules import CONFOUNDED_SHARE, indistinguishable
+from tuner.diagnosis.verdict import told_apart_text
+
+
+def _row(effect, change, **params):
+    return {"effect": effect, "validation_mse_change_pct": change, "parameters": params}
+
+
+def _limit(share, by=None):
+    return {"absorbed_share": share, "absorbed_by": by or {"the series elasticity (k_B, c_B)": 0.97}}
+
+
+def test_an_effect_that_gains_but_that_the_base_absorbs_is_reported_with_its_figures():
+    ranking = [_row("valve_lag", -4.0, valve_tau=5e-3), _row("friction", -2.0, friction_force=80.0),
+               _row("inertia", +1.0, inertia_mass=30.0), _row("none", 0.0)]
+    limits = {"valve_lag": _limit(0.96), "friction": _limit(0.5), "inertia": _limit(0.99)}
+    out = indistinguishable(ranking, [], limits)
+    # friction: its force is not absorbed (it would have been named if it earned it); inertia: no gain
+    assert [r["effect"] for r in out] == ["valve_lag"]
+    text = told_apart_text(out)
+    assert "valve lag" in text and "5 ms" in text and "-4 %" in text and "96 %" in text
+    assert "series elasticity (k_B, c_B)" in text
+
+
+def test_the_row_on_top_of_the_causes_counts_and_the_threshold_is_the_rule():
+    ranking = [_row("valve_lag", +2.0, valve_tau=1e-3)]  # on the base: no gain
+    selection = [{"cause": "none", "tried": [{**_row("preload+valve_lag", -3.0, valve_tau=6e-3), "added": "valve_lag"}]}]
+    at = {"valve_lag": _limit(CONFOUNDED_SHARE)}
+    below = {"valve_lag": _limit(CONFOUNDED_SHARE - 0.01)}
+    assert [r["parameters"]["valve_tau"] for r in indistinguishable(ranking, selection, at)] == [6e-3]
+    assert indistinguishable(ranking, selection, below) == []
+    assert told_apart_text([]) == ""
