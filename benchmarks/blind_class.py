@@ -17,9 +17,10 @@ identified, the better one on held-out data kept). Cases:
 * ``none``: clean data;
 * pairs of faults hidden together (``PAIRS``; ``--cases pairs`` lists them all): ``free_play+friction``
   (a worn damper: free play and rod-seal friction), ``free_play+preload``, ``free_play+valve_lag``,
-  ``friction+time_delay`` and ``valve_lag+preload``, each magnitude drawn in its catalogue's typical range
-  (free play log-uniform 0.1-1 mm, friction 50-300 N, preload 30-400 N of either sign, valve lag and delay
-  1-10 ms).
+  ``friction+time_delay`` and ``valve_lag+preload``, each magnitude drawn in its typical range on the damper
+  drawn, scaled as the diagnosis scales it (``tuner.diagnosis.effect_sizes``: the catalogue's friction 50-300 N
+  and preload 30-400 N of either sign times peak force / 20 kN, its free play 0.1-1 mm times stroke range /
+  40 mm up to 1, valve lag and delay 1-10 ms), the size taken from the damper's clean tests.
 
 ``--broad``: the data as broad as users' (``broad_data``): the silent blocks' (lumped) or mounts'
 (two-chamber) stiffness and damping drawn over decades, from soft, heavily damped contact to impact-like
@@ -47,9 +48,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from campaign.damper_class import random_damper, write_class_dataset  # noqa: E402
+from campaign.damper_class import class_tests, random_damper, write_class_dataset  # noqa: E402
 from tuner.data.reading import load_dataset  # noqa: E402
 from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose  # noqa: E402
+from tuner.diagnosis.effect_sizes import DamperSize, typical_range  # noqa: E402
 from tuner.executors import FleetExecutor  # noqa: E402
 from tuner.identification.engine import fastest_engine  # noqa: E402
 from tuner.results.fleet_summary import write_atomic  # noqa: E402
@@ -71,15 +73,24 @@ def expected(case: str) -> tuple[str, ...]:
     return tuple(case.split("+"))
 
 
-def _typical_draw(rng, effect: str) -> float:
-    """One magnitude [SI] of ``effect`` in its catalogue's typical range (the module docstring)."""
+def _typical_draw(rng, effect: str, size: DamperSize) -> float:
+    """One magnitude [SI] of ``effect`` in its typical range on a damper of ``size`` (the catalogue's range scaled
+    as the diagnosis scales it, ``tuner.diagnosis.effect_sizes.typical_range``): a free play log-uniform, the
+    others uniform, a preload of either sign."""
+    lo, hi = typical_range(MAGNITUDE_OF[effect], size)
     if effect == "free_play":
-        return float(math.exp(rng.uniform(math.log(0.1e-3), math.log(1e-3))))
-    if effect == "friction":
-        return float(rng.uniform(50.0, 300.0))
-    if effect == "preload":
-        return float(rng.choice([-1.0, 1.0]) * rng.uniform(30.0, 400.0))
-    return float(rng.uniform(1e-3, 10e-3))  # valve_lag, time_delay [s]
+        return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+    sign = float(rng.choice([-1.0, 1.0])) if effect == "preload" else 1.0
+    return sign * float(rng.uniform(lo, hi))
+
+
+def damper_size(model: str, seed: int, hidden: dict, sample_rate: float) -> DamperSize:
+    """The size of the damper drawn with ``seed`` as its clean tests show it (peak |force| [N], stroke range [m]):
+    what the diagnosis scales the typical effect sizes with."""
+    tests, _ = class_tests(model, seed, noise_n=0.0, sample_rate=sample_rate, hidden=hidden)
+    force = np.concatenate([t["frame"]["force"].to_numpy() for t in tests])
+    stroke = np.concatenate([t["frame"]["stroke"].to_numpy() for t in tests])
+    return DamperSize(float(np.abs(force).max()), float(stroke.max() - stroke.min()))
 
 
 def case_seed(case: str, k: int) -> int:
@@ -106,12 +117,13 @@ def broad_data(model: str, seed: int) -> dict:
 
 
 def hidden_parameters(case: str, model: str, seed: int) -> dict:
-    """The parameters hidden in the random damper of ``model`` drawn with ``seed`` (SI)."""
+    """The parameters hidden in the random damper of ``model`` drawn with ``seed`` (SI); a pair's magnitudes are
+    drawn by ``pair_magnitudes``, on the damper's size."""
     rng = np.random.default_rng([seed, CASES.index(case), 4242])
     if case == "none":
         return {}
-    if case in PAIRS:
-        return {MAGNITUDE_OF[e]: _typical_draw(rng, e) for e in expected(case)}
+    if case in PAIRS:  # drawn when the damper's size is known (``pair_magnitudes``)
+        return {}
     if case.startswith("free_play"):
         hidden = {"free_play": float(math.exp(rng.uniform(math.log(0.05e-3), math.log(1e-3))))}
         if case.endswith("stiff"):
@@ -120,6 +132,14 @@ def hidden_parameters(case: str, model: str, seed: int) -> dict:
         return hidden
     return {"bypass_ratio": float(rng.uniform(0.15, 0.35)), "bypass_center": 0.0,
             "bypass_width": float(rng.uniform(4e-3, 10e-3))}
+
+
+def pair_magnitudes(case: dict) -> dict:
+    """The magnitudes [SI] of a pair case's two effects, each in its typical range on the damper drawn (with the
+    case's series element), on the seed's own random stream."""
+    size = damper_size(case["model"], case["seed"], case["hidden"], case["sample_rate"])
+    rng = np.random.default_rng([case["seed"], CASES.index(case["case"]), 4242])
+    return {MAGNITUDE_OF[e]: _typical_draw(rng, e, size) for e in expected(case["case"])}
 
 
 def _case(name: str, k: int, a: argparse.Namespace) -> dict:
@@ -132,12 +152,15 @@ def _case(name: str, k: int, a: argparse.Namespace) -> dict:
         hidden = {**draw["series"], **hidden}  # a stiff case's tenfold stiffness stays
         rate, noise = draw["sample_rate"], draw["noise_n"]
     return {"case": name, "model": a.model, "seed": seed, "noise_n": noise, "sample_rate": rate,
-            "workers": a.workers, "hidden": hidden, "log_dir": str(a.out / "logs")}
+            "workers": a.workers, "hidden": hidden, "log_dir": str(a.out / "logs"),
+            "base": a.base}
 
 
 def run_case(case: dict) -> dict:
     """One blind diagnosis (``case``: case name, model, seed, noise_n, workers); the row of the table."""
     t0 = time.perf_counter()
+    if case["case"] in PAIRS:
+        case = {**case, "hidden": {**case["hidden"], **pair_magnitudes(case)}}
     with tempfile.TemporaryDirectory() as tmp:
         data = write_class_dataset(Path(tmp) / "data", case["model"], case["seed"], noise_n=case["noise_n"],
                                    sample_rate=case["sample_rate"], hidden=case["hidden"])
@@ -146,7 +169,8 @@ def run_case(case: dict) -> dict:
         with open(log_file or "/dev/null", "w") as out:
             res = diagnose([t for t in tests if t.role == "identification"],
                            [t for t in tests if t.role == "validation"],
-                           DiagnosisSettings(engine=fastest_engine(), workers=case["workers"]),
+                           DiagnosisSettings(engine=fastest_engine(), workers=case["workers"],
+                                             base_model=case.get("base", "auto")),
                            log=lambda m: print(m, file=out, flush=True))
     names = [MAGNITUDE_OF[e] for e in expected(case["case"])]
     fitted = {n: (res["effect_parameters"].get(n) or {}).get("value") for n in names}
@@ -161,6 +185,8 @@ def _arguments(argv) -> argparse.Namespace:
     ap.add_argument("--model", choices=("lumped", "twochamber"), default="lumped")
     ap.add_argument("--noise", type=float, default=25.0, help="force noise [N rms] (without --broad)")
     ap.add_argument("--broad", action="store_true", help="series element, sampling rate and noise drawn per seed")
+    ap.add_argument("--base", choices=("auto", "lumped", "twochamber"), default="auto",
+                    help="the diagnosis's base form: 'auto' identifies both and keeps the better (the blind default)")
     ap.add_argument("--workers", type=int, default=0, help="evaluation processes inside each run")
     ap.add_argument("--scheduler", default=None, metavar="SPEC")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "blind_class")
