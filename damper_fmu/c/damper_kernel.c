@@ -827,9 +827,9 @@ static int effects_output(DkSim *s, double f_model, double h, double x_eff, doub
     f += m->f0;
     if (m->beta != 0.0) {
         if (s->has_temperature) e->temperature = s->temperature_input;
-        else {
-            double power = f_model * v_eff;
-            e->temperature += h * (power - m->heat_g * (e->temperature - m->t_ref)) / m->heat_c;
+        else { /* the thermal balance solved exactly over the step at its power (effects.py: output) */
+            double power = f_model * v_eff, decay = -expm1(-h * m->heat_g / m->heat_c);
+            e->temperature += (power / m->heat_g - (e->temperature - m->t_ref)) * decay;
         }
     }
     e->time += h;
