@@ -63,8 +63,9 @@ def stiff_mount_table(duration: float, flavours) -> None:
         for offset in (0.0, 0.02):
             t0 = time.perf_counter()
             try:
-                f = run_fmu(path, "twochamber", sine_signals("twochamber", duration, offset=offset), {**defaults("twochamber"),
-                            **SMALL_STIFF_MOUNT}, {"internal_tolerance": 0.0})
+                signals = sine_signals("twochamber", duration, offset=offset)
+                f = run_fmu(path, "twochamber", signals, {**defaults("twochamber"), **SMALL_STIFF_MOUNT},
+                            {"internal_tolerance": 0.0})
                 out = f"peak {np.abs(f).max():.4g} N"
             except Exception as exc:
                 out = f"error: {str(exc).splitlines()[0][:150]}"

@@ -236,7 +236,8 @@ class LumpedModel:
             d1 = y1 - w1 * d2_
             scale = abs(d1) + abs(d2_) + abs(d3)
             size = (mP * (abs(v2) + abs(v2b)) + mO * (abs(v3) + abs(v3b)) + mC * (abs(v4) + abs(v4b))
-                    + kB * (abs(x1) + abs(x2b) + abs(x4b) + g * (abs(v2) + abs(v4))) + cB * (abs(v1) + abs(v2) + abs(v4))
+                    + kB * (abs(x1) + abs(x2b) + abs(x4b) + g * (abs(v2) + abs(v4)))
+                    + cB * (abs(v1) + abs(v2) + abs(v4))
                     + 2.0 * (abs(fcu) + abs(fke)) + sc * (abs(v2) + abs(v3)) + skg * (abs(v3) + abs(v4))
                     + ks[ik] * abs(dxb))
             if (scale <= _RESOLUTION * (abs(v2) + abs(v3) + abs(v4))

@@ -53,8 +53,8 @@ def test_a_small_damper_with_a_stiff_mount_runs_and_holds_its_steady_force(flavo
     """The issue's damper: the two-chamber preset with a 1000 x smaller table (25 N) and k_M = 1e11 N/m at
     constant velocity from 20 mm, at the tuner's fixed 1 ms steps and at the FMU's error-controlled ones: it
     runs, and its force after 0.5 s is the analytic steady force to 1e-6. Before: 'Newton stalled at a residual
-    of 2.36e-08 N (1.73e-07 N in compression) ... (tolerance 2.53e-09 N)' at the first step (the mount's terms, k_M x 20 mm = 2e9 N, cannot
-    be resolved to 1e-10 of a 25 N force)."""
+    of 2.36e-08 N (1.73e-07 N in compression) ... (tolerance 2.53e-09 N)' at the first step (the mount's terms,
+    k_M x 20 mm = 2e9 N, cannot be resolved to 1e-10 of a 25 N force)."""
     p = {**defaults("twochamber"), **SMALL_STIFF_MOUNT}
     signals = sine_signals("twochamber", duration=0.5, amp=0.0, offset=0.02)
     signals["stroke"] += v * signals["time"]

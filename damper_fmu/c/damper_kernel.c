@@ -332,7 +332,8 @@ static int lumped_stage_damped(DkModel *m, const double *yb, double g, double x1
         d1 = y1 - w1 * d2_;
         scale = fabs(d1) + fabs(d2_) + fabs(d3);
         size = (mP * (fabs(v2) + fabs(v2b)) + mO * (fabs(v3) + fabs(v3b)) + mC * (fabs(v4) + fabs(v4b))
-                + kB * (fabs(x1) + fabs(x2b) + fabs(x4b) + g * (fabs(v2) + fabs(v4))) + cB * (fabs(v1) + fabs(v2) + fabs(v4))
+                + kB * (fabs(x1) + fabs(x2b) + fabs(x4b) + g * (fabs(v2) + fabs(v4)))
+                + cB * (fabs(v1) + fabs(v2) + fabs(v4))
                 + 2.0 * (fabs(fcu) + fabs(fke)) + sc * (fabs(v2) + fabs(v3)) + skg * (fabs(v3) + fabs(v4))
                 + ks[ik] * fabs(dxb));
         /* the step within rounding of the velocities, or the residuals within rounding of their terms */
