@@ -162,9 +162,11 @@ class Effect:
         return next(p.unit for p in self.parameters if p.name == self.magnitude)
 
 
-def _p(effect: str, name: str, unit: str, description: str, default: float, low: float, high: float) -> Parameter:
-    """An effect parameter: not identified by the base fit, off (or neutral) at its default."""
-    return Parameter(name, unit, description, default, low, high, tunable=False, effect=effect)
+def _p(effect: str, name: str, unit: str, description: str, default: float, low: float, high: float,
+       check: str | None = None) -> Parameter:
+    """An effect parameter: not identified by the base fit, off (or neutral) at its default; checked within
+    [low, high] unless ``check`` says otherwise (``parameter_spec.check_rule``)."""
+    return Parameter(name, unit, description, default, low, high, tunable=False, effect=effect, check=check)
 
 
 # Model bounds: what the tuner may identify (wider than the typical ranges; force effects up to 10 % of
@@ -200,10 +202,12 @@ _RECORDS = (
         "damping that changes with the oil temperature between tests",
         (_p("thermal_drift", "thermal_beta", "1/K", "Damping scaled by exp(-beta (T - T_ref)) with the oil "
             "temperature T", 0.0, 0.0, 0.05),
+         # C and G scale with the damper (a consistently scaled damper heats alike): any positive value, the
+         # balance being solved exactly over each step (effects.py); the bounds are the typical range
          _p("thermal_drift", "thermal_capacity", "J/K", "Heat capacity of the damper (internal thermal balance)",
-            4000.0, 100.0, 1e5),
+            4000.0, 100.0, 1e5, check="positive"),
          _p("thermal_drift", "thermal_conductance", "W/K", "Heat loss to ambient per kelvin (internal thermal "
-            "balance)", 5.0, 0.1, 1000.0),
+            "balance)", 5.0, 0.1, 1000.0, check="positive"),
          _p("thermal_drift", "thermal_reference", "degC", "Reference (and ambient) temperature T_ref",
             20.0, -40.0, 150.0)),
         ("thermal_beta",), {"thermal_beta": (2e-3, 2e-2)}, {"thermal_beta": twice_typical}, "beta",

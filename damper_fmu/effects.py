@@ -16,7 +16,9 @@ extension +, SI units; temperatures in degC.
   chambers unload while the actuator crosses it, as on a real damper.
 * ``thermal_drift``: the damping characteristic is scaled by exp(-beta (T - T_ref)); T is the
   measured oil temperature (input, ``thermal_source = 1``) or follows the thermal balance
-  C dT/dt = F v - G (T - T_ref) (``thermal_source = 0``).
+  C dT/dt = F v - G (T - T_ref) (``thermal_source = 0``), solved exactly over each communication step with
+  the power F v at its end (the explicit step it replaced diverged beyond steps of 2 C / G, 0.2 s at the
+  extremes of C and G, and needed bounds on C and G that refused a small damper).
 * ``valve_lag``: the valve opening lags the flow by tau; with the opening frozen, extra flow meets
   the valve-closed resistance c0 (the steepest slope of Fc,O) instead of the local slope Fc'(v):
   to first order
@@ -159,9 +161,10 @@ class Effects:
         if self.beta:
             if temperature_input is not None:
                 self.temperature = temperature_input
-            else:  # explicit thermal balance: time constant C/G of minutes
+            else:  # the thermal balance solved exactly over the step at its power: stable at any step and scale
                 power = f_model * v_eff
-                self.temperature += h * (power - self.heat_g * (self.temperature - self.t_ref)) / self.heat_c
+                decay = -math.expm1(-h * self.heat_g / self.heat_c)  # 1 - exp(-h G / C)
+                self.temperature += (power / self.heat_g - (self.temperature - self.t_ref)) * decay
         self.time += h
         if not self.delay:
             return f

@@ -14,6 +14,7 @@ from xml.etree.ElementTree import Element, SubElement, tostring
 
 from .integrator import DEFAULT_MAX_STEP, DEFAULT_TOLERANCE, INPUT_INTERPOLATION_DESCRIPTION
 from .models import DIAGNOSTICS
+from .parameter_spec import check_rule
 from .parameters import EFFECT_MODELS, MODEL_PARAMETERS, UNIT_DEFINITIONS
 
 __all__ = ["NATIVE_SETTINGS", "SETTING_VR", "FMI3_VR", "DEFAULT_EXPERIMENT", "variables", "units",
@@ -72,8 +73,10 @@ def variables(kind: str, start_values: dict, settings: dict, notes: dict | None 
         var(name, 10 + i, "output", "continuous", unit, text, initial="calculated")
     for i, p in enumerate(MODEL_PARAMETERS[kind]):
         tunable = p.tunable or p.effect
+        span = (f"range [{p.low:g}, {p.high:g}]" if check_rule(p) == "range" else
+                f"typically [{p.low:g}, {p.high:g}], any positive value")
         text = (f"{p.description} [{p.unit}]; identification bounds [{p.low:g}, {p.high:g}]" if p.tunable else
-                f"Effect '{p.effect}' (off at 0): {p.description} [{p.unit}], range [{p.low:g}, {p.high:g}]"
+                f"Effect '{p.effect}' (off at 0): {p.description} [{p.unit}], {span}"
                 if p.effect else f"{p.description} [{p.unit}]")
         if notes and notes.get(p.name):
             text = f"{text}; {notes[p.name]}"

@@ -49,6 +49,7 @@ iteration ends when the pieces stop changing).
 from __future__ import annotations
 
 import math
+import sys
 from bisect import bisect_right as bisect_segment  # the lookup of PwlTable.segment, inlined
 
 from .parameters import check_values
@@ -58,6 +59,12 @@ __all__ = ["ConvergenceError", "DIAGNOSTICS", "LumpedModel", "MaxwellModel", "Ma
            "make_model"]
 
 _MAX_NEWTON = 12  # plain piecewise-linear Newton; then the damped fallback
+#: What double precision resolves of a sum of terms, relative to the sum of their magnitudes (4 units of
+#: rounding): where every iterative solve of the models ends (the two-chamber stage's tolerance floor
+#: ``TwoChamberModel._tolerance``, the lumped model's damped Newton, the width of a closed bisection bracket).
+#: A residual of terms far larger than the force scale (a stiff mount times a stroke of mm on a damper of
+#: newtons) cannot get below it; relative, it holds at every force and stroke scale.
+_RESOLUTION = 4.0 * sys.float_info.epsilon
 
 #: Internal element outputs of each model (``diagnostics``, FMU outputs): name -> (unit, text),
 #: in the order of ``diagnostics``.
@@ -194,7 +201,10 @@ class LumpedModel:
         """Fallback when plain Newton cycles between table pieces: damped Newton.
 
         The stage residual is the gradient of the convex, C1, piecewise-quadratic potential
-        ``_potential`` (for monotone tables), so Newton steps with backtracking on it converge.
+        ``_potential`` (for monotone tables), so Newton steps with backtracking on it converge. It ends
+        where double precision does: the Newton step within ``_RESOLUTION`` of the velocities, or the
+        residuals [N] within ``_RESOLUTION`` of the magnitudes of their terms (an absolute step of 1e-15
+        m/s was the end before: no precision at all on a stroke of nanometres).
         """
         x2b, x3b, x4b, v2b, v3b, v4b = yb
         c = self._consts
@@ -225,7 +235,13 @@ class LumpedModel:
             d2_ = y2 - w2 * d3
             d1 = y1 - w1 * d2_
             scale = abs(d1) + abs(d2_) + abs(d3)
-            if scale <= 1e-15 * (1.0 + abs(v2) + abs(v3) + abs(v4)):
+            size = (mP * (abs(v2) + abs(v2b)) + mO * (abs(v3) + abs(v3b)) + mC * (abs(v4) + abs(v4b))
+                    + kB * (abs(x1) + abs(x2b) + abs(x4b) + g * (abs(v2) + abs(v4)))
+                    + cB * (abs(v1) + abs(v2) + abs(v4))
+                    + 2.0 * (abs(fcu) + abs(fke)) + sc * (abs(v2) + abs(v3)) + skg * (abs(v3) + abs(v4))
+                    + ks[ik] * abs(dxb))
+            if (scale <= _RESOLUTION * (abs(v2) + abs(v3) + abs(v4))
+                    or abs(r[0]) + abs(r[1]) + abs(r[2]) <= _RESOLUTION * size):
                 return [x2b + g * v2, x3b + g * v3, x4b + g * v4, v2, v3, v4]
             alpha = 1.0
             while True:
@@ -362,13 +378,14 @@ class MaxwellTableModel(_SeriesSpringModel):
                 hi = mid
             else:
                 lo = mid
-            if hi - lo <= 1e-15 * (1.0 + abs(mid)):
+            if hi - lo <= _RESOLUTION * max(abs(lo), abs(hi)):
                 break
         return [yb[0] + g * 0.5 * (lo + hi)]
 
 
 #: Two-chamber model: isentropic air exponent 1 + 1/1.4, clip of the volume and pressure ratios,
-#: Newton tolerance (sum of |residuals| relative to the force scale) and iteration limits.
+#: Newton tolerance (sum of |residuals| relative to the force scale, never below ``_RESOLUTION`` of their
+#: terms: ``TwoChamberModel._tolerance``) and iteration limits.
 AIR_EXPONENT = 1.714
 _TC_CLIP = 0.05
 _TC_TOL = 1e-10
@@ -549,6 +566,10 @@ class TwoChamberModel:
         return kR, kRy, kRf, kC, kCy, kCg
 
     def _residual(self, q, yb, g: float, x1: float, v1: float, jacobian: bool):
+        """Stage residuals r [N] at q = (w, up, uf, fR, gC), their Jacobian (or None) and the size [N] of
+        each residual: the sum of the magnitudes of its terms, including a term's change over the rounding of
+        the positions and velocities it takes (the mount's kM |x1| and kM |y|), so that ``_RESOLUTION`` times
+        it is what double precision can resolve of that residual."""
         w, up, uf, fR, gC = q
         a = self.a
         y = yb[0] + g * w
@@ -557,6 +578,7 @@ class TwoChamberModel:
         ip, jf = self.fp.segment(up), self.ff.segment(uf)
         ds = self.damping_scale
         sp, sf = ds * self.fp.slope[ip], ds * self.ff.slope[jf]
+        ap, af = ds * self.fp.intercept[ip], ds * self.ff.intercept[jf]
         fr = dfr = 0.0
         if self.ffr:
             th = math.tanh(w / self.v_eps)
@@ -565,42 +587,54 @@ class TwoChamberModel:
         r4, dr4 = fR - gC + fr - fm, g * fe + fd + dfr
         r = [fR - yb[1] - g * kR * uR,
              gC - yb[2] - g * kC * uC,
-             fR - a * gC - (ds * self.fp.intercept[ip] + sp * up),
-             gC - (ds * self.ff.intercept[jf] + sf * uf),
+             fR - a * gC - (ap + sp * up),
+             gC - (af + sf * uf),
              r4]
+        size = [abs(fR) + abs(yb[1]) + g * kR * (abs(w) + abs(up)),
+                abs(gC) + abs(yb[2]) + g * kC * (abs(w) + a * abs(up) + abs(uf)),
+                abs(fR) + a * abs(gC) + abs(ap) + abs(sp * up),
+                abs(gC) + abs(af) + abs(sf * uf),
+                abs(fR) + abs(gC) + abs(fr) + dfr * abs(w) + abs(fm) + abs(fe) * (abs(x1) + abs(y))
+                + abs(fd) * (abs(v1) + abs(w))]
         if not jacobian:
-            return r, None
+            return r, None, size
         jac = [[-g * (kR + g * kRy * uR), g * kR, 0.0, 1.0 - g * kRf * uR, 0.0],
                [-g * (-kC + g * kCy * uC), -g * kC * a, g * kC, 0.0, 1.0 - g * kCg * uC],
                [0.0, -sp, 0.0, 1.0, -a],
                [0.0, 0.0, -sf, 0.0, 1.0],
                [dr4, 0.0, 0.0, 1.0, -1.0]]
-        return r, jac
+        return r, jac, size
+
+    def _tolerance(self, size: list[float], n: int) -> float:
+        """Tolerance [N] on the sum of the first n |residuals|: ``_TC_TOL`` of the force scale, or what double
+        precision resolves of them (``_RESOLUTION`` times their sizes) where that is more (a stiff mount far from
+        the stroke origin on a small damper)."""
+        return max(self._tol, _RESOLUTION * _abs_sum(size, n))
 
     def _newton(self, q: list[float], held: int, yb, g: float, x1: float, v1: float):
         """Newton's method on the stage residuals for the unknowns q[held:] (the first ``held`` stay
         as given), on as many residuals as unknowns: full steps first (exact within the valves'
         linear pieces, usually done in 2-4), then, if the pieces keep changing, a backtracking line
-        search on the sum of those |residuals| [N]. Returns (q, Jacobian at q, residual sum,
-        singular: True when a Jacobian could not be solved)."""
+        search on the sum of those |residuals| [N]. Returns (q, Jacobian at q, residual sum, its tolerance
+        at q (``_tolerance``) [N], singular: True when a Jacobian could not be solved)."""
         n = 5 - held
-        r, jac = self._residual(q, yb, g, x1, v1, True)
-        rn = _abs_sum(r, n)
+        r, jac, size = self._residual(q, yb, g, x1, v1, True)
+        rn, tol = _abs_sum(r, n), self._tolerance(size, n)
         for it in range(_TC_MAX_NEWTON):
-            if rn <= self._tol:
+            if rn <= tol:
                 break
             d = _solve_stage(jac, r) if held == 0 else _solve([row[held:] for row in jac[:n]], r[:n])
             if d is None:
-                return q, jac, rn, True
+                return q, jac, rn, tol, True
             if it < _TC_PLAIN:  # plain Newton
                 q = q[:held] + [qi - di for qi, di in zip(q[held:], d)]
-                r, jac = self._residual(q, yb, g, x1, v1, True)
-                rn = _abs_sum(r, n)
+                r, jac, size = self._residual(q, yb, g, x1, v1, True)
+                rn, tol = _abs_sum(r, n), self._tolerance(size, n)
                 continue
             lam, accepted = 1.0, False  # then damped: backtracking on the sum of |residuals|
             for _ in range(_TC_MAX_HALVINGS):
                 qt = q[:held] + [qi - lam * di for qi, di in zip(q[held:], d)]
-                rt, _ = self._residual(qt, yb, g, x1, v1, False)
+                rt, _, _ = self._residual(qt, yb, g, x1, v1, False)
                 rnt = _abs_sum(rt, n)
                 if rnt < rn:
                     accepted = True
@@ -609,8 +643,9 @@ class TwoChamberModel:
             if not accepted:
                 break
             q, rn = qt, rnt
-            r, jac = self._residual(q, yb, g, x1, v1, True)
-        return q, jac, rn, False
+            r, jac, size = self._residual(q, yb, g, x1, v1, True)
+            tol = self._tolerance(size, n)
+        return q, jac, rn, tol, False
 
     def stage(self, yb, g: float, x1: float, v1: float) -> list[float]:
         """Solve y = yb + g f(y) for the two-chamber model (x1 [m], v1 [m/s] at the stage time).
@@ -629,36 +664,37 @@ class TwoChamberModel:
             fm, fe, fd = self.mount(x1 - (yb[0] + g * wp), v1 - wp)
             den = g * fe + fd
             w0 = wp + (fm - fb) / den if den > _TC_DISENGAGED * (self.cM + self.kM * g) else wp
-        q, _, rn, singular = self._newton([w0, yb[4], yb[5], yb[1], yb[2]], 0, yb, g, x1, v1)
+        q, _, rn, tol, singular = self._newton([w0, yb[4], yb[5], yb[1], yb[2]], 0, yb, g, x1, v1)
         if singular:
             raise ConvergenceError("two-chamber stage: singular Jacobian")
-        if not rn <= self._tol:  # e.g. a steep seal friction at a reversal: the nested solve
-            q = self._stage_nested(yb, g, x1, v1, w0, rn)
+        if not rn <= tol:  # e.g. a steep seal friction at a reversal: the nested solve
+            q = self._stage_nested(yb, g, x1, v1, w0, (rn, tol))
         w, up, uf, fR, gC = q
         return [yb[0] + g * w, fR, gC, yb[3], up, uf, w]
 
     def _valves_given_w(self, w: float, p4: list[float], yb, g: float, x1: float, v1: float):
         """The chamber and valve equations (residuals 0-3) solved for (up, uf, fR, gC) at the piston
-        velocity w [m/s], from p4; returns (p4, d(fR - gC)/dw [N s/m], |r0..r3| sum) -- the same
-        Newton iteration as ``stage`` with w held; the derivative by implicit differentiation."""
-        q, jac, rn, _ = self._newton([w, *p4], 1, yb, g, x1, v1)
+        velocity w [m/s], from p4; returns (p4, d(fR - gC)/dw [N s/m], |r0..r3| sum, its tolerance [N]) -- the
+        same Newton iteration as ``stage`` with w held; the derivative by implicit differentiation."""
+        q, jac, rn, tol, _ = self._newton([w, *p4], 1, yb, g, x1, v1)
         dq = _solve([row[1:] for row in jac[:4]], [-row[0] for row in jac[:4]])
         dfw = 0.0 if dq is None else dq[2] - dq[3]
-        return q[1:], dfw, rn
+        return q[1:], dfw, rn, tol
 
-    def _stage_nested(self, yb, g: float, x1: float, v1: float, w0: float, rn0: float) -> list[float]:
+    def _stage_nested(self, yb, g: float, x1: float, v1: float, w0: float, stalled: tuple) -> list[float]:
         """Fallback of ``stage``: a safeguarded Newton iteration (bisection once bracketed) on the
         mount balance, residual 4, which increases with the piston velocity w when the chamber and
         valve equations are solved for each w (``_valves_given_w``). Robust where the joint Newton
-        iteration is not (a steep seal friction tanh(w / v_eps) at a reversal)."""
+        iteration is not (a steep seal friction tanh(w / v_eps) at a reversal). ``stalled``: the joint
+        iteration's residual sum and tolerance [N], for the message when this fails too."""
         p4 = [yb[4], yb[5], yb[1], yb[2]]
         w, lo, hi = w0, -math.inf, math.inf
         for _ in range(_TC_MAX_NESTED):
-            p4, dfw, rn4 = self._valves_given_w(w, p4, yb, g, x1, v1)
-            if not rn4 <= self._tol:
+            p4, dfw, rn4, tol4 = self._valves_given_w(w, p4, yb, g, x1, v1)
+            if not rn4 <= tol4:
                 break
-            r, _ = self._residual([w, *p4], yb, g, x1, v1, False)
-            if abs(r[4]) <= self._tol:
+            r, _, size = self._residual([w, *p4], yb, g, x1, v1, False)
+            if abs(r[4]) <= self._tolerance(size, 5):
                 return [w, *p4]
             fr_slope = 0.0
             if self.ffr:
@@ -676,11 +712,11 @@ class TwoChamberModel:
                     wn = w - 2.0 * r[4] / slope  # outside the one known side: a longer step
                 else:
                     wn = 0.5 * (lo + hi)
-            if not math.isinf(lo) and not math.isinf(hi) and hi - lo <= 1e-15 * (1.0 + abs(w)):
-                break
+            if not math.isinf(lo) and not math.isinf(hi) and hi - lo <= _RESOLUTION * max(abs(lo), abs(hi)):
+                break  # the bracket is a few units in the last place of w wide
             w = wn
-        raise ConvergenceError(f"two-chamber stage: Newton stalled at a residual of {rn0:.3g} N and the nested "
-                               f"solve did not converge either (tolerance {self._tol:.3g} N)")
+        raise ConvergenceError(f"two-chamber stage: Newton stalled at a residual of {stalled[0]:.3g} N and the "
+                               f"nested solve did not converge either (tolerance {stalled[1]:.3g} N)")
 
     def diagnostics(self, y, x1: float, v1: float) -> dict[str, float]:
         """Mount elongation [m], chamber forces [N] and valve rates [m/s] of the state y."""

@@ -68,10 +68,13 @@ class PwlTable:
 
     def primitive(self, x: float) -> float:
         """Integral of F from 0 to x (elastic energy [J] of a spring table, or the convex
-        potential of a dashpot table) -- continuous and piecewise quadratic."""
+        potential of a dashpot table) -- continuous and piecewise quadratic. Taken from the end of x's
+        piece nearer the origin: from the far end, the node's primitive (joules) cancelled down to that of a
+        micrometre stroke (1e-13 J) lost every digit of it."""
         i = bisect_right(self.breaks, x)
-        x0 = self.xs[i]
-        return self._p_anchor[i] + self.intercept[i] * (x - x0) + 0.5 * self.slope[i] * (x * x - x0 * x0)
+        j = i + 1 if self.xs[i + 1] <= 0.0 else i  # the node of piece i nearer the origin
+        x0 = self.xs[j]
+        return self._p_anchor[j] + self.intercept[i] * (x - x0) + 0.5 * self.slope[i] * (x * x - x0 * x0)
 
     def evaluate(self, x):
         """Vectorised evaluation for plotting and analysis (numpy array in, array out)."""

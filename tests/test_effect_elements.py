@@ -73,6 +73,23 @@ def test_thermal_drift_heats_the_oil_and_lowers_the_damping():
     assert scale < last / first < 0.95  # damping falls (force less than the damping scale: series spring)
 
 
+@pytest.mark.parametrize("h", [1e-3, 0.5])
+def test_the_thermal_balance_is_its_closed_form_at_any_step(h):
+    """At a constant power P the balance C dT/dt = P - G (T - T_ref) gives T = T_ref + P / G (1 - exp(-t G / C)):
+    so the internal balance, at steps of 1 ms and of 0.5 s with the extremes of its typical C and G (time constant
+    0.1 s; the explicit step it replaced diverged beyond 0.2 s), and at a damper 1e5 times smaller (C and G
+    scaled with it: the same temperatures)."""
+    from damper_fmu.effects import Effects
+
+    for c, g, power in ((100.0, 1000.0, 2.0e3), (1e-3, 1e-2, 2.0e-2)):
+        e = Effects({"thermal_beta": 0.01, "thermal_capacity": c, "thermal_conductance": g})
+        e.initialize(0.0, 0.0)
+        for k in range(1, 9):
+            e.output(power / 0.1, h, 0.0, 0.1, 0.0, 0.0, None)  # f_model [N] x v_eff [m/s] = power [W]
+            expected = 20.0 + power / g * (1.0 - np.exp(-k * h * g / c))
+            assert e.temperature == pytest.approx(expected, rel=1e-12), (c, k)
+
+
 def knee_table(**kw):
     """Symmetric damping table: 1e6 N s/m up to a knee at 10 mm/s, 1e5 N s/m beyond."""
     p = with_effect(**kw)

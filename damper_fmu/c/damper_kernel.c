@@ -10,12 +10,16 @@
 #error "damper_index.h is out of date with damper_fmu/parameters.py: python -m damper_fmu.c_header"
 #endif
 
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #define MAX_NEWTON 12
+/* what double precision resolves of a sum of terms, relative to the sum of their magnitudes: where every
+   iterative solve ends (models.py: _RESOLUTION) */
+#define RESOLUTION (4.0 * DBL_EPSILON)
 #define MIN_STEP 1e-12
 /* relative slack of the sub-step division (integrator.py: STEP_RTOL): a communication step that
    differs from a whole number of max_step by float jitter ((k+1)h - kh) is taken as that number of
@@ -140,10 +144,11 @@ static double table_eval(const DkTable *t, double x) {
     return t->intercept[i] + t->slope[i] * x;
 }
 
+/* from the node of x's piece nearer the origin (tables.py: PwlTable.primitive) */
 static double table_primitive(const DkTable *t, double x) {
-    int i = segment(t, x);
-    double x0 = t->xs[i];
-    return t->anchor[i] + t->intercept[i] * (x - x0) + 0.5 * t->slope[i] * (x * x - x0 * x0);
+    int i = segment(t, x), j = t->xs[i + 1] <= 0.0 ? i + 1 : i;
+    double x0 = t->xs[j];
+    return t->anchor[j] + t->intercept[i] * (x - x0) + 0.5 * t->slope[i] * (x * x - x0 * x0);
 }
 
 /* ---- parameters and models ------------------------------------------------------------------- */
@@ -316,7 +321,7 @@ static int lumped_stage_damped(DkModel *m, const double *yb, double g, double x1
         double r1 = mO * (v3 - v3b) - fcu + fke;
         double r2 = mC * (v4 - v4b) - fke + kB * (x4b + g * v4) + cB * v4;
         double a11 = d2 + sc, a22 = mO + sc + skg, a33 = d4 + skg;
-        double w1 = -sc / a11, w2, y1, y2, d3, d2_, d1, scale, alpha, trial[3], phi_t;
+        double w1 = -sc / a11, w2, y1, y2, d3, d2_, d1, scale, size, alpha, trial[3], phi_t;
         a22 -= sc * sc / a11;
         w2 = -skg / a22;
         a33 -= skg * skg / a22;
@@ -326,7 +331,14 @@ static int lumped_stage_damped(DkModel *m, const double *yb, double g, double x1
         d2_ = y2 - w2 * d3;
         d1 = y1 - w1 * d2_;
         scale = fabs(d1) + fabs(d2_) + fabs(d3);
-        if (scale <= 1e-15 * (1.0 + fabs(v2) + fabs(v3) + fabs(v4))) {
+        size = (mP * (fabs(v2) + fabs(v2b)) + mO * (fabs(v3) + fabs(v3b)) + mC * (fabs(v4) + fabs(v4b))
+                + kB * (fabs(x1) + fabs(x2b) + fabs(x4b) + g * (fabs(v2) + fabs(v4)))
+                + cB * (fabs(v1) + fabs(v2) + fabs(v4))
+                + 2.0 * (fabs(fcu) + fabs(fke)) + sc * (fabs(v2) + fabs(v3)) + skg * (fabs(v3) + fabs(v4))
+                + ks[ik] * fabs(dxb));
+        /* the step within rounding of the velocities, or the residuals within rounding of their terms */
+        if (scale <= RESOLUTION * (fabs(v2) + fabs(v3) + fabs(v4)) ||
+            fabs(r0) + fabs(r1) + fabs(r2) <= RESOLUTION * size) {
             out[0] = x2b + g * v2; out[1] = x3b + g * v3; out[2] = x4b + g * v4;
             out[3] = v2; out[4] = v3; out[5] = v4;
             return DK_OK;
@@ -421,7 +433,7 @@ static int maxwell_table_stage(DkModel *m, const double *yb, double g, double x1
     for (it = 0; it < 200; it++) {
         double mid = 0.5 * (lo + hi);
         if (maxwell_table_residual(m, mid, kg, rhs) > 0.0) hi = mid; else lo = mid;
-        if (hi - lo <= 1e-15 * (1.0 + fabs(mid))) break;
+        if (hi - lo <= RESOLUTION * fmax(fabs(lo), fabs(hi))) break;
     }
     out[0] = yb[0] + g * (0.5 * (lo + hi));
     return DK_OK;
@@ -531,24 +543,34 @@ static double tc_mount(const DkModel *m, double e, double edot, double *fe, doub
     return m->kM * d + m->cM * chi * edot;
 }
 
-static double tc_residual(const DkModel *m, const double *q, const double *yb, double g, double x1, double v1,
-                          double *r, double J[5][5]) {
+/* the stage residuals r [N] at q = (w, up, uf, fR, gC), their Jacobian J (unless NULL) and the size sz [N] of each
+   residual: the sum of the magnitudes of its terms, with a term's change over the rounding of the positions and
+   velocities it takes (models.py: TwoChamberModel._residual) */
+static void tc_residual(const DkModel *m, const double *q, const double *yb, double g, double x1, double v1,
+                        double *r, double J[5][5], double *sz) {
     double w = q[0], up = q[1], uf = q[2], fR = q[3], gC = q[4], a = m->ar, y = yb[0] + g * w, k[6];
-    double uR, uC, sp, sf, ds = m->damping_scale, fr = 0.0, dfr = 0.0, fe, fd, fm;
+    double uR, uC, sp, sf, ap, af, ds = m->damping_scale, fr = 0.0, dfr = 0.0, fe, fd, fm;
     int ip = segment(&m->vp, up), jf = segment(&m->vf, uf);
     tc_stiffness(m, y, fR, gC, k);
     uR = w - up; uC = -w + a * up - uf;
     sp = ds * m->vp.slope[ip]; sf = ds * m->vf.slope[jf];
+    ap = ds * m->vp.intercept[ip]; af = ds * m->vf.intercept[jf];
     if (m->ff != 0.0) {
         double th = tanh(w / m->v_eps);
         fr = m->ff * th; dfr = m->ff * (1.0 - th * th) / m->v_eps;
     }
+    fm = tc_mount(m, x1 - y, v1 - w, &fe, &fd);
     r[0] = fR - yb[1] - g * k[0] * uR;
     r[1] = gC - yb[2] - g * k[3] * uC;
-    r[2] = fR - a * gC - (ds * m->vp.intercept[ip] + sp * up);
-    r[3] = gC - (ds * m->vf.intercept[jf] + sf * uf);
-    fm = tc_mount(m, x1 - y, v1 - w, &fe, &fd);
+    r[2] = fR - a * gC - (ap + sp * up);
+    r[3] = gC - (af + sf * uf);
     r[4] = fR - gC + fr - fm;
+    sz[0] = fabs(fR) + fabs(yb[1]) + g * k[0] * (fabs(w) + fabs(up));
+    sz[1] = fabs(gC) + fabs(yb[2]) + g * k[3] * (fabs(w) + a * fabs(up) + fabs(uf));
+    sz[2] = fabs(fR) + a * fabs(gC) + fabs(ap) + fabs(sp * up);
+    sz[3] = fabs(gC) + fabs(af) + fabs(sf * uf);
+    sz[4] = fabs(fR) + fabs(gC) + fabs(fr) + dfr * fabs(w) + fabs(fm) + fabs(fe) * (fabs(x1) + fabs(y))
+            + fabs(fd) * (fabs(v1) + fabs(w));
     if (J) {
         J[0][0] = -g * (k[0] + g * k[1] * uR); J[0][1] = g * k[0]; J[0][2] = 0.0;
         J[0][3] = 1.0 - g * k[2] * uR; J[0][4] = 0.0;
@@ -558,7 +580,6 @@ static double tc_residual(const DkModel *m, const double *q, const double *yb, d
         J[3][0] = 0.0; J[3][1] = 0.0; J[3][2] = -sf; J[3][3] = 0.0; J[3][4] = 1.0;
         J[4][0] = g * fe + fd + dfr; J[4][1] = 0.0; J[4][2] = 0.0; J[4][3] = 1.0; J[4][4] = -1.0;
     }
-    return fabs(r[0]) + fabs(r[1]) + fabs(r[2]) + fabs(r[3]) + fabs(r[4]);
 }
 
 static double abs_sum(const double *r, int n) {
@@ -568,20 +589,28 @@ static double abs_sum(const double *r, int n) {
     return s;
 }
 
+/* tolerance [N] on the sum of the first n |residuals|: TC_TOL of the force scale, or what double precision
+   resolves of them where that is more (models.py: TwoChamberModel._tolerance) */
+static double tc_tolerance(const DkModel *m, const double *sz, int n) {
+    double floor_ = RESOLUTION * abs_sum(sz, n);
+    return m->tc_tol > floor_ ? m->tc_tol : floor_;
+}
+
 /* Newton's method on the stage residuals for the unknowns q[held..4] (q[0..held-1] stay as given),
    on as many residuals as unknowns: full steps first, then a backtracking line search on the sum of
-   those |residuals| (models.py: TwoChamberModel._newton). On return r, J are at q and *rn is the
-   residual sum; DK_ERROR when a Jacobian could not be solved. */
+   those |residuals| (models.py: TwoChamberModel._newton). On return r, J are at q, *rn is the
+   residual sum and *tol its tolerance at q; DK_ERROR when a Jacobian could not be solved. */
 static int tc_newton(DkModel *m, double *q, int held, const double *yb, double g, double x1, double v1,
-                     double *r, double J[5][5], double *rn) {
-    double A[5][5], d[5], qt[5], rt[5], rnt = 0.0;
+                     double *r, double J[5][5], double *rn, double *tol) {
+    double A[5][5], d[5], qt[5], rt[5], sz[5], rnt = 0.0;
     int n = 5 - held, it, i, j, h;
-    tc_residual(m, q, yb, g, x1, v1, r, J);
+    tc_residual(m, q, yb, g, x1, v1, r, J, sz);
     *rn = abs_sum(r, n);
+    *tol = tc_tolerance(m, sz, n);
     for (it = 0; it < TC_MAX_NEWTON; it++) {
         int accepted = 0;
         double lam = 1.0;
-        if (*rn <= m->tc_tol) break;
+        if (*rn <= *tol) break;
         if (held == 0) {
             if (tc_solve_stage(J, r, d)) return DK_ERROR;
         } else {
@@ -590,14 +619,15 @@ static int tc_newton(DkModel *m, double *q, int held, const double *yb, double g
         }
         if (it < TC_PLAIN) {
             for (i = 0; i < n; i++) q[i + held] = q[i + held] - d[i];
-            tc_residual(m, q, yb, g, x1, v1, r, J);
+            tc_residual(m, q, yb, g, x1, v1, r, J, sz);
             *rn = abs_sum(r, n);
+            *tol = tc_tolerance(m, sz, n);
             continue;
         }
         for (h = 0; h < TC_MAX_HALVINGS; h++) {
             for (i = 0; i < held; i++) qt[i] = q[i];
             for (i = 0; i < n; i++) qt[i + held] = q[i + held] - lam * d[i];
-            tc_residual(m, qt, yb, g, x1, v1, rt, NULL);
+            tc_residual(m, qt, yb, g, x1, v1, rt, NULL, sz);
             rnt = abs_sum(rt, n);
             if (rnt < *rn) { accepted = 1; break; }
             lam *= 0.5;
@@ -605,20 +635,22 @@ static int tc_newton(DkModel *m, double *q, int held, const double *yb, double g
         if (!accepted) break;
         for (i = 0; i < 5; i++) q[i] = qt[i];
         *rn = rnt;
-        tc_residual(m, q, yb, g, x1, v1, r, J);
+        tc_residual(m, q, yb, g, x1, v1, r, J, sz);
+        *tol = tc_tolerance(m, sz, n);
     }
     return DK_OK;
 }
 
 /* the chamber and valve equations (residuals 0-3) solved for p4 = (up, uf, fR, gC) at the piston
-   velocity w; *dfw = d(fR - gC)/dw; returns the sum of |r0..r3| (models.py: _valves_given_w) */
+   velocity w; *dfw = d(fR - gC)/dw, *tol the tolerance of the sum of |r0..r3| it returns (models.py:
+   _valves_given_w) */
 static double tc_valves_given_w(DkModel *m, double w, double *p4, const double *yb, double g, double x1,
-                                double v1, double *dfw) {
+                                double v1, double *dfw, double *tol) {
     double q[5], r[5], J[5][5], A[5][5], d[5], rhs[5], rn;
     int i, j;
     q[0] = w;
     for (i = 0; i < 4; i++) q[i + 1] = p4[i];
-    tc_newton(m, q, 1, yb, g, x1, v1, r, J, &rn); /* a singular Jacobian ends the iteration: rn says how far */
+    tc_newton(m, q, 1, yb, g, x1, v1, r, J, &rn, tol); /* a singular Jacobian ends the iteration: rn says how far */
     for (i = 0; i < 4; i++) {
         for (j = 0; j < 4; j++) A[i][j] = J[i][j + 1];
         rhs[i] = -J[i][0];
@@ -629,20 +661,21 @@ static double tc_valves_given_w(DkModel *m, double w, double *p4, const double *
 }
 
 /* fallback of tc_stage: safeguarded Newton (bisection once bracketed) on the mount balance, which
-   increases with w when the other equations are solved for each w (models.py: _stage_nested) */
+   increases with w when the other equations are solved for each w (models.py: _stage_nested); rn0, tol0: the
+   joint iteration's residual sum and tolerance, for the message when this fails too */
 static int tc_stage_nested(DkModel *m, const double *yb, double g, double x1, double v1, double w0, double rn0,
-                           double *q, char *msg, size_t msglen) {
-    double p4[4], w = w0, lo = 0.0, hi = 0.0, r[5], qq[5];
+                           double tol0, double *q, char *msg, size_t msglen) {
+    double p4[4], w = w0, lo = 0.0, hi = 0.0, r[5], qq[5], sz[5];
     int it, i, have_lo = 0, have_hi = 0; /* bracket ends found (no infinities: see dk_finite) */
     p4[0] = yb[4]; p4[1] = yb[5]; p4[2] = yb[1]; p4[3] = yb[2];
     for (it = 0; it < TC_MAX_NESTED; it++) {
-        double dfw, rn4, fr_slope = 0.0, slope, wn;
-        rn4 = tc_valves_given_w(m, w, p4, yb, g, x1, v1, &dfw);
-        if (!(rn4 <= m->tc_tol)) break;
+        double dfw, rn4, tol4, fr_slope = 0.0, slope, wn;
+        rn4 = tc_valves_given_w(m, w, p4, yb, g, x1, v1, &dfw, &tol4);
+        if (!(rn4 <= tol4)) break;
         qq[0] = w;
         for (i = 0; i < 4; i++) qq[i + 1] = p4[i];
-        tc_residual(m, qq, yb, g, x1, v1, r, NULL);
-        if (fabs(r[4]) <= m->tc_tol) {
+        tc_residual(m, qq, yb, g, x1, v1, r, NULL, sz);
+        if (fabs(r[4]) <= tc_tolerance(m, sz, 5)) {
             for (i = 0; i < 5; i++) q[i] = qq[i];
             return DK_OK;
         }
@@ -661,18 +694,18 @@ static int tc_stage_nested(DkModel *m, const double *yb, double g, double x1, do
             if (!have_lo || !have_hi) wn = w - 2.0 * r[4] / slope;
             else wn = 0.5 * (lo + hi);
         }
-        if (have_lo && have_hi && hi - lo <= 1e-15 * (1.0 + fabs(w))) break;
+        if (have_lo && have_hi && hi - lo <= RESOLUTION * fmax(fabs(lo), fabs(hi))) break; /* a few ulps of w wide */
         if (!dk_finite(wn)) break;
         w = wn;
     }
     snprintf(msg, msglen, "two-chamber stage: Newton stalled at a residual of %.3g N and the nested solve did not "
-             "converge either (tolerance %.3g N)", rn0, m->tc_tol);
+             "converge either (tolerance %.3g N)", rn0, tol0);
     return DK_ERROR;
 }
 
 static int tc_stage(DkModel *m, const double *yb, double g, double x1, double v1, double *out, char *msg,
                     size_t msglen) {
-    double fb = yb[1] - yb[2] + (m->ff != 0.0 ? m->ff * tanh(yb[6] / m->v_eps) : 0.0), q[5], w0, r[5], J[5][5], rn;
+    double fb = yb[1] - yb[2] + (m->ff != 0.0 ? m->ff * tanh(yb[6] / m->v_eps) : 0.0), q[5], w0, r[5], J[5][5], rn, tol;
     if (m->tc_tol == 0.0) m->tc_tol = TC_TOL * force_scale(m);
     if (m->tc_gap == 0.0) q[0] = (m->cM * v1 - fb + m->kM * (x1 - yb[0])) / (m->cM + m->kM * g);
     else { /* the mount with its dead band linearised at the last piston velocity (models.py: stage) */
@@ -681,11 +714,11 @@ static int tc_stage(DkModel *m, const double *yb, double g, double x1, double v1
     }
     q[1] = yb[4]; q[2] = yb[5]; q[3] = yb[1]; q[4] = yb[2];
     w0 = q[0];
-    if (tc_newton(m, q, 0, yb, g, x1, v1, r, J, &rn)) {
+    if (tc_newton(m, q, 0, yb, g, x1, v1, r, J, &rn, &tol)) {
         snprintf(msg, msglen, "two-chamber stage: singular Jacobian");
         return DK_ERROR;
     }
-    if (!(rn <= m->tc_tol) && tc_stage_nested(m, yb, g, x1, v1, w0, rn, q, msg, msglen)) return DK_ERROR;
+    if (!(rn <= tol) && tc_stage_nested(m, yb, g, x1, v1, w0, rn, tol, q, msg, msglen)) return DK_ERROR;
     out[0] = yb[0] + g * q[0]; out[1] = q[3]; out[2] = q[4]; out[3] = yb[3]; out[4] = q[1]; out[5] = q[2];
     out[6] = q[0];
     return DK_OK;
@@ -795,9 +828,9 @@ static int effects_output(DkSim *s, double f_model, double h, double x_eff, doub
     f += m->f0;
     if (m->beta != 0.0) {
         if (s->has_temperature) e->temperature = s->temperature_input;
-        else {
-            double power = f_model * v_eff;
-            e->temperature += h * (power - m->heat_g * (e->temperature - m->t_ref)) / m->heat_c;
+        else { /* the thermal balance solved exactly over the step at its power (effects.py: output) */
+            double power = f_model * v_eff, decay = -expm1(-h * m->heat_g / m->heat_c);
+            e->temperature += (power / m->heat_g - (e->temperature - m->t_ref)) * decay;
         }
     }
     e->time += h;
