@@ -198,7 +198,7 @@ def test_a_late_stage_that_fails_leaves_its_record_and_report_and_the_run_resume
     diagnosis comes from its checkpoint and the second finishes: friction on the two-chamber base."""
     import json
 
-    import tuner.diagnosis.search as search_module
+    import tuner.diagnosis.search.run as search_module
     from tuner.cli.run import run_handler
     from tuner.diagnosis.diagnose import DiagnosisFailed
     from tuner.job import run_diagnosis

@@ -5,7 +5,8 @@
   final values and residual series the job writes from) and of a failed stage (``DiagnosisFailed``, its record);
 - ``settings``: the settings of a diagnosis run (``DiagnosisSettings``) and its candidate causes;
 - ``bases``: the base forms: which, their identification, the choice by held-out MSE, the repeat rule;
-- ``search``: the diagnosis on one base form (``CandidateSearch``: one method per step of the procedure);
+- ``search``: the diagnosis on one base form (a package: one module per step of the procedure, sharing one
+  record, ``search.state.SearchState``);
 - ``rules``: the decision rules, pure functions of ranking rows (score, decide, cross-check, bounds);
 - ``verdict``: the verdict's words and the records of causes and of what stays unexplained;
 - ``residuals``: the base model's residual as evidence (signatures, loops, spectra) and its figures' file names;

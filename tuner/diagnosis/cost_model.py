@@ -3,7 +3,7 @@ left is made of (``tuner.progress``: the job's stage then says its seconds left 
 measured on other data).
 
 Counted in simulations of the identification tests (a held-out run counts by its share of the samples), from the
-same settings the steps use (``tuner.diagnosis.search.CandidateSearch``): a Jacobian of a model of ``d``
+same settings the steps use (``tuner.diagnosis.search``): a Jacobian of a model of ``d``
 coordinates is d + 1 simulations; a candidate's refit is its profile (``grid_points`` values, each re-balanced by
 up to ``profile_steps`` batches: half of them on average, measured) and a joint polish of
 ``JOINT_POLISH_JACOBIANS`` Jacobians (its cap ``polish_jacobians / 2``); the screen is one batch of

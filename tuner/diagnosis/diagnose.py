@@ -1,8 +1,8 @@
 """Diagnosis: what the fitted base model gets wrong, which physical effect causes it, the model
 extended by that effect, and the gain measured on held-out data.
 
-Procedure (``diagnose``; the steps on one base form are the methods of ``tuner.diagnosis.search.
-CandidateSearch``, the decision rules are in ``tuner.diagnosis.rules``, the words in
+Procedure (``diagnose``; the steps on one base form are the modules of ``tuner.diagnosis.search``
+(``run``: the steps in order), the decision rules are in ``tuner.diagnosis.rules``, the words in
 ``tuner.diagnosis.verdict``, the base forms in ``tuner.diagnosis.bases``):
 1. Base model: the base form with the lowest held-out MSE among BASE_MODELS (the paper's lumped
    model and the two-chamber form of a twin-tube damper: a base that cannot represent the damper
@@ -36,7 +36,7 @@ CandidateSearch``, the decision rules are in ``tuner.diagnosis.rules``, the word
    noise, its magnitude is physically meaningful (>= half the low end of its typical range, scaled to
    the damper: ``tuner.diagnosis.effect_sizes``), a fitted delay agrees with the residual's, and the 95 % interval of its magnitude excludes zero
    (``effect_intervals``: block sandwich, ``tuner.diagnosis.significance``).
-4. Forms weighed with the causes (``CandidateSearch.weigh_forms``): when a catalogue cause is named
+4. Forms weighed with the causes (``search.form_steps.weigh_forms``): when a catalogue cause is named
    and the base leaves a residual above the floor, the forms beyond the catalogue are fitted on the
    base; one that scores above the cause is the first cause. A magnitude at its search bound, or
    whose interval lies wholly above its typical range on this damper, is never named
@@ -89,7 +89,8 @@ from tuner.diagnosis.refit import MIN_BLOCKS, ExtendedParametrization  # noqa: F
 from tuner.diagnosis.result import Diagnosis, DiagnosisFailed, failure_record
 from tuner.diagnosis.rules import (ACCEPT_SCORE, PENALTY_PER_PARAMETER, UNEXPLAINED_RATIO, cross_check,  # noqa: F401
                                    decide)
-from tuner.diagnosis.search import BaseRun, base_residuals, diagnose_on
+from tuner.diagnosis.search.reference import base_residuals
+from tuner.diagnosis.search.run import BaseRun, diagnose_on
 from tuner.diagnosis.settings import CANDIDATES, DiagnosisSettings
 from tuner.diagnosis.verdict import ACQUISITION_CAUSES, NOTES  # noqa: F401
 from tuner.identification.problem import Problem
