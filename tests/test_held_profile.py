@@ -1,4 +1,4 @@
-"""The held profile of a nonsmooth effect's magnitude (tuner.diagnosis.refit.held_profile, nonsmooth_profiles)
+"""The held profile of a nonsmooth effect's magnitude (tuner.diagnosis.held_profiles.held_profile, nonsmooth_profiles)
 on objectives whose minimum is known in closed form.
 
 A fake engine: the residual [N] is a known function of the free play alone (the Maxwell base's two parameters
@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from tuner.diagnosis.refit import (FAR_WORSE, HELD_PATIENCE, ExtendedParametrization, held_profile,
-                                   nonsmooth_profiles, series_profiles)
+from tuner.diagnosis.extended_parametrization import ExtendedParametrization
+from tuner.diagnosis.held_profiles import FAR_WORSE, HELD_PATIENCE, held_profile, nonsmooth_profiles, series_profiles
 from tuner.identification.parametrization import Parametrization
 
 N = 50

@@ -12,6 +12,9 @@
 - ``residuals``: the base model's residual as evidence (signatures, loops, spectra) and its figures' file names;
 - ``screen``: one batch that predicts what each candidate's refit could win (its profile over the magnitude);
 - ``refit``: refits of a base model extended by effect elements, and their intervals;
+- ``extended_parametrization``: the base design vector extended by effect parameters, the line search's grid, the
+  base Jacobian;
+- ``held_profiles``: a nonsmooth effect's magnitude profiled with the model re-fitted at each value;
 - ``forms``: the forms beyond the catalogue (pre-yield hysteresis, bypass groove) and their shape screen;
 - ``significance``: block-sandwich statistics for correlated residuals;
 - ``effect_sizes``: typical and meaningful effect magnitudes scaled to the damper;

@@ -85,7 +85,8 @@ from tuner.data.reading import RigTest
 from tuner.diagnosis.bases import (BASE_MODELS, Base, choose_base, identified_bases, progress_plan,  # noqa: F401
                                    why_not_repeated)
 from tuner.diagnosis.cost_model import EXTENDED_COST, expected_cost
-from tuner.diagnosis.refit import MIN_BLOCKS, ExtendedParametrization  # noqa: F401
+from tuner.diagnosis.extended_parametrization import ExtendedParametrization  # noqa: F401
+from tuner.diagnosis.refit import MIN_BLOCKS  # noqa: F401
 from tuner.diagnosis.result import Diagnosis, DiagnosisFailed, failure_record
 from tuner.diagnosis.rules import (ACCEPT_SCORE, PENALTY_PER_PARAMETER, UNEXPLAINED_RATIO, cross_check,  # noqa: F401
                                    decide)

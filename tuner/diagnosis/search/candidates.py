@@ -5,7 +5,7 @@ from __future__ import annotations
 from damper_fmu.effect_catalogue import ALL_EFFECTS
 
 from tuner.diagnosis.cost_model import refit_cost
-from tuner.diagnosis.refit import ExtendedParametrization
+from tuner.diagnosis.extended_parametrization import ExtendedParametrization
 from tuner.diagnosis.rules import scores
 from tuner.diagnosis.search.nonsmooth import series_ladder, shows_gain, signalled_nonsmooth, unearned_nonsmooth
 from tuner.diagnosis.search.refits import refit_candidate, screen

@@ -10,7 +10,8 @@ import time
 from damper_fmu.effect_catalogue import ALL_EFFECTS
 
 from tuner.diagnosis.forms import FORM_LABELS, screen, settings_text, shape_grid
-from tuner.diagnosis.refit import ExtendedParametrization, base_jacobian, effect_intervals, refit
+from tuner.diagnosis.extended_parametrization import ExtendedParametrization, base_jacobian
+from tuner.diagnosis.refit import effect_intervals, refit
 from tuner.diagnosis.rules import ACCEPT_SCORE, FORM_EXCESS_SHARE, earned, excess_explained, score, scores
 from tuner.diagnosis.screen import SCREEN_SHARE
 from tuner.diagnosis.search.rows import attach_interval, held_out

@@ -12,7 +12,8 @@ from damper_fmu.effect_catalogue import ALL_EFFECTS
 from damper_fmu.parameters import SERIES_ELEMENT
 
 from tuner.diagnosis.cost_model import refit_cost, series_cost
-from tuner.diagnosis.refit import ExtendedParametrization, grid, series_profiles
+from tuner.diagnosis.extended_parametrization import ExtendedParametrization, grid
+from tuner.diagnosis.held_profiles import series_profiles
 from tuner.diagnosis.rules import UNEXPLAINED_RATIO, scores
 from tuner.diagnosis.search.refits import refit_candidate
 from tuner.diagnosis.search.rows import held_out, log_row
@@ -26,7 +27,7 @@ def series_ladder(s: SearchState, effect: str, ext: ExtendedParametrization, row
     """A nonsmooth effect signalled above the noise (``signalled_nonsmooth``) or refitted without earning a
     score (``unearned_nonsmooth``) whose refit still leaves a residual above the floor is profiled again with
     the element in series with it (``SERIES_ELEMENT``) held a decade and two above the data-driven guess's
-    stiffness, at the guess's damping (``refit.series_profiles``; a mount fitted as a dashpot carries a gap's
+    stiffness, at the guess's damping (``tuner.diagnosis.held_profiles.series_profiles``; a mount fitted as a dashpot carries a gap's
     lost motion; the second only when the first leaves the residual above the floor), then polished jointly;
     the better refit of the effect is kept. Returns its ranking row (``series_element_held``: the values held
     [SI])."""

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from tuner.diagnosis.refit import base_jacobian
+from tuner.diagnosis.extended_parametrization import base_jacobian
 from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidence_of, figure_files
 from tuner.diagnosis.rules import rescore
 from tuner.diagnosis.search.rows import held_out

@@ -6,7 +6,8 @@ import math
 
 import numpy as np
 
-from tuner.diagnosis.refit import ExtendedParametrization, base_jacobian, refit
+from tuner.diagnosis.extended_parametrization import ExtendedParametrization, base_jacobian
+from tuner.diagnosis.refit import refit
 from tuner.diagnosis.screen import SCREEN_SHARE, profile_screen
 from tuner.diagnosis.search.rows import held_out
 from tuner.diagnosis.search.state import Fit, SearchState

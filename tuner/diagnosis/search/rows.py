@@ -10,7 +10,7 @@ import numpy as np
 from damper_fmu.effect_catalogue import effect_of, search_bounds
 
 from tuner.diagnosis.effect_sizes import REFERENCE, DamperSize, meaningful_floor, typical_range
-from tuner.diagnosis.refit import ExtendedParametrization
+from tuner.diagnosis.extended_parametrization import ExtendedParametrization
 from tuner.diagnosis.rules import score, within_bounds
 from tuner.diagnosis.search.state import SearchState
 from tuner.diagnosis.verdict import UNITS

@@ -10,7 +10,8 @@ import numpy as np
 from damper_fmu.effect_catalogue import ALL_EFFECTS
 
 from tuner.diagnosis.cost_model import after_ranking
-from tuner.diagnosis.refit import ExtendedParametrization, base_jacobian, effect_intervals, refit
+from tuner.diagnosis.extended_parametrization import ExtendedParametrization, base_jacobian
+from tuner.diagnosis.refit import effect_intervals, refit
 from tuner.diagnosis.rules import ACCEPT_SCORE, cross_check, decide, earned, scores
 from tuner.diagnosis.search.reference import base_settled, set_none
 from tuner.diagnosis.search.rows import attach_interval, held_out
