@@ -10,6 +10,9 @@
 - ``rules``: the decision rules, pure functions of ranking rows (score, decide, cross-check, bounds);
 - ``verdict``: the verdict's words and the records of causes and of what stays unexplained;
 - ``residuals``: the base model's residual as evidence (signatures, loops, spectra) and its figures' file names;
+- ``residual_tests``: one test's residual and its derived signals (acceleration, dF/dt, reversals);
+- ``residual_signatures``: each catalogue effect's signature fitted to the residual, alone and all at once;
+- ``residual_map``: where the residual lives on the restoring-force plane;
 - ``screen``: one batch that predicts what each candidate's refit could win (its profile over the magnitude);
 - ``refit``: refits of a base model extended by effect elements, and their intervals;
 - ``extended_parametrization``: the base design vector extended by effect parameters, the line search's grid, the

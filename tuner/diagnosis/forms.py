@@ -39,7 +39,7 @@ def shape_grid(form: str, bounds: dict[str, tuple[float, float]], knee_m_s: floa
     eight hysteresis displacements spaced geometrically; bypass grooves centred at nine points
     across the inner 80 % of the stroke limits, each of three lengths spaced geometrically, acting in
     both directions, in extension only and in compression only, without a fade and fading past the
-    blow-off knee ``knee_m_s`` [m/s] of the data (``tuner.diagnosis.residuals.knee_velocity``). The
+    blow-off knee ``knee_m_s`` [m/s] of the data (``tuner.diagnosis.residual_signatures.knee_velocity``). The
     direction and the fade speed are settings of the model the refit keeps, not identified."""
     if form == "hysteresis":
         lo, hi = bounds["hysteresis_displacement"]

@@ -8,7 +8,8 @@ import math
 import numpy as np
 
 from tuner.diagnosis.extended_parametrization import base_jacobian
-from tuner.diagnosis.residuals import TestResidual, evidence as residual_evidence_of, figure_files
+from tuner.diagnosis.residual_tests import TestResidual
+from tuner.diagnosis.residuals import evidence as residual_evidence_of, figure_files
 from tuner.diagnosis.rules import rescore
 from tuner.diagnosis.search.rows import held_out
 from tuner.diagnosis.search.state import SearchState, base_point

@@ -12,7 +12,7 @@ from tuner.diagnosis.bases import Base
 from tuner.diagnosis.cost_model import expected_cost
 from tuner.diagnosis.detection import detection_limits
 from tuner.diagnosis.effect_sizes import meaningful_floor, typical_range
-from tuner.diagnosis.residuals import TestResidual
+from tuner.diagnosis.residual_tests import TestResidual
 from tuner.diagnosis.rules import ACCEPT_SCORE, PENALTY_PER_PARAMETER
 from tuner.diagnosis.search.candidates import candidates
 from tuner.diagnosis.search.conclusion import before_rescue, concluded, result

@@ -15,7 +15,7 @@ from damper_fmu.parameters import defaults
 from tuner.diagnosis.bases import Base
 from tuner.diagnosis.cost_model import EXTENDED_COST, DiagnosisCost
 from tuner.diagnosis.effect_sizes import DamperSize
-from tuner.diagnosis.residuals import TestResidual
+from tuner.diagnosis.residual_tests import TestResidual
 from tuner.diagnosis.rules import UNEXPLAINED_RATIO
 from tuner.diagnosis.settings import DiagnosisSettings
 from tuner.identification.engine import Engine
