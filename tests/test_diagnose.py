@@ -26,6 +26,7 @@ from campaign.generate import CHAMBER_TEMPERATURES_C, generate_dataset
 from damper_fmu import defaults
 from tuner.__main__ import main
 from tuner.data.reading import load_dataset
+from tuner.diagnosis.bases import FittedBases
 from tuner.diagnosis.diagnose import CANDIDATES, DiagnosisSettings, ExtendedParametrization, cross_check, decide, diagnose
 from tuner.identification.engine import fastest_engine
 from tuner.job import write_diagnosis
@@ -435,7 +436,7 @@ def test_the_diagnosis_is_not_repeated_on_a_base_that_cannot_plausibly_win(tmp_p
     tc = defaults("twochamber")
     tc = {**tc, **{k: 8 * v for k, v in tc.items() if k.startswith("Fc_") and not k.startswith("Fc_v")}}
     res = diagnose(ident, val, DiagnosisSettings(engine=fastest_engine(), candidates=("preload",)),
-                   base_params=defaults("lumped"), base_model="lumped", other_bases={"twochamber": tc},
+                   from_fit=FittedBases("lumped", defaults("lumped"), others={"twochamber": tc}),
                    log=lambda m: None)
     assert res["base_model"] == "lumped" and res["cause"] == "unexplained", res["verdict"]
     assert "cannot plausibly win" in res["base_choice"]["not_repeated_on"]["twochamber"]
@@ -459,7 +460,7 @@ def test_an_unfinished_fit_is_not_called_a_form_error_nor_a_reason_to_switch_bas
     res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
                    DiagnosisSettings(engine=fastest_engine(), candidates=("preload",),
                                      polish_jacobians=2, final_jacobians=1, guess_start=False),
-                   base_params=start, base_model="lumped", other_bases={"twochamber": defaults("twochamber")},
+                   from_fit=FittedBases("lumped", start, others={"twochamber": defaults("twochamber")}),
                    log=lambda m: None)
     u = res["unexplained"]
     assert u is not None and u["fit_converged"] is False, res["verdict"]
@@ -492,7 +493,7 @@ def test_a_residual_is_not_judged_against_a_floor_that_is_not_credible(tmp_path)
     res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
                    DiagnosisSettings(engine=fastest_engine(), candidates=("preload",),
                                      polish_jacobians=2, final_jacobians=1, guess_start=False),
-                   base_params=start, base_model="lumped", log=lambda m: None)
+                   from_fit=FittedBases("lumped", start), log=lambda m: None)
     write_diagnosis(res, tmp_path / "out", log=lambda m: None)
     assert res["residual_floor_credible"] is False and res["noise"]["credible"] is False
     assert res["unexplained"] is None and res["cause"] != "unexplained", res["verdict"]
@@ -535,7 +536,7 @@ def test_a_cause_on_a_damper_30_times_smaller_is_named_at_its_own_scale(tmp_path
     res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
                    DiagnosisSettings(engine=fastest_engine(), base_iterations=0, base_model="lumped",
                                      candidates=("friction",)),
-                   base_params=small, base_model="lumped", log=lambda m: None)
+                   from_fit=FittedBases("lumped", small), log=lambda m: None)
     assert res["causes"] == ["friction"], res["verdict"]
     p = res["effect_parameters"]["friction_force"]
     assert p["value"] == pytest.approx(6.0, rel=0.2)

@@ -32,8 +32,8 @@ from damper_fmu.fmu import SLAVES, build
 from damper_fmu.parameters import EFFECT_MODELS, MODEL_PARAMETERS
 from tuner.data.reading import RigTest, reading_warnings
 from tuner import strict_json
-from tuner.diagnosis.bases import BaseRefinement, diagnosis_forecast
-from tuner.diagnosis.diagnose import Diagnosis, DiagnosisFailed, DiagnosisSettings, choose_base, diagnose
+from tuner.diagnosis.bases import FittedBases, diagnosis_forecast
+from tuner.diagnosis.diagnose import Diagnosis, DiagnosisFailed, DiagnosisSettings, diagnose
 from tuner.executors import FleetExecutor
 from tuner.identification.fit import FitResult, FitSettings, fit, full_rate_checks
 from tuner.identification.intervals import ModelIntervals
@@ -126,10 +126,9 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
     result.write_metrics(out)
     diagnosis = None
     if diagnose_after and wants_diagnosis(settings, validation):
-        kind, values, choice, others = choose_base(result.params, result.metrics)
         try:
-            diagnosis = _diagnose(identification, validation, out, diagnosis_settings(settings), values, kind, choice,
-                                  others, problem, log, refinements=base_refinements(result, settings))
+            diagnosis = _diagnose(identification, validation, out, diagnosis_settings(settings),
+                                  FittedBases.from_fit(result), log)
         except DiagnosisFailed:
             make_report(out, figures=figures)  # the fit's report with the failure said: the fit and its FMUs are safe
             raise
@@ -143,16 +142,14 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
 
 
 def run_diagnosis(identification: list[RigTest], validation: list[RigTest], out: Path,
-                  settings: DiagnosisSettings, *, base_params: dict | None = None, base_model: str | None = None,
-                  base_choice: dict | None = None, other_bases: dict | None = None, figures: bool = True,
+                  settings: DiagnosisSettings, *, from_fit: FittedBases | None = None, figures: bool = True,
                   log=print) -> Diagnosis:
-    """A diagnosis on its own into ``out`` (the base from an earlier fit, or identified here; its files by
-    ``write_diagnosis``), then the report: the full one when ``out`` holds that fit's files (``figures``: False
+    """A diagnosis on its own into ``out`` (the bases from an earlier fit, ``from_fit``, or identified here; its
+    files by ``write_diagnosis``), then the report: the full one when ``out`` holds that fit's files (``figures``: False
     without the fit's figures), the diagnosis alone otherwise."""
     out = Path(out)
     try:
-        result = _diagnose(identification, validation, out, settings, base_params, base_model, base_choice,
-                           other_bases, None, log)
+        result = _diagnose(identification, validation, out, settings, from_fit, log)
     finally:  # a failed diagnosis gets its report too: what was finished, the failing stage, --resume
         if (out / "diagnosis.json").exists():
             stage(log, "report")
@@ -163,23 +160,17 @@ def run_diagnosis(identification: list[RigTest], validation: list[RigTest], out:
     return result
 
 
-def base_refinements(result: FitResult, settings: FitSettings) -> dict:
-    """{model: ``tuner.diagnosis.bases.BaseRefinement``} of the fit: on the fit's own problem the diagnosis does
-    not refit a base whose refinement converged in the scheme it refines in ('improved'), and forecasts its
-    time from the fit's cost per simulation."""
-    return {m: BaseRefinement.from_history(h, settings.data.parametrization) for m, h in result.histories.items()}
-
-
-def _diagnose(identification, validation, out, settings, base_params, base_model, base_choice, other_bases,
-              problem, log, refinements: dict | None = None) -> Diagnosis:
-    """The diagnosis into ``out`` (its checkpoints in ``out/checkpoints``), then its files (``write_diagnosis``);
-    a failed stage's record is written (``write_diagnosis_failure``) before ``DiagnosisFailed`` goes on."""
+def _diagnose(identification, validation, out, settings: DiagnosisSettings, from_fit: FittedBases | None,
+              log) -> Diagnosis:
+    """The diagnosis into ``out`` (its checkpoints in ``out/checkpoints``; the bases from the earlier fit
+    ``from_fit``, or identified), then its files (``write_diagnosis``); a failed stage's record is written
+    (``write_diagnosis_failure``) before ``DiagnosisFailed`` goes on."""
     stage(log, "diagnosis")
-    log(f"\ndiagnosis: refitting the {base_model or 'base'} model extended by each candidate effect ...")
+    log(f"\ndiagnosis: refitting the {from_fit.kind if from_fit else 'base'} model extended by each candidate "
+        f"effect ...")
     try:
-        diagnosis = diagnose(identification, validation, settings, checkpoints=Path(out) / "checkpoints",
-                             base_params=base_params, base_model=base_model, base_choice=base_choice,
-                             other_bases=other_bases, problem=problem, refinements=refinements, log=log)
+        diagnosis = diagnose(identification, validation, settings, from_fit=from_fit,
+                             checkpoints=Path(out) / "checkpoints", log=log)
     except DiagnosisFailed as failed:
         write_diagnosis_failure(failed, out)
         raise
