@@ -16,7 +16,7 @@ from tuner.diagnosis.extended_parametrization import ExtendedParametrization
 from tuner.identification.engine import Engine
 from tuner.identification.polish import polish
 
-__all__ = ["HeldProfile", "held_profile", "nonsmooth_profiles", "series_profiles", "PROBE_JACOBIANS",
+__all__ = ["HeldProfile", "HeldSweep", "held_profile", "nonsmooth_profiles", "series_profiles", "PROBE_JACOBIANS",
            "HELD_PROFILE_JACOBIANS", "COARSE_HELD_JACOBIANS", "HELD_PATIENCE", "FAR_WORSE", "SERIES_HELD_JACOBIANS"]
 
 #: Jacobians of the joint polish that must win ``tuner.diagnosis.refit.PROFILE_SHARE`` when the profile did not, for
@@ -40,6 +40,19 @@ HELD_PATIENCE = 3
 FAR_WORSE = 4.0
 #: Jacobians per value of a held profile with the series element held too (``series_profiles``)
 SERIES_HELD_JACOBIANS = 2
+
+
+@dataclass(frozen=True)
+class HeldSweep:
+    """How ``held_profile`` sweeps its values: ``jacobians`` of the local refinement at each value; it stops once
+    ``patience`` values in a row (None: never) fit worse than the best so far; ``chained``: each value re-fitted
+    from the best value's point so far; ``far``: while no value has beaten the model without the effect, one that
+    fits ``far`` x its SSE or worse ends it (None: never)."""
+
+    patience: int | None = HELD_PATIENCE
+    jacobians: int = HELD_PROFILE_JACOBIANS
+    chained: bool = False
+    far: float | None = None
 
 
 @dataclass(frozen=True)
@@ -96,11 +109,11 @@ def _swept_profile(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, i:
     that has absorbed nothing follows): a value ``FAR_WORSE`` x ``sse_off`` or worse before any beat it ends the
     sweep."""
     k = max(0, max((j for j, v in enumerate(values) if v <= best), default=0) - 1)
-    sweep = []
+    swept = []
     for lo, hi in zip(values[k:], values[k + 1:]):
-        sweep += [lo, math.sqrt(lo * hi)]
-    held = held_profile(eid, ext, z0, i, sweep + values[-1:], sse_off, chained=True,
-                        far=FAR_WORSE if far_stop else None)
+        swept += [lo, math.sqrt(lo * hi)]
+    held = held_profile(eid, ext, z0, i, swept + values[-1:], sse_off,
+                        sweep=HeldSweep(chained=True, far=FAR_WORSE if far_stop else None))
     return _with_vertex(eid, ext, i, held, sse_off)
 
 
@@ -129,7 +142,7 @@ def series_profiles(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, i
     for values_held in held:
         space = ext.holding_base(values_held)
         coarse = held_profile(eid, space, space.from_params(ext.to_params(z0)), i, values,
-                              jacobians=SERIES_HELD_JACOBIANS)
+                              sweep=HeldSweep(jacobians=SERIES_HELD_JACOBIANS))
         points = [ext.from_params(space.to_params(z)) for z in coarse.points]
         out = out.joined(HeldProfile(points, coarse.sse, coarse.evaluations))
         b = int(np.argmin(coarse.sse))
@@ -170,11 +183,11 @@ def _grid_profile(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, i: 
     that stops after a few values that fit no better never arrives. The coarse pass is a fifth of the cost and
     points the same way (there, after one Jacobian: 587 N at 0.54 mm, 625 at 0.28, 832-1065 below, 2116 at 1.04;
     after two: 170, 559, 813-929, 1982 N)."""
-    coarse = held_profile(eid, ext, z0, i, values, patience=None, jacobians=COARSE_HELD_JACOBIANS)
+    coarse = held_profile(eid, ext, z0, i, values, sweep=HeldSweep(patience=None, jacobians=COARSE_HELD_JACOBIANS))
     b = int(np.argmin(coarse.sse))
     fine = [math.sqrt(values[b - 1] * values[b])] if b > 0 else []
     fine += [values[b]] + ([math.sqrt(values[b] * values[b + 1])] if b + 1 < len(values) else [])
-    held = held_profile(eid, ext, z0, i, fine, patience=None)
+    held = held_profile(eid, ext, z0, i, fine, sweep=HeldSweep(patience=None))
     return coarse.joined(_with_vertex(eid, ext, i, held, sse_off))
 
 
@@ -208,11 +221,9 @@ def _vertex_value(held: HeldProfile, k: int) -> float | None:
 
 
 def held_profile(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, i: int, values: list,
-                 sse_off: float = math.inf, patience: int | None = HELD_PATIENCE,
-                 jacobians: int = HELD_PROFILE_JACOBIANS, chained: bool = False,
-                 far: float | None = None) -> HeldProfile:
+                 sse_off: float = math.inf, *, sweep: HeldSweep = HeldSweep()) -> HeldProfile:
     """The profile of the extra parameter ``i`` of ``ext`` (a nonsmooth effect's magnitude) at ``values`` (its
-    search coordinate, swept in their order): ``z0`` with each value re-fitted with it held
+    search coordinate, swept in their order; ``sweep``: ``HeldSweep``): ``z0`` with each value re-fitted with it held
     (``jacobians`` Jacobians of the local refinement over every other coordinate), so that what the
     base absorbed of the effect (a soft elastic table in place of a dead band) is given back at each value;
     the sweep stops once ``patience`` values in a row (None: never) fit worse than the best so far, where the model
@@ -229,6 +240,7 @@ def held_profile(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, i: i
 
     ``far``: while no value has beaten the model without the effect, one that fits ``far`` x ``sse_off`` or worse
     ends the sweep at once (None: never)."""
+    patience, jacobians, chained, far = sweep.patience, sweep.jacobians, sweep.chained, sweep.far
     name, dim = ext.extra[i], ext.base.dimension
     points, sse, evals, worse = [], [], 0, 0
     for v in values:

@@ -19,7 +19,7 @@ from tuner.diagnosis.significance import block_sandwich, correlation_time, inter
 from tuner.identification.engine import Engine
 from tuner.identification.polish import polish
 
-__all__ = ["refit", "RefitResult", "effect_intervals", "MIN_BLOCKS", "PROFILE_SHARE"]
+__all__ = ["refit", "RefitProfile", "RefitResult", "effect_intervals", "MIN_BLOCKS", "PROFILE_SHARE"]
 
 #: fewest independent residual blocks for a confidence interval to be trusted
 MIN_BLOCKS = 10
@@ -40,9 +40,20 @@ class RefitResult:
     evaluations: int
 
 
+@dataclass(frozen=True)
+class RefitProfile:
+    """What ``refit`` profiles: the extra parameters of ``ext.extra`` at the indices ``indices`` (None: all; the
+    others, e.g. effects already selected or a form's shape, are kept at their values in the start), and ``fresh``:
+    a second start (search coordinates) for the held profiles of the nonsmooth effects (``nonsmooth_profiles``), one
+    that has absorbed nothing (the data-driven guess; None: none)."""
+
+    indices: object = None
+    fresh: np.ndarray | None = None
+
+
 def refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: float, jac_svd,
-           settings, jacobians: int, profile=None, fresh: np.ndarray | None = None) -> RefitResult:
-    """Profile line search on the effect parameters of ``ext.extra`` at the indices ``profile``
+          settings, jacobians: int, *, profile: RefitProfile = RefitProfile()) -> RefitResult:
+    """Profile line search on the effect parameters of ``ext.extra`` at the indices ``profile.indices``
     (default all; the others, e.g. effects already selected or a form's shape, are kept at their
     values in z0) from z0 (identification SSE sse0 [N^2]),
     then a joint polish of at most ``jacobians`` Jacobians; returns the best point as a ``RefitResult``.
@@ -55,9 +66,10 @@ def refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: float
     alone, or the base and the effects already selected (a form tried on top of named causes), as
     many as its columns. From a start of known SSE, when the profile does not win ``PROFILE_SHARE`` of it,
     the joint polish stops after ``PROBE_JACOBIANS`` unless they win it (most refits of effects the data
-    do not carry end there, at a quarter of the cost). ``fresh``: a second start for the held profiles of the
-    nonsmooth effects (``nonsmooth_profiles``), one that has absorbed nothing (the data-driven guess).
+    do not carry end there, at a quarter of the cost). ``profile.fresh``: a second start for the held profiles of
+    the nonsmooth effects (``nonsmooth_profiles``), one that has absorbed nothing (the data-driven guess).
     """
+    fresh, indices = profile.fresh, profile.indices
     dim = ext.base.dimension
     if jac_svd is not None and not dim <= jac_svd[2].shape[1] <= ext.dimension:
         raise ValueError(f"refit: a Jacobian of {jac_svd[2].shape[1]} columns for a model of {dim} base and "
@@ -65,7 +77,7 @@ def refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: float
     balanced = jac_svd[2].shape[1] if jac_svd is not None else dim  # the coordinates the LM steps move
     pts = []
     for i, (lo, hi) in enumerate(ext.extra_bounds):
-        if profile is not None and i not in profile:  # kept at its value in z0 during the profile
+        if indices is not None and i not in indices:  # kept at its value in z0 during the profile
             continue
         for val in grid(lo, hi, settings.grid_points, ext.floors[i]):
             z = z0.copy()
@@ -101,7 +113,7 @@ def refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: float
             if not active:
                 break
     sse = [float(r @ r) if r is not None else math.inf for r in res]
-    held = nonsmooth_profiles(eid, ext, [z0] if fresh is None else [z0, fresh], pts, sse, profile,
+    held = nonsmooth_profiles(eid, ext, [z0] if fresh is None else [z0, fresh], pts, sse, indices,
                               sse0 if math.isfinite(sse0) else math.inf)
     evals += held.evaluations
     pts, sse = pts + held.points, sse + held.sse

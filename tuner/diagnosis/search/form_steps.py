@@ -11,7 +11,7 @@ from damper_fmu.effect_catalogue import ALL_EFFECTS
 
 from tuner.diagnosis.forms import FORM_LABELS, screen, settings_text, shape_grid
 from tuner.diagnosis.extended_parametrization import ExtendedParametrization, base_jacobian
-from tuner.diagnosis.refit import effect_intervals, refit
+from tuner.diagnosis.refit import RefitProfile, effect_intervals, refit
 from tuner.diagnosis.rules import ACCEPT_SCORE, FORM_EXCESS_SHARE, earned, excess_explained, score, scores
 from tuner.diagnosis.screen import SCREEN_SHARE
 from tuner.diagnosis.search.rows import attach_interval, held_out
@@ -63,7 +63,8 @@ def fit_form(s: SearchState, form: str, ext: ExtendedParametrization, jac, curre
         if best is not None and not cand["gain_n2"] > sse_cur - s.eid.n_samples / g:
             continue  # predicted to win less than the refit already realised
         z0 = ext_c.from_params({**current, **cand["shape"], magnitude: 0.0})
-        fit = refit(s.eid, ext_c, z0, sse_cur, jac, s.settings, s.share, profile=[ext.extra.index(magnitude)])
+        fit = refit(s.eid, ext_c, z0, sse_cur, jac, s.settings, s.share,
+                    profile=RefitProfile(indices=[ext.extra.index(magnitude)]))
         evals += fit.evaluations
         cand["refitted"] = True
         if fit.fitness > g:

@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from tuner.diagnosis.extended_parametrization import ExtendedParametrization, base_jacobian
-from tuner.diagnosis.refit import refit
+from tuner.diagnosis.refit import RefitProfile, refit
 from tuner.diagnosis.screen import SCREEN_SHARE, profile_screen
 from tuner.diagnosis.search.rows import held_out
 from tuner.diagnosis.search.state import Fit, SearchState
@@ -42,7 +42,8 @@ def refit_candidate(s: SearchState, effect: str, ext: ExtendedParametrization) -
     # one start (a settled base): its nonsmooth effects' held profiles also from the guess (``refit``'s fresh)
     fresh = ext.from_params(s.guess) if s.one_start else None
     for start, sse_start, svd in s.starts:
-        fit = refit(s.eid, ext, ext.from_params(start), sse_start, svd, s.settings, s.share, fresh=fresh)
+        fit = refit(s.eid, ext, ext.from_params(start), sse_start, svd, s.settings, s.share,
+                    profile=RefitProfile(fresh=fresh))
         evals += fit.evaluations
         if fit.fitness > g:
             best_z, g = fit.z, fit.fitness

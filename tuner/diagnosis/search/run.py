@@ -10,7 +10,7 @@ from damper_fmu.fmu import ensure_fmu
 
 from tuner.diagnosis.bases import Base
 from tuner.diagnosis.cost_model import expected_cost
-from tuner.diagnosis.detection import detection_limits
+from tuner.diagnosis.detection import EffectMagnitude, NamingRule, detection_limits
 from tuner.diagnosis.effect_sizes import meaningful_floor, typical_range
 from tuner.diagnosis.residual_tests import TestResidual
 from tuner.diagnosis.rules import ACCEPT_SCORE, PENALTY_PER_PARAMETER
@@ -83,12 +83,10 @@ def detection(s: SearchState, candidates: list[str]) -> dict:
     """``tuner.diagnosis.detection.detection_limits`` of ``candidates`` at the base refit with the diagnosis's
     rules (acceptance score, penalty, search bounds, physical range); logged, units added."""
     names = {e: ALL_EFFECTS[e].identified[0] for e in candidates}
-    peak, stroke_range, size = s.peak, s.stroke_range, s.size
-    limits = detection_limits(s.eid, s.ev, s.par, s.z_none, names,
-                              {n: typical_range(n, size)[0] for n in names.values()},
-                              {n: search_bounds(n, peak, stroke_range) for n in names.values()},
-                              {n: meaningful_floor(n, size) for n in names.values()}, s.mse_none, s.noise,
-                              ACCEPT_SCORE, PENALTY_PER_PARAMETER, s.lengths, [t.name for t in s.data.sig_val])
+    magnitudes = {e: EffectMagnitude(n, typical_range(n, s.size)[0], search_bounds(n, s.peak, s.stroke_range),
+                                     meaningful_floor(n, s.size)) for e, n in names.items()}
+    limits = detection_limits(s.eid, s.ev, s.par, s.z_none, magnitudes,
+                              NamingRule(s.mse_none, s.noise, ACCEPT_SCORE, PENALTY_PER_PARAMETER))
     for e, r in limits.items():
         r["unit"], r["covers"] = UNITS[r["parameter"]], ALL_EFFECTS[e].kind
     if limits:

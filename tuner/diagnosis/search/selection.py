@@ -11,7 +11,7 @@ from damper_fmu.effect_catalogue import ALL_EFFECTS
 
 from tuner.diagnosis.cost_model import after_ranking
 from tuner.diagnosis.extended_parametrization import ExtendedParametrization, base_jacobian
-from tuner.diagnosis.refit import effect_intervals, refit
+from tuner.diagnosis.refit import RefitProfile, effect_intervals, refit
 from tuner.diagnosis.rules import ACCEPT_SCORE, cross_check, decide, earned, scores
 from tuner.diagnosis.search.reference import base_settled, set_none
 from tuner.diagnosis.search.rows import attach_interval, held_out
@@ -158,7 +158,7 @@ def next_cause(s: SearchState, current: Fit, current_row: dict) -> dict:
         if jac is None:  # the new effect is off at z0: the current model's Jacobian, shared
             jac = base_jacobian(s.eid, ext, z0, dims=s.par.dimension)
         fit = refit(s.eid, ext, z0, sse_cur, jac, s.settings, s.share,
-                    profile=range(len(current.ext.extra), len(ext.extra)))
+                    profile=RefitProfile(indices=range(len(current.ext.extra), len(ext.extra))))
         fits[ext.effect] = Fit(ext, fit.z, fit.evaluations)
         row = held_out(s, ext.effect, ext.to_params(fit.z), ext.extra, fit.fitness, fit.evaluations,
                        current_row["validation_mse"], new=ALL_EFFECTS[e].identified)
