@@ -13,8 +13,8 @@ from damper_fmu.parameters import EFFECT_MODELS, defaults
 from tuner.diagnosis.cost_model import EXTENDED_COST, expected_cost, identification_cost
 from tuner.identification.engine import Engine
 from tuner.identification.floor import ResidualFloor
-from tuner.identification.fit import (RACE_RATIO, FitResult, FitSettings, fit_order, identify, initial_guess,
-                                      refinement_starts, validation_run)
+from tuner.identification.fit import (RACE_RATIO, FitResult, FitSettings, IdentifyOptions, fit_order, identify,
+                                      initial_guess, refinement_starts, validation_run)
 from tuner.identification.restart_check import TYPICAL_RESTARTS
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.problem import Problem
@@ -182,8 +182,9 @@ def identified_bases(problem: Problem, checkpoints: Path, settings: DiagnosisSet
                          workers=settings.workers, seed=settings.seed, engine=settings.engine,
                          polish_jacobians=settings.base_polish_jacobians)
         found = identify(kind, problem.sig_id, fs, par_k, checkpoints / f"diagnosis_base_{kind}.json",
-                         problem.digest, log.part(f"identification of the {kind} base"), floor=floor,
-                         rival=min(rmse.items(), key=lambda r: r[1]) if rmse else None)
+                         problem.digest, log.part(f"identification of the {kind} base"),
+                         options=IdentifyOptions(floor=floor, rival=min(rmse.items(), key=lambda r: r[1]) if rmse
+                                                 else None))
         g = found.history["best_fitness_final"]
         rmse[kind] = 1.0 / math.sqrt(g) if g > 0 else math.inf
         fitted[kind] = (Base(par_k, found.values, BaseRefinement.from_history(found.history)),
