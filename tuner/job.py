@@ -43,14 +43,33 @@ from tuner.results.diagnosis_figures import diagnosis_figures
 from tuner.results.diagnosis_report import make_diagnosis_report
 from tuner.results.recommendation import recommend
 from tuner.results.report import make_report
-from tuner.vehicle.compare import SCENARIO_NAMES, VEHICLE_FOLDER, compare_fmus
+from tuner.vehicle.compare import SCENARIO_NAMES, VEHICLE_FOLDER, ScenarioOptions, compare_fmus
 from tuner.vehicle.propagation import INTERVALS_FOR, PropagationSettings, propagate
 
-__all__ = ["JobResult", "run", "run_diagnosis", "diagnosis_settings", "export_fmus", "wants_diagnosis",
+__all__ = ["JobOptions", "JobResult", "run", "run_diagnosis", "diagnosis_settings", "export_fmus", "wants_diagnosis",
            "write_diagnosis", "write_diagnosis_failure", "export_extended_fmu", "vehicle_consequences"]
 
 #: the diagnosis's stage that the job runs: the extended model's export (a failure is recorded as the diagnosis's)
 EXPORT_STAGE = "export of the extended FMU"
+
+
+@dataclass(frozen=True)
+class JobOptions:
+    """What ``run`` does beside the fit (the command line's options of the job). ``diagnose_after``: diagnose the
+    best-validated base form after the fit (when ``wants_diagnosis``); ``vehicle``: the tuned FMUs as the yaw
+    dampers of the campaign's vehicle (``vehicle_consequences``), with 95 % intervals from up to ``vehicle_draws``
+    parameter sets per FMU (0: none) run on ``vehicle_scheduler`` (None: in this process), for the recommended
+    model's FMU or ``vehicle_intervals`` 'all'; ``provenance``: what the fit records of where its data came from
+    (``metrics.json``); ``figures``: False writes the fit's report without its figures (``make_report``; the
+    diagnosis's residual figures are drawn still)."""
+
+    diagnose_after: bool = True
+    vehicle: bool = False
+    vehicle_draws: int = 0
+    vehicle_scheduler: str | None = None
+    vehicle_intervals: str = "recommended"
+    provenance: dict | None = None
+    figures: bool = True
 
 
 @dataclass
@@ -97,25 +116,19 @@ def export_fmus(result: FitResult, out: Path) -> list[Path]:
 
 
 def run(identification: list[RigTest], validation: list[RigTest], out: Path, settings: FitSettings, *,
-        diagnose_after: bool = True, vehicle: bool = False, vehicle_draws: int = 0, vehicle_scheduler: str | None = None,
-        vehicle_intervals: str = "recommended", provenance: dict | None = None, figures: bool = True,
-        log=print) -> JobResult:
-    """The whole job into the existing folder ``out`` (checkpoints there are resumed).
-
-    diagnose_after: diagnose the best-validated base form after the fit (when ``wants_diagnosis``);
-    vehicle: the tuned FMUs as the yaw dampers of the campaign's vehicle (``vehicle_consequences``), with
-    95 % intervals from up to ``vehicle_draws`` parameter sets per FMU (0: none) run on ``vehicle_scheduler``, for
-    the recommended model's FMU or ``vehicle_intervals`` 'all'; figures: False writes the fit's report without its
-    figures (``make_report``; the diagnosis's residual figures are drawn still);
+        options: JobOptions = JobOptions(), log=print) -> JobResult:
+    """The whole job into the existing folder ``out`` (checkpoints there are resumed): the fit with ``settings``,
+    then what ``options`` asks (``JobOptions``: the diagnosis, the vehicle, the report's figures);
     log: a callable taking one line (or a ``tuner.progress.JobProgress``, whose stages it advances)."""
     out = Path(out)
+    diagnose_after, figures = options.diagnose_after, options.figures
     problem = Problem.build(identification, validation, settings.data)  # prepared once, for every stage
     if diagnose_after and wants_diagnosis(settings, validation) and hasattr(log, "forecast"):
         # the progress display prices the diagnosis from the start
         ahead = diagnosis_forecast(problem, diagnosis_settings(settings),
                                    [m for m in settings.models if m in EFFECT_MODELS])
         forecast(log, "diagnosis", ahead.seconds, (ahead.forms_s, "the diagnosis tries the forms"))
-    result = fit(identification, validation, settings, checkpoints=out / "checkpoints", provenance=provenance,
+    result = fit(identification, validation, settings, checkpoints=out / "checkpoints", provenance=options.provenance,
                  problem=problem, log=log)
     result.metrics["warnings"] = reading_warnings([*identification, *validation])  # for the summary and report
     result.write(out)
@@ -132,9 +145,10 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
         except DiagnosisFailed:
             make_report(out, figures=figures)  # the fit's report with the failure said: the fit and its FMUs are safe
             raise
-    if vehicle:
-        vehicle_consequences(sorted((out / "fmu").glob("*_tuned.fmu")), out, settings.seed, log, draws=vehicle_draws,
-                             scheduler=vehicle_scheduler, intervals_for=vehicle_intervals)
+    if options.vehicle:
+        vehicle_consequences(sorted((out / "fmu").glob("*_tuned.fmu")), out, settings.seed, log,
+                             draws=options.vehicle_draws, scheduler=options.vehicle_scheduler,
+                             intervals_for=options.vehicle_intervals)
     stage(log, "report")
     report = make_report(out, figures=figures, workers=settings.workers)
     return JobResult(out=out, fit=result, diagnosis=diagnosis, fmus=sorted((out / "fmu").glob("*.fmu")),
@@ -265,7 +279,7 @@ def vehicle_consequences(fmus: list[Path], out: Path, seed: int = 0, log=print, 
             log(f"vehicle: {executor.description} not started ({err}): the scenarios run in this process, "
                 f"no intervals")
             executor, models = None, ()
-        data = compare_fmus(fmus, Path(out) / VEHICLE_FOLDER, seed=seed, executor=executor,
+        data = compare_fmus(fmus, Path(out) / VEHICLE_FOLDER, options=ScenarioOptions(seed=seed), executor=executor,
                             log=SubStages(log, len(fmus) * len(SCENARIO_NAMES)))
         if models is None or models:
             stage(log, "vehicle intervals")

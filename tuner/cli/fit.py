@@ -137,10 +137,10 @@ def _fit_job(args, models) -> Path:
     diagnosis = not args.no_diagnose and job.wants_diagnosis(settings, valid)
     if not diagnosis and progress() is not None:
         progress().weights.pop("diagnosis", None)
-    result = job.run(ident, valid, out, settings, diagnose_after=diagnosis, vehicle=args.vehicle,
-                     vehicle_draws=args.vehicle_draws, vehicle_scheduler=vehicle_scheduler(args),
-                     vehicle_intervals=args.vehicle_intervals, figures=not args.no_figures,
-                     provenance=provenance, log=job_log())  # the progress display when a job runs
+    options = job.JobOptions(diagnose_after=diagnosis, vehicle=args.vehicle, vehicle_draws=args.vehicle_draws,
+                             vehicle_scheduler=vehicle_scheduler(args), vehicle_intervals=args.vehicle_intervals,
+                             provenance=provenance, figures=not args.no_figures)
+    result = job.run(ident, valid, out, settings, options=options, log=job_log())  # the display when a job runs
     print_table3(result.fit.metrics)
     return out
 
