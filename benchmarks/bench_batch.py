@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from campaign.generate import generate_dataset  # noqa: E402
-from tuner.fleet.batch import run_batch  # noqa: E402
+from tuner.fleet.batch import BatchOptions, run_batch  # noqa: E402
 
 ID_FILES = ("id1_straight_250", "id2_curve_R400_72", "id3_switch_R190_43")
 VAL_FILES = ("val1_straight_250", "val2_curve_R6000_306")
@@ -66,8 +66,8 @@ def main(argv=None) -> int:
             shutil.rmtree(out, ignore_errors=True)
             load0 = os.getloadavg()[0]
             t = time.perf_counter()
-            res = run_batch(manifest, out, scheduler=f"{a.executor}:{n}", settings=settings, progress=False,
-                            log=lambda m: None)
+            res = run_batch(manifest, out, options=BatchOptions(scheduler=f"{a.executor}:{n}", settings=settings,
+                                                                progress=False), log=lambda m: None)
             wall[n] = time.perf_counter() - t
             bad = [r["id"] for r in res["rows"] if r["status"] != "done"]
             if bad:

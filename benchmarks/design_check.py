@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # interv
 
 from interval_cases import FS, KINDS, fitted, rig_tests, run_on_truth, truth  # noqa: E402
 from tuner.identification.engine import fastest_engine  # noqa: E402
-from tuner.identification.rig_test_design import RigLimits, candidate_tests, rank_candidates  # noqa: E402
+from tuner.identification.rig_test_design import RankingOptions, RigLimits, candidate_tests, rank_candidates  # noqa: E402
 
 
 def one_seed(seed: int, args) -> list[tuple]:
@@ -40,8 +40,8 @@ def one_seed(seed: int, args) -> list[tuple]:
     _, _, est, iv, _ = fitted(known, tests, jacobians=0 if args.at == "truth" else 20)
     limits = RigLimits(args.stroke_limit * 1e-3, args.velocity_limit * 1e-3, args.force_limit)
     cands = candidate_tests(limits, duration=args.candidate_duration, rate=FS)
-    ranked = rank_candidates("lumped", est, iv, cands, fit_rate_hz=200.0, warmup_s=0.5, limits=limits,
-                             engine=fastest_engine())
+    ranked = rank_candidates("lumped", est, iv, cands, RankingOptions(fit_rate_hz=200.0, warmup_s=0.5, limits=limits,
+                                                                      engine=fastest_engine()))
     best = ranked[0]
     _, _, _, iv2, _ = fitted(known, [*tests, run_on_truth(known, best.candidate, seed)])
     rows = []

@@ -118,7 +118,7 @@ class Effect:
     rig's channels or zero, not of the damper (the co-simulation model leaves it out); nonsmooth: its force
     has no gradient with respect to the magnitude at zero and the base absorbs part of it (a free play: a
     soft elastic table stands in for a dead band), so the refit's profile re-fits the model at every grid value
-    of the magnitude (``tuner.diagnosis.refit``) instead of re-balancing it on the base's Jacobian.
+    of the magnitude (``tuner.diagnosis.held_profiles``) instead of re-balancing it on the base's Jacobian.
     """
 
     name: str

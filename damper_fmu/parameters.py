@@ -184,7 +184,7 @@ EFFECT_MODELS = ("lumped", "twochamber")
 EFFECTS_INSIDE = ("twochamber",)
 #: The elastic element in series with the free play in each effect model, (stiffness [N/m], damping [N s/m]):
 #: the lumped model's silent blocks, the two-chamber model's mount. A free play and a soft or dashpot-like
-#: series element trade for each other in a fit (``tuner.diagnosis.refit.series_profiles``).
+#: series element trade for each other in a fit (``tuner.diagnosis.held_profiles.series_profiles``).
 SERIES_ELEMENT = {"lumped": ("k_B", "c_B"), "twochamber": ("k_M", "c_M")}
 #: The two-chamber model's chamber parameters (the oil's compliance and what stiffens it)
 CHAMBER_PARAMETERS = ("k_R", "k_C", "area_ratio", "L_R", "L_C", "air", "f_res")

@@ -16,7 +16,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 from tuner.cli.batch import add_parser, cmd_batch, main  # noqa: E402
-from tuner.fleet.batch import run_batch  # noqa: E402
+from tuner.fleet.batch import BatchOptions, run_batch  # noqa: E402
 from tuner.fleet.manifest import ManifestError, read_fleet_manifest  # noqa: E402
 from tuner.results.fleet_summary import find_outliers  # noqa: E402
 
@@ -95,8 +95,8 @@ def test_pool_dask_kill_and_restart(fleet, tmp_path):
     out_pool, lines = tmp_path / "pool", []
     one = fleet.with_name("first_row.csv")
     one.write_text("\n".join(fleet.read_text().splitlines()[:3]) + "\n")
-    res = run_batch(one, out_pool, scheduler="pool:2", settings=SMALL_SETTINGS, progress=False, figures=False,
-                    log=lines.append)
+    res = run_batch(one, out_pool, options=BatchOptions(scheduler="pool:2", settings=SMALL_SETTINGS,
+                                                           progress=False, figures=False), log=lines.append)
     assert res["ran"] == [IDS[0]] and [r["status"] for r in res["rows"]] == ["done"]
 
     # 2. the same batch on a Dask LocalCluster of 2 workers, killed (process group, SIGKILL) once a
@@ -119,8 +119,8 @@ def test_pool_dask_kill_and_restart(fleet, tmp_path):
 
     # 3. restarted on Dask: only what had not finished runs; every row ends done, with exactly the
     #    pool's numbers
-    res = run_batch(fleet, out, scheduler="local:2", settings=SMALL_SETTINGS, progress=False, figures=False,
-                    log=lines.append)
+    res = run_batch(fleet, out, options=BatchOptions(scheduler="local:2", settings=SMALL_SETTINGS,
+                                                           progress=False, figures=False), log=lines.append)
     _check_fleet(res, out)
     assert sorted(res["ran"]) == sorted(set(IDS + ["X9"]) - set(finished))
     for i, mtime in finished.items():
@@ -130,8 +130,8 @@ def test_pool_dask_kill_and_restart(fleet, tmp_path):
     assert all(log.count(f"done {i} in") <= 1 for i in IDS), log  # no row finished twice
 
     # 4. a rerun with nothing to do runs nothing; the failed row is retried (and fails again)
-    res = run_batch(fleet, out, scheduler="pool:1", settings=SMALL_SETTINGS, progress=False, figures=False,
-                    log=lines.append)
+    res = run_batch(fleet, out, options=BatchOptions(scheduler="pool:1", settings=SMALL_SETTINGS,
+                                                           progress=False, figures=False), log=lines.append)
     assert res["ran"] == ["X9"]
 
 

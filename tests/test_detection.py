@@ -49,6 +49,7 @@ def test_the_held_out_score_crosses_the_threshold_where_the_limit_says(tmp_path)
     from campaign.synthetic import write_model_dataset
     from damper_fmu import defaults
     from tuner.data.reading import load_dataset
+    from tuner.diagnosis.bases import FittedBases
     from tuner.diagnosis.diagnose import ACCEPT_SCORE, DiagnosisSettings, diagnose
     from tuner.identification.fit import FitSettings, fit
 
@@ -62,7 +63,7 @@ def test_the_held_out_score_crosses_the_threshold_where_the_limit_says(tmp_path)
         fitted = fit(ident, valid, FitSettings(models=("lumped",), iterations=0, workers=2, engine="native"),
                      log=lambda m: None)
         return diagnose(ident, valid, DiagnosisSettings(engine="native", workers=2, candidates=("friction",)),
-                        base_params=fitted.params["lumped"]["values"], base_model="lumped", log=lambda m: None)
+                        from_fit=FittedBases("lumped", fitted.params["lumped"]["values"]), log=lambda m: None)
 
     limit = run("clean", 0.0)["detection_limits"]["friction"]["by_score"]
     score = {f: next(r for r in run(f"x{f}", f * limit)["ranking"] if r["effect"] == "friction")["score"]

@@ -26,6 +26,7 @@ from campaign.generate import CHAMBER_TEMPERATURES_C, generate_dataset
 from damper_fmu import defaults
 from tuner.__main__ import main
 from tuner.data.reading import load_dataset
+from tuner.diagnosis.bases import FittedBases
 from tuner.diagnosis.diagnose import CANDIDATES, DiagnosisSettings, ExtendedParametrization, cross_check, decide, diagnose
 from tuner.identification.engine import fastest_engine
 from tuner.job import write_diagnosis
@@ -210,7 +211,8 @@ def _row(effect, score, effect_rms, noise=10.0, significant=True):
             "resolved": effect == "none" or effect_rms >= noise, "parameters": {}, "significant": significant}
 
 
-def test_a_free_play_no_screen_passed_is_refitted_before_a_residual_above_the_floor_is_left_without_a_cause():
+def test_a_free_play_no_screen_passed_is_refitted_before_a_residual_above_the_floor_is_left_without_a_cause(
+        monkeypatch):
     """The profile screen re-balances the base linearly, which cannot give back a gap the base absorbed (a 0.54 mm
     gap in stiff two-chamber mounts screened at 1.3 %: 'unexplained' at 24 x the floor; refitted, named at the
     floor): with the base refit above UNEXPLAINED_RATIO x the floor, every nonsmooth candidate not refitted yet is
@@ -219,26 +221,28 @@ def test_a_free_play_no_screen_passed_is_refitted_before_a_residual_above_the_fl
     floor, is not. ``benchmarks/blind_class.py --cases free_play_stiff`` runs the whole diagnosis on such dampers."""
     from tuner.diagnosis.cost_model import DiagnosisCost
     from tuner.diagnosis.rules import UNEXPLAINED_RATIO
-    from tuner.diagnosis.search import CandidateSearch, Fit
+    from tuner.diagnosis.search import nonsmooth
+    from tuner.diagnosis.search.state import Fit, SearchState
 
-    search = CandidateSearch.__new__(CandidateSearch)
+    search = SearchState.__new__(SearchState)
     search.credible, search.floor, search.log = True, 20.0, lambda m: None
     search.par, search.settings = Parametrization("lumped", force_limit=4e4), DiagnosisSettings()
     search.cost = DiagnosisCost(reference=0.0, screen=0.0, refits=0.0, forms=0.0, detection=0.0)
     search.forecast = lambda: None
     calls, ladder_rmse = [], [0.0]
 
-    def refit_candidate(effect, ext):
+    def refit_candidate(s, effect, ext):
         calls.append(("refit", effect))
         search.refits[effect] = Fit(None, np.ones(1), 100)
         return {**_row(effect, 0.9, 300.0), "validation_mse_change_pct": -60.0, "identification_rmse_n": 50.0}
 
-    def series_ladder(effect, ext, row):
+    def series_ladder(s, effect, ext, row):
         calls.append(("ladder", effect))
         search.refits[effect] = Fit(None, np.full(1, 2.0), 50)
         return {**_row(effect, 1.2, 300.0), "validation_mse_change_pct": -70.0, "identification_rmse_n": ladder_rmse[0]}
 
-    search.refit_candidate, search.series_ladder = refit_candidate, series_ladder
+    monkeypatch.setattr(nonsmooth, "refit_candidate", refit_candidate)
+    monkeypatch.setattr(nonsmooth, "series_ladder", series_ladder)
     above = UNEXPLAINED_RATIO * 20.0 * 1.5
     for rmse_none, rmse_ladder, expected, steps, kept in (
             (above, 35.0, ["free_play"], ("ladder",), 2.0),  # the ladder within 2 x the floor: no full refit
@@ -251,7 +255,7 @@ def test_a_free_play_no_screen_passed_is_refitted_before_a_residual_above_the_fl
         search.ranking = [{**_row(e, -0.02, 0.0), "refitted": refitted, "screen": None} for e, refitted in
                           (("friction", False), ("free_play", False), ("inertia", True))] + [search.none_row]
         search.refits = {r["effect"]: Fit(None, np.zeros(1), 1) for r in search.ranking}
-        assert search.refit_unseen_nonsmooth() == expected
+        assert nonsmooth.refit_unseen_nonsmooth(search) == expected
         assert calls == [(kind, e) for e in expected for kind in steps]
         free_play = next(r for r in search.ranking if r["effect"] == "free_play")
         assert free_play["refitted"] == bool(expected)
@@ -432,7 +436,7 @@ def test_the_diagnosis_is_not_repeated_on_a_base_that_cannot_plausibly_win(tmp_p
     tc = defaults("twochamber")
     tc = {**tc, **{k: 8 * v for k, v in tc.items() if k.startswith("Fc_") and not k.startswith("Fc_v")}}
     res = diagnose(ident, val, DiagnosisSettings(engine=fastest_engine(), candidates=("preload",)),
-                   base_params=defaults("lumped"), base_model="lumped", other_bases={"twochamber": tc},
+                   from_fit=FittedBases("lumped", defaults("lumped"), others={"twochamber": tc}),
                    log=lambda m: None)
     assert res["base_model"] == "lumped" and res["cause"] == "unexplained", res["verdict"]
     assert "cannot plausibly win" in res["base_choice"]["not_repeated_on"]["twochamber"]
@@ -456,7 +460,7 @@ def test_an_unfinished_fit_is_not_called_a_form_error_nor_a_reason_to_switch_bas
     res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
                    DiagnosisSettings(engine=fastest_engine(), candidates=("preload",),
                                      polish_jacobians=2, final_jacobians=1, guess_start=False),
-                   base_params=start, base_model="lumped", other_bases={"twochamber": defaults("twochamber")},
+                   from_fit=FittedBases("lumped", start, others={"twochamber": defaults("twochamber")}),
                    log=lambda m: None)
     u = res["unexplained"]
     assert u is not None and u["fit_converged"] is False, res["verdict"]
@@ -489,7 +493,7 @@ def test_a_residual_is_not_judged_against_a_floor_that_is_not_credible(tmp_path)
     res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
                    DiagnosisSettings(engine=fastest_engine(), candidates=("preload",),
                                      polish_jacobians=2, final_jacobians=1, guess_start=False),
-                   base_params=start, base_model="lumped", log=lambda m: None)
+                   from_fit=FittedBases("lumped", start), log=lambda m: None)
     write_diagnosis(res, tmp_path / "out", log=lambda m: None)
     assert res["residual_floor_credible"] is False and res["noise"]["credible"] is False
     assert res["unexplained"] is None and res["cause"] != "unexplained", res["verdict"]
@@ -532,7 +536,7 @@ def test_a_cause_on_a_damper_30_times_smaller_is_named_at_its_own_scale(tmp_path
     res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
                    DiagnosisSettings(engine=fastest_engine(), base_iterations=0, base_model="lumped",
                                      candidates=("friction",)),
-                   base_params=small, base_model="lumped", log=lambda m: None)
+                   from_fit=FittedBases("lumped", small), log=lambda m: None)
     assert res["causes"] == ["friction"], res["verdict"]
     p = res["effect_parameters"]["friction_force"]
     assert p["value"] == pytest.approx(6.0, rel=0.2)
@@ -540,27 +544,29 @@ def test_a_cause_on_a_damper_30_times_smaller_is_named_at_its_own_scale(tmp_path
     assert 0.5 < lo < 3.0 and 8.0 < hi < 20.0 and p["plausible"], p
 
 
-def test_a_conclusion_a_rescue_replaces_is_kept_with_the_forms_it_tried():
+def test_a_conclusion_a_rescue_replaces_is_kept_with_the_forms_it_tried(monkeypatch):
     """When nothing is named and a free play no screen passed is refitted and scores
     (``refit_unseen_nonsmooth``), the diagnosis concludes again; the first conclusion's forms (tried on the base,
     none named) stay in diagnosis.json under ``before_rescue``; without a rescue that field is null."""
-    from tuner.diagnosis.search import CandidateSearch, Conclusion, before_rescue
+    from tuner.diagnosis.search import conclusion
+    from tuner.diagnosis.search.conclusion import Conclusion, before_rescue, concluded
+    from tuner.diagnosis.search.state import SearchState
 
     tried = [{"effect": "bypass", "score": -0.02}]
     first = Conclusion("unexplained", [], {}, [], [], {"tried": tried, "form": None}, None)
     second = Conclusion("free_play", ["free_play"], {}, [], [], None, None)
-    search = CandidateSearch.__new__(CandidateSearch)
+    search = SearchState.__new__(SearchState)
     for rescued_scores, expected in ((0.9, (second, first)), (-0.02, (first, None))):
         ends = iter([first, second])
         search.ranking = [{"effect": "free_play", "refitted": False, "score": 0.0}]
-        search.conclude = lambda refitted: next(ends)
+        monkeypatch.setattr(conclusion, "conclude", lambda s, refitted: next(ends))
 
-        def rescue(s=rescued_scores):
+        def rescue(_, s=rescued_scores):
             search.ranking[0] = {"effect": "free_play", "refitted": True, "score": s, "effect_rms_n": 900.0,
                                  "resolved": True, "significant": True, "meaningful": True}
             return ["free_play"]
 
-        search.refit_unseen_nonsmooth = rescue
-        assert search.concluded() == expected
+        monkeypatch.setattr(conclusion, "refit_unseen_nonsmooth", rescue)
+        assert concluded(search) == expected
     assert before_rescue(first) == {"cause": "unexplained", "forms_tried": tried, "forms_weighed": None}
     assert before_rescue(None) is None

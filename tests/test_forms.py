@@ -16,6 +16,7 @@ from campaign.synthetic import write_model_dataset
 from damper_fmu import defaults
 from damper_fmu.effect_catalogue import search_bounds
 from tuner.data.reading import load_dataset
+from tuner.diagnosis.bases import FittedBases
 from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
 from tuner.diagnosis.forms import shape_grid
 from tuner.identification.engine import fastest_engine
@@ -58,7 +59,7 @@ def _diagnose(tmp_path, model: str, extra: dict, seed: int = 3):
     return diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
                     DiagnosisSettings(engine=fastest_engine(), base_iterations=0, base_model="lumped",
                                       candidates=("friction",)),
-                    base_params=defaults("lumped"), base_model="lumped", log=lambda m: None)
+                    from_fit=FittedBases("lumped", defaults("lumped")), log=lambda m: None)
 
 
 def test_a_hidden_pre_yield_hysteresis_is_named_with_its_parameters(tmp_path):
@@ -146,7 +147,7 @@ def _diagnose_with(tmp_path, model: str, extra: dict, candidates: tuple, base: s
     tests = load_dataset(data)
     res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
                    DiagnosisSettings(engine=fastest_engine(), base_iterations=0, candidates=candidates),
-                   base_params=defaults(base), base_model=base, other_bases=other_bases, log=lambda m: None)
+                   from_fit=FittedBases(base, defaults(base), others=other_bases or {}), log=lambda m: None)
     write_diagnosis(res, tmp_path / "out", log=lambda m: None)  # the job's files: the extended FMU among them
     return res
 
@@ -198,7 +199,7 @@ def test_a_late_stage_that_fails_leaves_its_record_and_report_and_the_run_resume
     diagnosis comes from its checkpoint and the second finishes: friction on the two-chamber base."""
     import json
 
-    import tuner.diagnosis.search as search_module
+    import tuner.diagnosis.search.run as search_module
     from tuner.cli.run import run_handler
     from tuner.diagnosis.diagnose import DiagnosisFailed
     from tuner.job import run_diagnosis
@@ -208,7 +209,7 @@ def test_a_late_stage_that_fails_leaves_its_record_and_report_and_the_run_resume
     tests = load_dataset(data)
     ident, val = ([t for t in tests if t.role == r] for r in ("identification", "validation"))
     out, lines = tmp_path / "out", []
-    kw = dict(base_params=defaults("lumped"), base_model="lumped", other_bases={"twochamber": defaults("twochamber")},
+    kw = dict(from_fit=FittedBases("lumped", defaults("lumped"), others={"twochamber": defaults("twochamber")}),
               log=lines.append)
     # one catalogue candidate and one form: the stages, their record and the resume are tested here, not the search
     settings = DiagnosisSettings(engine=fastest_engine(), base_iterations=0, candidates=("friction",),

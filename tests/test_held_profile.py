@@ -1,4 +1,4 @@
-"""The held profile of a nonsmooth effect's magnitude (tuner.diagnosis.refit.held_profile, nonsmooth_profiles)
+"""The held profile of a nonsmooth effect's magnitude (tuner.diagnosis.held_profiles.held_profile, nonsmooth_profiles)
 on objectives whose minimum is known in closed form.
 
 A fake engine: the residual [N] is a known function of the free play alone (the Maxwell base's two parameters
@@ -9,8 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from tuner.diagnosis.refit import (FAR_WORSE, HELD_PATIENCE, ExtendedParametrization, held_profile,
-                                   nonsmooth_profiles, series_profiles)
+from tuner.diagnosis.extended_parametrization import ExtendedParametrization
+from tuner.diagnosis.held_profiles import (FAR_WORSE, HELD_PATIENCE, HeldSweep, held_profile, nonsmooth_profiles,
+                                           series_profiles)
 from tuner.identification.parametrization import Parametrization
 
 N = 50
@@ -144,7 +145,7 @@ def test_a_chained_profile_follows_what_the_base_absorbed_where_a_refit_from_the
     sse_off = float(np.sum(eng.residuals_batch([ext.to_params(np.r_[z0[:2], 0.0])])[0] ** 2))
     values = coordinates(ext, np.linspace(0.05e-3, GAP, 10))
     alone = held_profile(eng, ext, z0, 0, values[-1:], sse_off)
-    chained = held_profile(eng, ext, z0, 0, values, sse_off, chained=True)
+    chained = held_profile(eng, ext, z0, 0, values, sse_off, sweep=HeldSweep(chained=True))
     u_star = AbsorbingEngine.U0 + AbsorbingEngine.SLOPE * GAP / 1e-3
     assert abs(alone.points[0][0] - u_star) > 0.5 * AbsorbingEngine.RIPPLE  # caught in the ripple
     assert alone.sse[0] > 0.1 * sse_off

@@ -313,7 +313,7 @@ def test_the_floor_of_a_model_is_what_the_stroke_noise_makes_through_it(tmp_path
     stroke noise): the contact is a far stiffer path from the stroke to the force than the model without the
     gap, so the stroke channel's noise makes many times more force through it; and the true model's own
     residual on its data is what its floor says (force noise and stroke noise through it), not a model-form
-    error. The diagnosis judges each model's residual against its own floor (``CandidateSearch.floor_of``)."""
+    error. The diagnosis judges each model's residual against its own floor (``SearchState.floor_of``)."""
     import json
 
     from campaign.damper_class import write_class_dataset

@@ -374,11 +374,12 @@ def test_the_forms_are_not_forecast_after_a_lead_that_reaches_the_floor_and_long
     gap's diagnosis said 2.8 min left for two passes that never ran, 32 s before its end). Every batch of
     simulations ticks the display, so a long step is not a silence."""
     from tuner.diagnosis.cost_model import DiagnosisCost, form_pass_cost
-    from tuner.diagnosis.search import CandidateSearch
+    from tuner.diagnosis.search.selection import expect_after_ranking
+    from tuner.diagnosis.search.state import SearchState
     from tuner.diagnosis.settings import DiagnosisSettings
     from tuner.identification.parametrization import Parametrization
 
-    search = CandidateSearch.__new__(CandidateSearch)
+    search = SearchState.__new__(SearchState)
     search.credible, search.floor, search.forecast = True, 20.0, lambda: None
     search.par, search.settings = Parametrization("lumped", force_limit=4e4), DiagnosisSettings()
     search.none_row = {"effect": "none", "identification_rmse_n": 500.0, "score": 0.0}
@@ -388,7 +389,7 @@ def test_the_forms_are_not_forecast_after_a_lead_that_reaches_the_floor_and_long
     for rmse in (21.0, 300.0):
         search.cost = DiagnosisCost(reference=0.0, screen=0.0, refits=0.0, forms=0.0, detection=0.0)
         search.ranking = [{**lead, "identification_rmse_n": rmse}]
-        search.expect_after_ranking()
+        expect_after_ranking(search)
         forms[rmse] = search.cost.forms
     assert forms[21.0] == 0.0 and forms[300.0] == pytest.approx(2 * form_pass_cost(search.par.dimension,
                                                                                    search.settings))
@@ -407,7 +408,7 @@ def test_the_forms_are_not_forecast_after_a_lead_that_reaches_the_floor_and_long
 
 
 def test_an_engine_calls_its_after_batch_once_per_batch(small_lumped):
-    """The diagnosis's tick (``CandidateSearch.tick``) rides on the engines: once after every batch."""
+    """The diagnosis's tick (``SearchState.tick``) rides on the engines: once after every batch."""
     from damper_fmu import defaults
     from tuner.identification.engine import Engine, fastest_engine
     from tuner.identification.problem import DataSettings, Problem

@@ -15,6 +15,7 @@ from damper_fmu import defaults
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
     from tuner.data.reading import load_dataset
+    from tuner.diagnosis.bases import FittedBases
     from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
     from tuner.identification.engine import fastest_engine
     from tuner.identification.fit import FitSettings, fit
@@ -32,7 +33,7 @@ def report(tmp_path_factory):
     base = json.loads((out / "parameters.json").read_text())["lumped"]["values"]
     res = diagnose(ident, valid, DiagnosisSettings(engine=fastest_engine(), workers=0, candidates=("friction", "inertia"),
                                                    polish_jacobians=2, final_jacobians=2),
-                   base_params=base, log=lambda m: None)
+                   from_fit=FittedBases("lumped", base), log=lambda m: None)
     write_diagnosis(res, out, log=lambda m: None)
     path = make_report(out)
     return out, path.read_text(encoding="utf-8")

@@ -7,8 +7,9 @@ filters), so each estimate is checked against the injected value.
 import numpy as np
 import pytest
 
-from tuner.diagnosis.residuals import (EFFECTS, FIGURE_TOPICS, PreparedTest, TestResidual, evidence, figure_files,
-                                       knee_velocity)
+from tuner.diagnosis.residual_signatures import EFFECTS, knee_velocity
+from tuner.diagnosis.residual_tests import PreparedTest, TestResidual
+from tuner.diagnosis.residuals import FIGURE_TOPICS, evidence, figure_files
 from tuner.results.diagnosis_figures import residual_figures
 
 FS, DUR = 500.0, 40.0                       # sample rate [Hz], test length [s]
@@ -241,7 +242,7 @@ def test_the_map_bins_the_residual_over_stroke_and_velocity_and_leaves_thin_bins
     bin wholly at x < 0 reads 0; the counts hold every usable sample once; a bin is empty (NaN) exactly when it
     has fewer than MIN_BIN_SAMPLES. A missing spring r = k x on the sine is -k |x| on the a >= 0 branch (x <= 0
     there) and +k |x| on the a < 0 one, |x| = A sqrt(1 - (v / v_peak)^2) at velocity v."""
-    from tuner.diagnosis.residuals import MIN_BIN_SAMPLES, residual_map
+    from tuner.diagnosis.residual_map import MIN_BIN_SAMPLES, residual_map
 
     p = PreparedTest(_sine(lambda x, v: np.where(x > 0, 100.0, 0.0)))
     m = residual_map([p])

@@ -14,8 +14,8 @@ import pytest
 
 from interval_cases import FS, fitted, rig_tests, run_on_truth, truth
 from tuner.identification.engine import fastest_engine
-from tuner.identification.rig_test_design import (RigLimits, candidate_tests, combined_shift, held_coordinates,
-                                                  rank_candidates)
+from tuner.identification.rig_test_design import (RankingOptions, RigLimits, candidate_tests, combined_shift,
+                                                  held_coordinates, rank_candidates)
 
 
 def test_the_recommended_test_shrinks_the_mass_interval_it_promised():
@@ -26,8 +26,8 @@ def test_the_recommended_test_shrinks_the_mass_interval_it_promised():
     limits = RigLimits(stroke_m=0.01, velocity_m_s=0.15, force_n=3.0e4)
     pool = {c.name: c for c in candidate_tests(limits, duration=4.0, rate=FS)}
     cands = [pool[n] for n in ("sine_0.5Hz", "sine_2Hz", "sine_16Hz", "small_sine_30Hz")]
-    ranked = rank_candidates("lumped", est, iv, cands, fit_rate_hz=200.0, warmup_s=0.5, targets=["M_P"],
-                             limits=limits, engine=fastest_engine())
+    ranked = rank_candidates("lumped", est, iv, cands, RankingOptions(fit_rate_hz=200.0, warmup_s=0.5, targets=["M_P"],
+                                                                      limits=limits, engine=fastest_engine()))
     best = ranked[0]
     # "before" is the fit's own interval, the representation shift included
     assert best.widths_before["M_P"] == pytest.approx(iv.get("M_P").high - iv.get("M_P").low, rel=1e-6)

@@ -166,6 +166,7 @@ def test_a_stroke_in_the_wrong_unit_stops_the_fit_with_the_fmus_reason(maxwell_d
 def test_diagnosis_before_is_the_table3_figure_of_the_same_model(tmp_path, small_lumped):
     """One validation definition: the diagnosis' 'before' MSE/AME of the fitted lumped model equals
     the fit's validation metrics (Table 3) of the same test, computed by the other code path."""
+    from tuner.diagnosis.bases import FittedBases
     from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
     from tuner.identification.engine import fastest_engine
     from tuner.identification.fit import FitSettings, fit
@@ -177,7 +178,7 @@ def test_diagnosis_before_is_the_table3_figure_of_the_same_model(tmp_path, small
     before = sorted(tmp_path.rglob("*"))
     res = diagnose(ident, valid, DiagnosisSettings(engine=fastest_engine(), workers=0, candidates=(),
                                                    polish_jacobians=1),
-                   base_params=base, log=lambda m: None)
+                   from_fit=FittedBases("lumped", base), log=lambda m: None)
     assert sorted(tmp_path.rglob("*")) == before  # like the fit, the diagnosis returns its result and writes nothing
     for t in valid:
         table3 = metrics["tests"][t.name]["models"]["lumped"]
@@ -186,8 +187,8 @@ def test_diagnosis_before_is_the_table3_figure_of_the_same_model(tmp_path, small
 
 
 def test_fit_and_diagnosis_share_one_problem_prepared_once(tmp_path, small_lumped, prepared_names):
-    """One problem definition: the tests are prepared once for the fit and the diagnosis after it, and
-    the diagnosis works with the fit's force limit (before, it ignored --force-limit); a problem built
+    """One problem definition: the tests are prepared once for the fit and the diagnosis after it (handed the
+    fit whole, ``from_fit``), and the diagnosis works with the fit's force limit (before, it ignored --force-limit); a problem built
     with other settings than the stage's is refused."""
     from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
     from tuner.identification.engine import fastest_engine
@@ -200,18 +201,18 @@ def test_fit_and_diagnosis_share_one_problem_prepared_once(tmp_path, small_lumpe
     problem = Problem.build(ident, valid, settings.data)
     assert problem.force_limit_n == 31000.0 and problem.parametrization("lumped").force_limit == 31000.0
     fitted = fit(ident, valid, settings, problem=problem, log=lambda m: None)
-    metrics, base = fitted.metrics, fitted.params["lumped"]["values"]
+    metrics = fitted.metrics
     res = diagnose(ident, valid, DiagnosisSettings(engine=fastest_engine(), workers=0, candidates=(),
                                                    polish_jacobians=1),
-                   base_params=base, problem=problem, log=lambda m: None)
+                   from_fit=fitted, log=lambda m: None)  # the fit whole: its problem, bases and refinements
     assert sorted(prepared_names) == sorted((t.name, settings.data.fit_rate_hz) for t in ident + valid)  # once each
     assert metrics["settings"]["force_limit_n_used"] == res["settings"]["problem"]["force_limit_n_used"] == 31000.0
     with pytest.raises(ValueError, match="problem"):
         fit(ident, valid, FitSettings(models=("lumped",), data=DataSettings(fit_rate_hz=100.0)), problem=problem,
             log=lambda m: None)
     with pytest.raises(ValueError, match="prepared at 200 Hz"):
-        diagnose(ident, valid, DiagnosisSettings(data=DataSettings(fit_rate_hz=100.0)), base_params=base,
-                 problem=problem, log=lambda m: None)
+        diagnose(ident, valid, DiagnosisSettings(data=DataSettings(fit_rate_hz=100.0)), from_fit=fitted,
+                 log=lambda m: None)
 
 
 def test_end_summary_and_summary_json(maxwell_data, tmp_path, capsys):

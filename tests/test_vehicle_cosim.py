@@ -167,11 +167,11 @@ def test_fmus_side_by_side_on_workers_give_the_figures_of_one_process(tmp_path):
     1e-9), in the order of the FMUs given."""
     from damper_fmu.fmu import build
     from tuner.executors import FleetExecutor
-    from tuner.vehicle.compare import compare_fmus
+    from tuner.vehicle.compare import ScenarioOptions, compare_fmus
 
     fmus = [build("maxwell", tmp_path / name, start_values={"k_s": k_s, "c": c})
             for name, k_s, c in (("soft", 4e6, 2e5), ("stiff", 1.4e7, 5e5))]
-    kw = dict(scenarios=("critical_speed", "curve_entry"), tol=5 / 3.6, log=lambda m: None)
+    kw = dict(options=ScenarioOptions(scenarios=("critical_speed", "curve_entry"), tol=5 / 3.6), log=lambda m: None)
     alone = compare_fmus(fmus, tmp_path / "alone", **kw)
     with FleetExecutor("pool:2") as ex:
         pooled = compare_fmus(fmus, tmp_path / "pooled", executor=ex, **kw)

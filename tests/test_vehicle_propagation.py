@@ -25,7 +25,7 @@ from tuner.identification.parameter_draws import draw_parameter_sets
 from tuner.metrics import Z95
 from tuner.results.vehicle_report import intervals_html
 from tuner.vehicle.cosim import VehicleCosim
-from tuner.vehicle.hunting import critical_speed_near, eigen_critical_speed
+from tuner.vehicle.hunting import NearSearch, critical_speed_near, eigen_critical_speed
 from tuner.vehicle.propagation import PropagationSettings, figure_interval, propagate
 from vehicle_interval_cases import KS, SHIFT_LOG, C, cov_log, eigen_gradient, maxwell_folder
 
@@ -98,7 +98,8 @@ def test_b_censored_draws_are_said_and_use_the_quantiles():
 def test_c_robust_search_finds_the_eigenvalue_critical_speed_from_far():
     v0 = eigen_critical_speed(KS, C, tol=1e-3)
     with VehicleCosim(ensure_fmu("maxwell"), fmu_parameters={"k_s": KS, "c": C}) as co:
-        res = critical_speed_near(co, v0 + 90 / 3.6, half_width=15 / 3.6, v_min=150 / 3.6, v_max=700 / 3.6)
+        res = critical_speed_near(co, v0 + 90 / 3.6, search=NearSearch(half_width=15 / 3.6, v_min=150 / 3.6,
+                                                                       v_max=700 / 3.6))
     assert res.speed == pytest.approx(v0, rel=2e-3)
 
 

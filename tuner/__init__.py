@@ -46,8 +46,10 @@ _EXPORTS = {
     "Diagnosis": "tuner.diagnosis.result", "DiagnosisSettings": "tuner.diagnosis.diagnose",
     "DiagnosisFailed": "tuner.diagnosis.result",
     "diagnose": "tuner.diagnosis.diagnose", "choose_base": "tuner.diagnosis.diagnose",
+    "FittedBases": "tuner.diagnosis.bases",
     # the whole job, as the command line runs it
-    "run": "tuner.job", "run_diagnosis": "tuner.job", "JobResult": "tuner.job", "export_fmus": "tuner.job",
+    "run": "tuner.job", "run_diagnosis": "tuner.job", "JobResult": "tuner.job", "JobOptions": "tuner.job",
+    "export_fmus": "tuner.job",
     "write_diagnosis": "tuner.job", "diagnosis_settings": "tuner.job", "vehicle_consequences": "tuner.job",
     # the report and the recommendation of an output folder
     "make_report": "tuner.results.report", "recommend": "tuner.results.recommendation",

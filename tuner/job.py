@@ -32,8 +32,8 @@ from damper_fmu.fmu import SLAVES, build
 from damper_fmu.parameters import EFFECT_MODELS, MODEL_PARAMETERS
 from tuner.data.reading import RigTest, reading_warnings
 from tuner import strict_json
-from tuner.diagnosis.bases import BaseRefinement, diagnosis_forecast
-from tuner.diagnosis.diagnose import Diagnosis, DiagnosisFailed, DiagnosisSettings, choose_base, diagnose
+from tuner.diagnosis.bases import FittedBases, diagnosis_forecast
+from tuner.diagnosis.diagnose import Diagnosis, DiagnosisFailed, DiagnosisSettings, diagnose
 from tuner.executors import FleetExecutor
 from tuner.identification.fit import FitResult, FitSettings, fit, full_rate_checks
 from tuner.identification.intervals import ModelIntervals
@@ -43,14 +43,33 @@ from tuner.results.diagnosis_figures import diagnosis_figures
 from tuner.results.diagnosis_report import make_diagnosis_report
 from tuner.results.recommendation import recommend
 from tuner.results.report import make_report
-from tuner.vehicle.compare import SCENARIO_NAMES, VEHICLE_FOLDER, compare_fmus
+from tuner.vehicle.compare import SCENARIO_NAMES, VEHICLE_FOLDER, ScenarioOptions, compare_fmus
 from tuner.vehicle.propagation import INTERVALS_FOR, PropagationSettings, propagate
 
-__all__ = ["JobResult", "run", "run_diagnosis", "diagnosis_settings", "export_fmus", "wants_diagnosis",
+__all__ = ["JobOptions", "JobResult", "run", "run_diagnosis", "diagnosis_settings", "export_fmus", "wants_diagnosis",
            "write_diagnosis", "write_diagnosis_failure", "export_extended_fmu", "vehicle_consequences"]
 
 #: the diagnosis's stage that the job runs: the extended model's export (a failure is recorded as the diagnosis's)
 EXPORT_STAGE = "export of the extended FMU"
+
+
+@dataclass(frozen=True)
+class JobOptions:
+    """What ``run`` does beside the fit (the command line's options of the job). ``diagnose_after``: diagnose the
+    best-validated base form after the fit (when ``wants_diagnosis``); ``vehicle``: the tuned FMUs as the yaw
+    dampers of the campaign's vehicle (``vehicle_consequences``), with 95 % intervals from up to ``vehicle_draws``
+    parameter sets per FMU (0: none) run on ``vehicle_scheduler`` (None: in this process), for the recommended
+    model's FMU or ``vehicle_intervals`` 'all'; ``provenance``: what the fit records of where its data came from
+    (``metrics.json``); ``figures``: False writes the fit's report without its figures (``make_report``; the
+    diagnosis's residual figures are drawn still)."""
+
+    diagnose_after: bool = True
+    vehicle: bool = False
+    vehicle_draws: int = 0
+    vehicle_scheduler: str | None = None
+    vehicle_intervals: str = "recommended"
+    provenance: dict | None = None
+    figures: bool = True
 
 
 @dataclass
@@ -97,25 +116,19 @@ def export_fmus(result: FitResult, out: Path) -> list[Path]:
 
 
 def run(identification: list[RigTest], validation: list[RigTest], out: Path, settings: FitSettings, *,
-        diagnose_after: bool = True, vehicle: bool = False, vehicle_draws: int = 0, vehicle_scheduler: str | None = None,
-        vehicle_intervals: str = "recommended", provenance: dict | None = None, figures: bool = True,
-        log=print) -> JobResult:
-    """The whole job into the existing folder ``out`` (checkpoints there are resumed).
-
-    diagnose_after: diagnose the best-validated base form after the fit (when ``wants_diagnosis``);
-    vehicle: the tuned FMUs as the yaw dampers of the campaign's vehicle (``vehicle_consequences``), with
-    95 % intervals from up to ``vehicle_draws`` parameter sets per FMU (0: none) run on ``vehicle_scheduler``, for
-    the recommended model's FMU or ``vehicle_intervals`` 'all'; figures: False writes the fit's report without its
-    figures (``make_report``; the diagnosis's residual figures are drawn still);
+        options: JobOptions = JobOptions(), log=print) -> JobResult:
+    """The whole job into the existing folder ``out`` (checkpoints there are resumed): the fit with ``settings``,
+    then what ``options`` asks (``JobOptions``: the diagnosis, the vehicle, the report's figures);
     log: a callable taking one line (or a ``tuner.progress.JobProgress``, whose stages it advances)."""
     out = Path(out)
+    diagnose_after, figures = options.diagnose_after, options.figures
     problem = Problem.build(identification, validation, settings.data)  # prepared once, for every stage
     if diagnose_after and wants_diagnosis(settings, validation) and hasattr(log, "forecast"):
         # the progress display prices the diagnosis from the start
         ahead = diagnosis_forecast(problem, diagnosis_settings(settings),
                                    [m for m in settings.models if m in EFFECT_MODELS])
         forecast(log, "diagnosis", ahead.seconds, (ahead.forms_s, "the diagnosis tries the forms"))
-    result = fit(identification, validation, settings, checkpoints=out / "checkpoints", provenance=provenance,
+    result = fit(identification, validation, settings, checkpoints=out / "checkpoints", provenance=options.provenance,
                  problem=problem, log=log)
     result.metrics["warnings"] = reading_warnings([*identification, *validation])  # for the summary and report
     result.write(out)
@@ -126,16 +139,16 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
     result.write_metrics(out)
     diagnosis = None
     if diagnose_after and wants_diagnosis(settings, validation):
-        kind, values, choice, others = choose_base(result.params, result.metrics)
         try:
-            diagnosis = _diagnose(identification, validation, out, diagnosis_settings(settings), values, kind, choice,
-                                  others, problem, log, refinements=base_refinements(result, settings))
+            diagnosis = _diagnose(identification, validation, out, diagnosis_settings(settings),
+                                  FittedBases.from_fit(result), log)
         except DiagnosisFailed:
             make_report(out, figures=figures)  # the fit's report with the failure said: the fit and its FMUs are safe
             raise
-    if vehicle:
-        vehicle_consequences(sorted((out / "fmu").glob("*_tuned.fmu")), out, settings.seed, log, draws=vehicle_draws,
-                             scheduler=vehicle_scheduler, intervals_for=vehicle_intervals)
+    if options.vehicle:
+        vehicle_consequences(sorted((out / "fmu").glob("*_tuned.fmu")), out, settings.seed, log,
+                             draws=options.vehicle_draws, scheduler=options.vehicle_scheduler,
+                             intervals_for=options.vehicle_intervals)
     stage(log, "report")
     report = make_report(out, figures=figures, workers=settings.workers)
     return JobResult(out=out, fit=result, diagnosis=diagnosis, fmus=sorted((out / "fmu").glob("*.fmu")),
@@ -143,16 +156,14 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
 
 
 def run_diagnosis(identification: list[RigTest], validation: list[RigTest], out: Path,
-                  settings: DiagnosisSettings, *, base_params: dict | None = None, base_model: str | None = None,
-                  base_choice: dict | None = None, other_bases: dict | None = None, figures: bool = True,
+                  settings: DiagnosisSettings, *, from_fit: FittedBases | None = None, figures: bool = True,
                   log=print) -> Diagnosis:
-    """A diagnosis on its own into ``out`` (the base from an earlier fit, or identified here; its files by
-    ``write_diagnosis``), then the report: the full one when ``out`` holds that fit's files (``figures``: False
+    """A diagnosis on its own into ``out`` (the bases from an earlier fit, ``from_fit``, or identified here; its
+    files by ``write_diagnosis``), then the report: the full one when ``out`` holds that fit's files (``figures``: False
     without the fit's figures), the diagnosis alone otherwise."""
     out = Path(out)
     try:
-        result = _diagnose(identification, validation, out, settings, base_params, base_model, base_choice,
-                           other_bases, None, log)
+        result = _diagnose(identification, validation, out, settings, from_fit, log)
     finally:  # a failed diagnosis gets its report too: what was finished, the failing stage, --resume
         if (out / "diagnosis.json").exists():
             stage(log, "report")
@@ -163,23 +174,17 @@ def run_diagnosis(identification: list[RigTest], validation: list[RigTest], out:
     return result
 
 
-def base_refinements(result: FitResult, settings: FitSettings) -> dict:
-    """{model: ``tuner.diagnosis.bases.BaseRefinement``} of the fit: on the fit's own problem the diagnosis does
-    not refit a base whose refinement converged in the scheme it refines in ('improved'), and forecasts its
-    time from the fit's cost per simulation."""
-    return {m: BaseRefinement.from_history(h, settings.data.parametrization) for m, h in result.histories.items()}
-
-
-def _diagnose(identification, validation, out, settings, base_params, base_model, base_choice, other_bases,
-              problem, log, refinements: dict | None = None) -> Diagnosis:
-    """The diagnosis into ``out`` (its checkpoints in ``out/checkpoints``), then its files (``write_diagnosis``);
-    a failed stage's record is written (``write_diagnosis_failure``) before ``DiagnosisFailed`` goes on."""
+def _diagnose(identification, validation, out, settings: DiagnosisSettings, from_fit: FittedBases | None,
+              log) -> Diagnosis:
+    """The diagnosis into ``out`` (its checkpoints in ``out/checkpoints``; the bases from the earlier fit
+    ``from_fit``, or identified), then its files (``write_diagnosis``); a failed stage's record is written
+    (``write_diagnosis_failure``) before ``DiagnosisFailed`` goes on."""
     stage(log, "diagnosis")
-    log(f"\ndiagnosis: refitting the {base_model or 'base'} model extended by each candidate effect ...")
+    log(f"\ndiagnosis: refitting the {from_fit.kind if from_fit else 'base'} model extended by each candidate "
+        f"effect ...")
     try:
-        diagnosis = diagnose(identification, validation, settings, checkpoints=Path(out) / "checkpoints",
-                             base_params=base_params, base_model=base_model, base_choice=base_choice,
-                             other_bases=other_bases, problem=problem, refinements=refinements, log=log)
+        diagnosis = diagnose(identification, validation, settings, from_fit=from_fit,
+                             checkpoints=Path(out) / "checkpoints", log=log)
     except DiagnosisFailed as failed:
         write_diagnosis_failure(failed, out)
         raise
@@ -274,7 +279,7 @@ def vehicle_consequences(fmus: list[Path], out: Path, seed: int = 0, log=print, 
             log(f"vehicle: {executor.description} not started ({err}): the scenarios run in this process, "
                 f"no intervals")
             executor, models = None, ()
-        data = compare_fmus(fmus, Path(out) / VEHICLE_FOLDER, seed=seed, executor=executor,
+        data = compare_fmus(fmus, Path(out) / VEHICLE_FOLDER, options=ScenarioOptions(seed=seed), executor=executor,
                             log=SubStages(log, len(fmus) * len(SCENARIO_NAMES)))
         if models is None or models:
             stage(log, "vehicle intervals")

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from tuner.cli.folders import DEFAULT_RESULTS
 from tuner.cli.run import run_handler
-from tuner.fleet.batch import run_batch
+from tuner.fleet.batch import BatchOptions, run_batch
 from tuner.fleet.manifest import convert_cell
 from tuner.identification.fit import FitSettings
 from tuner.results.fleet_summary import OUTLIER_K, OUTLIER_TOLERANCE
@@ -77,9 +77,9 @@ def cmd_batch(args) -> int:
     out = args.out or DEFAULT_RESULTS / manifest.stem
     if args.outlier_k <= 0 or args.outlier_tolerance < 0:
         raise ValueError("--outlier-k must be > 0 and --outlier-tolerance >= 0")
-    res = run_batch(manifest, out, scheduler=args.scheduler, settings=settings, diagnose=args.diagnose,
-                    row_workers=args.row_workers, outlier_k=args.outlier_k, outlier_tolerance=args.outlier_tolerance,
-                    figures=not args.no_row_figures)
+    res = run_batch(manifest, out, options=BatchOptions(
+        scheduler=args.scheduler, settings=settings, diagnose=args.diagnose, row_workers=args.row_workers,
+        outlier_k=args.outlier_k, outlier_tolerance=args.outlier_tolerance, figures=not args.no_row_figures))
     failed = [r for r in res["rows"] if r["status"] == "failed"]
     for r in failed:
         print(f"failed: {r['id']}: {r['error']}", file=sys.stderr)

@@ -12,7 +12,8 @@ from tuner.cli.folders import DEFAULT_DATASET, DEFAULT_RESULTS, free_folder, pre
 from tuner.cli.log import end_job, job_log, log, progress, start_job
 from tuner.cli.options import add_fit_options, fit_settings, load_tests, vehicle_scheduler
 from tuner.cli.summary import end_summary, print_table3
-from tuner.diagnosis.diagnose import DiagnosisFailed, choose_base
+from tuner.diagnosis.bases import FittedBases
+from tuner.diagnosis.diagnose import DiagnosisFailed
 from tuner import strict_json
 from tuner.worker_processes import pool_context
 
@@ -136,20 +137,18 @@ def _fit_job(args, models) -> Path:
     diagnosis = not args.no_diagnose and job.wants_diagnosis(settings, valid)
     if not diagnosis and progress() is not None:
         progress().weights.pop("diagnosis", None)
-    result = job.run(ident, valid, out, settings, diagnose_after=diagnosis, vehicle=args.vehicle,
-                     vehicle_draws=args.vehicle_draws, vehicle_scheduler=vehicle_scheduler(args),
-                     vehicle_intervals=args.vehicle_intervals, figures=not args.no_figures,
-                     provenance=provenance, log=job_log())  # the progress display when a job runs
+    options = job.JobOptions(diagnose_after=diagnosis, vehicle=args.vehicle, vehicle_draws=args.vehicle_draws,
+                             vehicle_scheduler=vehicle_scheduler(args), vehicle_intervals=args.vehicle_intervals,
+                             provenance=provenance, figures=not args.no_figures)
+    result = job.run(ident, valid, out, settings, options=options, log=job_log())  # the display when a job runs
     print_table3(result.fit.metrics)
     return out
 
 
-def _fitted_base(folder: Path) -> tuple:
-    """(base parameters, kind, how it was chosen, the other fitted bases) for a diagnosis after the fit
-    in ``folder``."""
-    kind, values, choice, others = choose_base(strict_json.loads((folder / "parameters.json").read_text()),
-                                               strict_json.loads((folder / "metrics.json").read_text()))
-    return values, kind, choice, others
+def _fitted_bases(folder: Path) -> FittedBases:
+    """The bases of the fit in ``folder`` for a diagnosis after it (its ``parameters.json`` and ``metrics.json``)."""
+    return FittedBases.from_records(strict_json.loads((folder / "parameters.json").read_text()),
+                                    strict_json.loads((folder / "metrics.json").read_text()))
 
 
 def cmd_diagnose(args) -> int:
@@ -160,28 +159,27 @@ def cmd_diagnose(args) -> int:
     ident, valid, name = load_tests(args)
     if not valid:
         raise ValueError("the diagnosis needs validation tests: its decision is the held-out gain")
-    base, base_kind, base_choice, others = None, None, None, None
+    fitted = None
     if args.from_fit:
         pj = args.from_fit / "parameters.json"
         if not pj.exists() or not (args.from_fit / "metrics.json").exists():
             raise ValueError(f"--from {args.from_fit}: no parameters.json and metrics.json (not a fit output folder)")
         try:
-            base, base_kind, base_choice, others = _fitted_base(args.from_fit)
+            fitted = _fitted_bases(args.from_fit)
         except ValueError as err:
             raise ValueError(f"--from {args.from_fit}: {err}") from None
     out = prepare_out(args.out or free_folder(DEFAULT_RESULTS / f"{name}-diagnosis"), args.resume, args.force)
-    if base is not None and args.from_fit.resolve() != out.resolve():
+    if fitted is not None and args.from_fit.resolve() != out.resolve():
         for f in ("parameters.json", "metrics.json", "simulations.npz",
                   *[f"history_{m}.json" for m in MODEL_KINDS]):
             if (args.from_fit / f).exists():
                 (out / f).write_bytes((args.from_fit / f).read_bytes())
     log(f"output folder: {out}")
     t0 = time.perf_counter()
-    start_job(args, {"diagnosis": 70.0 if base is not None else 130.0, "report": 5.0})
+    start_job(args, {"diagnosis": 70.0 if fitted is not None else 130.0, "report": 5.0})
     failed = None
     try:  # the diagnosis states the verdict once
-        job.run_diagnosis(ident, valid, out, job.diagnosis_settings(fit_settings(args)), base_params=base,
-                          base_model=base_kind, base_choice=base_choice, other_bases=others,
+        job.run_diagnosis(ident, valid, out, job.diagnosis_settings(fit_settings(args)), from_fit=fitted,
                           figures=not args.no_figures, log=job_log())
     except DiagnosisFailed as err:
         failed = err

@@ -24,7 +24,7 @@ from tuner.cli.folders import DEFAULT_RESULTS, free_folder
 from tuner.progress import JobProgress
 from campaign.bifurcation import RampSettings
 from tuner.results.report import make_report
-from tuner.vehicle.compare import SCENARIO_NAMES, VEHICLE_FOLDER, compare_fmus, format_table
+from tuner.vehicle.compare import SCENARIO_NAMES, VEHICLE_FOLDER, ScenarioOptions, compare_fmus, format_table
 from tuner.vehicle.limit_cycles import (CONICITY_FIGURE, DEFAULT_CONICITIES, DIAGRAM_FIGURE, STUDY_FILE, HuntingStudy,
                                         format_study_table, hunting_study)
 
@@ -88,9 +88,9 @@ def _scenarios(args, out: Path) -> int:
     weights = {f"{Path(f).stem}: {s}": (6.0 if s == "critical_speed" else 1.0) for f in args.fmus for s in args.scenarios}
     log = JobProgress(weights, quiet=args.quiet)
     try:
-        data = compare_fmus(args.fmus, out, scenarios=args.scenarios, step=args.step, seed=args.seed,
-                            v_min=args.v_min / 3.6, v_max=args.v_max / 3.6, tol=args.tol / 3.6,
-                            kick=args.kick * 1e-3, log=log)
+        data = compare_fmus(args.fmus, out, options=ScenarioOptions(
+            scenarios=tuple(args.scenarios), step=args.step, seed=args.seed, v_min=args.v_min / 3.6,
+            v_max=args.v_max / 3.6, tol=args.tol / 3.6, kick=args.kick * 1e-3), log=log)
     finally:
         log.finish()
     print(format_table(data), flush=True)

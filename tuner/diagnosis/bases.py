@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from damper_fmu.parameters import EFFECT_MODELS, defaults
@@ -13,8 +13,8 @@ from damper_fmu.parameters import EFFECT_MODELS, defaults
 from tuner.diagnosis.cost_model import EXTENDED_COST, expected_cost, identification_cost
 from tuner.identification.engine import Engine
 from tuner.identification.floor import ResidualFloor
-from tuner.identification.fit import (RACE_RATIO, FitSettings, fit_order, identify, initial_guess, refinement_starts,
-                                      validation_run)
+from tuner.identification.fit import (RACE_RATIO, FitResult, FitSettings, IdentifyOptions, fit_order, identify,
+                                      initial_guess, refinement_starts, validation_run)
 from tuner.identification.restart_check import TYPICAL_RESTARTS
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.problem import Problem
@@ -22,7 +22,8 @@ from tuner.diagnosis.settings import DiagnosisSettings
 from tuner.metrics import pooled_mse
 from tuner.progress import Plan
 
-__all__ = ["BASE_MODELS", "Base", "BaseRefinement", "pooled_validation_mse", "choose_base", "base_kinds", "PLAN_WEIGHTS",
+__all__ = ["BASE_MODELS", "Base", "BaseRefinement", "FittedBases", "pooled_validation_mse", "choose_base", "base_kinds",
+           "PLAN_WEIGHTS",
            "progress_plan", "identified_bases", "why_not_repeated", "seconds_per_simulation", "forecast_identified",
            "DiagnosisForecast", "diagnosis_forecast"]
 
@@ -70,6 +71,40 @@ class Base:
         return self.refinement.settled
 
 
+@dataclass(frozen=True)
+class FittedBases:
+    """The base forms an earlier fit hands the diagnosis, as one record: ``kind``, the base form to diagnose on
+    first, and its ``values`` [SI]; ``choice``, how it was chosen (reported in ``diagnosis.json``); ``others``,
+    {kind: values} of the other fitted base forms (a repeat's bases, ``tuner.diagnosis.diagnose``); ``problem``,
+    the tests the fit prepared (``tuner.identification.problem.Problem``; None: the diagnosis prepares them);
+    ``refinements``, {kind: ``BaseRefinement``} of the values' identification on that problem (a settled base is
+    not refitted as 'none'; its cost per simulation forecasts the time left). ``from_fit`` builds it from a
+    ``FitResult``, ``from_records`` from a fit folder's ``parameters.json`` and ``metrics.json``."""
+
+    kind: str
+    values: dict
+    choice: dict | None = None
+    others: dict = field(default_factory=dict)
+    problem: Problem | None = None
+    refinements: dict = field(default_factory=dict)
+
+    @classmethod
+    def from_records(cls, parameters: dict, metrics: dict) -> "FittedBases":
+        """From a fit's ``parameters.json`` and ``metrics.json`` records: the base form with the lowest held-out
+        MSE first (``choose_base``), the other fitted ones beside; no problem, no refinements (ValueError when no
+        base form was fitted)."""
+        kind, values, choice, others = choose_base(parameters, metrics)
+        return cls(kind, values, choice, others)
+
+    @classmethod
+    def from_fit(cls, result: FitResult) -> "FittedBases":
+        """From a ``FitResult``: ``from_records`` of its parameters and metrics, with the problem it was fitted on
+        and each model's refinement (``BaseRefinement.from_history`` in the scheme the fit refined in)."""
+        scheme = result.problem.settings.parametrization
+        return replace(cls.from_records(result.params, result.metrics), problem=result.problem,
+                       refinements={m: BaseRefinement.from_history(h, scheme) for m, h in result.histories.items()})
+
+
 def pooled_validation_mse(kind: str, params: dict, signals: list, engine: str) -> float:
     """Validation MSE [N^2] pooled over the tests (``validation_run``, the Table 3 definition)."""
     return pooled_mse([validation_run(kind, params, s, engine)[1] for s in signals])
@@ -92,12 +127,12 @@ def choose_base(parameters: dict, metrics: dict) -> tuple[str, dict, dict, dict]
                                               "(Table 3 definition)", "validation_mse": mse}, others
 
 
-def base_kinds(settings: DiagnosisSettings, base_model, other_bases, given: bool) -> list[str]:
-    """The base forms the diagnosis may run on: the one given and the other fitted ones, or those it identifies
-    (``settings.base_model``: 'auto' for every one of BASE_MODELS); ValueError for a form without effects."""
-    if given:
-        first = base_model or "lumped"
-        return [first, *(k for k in (other_bases or {}) if k != first and k in EFFECT_MODELS)]
+def base_kinds(settings: DiagnosisSettings, fitted: FittedBases | None) -> list[str]:
+    """The base forms the diagnosis may run on: the ones an earlier fit gives (``fitted``: its first and the
+    other fitted ones), or those it identifies (``settings.base_model``: 'auto' for every one of BASE_MODELS);
+    ValueError for a form without effects."""
+    if fitted is not None:
+        return [fitted.kind, *(k for k in fitted.others if k != fitted.kind and k in EFFECT_MODELS)]
     kinds = list(BASE_MODELS) if settings.base_model == "auto" else [settings.base_model]
     unknown = [k for k in kinds if k not in EFFECT_MODELS]
     if unknown:
@@ -109,35 +144,33 @@ def base_kinds(settings: DiagnosisSettings, base_model, other_bases, given: bool
 PLAN_WEIGHTS = {"identification": 1.0, "diagnosis": 1.5}
 
 
-def progress_plan(log, settings: DiagnosisSettings, base_model, other_bases, given: bool) -> Plan:
-    """The progress plan: the identification of each base form (unless given), the diagnosis on each one (the
-    first, and a repeat on each other that may follow: skipped when it does not)."""
-    kinds = base_kinds(settings, base_model, other_bases, given)
-    weights = {} if given else {f"identification of the {k} base": PLAN_WEIGHTS["identification"] for k in kinds}
+def progress_plan(log, settings: DiagnosisSettings, fitted: FittedBases | None) -> Plan:
+    """The progress plan: the identification of each base form (unless ``fitted`` gives them), the diagnosis on
+    each one (the first, and a repeat on each other that may follow: skipped when it does not)."""
+    kinds = base_kinds(settings, fitted)
+    weights = {} if fitted is not None else {f"identification of the {k} base": PLAN_WEIGHTS["identification"] for k in kinds}
     weights.update({f"diagnosis on the {k} base": PLAN_WEIGHTS["diagnosis"] for k in kinds})
     return Plan(log, weights)
 
 
-def identified_bases(problem: Problem, checkpoints: Path, settings: DiagnosisSettings, base_params, base_model,
-                      base_choice, other_bases, log, refinements: dict | None = None) -> tuple[str, dict, dict | None]:
-    """(the first base kind, {kind: Base} in the order tried, how it was chosen): the bases given
-    (``base_params`` of ``base_model`` and ``other_bases``; ``refinements``: {kind: BaseRefinement} of their
-    identification on this problem), or identified here (Firefly state checkpointed in the folder
+def identified_bases(problem: Problem, checkpoints: Path, settings: DiagnosisSettings, fitted: FittedBases | None,
+                     log) -> tuple[str, dict, dict | None]:
+    """(the first base kind, {kind: Base} in the order tried, how it was chosen): the bases an earlier fit gives
+    (``fitted``: its first and its other base forms, with their refinements on this problem), or identified here (Firefly state checkpointed in the folder
     ``checkpoints``: ``diagnosis_base_<kind>.json``) as the fit identifies them: in ``fit_order``, each raced
     against the best before it (``RACE_RATIO``), none after one that reaches the residual floor (``_at_floor``)."""
     def parametrization(kind: str, given: dict | None) -> Parametrization:
         # the local solver needs monotone tables: the 'improved' scheme whatever the fit used
         return problem.parametrization(kind, fixed_from=given, scheme="improved")
 
-    if base_params is not None:
-        kind = base_model or "lumped"
-        facts = refinements or {}
-        bases = {kind: Base(parametrization(kind, base_params), base_params, facts.get(kind, BaseRefinement()))}
+    if fitted is not None:
+        kind, facts = fitted.kind, fitted.refinements
+        bases = {kind: Base(parametrization(kind, fitted.values), fitted.values, facts.get(kind, BaseRefinement()))}
         bases.update({k: Base(parametrization(k, v), v, facts.get(k, BaseRefinement()))
-                      for k, v in (other_bases or {}).items() if k != kind and k in EFFECT_MODELS})
-        return kind, bases, base_choice
+                      for k, v in fitted.others.items() if k != kind and k in EFFECT_MODELS})
+        return kind, bases, fitted.choice
     fitted, floor, at_floor, rmse = {}, problem.residual_floor(settings.engine), None, {}
-    kinds = fit_order(base_kinds(settings, None, None, given=False), problem, settings.engine)
+    kinds = fit_order(base_kinds(settings, None), problem, settings.engine)
     forecast_identified(log, problem, settings, {k: parametrization(k, None) for k in kinds})
     for kind in kinds:
         if at_floor is not None:
@@ -149,8 +182,9 @@ def identified_bases(problem: Problem, checkpoints: Path, settings: DiagnosisSet
                          workers=settings.workers, seed=settings.seed, engine=settings.engine,
                          polish_jacobians=settings.base_polish_jacobians)
         found = identify(kind, problem.sig_id, fs, par_k, checkpoints / f"diagnosis_base_{kind}.json",
-                         problem.digest, log.part(f"identification of the {kind} base"), floor=floor,
-                         rival=min(rmse.items(), key=lambda r: r[1]) if rmse else None)
+                         problem.digest, log.part(f"identification of the {kind} base"),
+                         options=IdentifyOptions(floor=floor, rival=min(rmse.items(), key=lambda r: r[1]) if rmse
+                                                 else None))
         g = found.history["best_fitness_final"]
         rmse[kind] = 1.0 / math.sqrt(g) if g > 0 else math.inf
         fitted[kind] = (Base(par_k, found.values, BaseRefinement.from_history(found.history)),

@@ -3,7 +3,7 @@ left is made of (``tuner.progress``: the job's stage then says its seconds left 
 measured on other data).
 
 Counted in simulations of the identification tests (a held-out run counts by its share of the samples), from the
-same settings the steps use (``tuner.diagnosis.search.CandidateSearch``): a Jacobian of a model of ``d``
+same settings the steps use (``tuner.diagnosis.search``): a Jacobian of a model of ``d``
 coordinates is d + 1 simulations; a candidate's refit is its profile (``grid_points`` values, each re-balanced by
 up to ``profile_steps`` batches: half of them on average, measured) and a joint polish of
 ``JOINT_POLISH_JACOBIANS`` Jacobians (its cap ``polish_jacobians / 2``); the screen is one batch of
@@ -24,7 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from tuner.diagnosis.forms import shape_grid
-from tuner.diagnosis.refit import HELD_PROFILE_JACOBIANS, SERIES_HELD_JACOBIANS
+from tuner.diagnosis.held_profiles import HELD_PROFILE_JACOBIANS, SERIES_HELD_JACOBIANS
 
 __all__ = ["EXPECTED_REFITS", "JOINT_POLISH_JACOBIANS", "CONTINUATION_JACOBIANS", "REFINEMENT_JACOBIANS",
            "EXTENDED_COST", "DiagnosisCost",
@@ -87,8 +87,8 @@ def _joint_polish(settings) -> int:
 
 def refit_cost(d: int, extra: int, settings, nonsmooth: bool = False) -> float:
     """Simulations of one candidate's refit: the profile and the joint polish of a model of d base and
-    ``extra`` effect coordinates; a ``nonsmooth`` effect's held profile besides (``tuner.diagnosis.refit.
-    held_profile``: as many values as the grid has, measured 7-9 on blind free plays, each its Jacobians with
+    ``extra`` effect coordinates; a ``nonsmooth`` effect's held profile besides (``tuner.diagnosis.
+    held_profiles.held_profile``: as many values as the grid has, measured 7-9 on blind free plays, each its Jacobians with
     two trial steps)."""
     profile = settings.grid_points * (1 + settings.profile_steps / 2)
     held = settings.grid_points * HELD_PROFILE_JACOBIANS * (d + extra + 3) if nonsmooth else 0.0
@@ -96,8 +96,8 @@ def refit_cost(d: int, extra: int, settings, nonsmooth: bool = False) -> float:
 
 
 def series_cost(d: int, settings, held: int) -> float:
-    """Simulations of ``tuner.diagnosis.refit.series_profiles`` with the series element held at ``held`` values and
-    the joint polish after: per held value, the coarse pass (the grid's values, each SERIES_HELD_JACOBIANS
+    """Simulations of ``tuner.diagnosis.held_profiles.series_profiles`` with the series element held at ``held``
+    values and the joint polish after: per held value, the coarse pass (the grid's values, each SERIES_HELD_JACOBIANS
     Jacobians, counted at d + 1 simulations: an upper bound, as the series element and the magnitude are held) and
     the chained sweep from its release (about the grid's values again, HELD_PROFILE_JACOBIANS each)."""
     per_value = SERIES_HELD_JACOBIANS * (d + 1) + HELD_PROFILE_JACOBIANS * (d + 3)

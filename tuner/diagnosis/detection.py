@@ -33,11 +33,36 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["absorbed_signature", "absorption", "limit_from_signature", "detection_limits"]
+__all__ = ["absorbed_signature", "absorption", "limit_from_signature", "detection_limits", "EffectMagnitude",
+           "NamingRule"]
 
 #: singular values of the identification Jacobian below this fraction of the largest are directions
 #: the data do not determine (the refit moves freely along them): not used to absorb a signature
 RCOND = 1e-9
+
+
+@dataclass(frozen=True)
+class EffectMagnitude:
+    """One effect's magnitude in ``detection_limits``: its ``parameter`` (name), the ``reference`` magnitude to
+    linearise at first (the low end of its typical range), its search ``bounds`` and the ``smallest`` magnitude the
+    diagnosis names (its physical range), all in the parameter's unit."""
+
+    parameter: str
+    reference: float
+    bounds: tuple[float, float]
+    smallest: float
+
+
+@dataclass(frozen=True)
+class NamingRule:
+    """What a hidden effect must do to be named, as ``limit_from_signature`` reads it: ``mse_ref`` [N^2], the
+    held-out MSE of the refitted base; ``noise_n`` [N rms], the force an effect must reach on the identification
+    tests; ``accept``, the acceptance score; ``penalty``, the score's penalty for the effect's parameters."""
+
+    mse_ref: float
+    noise_n: float
+    accept: float
+    penalty: float
 
 
 def absorbed_signature(j_id: np.ndarray, j_val: np.ndarray, J_id: np.ndarray, J_val: np.ndarray) -> np.ndarray:
@@ -102,10 +127,11 @@ def _linearise(engine, par, z0: np.ndarray, steps: np.ndarray, parameters: dict[
     return _Linearisation(_columns(res[0], res[1:1 + len(z0)], steps), dict(zip(parameters, res[1 + len(z0):])))
 
 
-def _row(u: np.ndarray, j_id: np.ndarray, m: float, edges: np.ndarray, test_names: list[str], mse_ref: float,
-         noise_n: float, accept: float, penalty: float) -> dict:
+def _row(u: np.ndarray, j_id: np.ndarray, m: float, edges: np.ndarray, test_names: list[str],
+         rule: NamingRule) -> dict:
     """``limit_from_signature`` pooled and per held-out test (``edges``: the tests' sample offsets), linearised
     at the magnitude ``m``."""
+    mse_ref, noise_n, accept, penalty = rule.mse_ref, rule.noise_n, rule.accept, rule.penalty
     row = limit_from_signature(u, j_id, mse_ref, noise_n, accept, penalty)
     # per test against the pooled reference (a per-test reference would reward a noisy test)
     row["per_test"] = {test: max(limit_from_signature(u[edges[k]:edges[k + 1]], j_id, mse_ref, noise_n, accept,
@@ -115,31 +141,28 @@ def _row(u: np.ndarray, j_id: np.ndarray, m: float, edges: np.ndarray, test_name
     return row
 
 
-def detection_limits(eid, ev, par, z0: np.ndarray, parameters: dict[str, str], reference: dict[str, float],
-                     bounds: dict[str, tuple[float, float]], smallest: dict[str, float], mse_ref: float,
-                     noise_n: float, accept: float, penalty: float, lengths_val: list[int], test_names: list[str],
+def detection_limits(eid, ev, par, z0: np.ndarray, magnitudes: dict[str, EffectMagnitude], rule: NamingRule, *,
                      refine: int = 2, step: float = 1e-4) -> dict:
     """Detection limit of every effect: {effect: {"parameter", "limit", "by_score", "by_noise",
     "by_range", "limited_by", "best_test", "per_test": {test: limit}, "reachable": limit within the search
     bounds, "linearised_at", "absorbed_share", "absorbed_by_coordinate" (``absorption`` at that magnitude, per
     coordinate of ``par``)}}.
 
-    eid, ev: engines of the base model on the identification and held-out tests (``residuals_batch``);
-    par: the base parametrization, z0: the fitted base (scaled); parameters: effect -> its magnitude
-    parameter; reference: parameter -> first magnitude to linearise at (the low end of its typical
-    range); bounds: parameter -> search bounds; smallest: parameter -> the smallest magnitude the diagnosis
-    names (its physical range); mse_ref [N^2], noise_n [N], accept, penalty: as in
-    ``limit_from_signature``; lengths_val: held-out samples per test, in ``ev``'s order; test_names: their
-    names; refine: times the signature is taken again at the current limit. Every effect's signature is taken in
-    one parallel batch per engine and round."""
+    eid, ev: engines of the base model on the identification and held-out tests (``residuals_batch``; the
+    per-test limits are those of ``ev.tests``, by their masked samples); par: the base parametrization, z0: the
+    fitted base (scaled); magnitudes: effect -> its ``EffectMagnitude``; rule: the ``NamingRule``; refine: times
+    the signature is taken again at the current limit. Every effect's signature is taken in one parallel batch per
+    engine and round."""
+    parameters = {e: mag.parameter for e, mag in magnitudes.items()}
+    lengths_val, test_names = [int(t.mask.sum()) for t in ev.tests], [t.name for t in ev.tests]
     steps = np.where(z0 + step <= 1.0, step, -step)
     lin_id, lin_val = _linearise(eid, par, z0, steps, parameters), _linearise(ev, par, z0, steps, parameters)
     if lin_id is None or lin_val is None:
         return {}
     base = par.to_params(z0)
     edges = np.cumsum([0, *lengths_val])
-    top = {e: max(abs(b) for b in bounds[name]) for e, name in parameters.items()}
-    m = {e: min(reference[name], top[e]) for e, name in parameters.items()}
+    top = {e: max(abs(b) for b in mag.bounds) for e, mag in magnitudes.items()}
+    m = {e: min(mag.reference, top[e]) for e, mag in magnitudes.items()}
     active = [e for e in parameters if lin_id.off[e] is not None and lin_val.off[e] is not None]
     rows = {}
     for _ in range(1 + refine):
@@ -151,14 +174,14 @@ def detection_limits(eid, ev, par, z0: np.ndarray, parameters: dict[str, str], r
                 continue
             j_id, j_val = (lin_id.off[e] - r_id) / m[e], (lin_val.off[e] - r_val) / m[e]
             u = absorbed_signature(j_id, j_val, lin_id.jacobian, lin_val.jacobian)
-            rows[e] = _row(u, j_id, m[e], edges, test_names, mse_ref, noise_n, accept, penalty)
+            rows[e] = _row(u, j_id, m[e], edges, test_names, rule)
             share, parts = absorption(j_id, lin_id.jacobian)
             rows[e]["absorbed_share"], rows[e]["absorbed_by_coordinate"] = share, parts.tolist()
             if math.isfinite(rows[e]["limit"]) and rows[e]["limit"] < top[e]:
                 m[e] = max(rows[e]["limit"], 1e-6 * top[e])
                 still.append(e)
         active = still
-    return {e: _finish(rows[e], parameters[e], smallest[parameters[e]], top[e]) for e in parameters if e in rows}
+    return {e: _finish(rows[e], parameters[e], magnitudes[e].smallest, top[e]) for e in parameters if e in rows}
 
 
 def _finish(row: dict, name: str, smallest: float, top: float) -> dict:

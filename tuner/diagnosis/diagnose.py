@@ -1,8 +1,8 @@
 """Diagnosis: what the fitted base model gets wrong, which physical effect causes it, the model
 extended by that effect, and the gain measured on held-out data.
 
-Procedure (``diagnose``; the steps on one base form are the methods of ``tuner.diagnosis.search.
-CandidateSearch``, the decision rules are in ``tuner.diagnosis.rules``, the words in
+Procedure (``diagnose``; the steps on one base form are the modules of ``tuner.diagnosis.search``
+(``run``: the steps in order), the decision rules are in ``tuner.diagnosis.rules``, the words in
 ``tuner.diagnosis.verdict``, the base forms in ``tuner.diagnosis.bases``):
 1. Base model: the base form with the lowest held-out MSE among BASE_MODELS (the paper's lumped
    model and the two-chamber form of a twin-tube damper: a base that cannot represent the damper
@@ -36,7 +36,7 @@ CandidateSearch``, the decision rules are in ``tuner.diagnosis.rules``, the word
    noise, its magnitude is physically meaningful (>= half the low end of its typical range, scaled to
    the damper: ``tuner.diagnosis.effect_sizes``), a fitted delay agrees with the residual's, and the 95 % interval of its magnitude excludes zero
    (``effect_intervals``: block sandwich, ``tuner.diagnosis.significance``).
-4. Forms weighed with the causes (``CandidateSearch.weigh_forms``): when a catalogue cause is named
+4. Forms weighed with the causes (``search.form_steps.weigh_forms``): when a catalogue cause is named
    and the base leaves a residual above the floor, the forms beyond the catalogue are fitted on the
    base; one that scores above the cause is the first cause. A magnitude at its search bound, or
    whose interval lies wholly above its typical range on this damper, is never named
@@ -82,40 +82,42 @@ from damper_fmu.effect_catalogue import search_bounds  # noqa: F401
 
 from tuner import strict_json
 from tuner.data.reading import RigTest
-from tuner.diagnosis.bases import (BASE_MODELS, Base, choose_base, identified_bases, progress_plan,  # noqa: F401
-                                   why_not_repeated)
+from tuner.diagnosis.bases import (BASE_MODELS, Base, FittedBases, choose_base, identified_bases,  # noqa: F401
+                                   progress_plan, why_not_repeated)
 from tuner.diagnosis.cost_model import EXTENDED_COST, expected_cost
-from tuner.diagnosis.refit import MIN_BLOCKS, ExtendedParametrization  # noqa: F401
+from tuner.diagnosis.extended_parametrization import ExtendedParametrization  # noqa: F401
+from tuner.diagnosis.refit import MIN_BLOCKS  # noqa: F401
 from tuner.diagnosis.result import Diagnosis, DiagnosisFailed, failure_record
 from tuner.diagnosis.rules import (ACCEPT_SCORE, PENALTY_PER_PARAMETER, UNEXPLAINED_RATIO, cross_check,  # noqa: F401
                                    decide)
-from tuner.diagnosis.search import BaseRun, base_residuals, diagnose_on
+from tuner.diagnosis.search.reference import base_residuals
+from tuner.diagnosis.search.run import BaseRun, diagnose_on
 from tuner.diagnosis.settings import CANDIDATES, DiagnosisSettings
 from tuner.diagnosis.verdict import ACQUISITION_CAUSES, NOTES  # noqa: F401
+from tuner.identification.fit import FitResult
 from tuner.identification.problem import Problem
 from tuner.progress import advance
 
-__all__ = ["Diagnosis", "DiagnosisSettings", "DiagnosisFailed", "diagnose", "decide", "cross_check", "choose_base", "CANDIDATES",
+__all__ = ["Diagnosis", "DiagnosisSettings", "DiagnosisFailed", "diagnose", "decide", "cross_check", "choose_base",
+           "FittedBases", "CANDIDATES",
            "BASE_MODELS", "ExtendedParametrization", "search_bounds", "ACQUISITION_CAUSES", "NOTES", "ACCEPT_SCORE"]
 
 
 def diagnose(identification: list[RigTest], validation: list[RigTest], settings: DiagnosisSettings | None = None, *,
-             checkpoints: Path | None = None, base_params: dict | None = None, base_model: str | None = None,
-             base_choice: dict | None = None, other_bases: dict | None = None, problem: Problem | None = None,
-             refinements: dict | None = None, log=print) -> Diagnosis:
+             from_fit: FittedBases | FitResult | None = None, checkpoints: Path | None = None, log=print) -> Diagnosis:
     """Run the diagnosis and return the :class:`tuner.diagnosis.result.Diagnosis` (read-only: the record
     ``diagnosis.json`` holds, the final model's values, the residual series of the figures). Writes nothing
     but its checkpoints, into the folder ``checkpoints`` (resumed when they are there; none kept when it is
     None); ``tuner.job.write_diagnosis`` writes ``diagnosis.json``, the figures and the extended FMU.
 
-    base_params: the values of an earlier fit of ``base_model`` (default 'lumped'); without them the
-    base is identified here (``settings.base_model``: 'auto' identifies every one of BASE_MODELS and
-    keeps the one with the lowest held-out MSE); base_choice: how the caller chose it (reported);
-    other_bases: {kind: values} of the other fitted base forms (``choose_base``); problem: the tests
-    prepared by the fit before (``tuner.identification.problem``: the same fit rate, abscissae and
-    force limit), built from ``settings.data`` when not given; refinements: {kind:
-    ``tuner.diagnosis.bases.BaseRefinement``} of the given values' identification on ``problem`` (a settled
-    base is not refitted again as 'none'; its cost per simulation forecasts the time left).
+    from_fit: an earlier fit, whole: a ``FitResult`` or the ``tuner.diagnosis.bases.FittedBases`` record of one
+    (``FittedBases.from_fit``, ``FittedBases.from_records`` of a fit folder's files): the base form it chose by
+    held-out MSE (``choose_base``) and its values, how it was chosen (reported), the other fitted base forms, the
+    tests it prepared (``tuner.identification.problem``: the same fit rate, abscissae and force limit; built
+    from ``settings.data`` when it has none) and how each base's refinement ended on them (a settled base is not
+    refitted again as 'none'; its cost per simulation forecasts the time left). Without it the base is
+    identified here (``settings.base_model``: 'auto' identifies every one of BASE_MODELS and keeps the one with
+    the lowest held-out MSE).
 
     The base is chosen before any effect is added; when the diagnosis on it leaves a residual above
     the floor (a large effect can make both bare bases fit badly, and then the wrong form may win),
@@ -136,21 +138,22 @@ def diagnose(identification: list[RigTest], validation: list[RigTest], settings:
                         f"writes its files), its checkpoints folder is the keyword 'checkpoints'")
     if not identification or not validation:
         raise ValueError("the diagnosis needs identification AND validation tests (the decision is held-out gain)")
+    fitted = FittedBases.from_fit(from_fit) if isinstance(from_fit, FitResult) else from_fit
     scratch = tempfile.TemporaryDirectory(prefix="tuner-diagnosis-") if checkpoints is None else None
     checkpoints = Path(scratch.name if scratch is not None else checkpoints)
     checkpoints.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
-    problem = _checked_problem(problem, identification, validation, settings)
+    problem = _checked_problem(fitted.problem if fitted is not None else None, identification, validation, settings)
     # force noise in the fit band (``tuner.data.noise``: the cycle-to-cycle scatter of periodic tests,
     # else the quiet band of the force's spectrum; the base model's residual is no better a source: its
     # model-form error is broadband at the velocity reversals, measured 10x the noise on lumped-damper
     # data). An effect whose force is below it is not resolved; when the estimate is not credible the
     # residual is not compared with the floor (``diagnose_on``).
     log(f"diagnosis: force measurement noise: {problem.noise.get('text') or f'{problem.noise_n:.3g} N rms'}")
-    record = {"stage": "base identification", "finished": [], "partial": None, "base_choice": base_choice}
+    record = {"stage": "base identification", "finished": [], "partial": None,
+              "base_choice": fitted.choice if fitted is not None else None}
     try:
-        result = _diagnose_stages(problem, checkpoints, settings, base_params, base_model, base_choice, other_bases,
-                                  refinements, record, log, t_start)
+        result = _diagnose_stages(problem, checkpoints, settings, fitted, record, log, t_start)
     except Exception as err:  # recorded, then raised again: a failed stage is never a result
         log(f"diagnosis: FAILED in its stage '{record['stage']}': {type(err).__name__}: {err}")
         settings_block = _settings_record(settings, problem, time.perf_counter() - t_start)
@@ -179,14 +182,14 @@ def _checked_problem(problem: Problem | None, identification, validation, settin
     return problem
 
 
-def _diagnose_stages(problem: Problem, checkpoints: Path, settings: DiagnosisSettings, base_params, base_model,
-                     base_choice, other_bases, refinements, record: dict, log, t_start: float) -> Diagnosis:
-    """The stages of ``diagnose`` after the inputs were checked; ``record`` follows them (the stage
+def _diagnose_stages(problem: Problem, checkpoints: Path, settings: DiagnosisSettings, fitted: FittedBases | None,
+                     record: dict, log, t_start: float) -> Diagnosis:
+    """The stages of ``diagnose`` after the inputs were checked (``fitted``: the earlier fit's bases, or None:
+    identified here); ``record`` follows them (the stage
     running, the stages finished, what the running one has so far) for a failure report. The first base's
     figures go to ``figures/``, a repeat's to ``figures/base_<kind>/``."""
-    plan = progress_plan(log, settings, base_model, other_bases, base_params is not None)
-    kind, bases, base_choice = identified_bases(problem, checkpoints, settings, base_params, base_model, base_choice,
-                                                 other_bases, plan, refinements)
+    plan = progress_plan(log, settings, fitted)
+    kind, bases, base_choice = identified_bases(problem, checkpoints, settings, fitted, plan)
     record["base_choice"] = base_choice
     record["finished"].append("base identification")
     for k in bases:  # the first base's diagnosis runs; a repeat on another only if the first leaves a residual

@@ -21,7 +21,7 @@ import numpy as np
 
 from damper_fmu.effect_catalogue import ALL_EFFECTS, FORM_EFFECTS
 
-from tuner.diagnosis.refit import ExtendedParametrization
+from tuner.diagnosis.extended_parametrization import ExtendedParametrization
 from tuner.diagnosis.screen import off_span
 from tuner.identification.engine import Engine
 
@@ -39,7 +39,7 @@ def shape_grid(form: str, bounds: dict[str, tuple[float, float]], knee_m_s: floa
     eight hysteresis displacements spaced geometrically; bypass grooves centred at nine points
     across the inner 80 % of the stroke limits, each of three lengths spaced geometrically, acting in
     both directions, in extension only and in compression only, without a fade and fading past the
-    blow-off knee ``knee_m_s`` [m/s] of the data (``tuner.diagnosis.residuals.knee_velocity``). The
+    blow-off knee ``knee_m_s`` [m/s] of the data (``tuner.diagnosis.residual_signatures.knee_velocity``). The
     direction and the fade speed are settings of the model the refit keeps, not identified."""
     if form == "hysteresis":
         lo, hi = bounds["hysteresis_displacement"]
@@ -72,7 +72,7 @@ def screen(eid: Engine, ext: ExtendedParametrization, form: str, current: dict, 
     values, the form off) of the identification engine ``eid``.
 
     ext: the current model extended by the form (its bounds); jac_svd: (U, s, Vt) of the current
-    model's residual Jacobian (``tuner.diagnosis.refit.base_jacobian``) or None; knee_m_s: as
+    model's residual Jacobian (``tuner.diagnosis.extended_parametrization.base_jacobian``) or None; knee_m_s: as
     ``shape_grid``. For every shape the
     form's force at the probe magnitude is regressed on the residual, both projected off the
     Jacobian's span (what a re-balanced base absorbs); returns [{"shape": {...}, "magnitude": the

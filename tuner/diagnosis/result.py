@@ -68,7 +68,7 @@ class Diagnosis(Mapping):
     its value, so the result cannot be altered through what it hands out. ``final_values``: the final
     model's parameter values (SI; the base's when nothing was named): the extended FMU's start values.
     ``residuals``: {figure folder relative to the output folder: the base model's residual series
-    (``tuner.diagnosis.residuals.TestResidual``)} of every base form diagnosed, which the figures show.
+    (``tuner.diagnosis.residual_tests.TestResidual``)} of every base form diagnosed, which the figures show.
     ``stages``: the stages finished and how the base was chosen (``failure_record``), for a stage the job
     runs after the diagnosis (the export of the extended FMU, ``failed``)."""
 

@@ -1,6 +1,6 @@
 """The diagnosis's decision rules: pure functions of ranking rows (no simulation).
 
-A ranking row is a dict (``tuner.diagnosis.search``): ``effect``, ``score`` (held-out, against the
+A ranking row is a dict (``tuner.diagnosis.search.rows.held_out``): ``effect``, ``score`` (held-out, against the
 reference model), ``resolved`` (force above the noise), ``meaningful``, ``within_bounds``, ``plausible``
 and ``significant`` flags, ``parameters`` [SI]. Score = -ln(MSE / MSE_ref) - PENALTY_PER_PARAMETER per
 parameter; a cause is named above ACCEPT_SCORE when it has earned it (``earned``).

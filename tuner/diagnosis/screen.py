@@ -10,8 +10,8 @@ could win on the identification tests, linearised in the base only:
   ``grid``: the search range, geometric from its meaningful floor or 2 % of the range). The effect is
   not linearised: a free play, whose force has no gradient at zero gap, is seen at the gaps of the grid;
 * the base re-balanced (what its tables can absorb of that force): the residual ``r`` and ``d`` are
-  projected off the span of the base Jacobian (``U`` of its SVD, ``tuner.diagnosis.refit.
-  base_jacobian``), so the predicted identification SSE with the effect at ``m`` and the base
+  projected off the span of the base Jacobian (``U`` of its SVD, ``tuner.diagnosis.
+  extended_parametrization.base_jacobian``), so the predicted identification SSE with the effect at ``m`` and the base
   re-balanced is ``|P(r - d(m))|^2 + |r|^2 - |P r|^2`` (``P`` the projector off the span: the part of
   ``r`` in the span is what the base refit removes with or without the effect);
 * the predicted gain is ``|P r|^2 - |P (r - a d(m))|^2`` at the best grid magnitude, the force scaled by
@@ -41,7 +41,7 @@ import numpy as np
 
 from damper_fmu.effect_catalogue import ALL_EFFECTS
 
-from tuner.diagnosis.refit import ExtendedParametrization, grid
+from tuner.diagnosis.extended_parametrization import ExtendedParametrization, grid
 from tuner.identification.engine import Engine
 
 __all__ = ["SCREEN_SHARE", "ScreenRow", "off_span", "profile_screen"]
@@ -106,7 +106,7 @@ def profile_screen(eid: Engine, exts: dict[str, ExtendedParametrization], curren
     parameter values, every candidate off), in one batch of the identification engine ``eid``.
 
     exts: {effect: the current model extended by it} (search bounds, meaningful floors); jac_svd: the current
-    model's residual Jacobian SVD (``tuner.diagnosis.refit.base_jacobian``) or None; grid_points: as the
+    model's residual Jacobian SVD (``tuner.diagnosis.extended_parametrization.base_jacobian``) or None; grid_points: as the
     refit's line search. Returns {effect: ScreenRow}; an effect none of whose points can be simulated is left
     out, and so are all when the current model cannot be simulated."""
     points, owners = [current], []

@@ -25,7 +25,7 @@ NOTES = {e.name: e.note for e in ALL_EFFECTS.values() if e.note}
 ACQUISITION_CAUSES = tuple(e.name for e in ALL_EFFECTS.values() if e.acquisition)
 
 
-#: the regions of ``tuner.diagnosis.residuals.map_summary`` in the verdict's words
+#: the regions of ``tuner.diagnosis.residual_map.map_summary`` in the verdict's words
 REGION_WORDS = {"near_reversal": "near velocity reversal", "stroke_ends": "at the stroke ends",
                 "stroke_band": "at one stroke position", "above_knee": "above the blow-off knee"}
 
@@ -196,7 +196,7 @@ def _form_tried_text(row: dict, noise: float) -> str:
 
 
 def map_text(summary: dict | None) -> str:
-    """Where the residual lives on the restoring-force plane (``residuals.map_summary``), for the verdict: each
+    """Where the residual lives on the restoring-force plane (``residual_map.map_summary``), for the verdict: each
     region holding a disproportionate share of its power, with that share and its share of the time, and the
     difference between the loop's branches when it is a hysteresis; '' when neither (or no summary)."""
     if not summary:

@@ -10,6 +10,7 @@ import socket
 import sys
 import time
 import traceback
+from dataclasses import dataclass
 from pathlib import Path
 
 from tqdm import tqdm
@@ -25,9 +26,29 @@ from tuner.identification.fit import FitSettings
 from tuner.results.fleet_summary import OUTLIER_K, OUTLIER_TOLERANCE, write_atomic, write_summary
 from tuner import strict_json
 
-__all__ = ["run_row", "run_batch", "ROW_FORMAT"]
+__all__ = ["run_row", "run_batch", "BatchOptions", "ROW_FORMAT"]
 
 ROW_FORMAT = "tuner-batch-row/1"
+
+
+@dataclass(frozen=True)
+class BatchOptions:
+    """How ``run_batch`` runs a manifest (the command line's options of ``python -m tuner batch``). ``scheduler``:
+    where the rows run (``tuner.executors.parse_scheduler``'s spec; None: the default pool); ``settings``:
+    FitSettings fields used where the manifest leaves them open; ``diagnose``: each row's job diagnoses after its
+    fit; ``row_workers``: worker processes of each row's own fit (0: in the row's process); ``outlier_k``,
+    ``outlier_tolerance``: the fleet summary's outlier rule (``tuner.results.fleet_summary``); ``progress``: the
+    progress bar (None: when stderr is a terminal); ``figures``: False writes each row's report without its figures
+    (``tuner.results.report.make_report``: about 7 s less a row)."""
+
+    scheduler: str | None = None
+    settings: dict | None = None
+    diagnose: bool = False
+    row_workers: int = 0
+    outlier_k: float = OUTLIER_K
+    outlier_tolerance: float = OUTLIER_TOLERANCE
+    progress: bool | None = None
+    figures: bool = True
 
 
 def _now() -> str:
@@ -147,8 +168,8 @@ def run_row(task: dict) -> dict:
             if not job.wants_diagnosis(settings, valid):
                 raise ValueError(f"{task['where']}: the diagnosis needs one of {', '.join(EFFECT_MODELS)} "
                                  f"in 'models'")
-        job.run(ident, valid, folder, settings, diagnose_after=task["diagnose"], provenance=provenance,
-                figures=task["figures"], log=log)
+        job.run(ident, valid, folder, settings, log=log,
+                options=job.JobOptions(diagnose_after=task["diagnose"], provenance=provenance, figures=task["figures"]))
         rec = _record(task, folder, started, time.perf_counter() - t0, n_lines)
         write_atomic(folder / "done.json", strict_json.dumps(rec, indent=1, sort_keys=True))
         (folder / "failed.json").unlink(missing_ok=True)
@@ -231,22 +252,17 @@ def _batch_settings(settings: dict | None, row_workers: int) -> dict:
     return base
 
 
-def run_batch(manifest, out, *, scheduler: str | None = None, settings: dict | None = None,
-              diagnose: bool = False, row_workers: int = 0, outlier_k: float = OUTLIER_K,
-              outlier_tolerance: float = OUTLIER_TOLERANCE, progress: bool | None = None, figures: bool = True,
-              log=print) -> dict:
-    """Run (or resume) the batch of ``manifest`` into ``out``; write the fleet summary.
-
-    settings: FitSettings fields used where the manifest leaves them open; figures: False writes each row's
-    report without its figures (``tuner.results.report.make_report``: about 7 s less a row). Returns {"rows": [per
+def run_batch(manifest, out, *, options: BatchOptions = BatchOptions(), log=print) -> dict:
+    """Run (or resume) the batch of ``manifest`` into ``out`` as ``options`` say (``BatchOptions``); write the
+    fleet summary. Returns {"rows": [per
     manifest row: id, type, status ('done', 'failed', 'pending'), error, ran (bool: run now),
     record], "ran": [ids run now], "summary": paths, "outliers": {id: info}, "elapsed_s"}.
     """
     rows = read_fleet_manifest(manifest)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    base = _batch_settings(settings, row_workers)
-    tasks = [_task(r, out, base, diagnose, row_workers, figures) for r in rows]
+    base = _batch_settings(options.settings, options.row_workers)
+    tasks = [_task(r, out, base, options.diagnose, options.row_workers, options.figures) for r in rows]
     state = {t["id"]: {"row": t["row"], "id": t["id"], "damper_id": t["damper_id"], "session": t["session"],
                        "type": t["type"], "seed": t["settings"].get("seed"), "status": "pending", "error": "",
                        "ran": False, "record": None} for t in tasks}
@@ -258,7 +274,7 @@ def run_batch(manifest, out, *, scheduler: str | None = None, settings: dict | N
             todo.append(t)
     n_skip = len(tasks) - len(todo)
     t0 = time.perf_counter()
-    ex = FleetExecutor(scheduler)
+    ex = FleetExecutor(options.scheduler)
     log(f"batch: {len(tasks)} rows, {n_skip} finished earlier, {len(todo)} to run on a {ex.description}; "
         f"results in {out}")
     if todo and ex.kind != "address":  # build the FMUs once here, not concurrently in every worker
@@ -268,7 +284,7 @@ def run_batch(manifest, out, *, scheduler: str | None = None, settings: dict | N
     try:
         if todo:
             bar = tqdm(total=len(todo), unit="row", desc="fleet", file=sys.stderr,
-                       disable=(not sys.stderr.isatty()) if progress is None else not progress)
+                       disable=(not sys.stderr.isatty()) if options.progress is None else not options.progress)
             with ex:
                 for t in todo:
                     _batch_log(out, f"start {t['id']} ({t['where']})")
@@ -292,7 +308,7 @@ def run_batch(manifest, out, *, scheduler: str | None = None, settings: dict | N
             bar.close()
     finally:
         rows_out = [state[t["id"]] for t in tasks]
-        summary = write_summary(out, rows_out, k=outlier_k, tolerance=outlier_tolerance,
+        summary = write_summary(out, rows_out, k=options.outlier_k, tolerance=options.outlier_tolerance,
                                 title=f"Fleet summary: {Path(manifest).name}")
     for r in rows_out:
         o = summary["outliers"].get(r["id"])

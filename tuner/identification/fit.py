@@ -54,7 +54,7 @@ from tuner.metrics import noise_std
 from tuner.progress import advance, expect, stage
 from tuner import strict_json
 
-__all__ = ["FitSettings", "FitResult", "Identified", "fit", "initial_guess", "validation_run", "identify",
+__all__ = ["FitSettings", "FitResult", "Identified", "IdentifyOptions", "fit", "initial_guess", "validation_run", "identify",
            "search_stop_now", "first_improvement", "search_iterations_left", "quality_gate", "QUALITY_AME_PCT",
            "RACE_RATIO", "RESTART_LADDER",
            "refinement_starts", "fit_order"]
@@ -185,18 +185,27 @@ class Identified:
     intervals: dict | None = None
 
 
-def identify(model: str, signals: list[Signals], settings: FitSettings, par: Parametrization,
-              ckpt: Path, digest: str, log, *, rival: tuple[str, float] | None = None, rival_at_floor: bool = False,
-              intervals: bool = False, floor: ResidualFloor | None = None) -> Identified:
-    """Run Firefly and the local refinements for one model.
+@dataclass(frozen=True)
+class IdentifyOptions:
+    """What ``identify`` knows beside the model and its data. ``rival``: (model, identification RMSE [N]) of another
+    base form already fitted to the same data; when the first refinement leaves more than ``RACE_RATIO`` x its
+    RMSE, this form is clearly the wrong one and gets no restart (the effort goes to the contender);
+    ``rival_at_floor``: the rival's refinement ended at the residual floor, and this form's search stops once it is
+    RACE_RATIO x behind (``search_stop_now``). ``intervals``: the parameters' intervals at the best point too,
+    through the same engine's workers (d + 1 simulations in parallel). ``floor``: the problem's residual floor; a
+    first refinement within ``FLOOR_REACHED`` x of it is not restarted."""
 
-    rival: (model, identification RMSE [N]) of another base form already fitted to the same data;
-    when the first refinement leaves more than ``RACE_RATIO`` x its RMSE, this form is clearly the
-    wrong one and gets no restart (the effort goes to the contender); ``rival_at_floor``: the rival's refinement
-    ended at the residual floor, and this form's search stops once it is RACE_RATIO x behind (``search_stop``).
-    intervals: the parameters' intervals
-    at the best point too, through the same engine's workers (d + 1 simulations in parallel). floor: the
-    problem's residual floor; a first refinement within ``FLOOR_REACHED`` x of it is not restarted."""
+    rival: tuple[str, float] | None = None
+    rival_at_floor: bool = False
+    intervals: bool = False
+    floor: ResidualFloor | None = None
+
+
+def identify(model: str, signals: list[Signals], settings: FitSettings, par: Parametrization,
+             ckpt: Path, digest: str, log, *, options: IdentifyOptions = IdentifyOptions()) -> Identified:
+    """Run Firefly and the local refinements for one model (``options``: the rival, the intervals, the residual
+    floor; ``IdentifyOptions``), its Firefly state checkpointed in ``ckpt`` under the data's ``digest``."""
+    rival, rival_at_floor = options.rival, options.rival_at_floor
     opts = firefly.FireflyOptions(population=settings.population, max_iterations=settings.iterations,
                                   stop_tol=settings.stop_tol)
     key = _settings_hash(settings, digest, model)
@@ -247,9 +256,10 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         result = firefly.run(evaluate, par.dimension, options=opts, seed=settings.seed, state=state,
                              callback=callback, initial=initial)
         last_failure = eng.last_failure
-        ref = _refine(eng, model, par, settings, result, guess, guess_p, rival, log, floor)
+        ref = _refine(eng, model, par, settings, result, guess_p, log, options)
         elapsed = time.perf_counter() - t_start
-        ivs = _intervals(eng, model, signals, par, par.to_params(ref.z), log) if intervals and ref.g > 0.0 else None
+        ivs = (_intervals(eng, model, signals, par, par.to_params(ref.z), log) if options.intervals and ref.g > 0.0
+               else None)
     if ref.g <= 0.0:
         raise ValueError(f"[{model}] no candidate could be simulated; the last failure: {last_failure or 'none'}. "
                          f"Check the units of the input files (a stroke in mm read as m exceeds the FMU's "
@@ -418,15 +428,16 @@ class Refinement:
         return "residual floor" if self.floor_stop is not None else None
 
 
-def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result, guess: np.ndarray, guess_p: dict,
-            rival, log, floor: ResidualFloor | None = None) -> Refinement:
-    """The local refinements from the Firefly best and the restarts (the data-driven start and its
+def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result, guess_p: dict, log,
+            options: IdentifyOptions) -> Refinement:
+    """The local refinements from the Firefly best and the restarts (the data-driven start ``guess_p`` and its
     ``RESTART_LADDER`` variants): the Firefly population often collapses into one basin, on random dampers
     sometimes a degenerate one (silent blocks as pure dashpots, 2.2x the floor) that the data-driven start
     avoids; the best refinement wins (benchmarks/convergence.py). A form ``RACE_RATIO`` x worse than its
-    ``rival`` after the first gets no restart, nor one whose first refinement reaches the residual ``floor``
-    (``_at_floor``). The progress ``log`` is told the seconds the refinements still to run will take, at the
-    measured time of those done."""
+    ``options.rival`` after the first gets no restart, nor one whose first refinement reaches the residual
+    ``options.floor`` (``_at_floor``). The progress ``log`` is told the seconds the refinements still to run will
+    take, at the measured time of those done."""
+    rival, floor, guess = options.rival, options.floor, par.from_params(guess_p)
     none = PolishResult(result.x_best, result.fitness_best, 0, stop="no local refinement (--polish 0)",
                         converged=False, rule="not started", jacobians=0, predicted=1.0, budget_spent=False)
     ref = Refinement(result.x_best, result.fitness_best, 0, none, [], None)
@@ -724,8 +735,9 @@ def _fit_model(model: str, problem: Problem, settings: FitSettings, checkpoints:
     fitted_bases = [(m, histories[m]["identification_rmse_n"]) for m in histories if m in EFFECT_MODELS]
     rival = min(fitted_bases, key=lambda r: r[1]) if model in EFFECT_MODELS and fitted_bases else None
     found = identify(model, problem.sig_id, settings, par, checkpoints / f"{model}.json", problem.digest, log,
-                     rival=rival, rival_at_floor=rival is not None and histories[rival[0]]["floor_stop"] is not None,
-                     intervals=True, floor=floor)
+                     options=IdentifyOptions(rival=rival, intervals=True, floor=floor,
+                                             rival_at_floor=rival is not None
+                                             and histories[rival[0]]["floor_stop"] is not None))
     hist = found.history
     entry = {"values": found.values, "units": dict(par.units), "bounds": {n: list(par.bounds[n]) for n in par.names},
              "parametrization": settings.data.parametrization, **found.intervals}

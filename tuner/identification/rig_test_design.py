@@ -72,7 +72,8 @@ from tuner.identification.runner import FmuRunner
 from tuner.metrics import Z95
 from tuner.progress import advance, stage
 
-__all__ = ["RigLimits", "Candidate", "CandidateGain", "ModelDesign", "candidate_tests", "rank_candidates",
+__all__ = ["RigLimits", "Candidate", "CandidateGain", "ModelDesign", "RankingOptions", "candidate_tests",
+           "rank_candidates",
            "combined_shift", "held_coordinates",
            "design_from_folder", "limits_from_tests", "EASE_IN_S", "PRIOR_UNSEEN", "DESIGN_FOLDER", "NO_FIT_SHIFT",
            "NO_CANDIDATE_SHIFT"]
@@ -303,14 +304,28 @@ def _total(cov_u: np.ndarray, shift_u: np.ndarray) -> np.ndarray:
     return cov_u + np.outer(shift_u, shift_u)
 
 
-def rank_candidates(model: str, values: dict, iv: ModelIntervals, candidates: list[Candidate], *, fit_rate_hz: float,
-                    warmup_s: float, targets: list | None = None, limits: RigLimits | None = None,
-                    engine: str | None = None, progress=None) -> list[CandidateGain]:
-    """The ``candidates`` ranked by their expected gain on the ``targets`` (default: the parameters ``iv`` says
-    are not determined) of ``model`` fitted at ``values`` (SI) with the intervals ``iv`` (module docstring);
-    prepared at ``fit_rate_hz`` [Hz] with ``warmup_s`` [s] as the fit's tests; those whose predicted peak force
-    exceeds ``limits.force_n`` are left out. ``engine``: the identification engine (default the fastest
-    here). ``progress``: called with the share done (0-1). ValueError when there is nothing to rank."""
+@dataclass(frozen=True)
+class RankingOptions:
+    """How ``rank_candidates`` ranks: the candidates prepared at ``fit_rate_hz`` [Hz] with ``warmup_s`` [s] as the
+    fit's tests; the ``targets`` (None: the parameters the intervals say are not determined); the rig's ``limits``
+    (a candidate whose predicted peak force exceeds ``limits.force_n`` is left out; None: none); the
+    identification ``engine`` (None: the fastest here); ``progress``: called with the share done (0-1)."""
+
+    fit_rate_hz: float
+    warmup_s: float
+    targets: list | None = None
+    limits: RigLimits | None = None
+    engine: str | None = None
+    progress: object = None
+
+
+def rank_candidates(model: str, values: dict, iv: ModelIntervals, candidates: list[Candidate],
+                    options: RankingOptions) -> list[CandidateGain]:
+    """The ``candidates`` ranked by their expected gain on the targets of ``options`` (``RankingOptions``) of
+    ``model`` fitted at ``values`` (SI) with the intervals ``iv`` (module docstring). ValueError when there is
+    nothing to rank."""
+    fit_rate_hz, warmup_s, targets = options.fit_rate_hz, options.warmup_s, options.targets
+    limits, engine, progress = options.limits, options.engine, options.progress
     if iv.local is None:
         raise ValueError(f"{model}: no covariance in the identification's coordinates in parameters.json; refit "
                          "with this version")
@@ -429,9 +444,9 @@ def design_from_folder(folder, out=None, *, limits: RigLimits | None = None, top
             continue
         stage(log, f"design {model}")
         log(f"design: {model}: {len(targets)} parameters not determined ({', '.join(targets)}); ranking ...")
-        ranked = rank_candidates(model, entry["values"], iv, candidates, fit_rate_hz=settings["fit_rate_hz"],
-                                 warmup_s=settings["warmup_s"], limits=limits, engine=fastest_engine(),
-                                 progress=lambda share: advance(log, share))
+        ranked = rank_candidates(model, entry["values"], iv, candidates, RankingOptions(
+            fit_rate_hz=settings["fit_rate_hz"], warmup_s=settings["warmup_s"], limits=limits, engine=fastest_engine(),
+            progress=lambda share: advance(log, share)))
         if ranked[0].note:
             log(f"design: {model}: {ranked[0].note}")
         designs.append(ModelDesign(model, targets, ranked))

@@ -15,9 +15,10 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from tuner.diagnosis.residuals import (BANDS_HZ, FIGURE_TOPICS, GAP_WINDOW_S, MIN_BIN_SAMPLES, PreparedTest,
-                                       TestResidual, dot, figure_files, identification_only, knee_velocity,
-                                       map_summary, residual_map, residual_summary, spectra, true_runs)
+from tuner.diagnosis.residual_map import MIN_BIN_SAMPLES, identification_only, map_summary, residual_map
+from tuner.diagnosis.residual_signatures import knee_velocity
+from tuner.diagnosis.residual_tests import GAP_WINDOW_S, PreparedTest, TestResidual, dot
+from tuner.diagnosis.residuals import BANDS_HZ, FIGURE_TOPICS, figure_files, residual_summary, spectra, true_runs
 from tuner.diagnosis.result import Diagnosis
 from tuner.results.figure_layout import RIGHT_IN, SUPTITLE_IN, TOP_IN, TWIN_AXIS_IN, WGAP_IN, fixed_margins
 from tuner.worker_processes import map_in_workers

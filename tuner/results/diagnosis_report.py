@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 
 from tuner.formatting import effect_value, fmt_quantity
-from tuner.diagnosis.residuals import MIN_BIN_SAMPLES
+from tuner.diagnosis.residual_map import MIN_BIN_SAMPLES
 from tuner.results.html import MODEL_LABEL, esc, figure_html, table, write_page
 from tuner.results.recommendation import recommend, recommendation_html
 from tuner import strict_json

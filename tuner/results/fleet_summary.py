@@ -249,12 +249,15 @@ def write_summary(out: Path, rows: list[dict], *, k: float = OUTLIER_K, toleranc
     for line in lines:
         w.writerow({c: (repr(v) if isinstance(v, float) else v) for c, v in line.items()})
     csv_path = write_atomic(out / "summary.csv", buf.getvalue())
-    html_path = write_atomic(out / "summary.html", _html(title, lines, tests, models, par_cols, figures, out, k,
-                                                         tolerance))
+    html_path = write_atomic(out / "summary.html", _html(title, lines, tests, models, par_cols, figures, out,
+                                                         outlier_rule_text(k, tolerance)))
     return {"csv": csv_path, "html": html_path, "figures": figures, "outliers": outliers}
 
 
-def _html(title, lines, tests, models, par_cols, figures, out, k, tolerance) -> str:
+def _html(title, lines, tests, models, par_cols, figures, out, rule: str) -> str:
+    """summary.html: the rows' table (``tests``, ``models`` and the parameter columns ``par_cols``), the per-type
+    ``figures`` (paths under ``out``), the identified parameters and the verdicts; ``rule``: the outlier rule's
+    words (``outlier_rule_text``)."""
     e = html.escape
     n_done = sum(1 for x in lines if x["status"] == "done")
     n_fail = sum(1 for x in lines if x["status"] == "failed")
@@ -266,7 +269,7 @@ def _html(title, lines, tests, models, par_cols, figures, out, k, tolerance) -> 
          f"<h1>{e(title)}</h1>",
          f"<p>{len(lines)} rows: {n_done} done, {n_fail} failed, {len(lines) - n_done - n_fail} not run. "
          f"Outliers: {e(', '.join(odd)) if odd else 'none'}.</p>",
-         f"<p><b>Outlier rule.</b> {e(outlier_rule_text(k, tolerance))}</p>",
+         f"<p><b>Outlier rule.</b> {e(rule)}</p>",
          "<h2>Dampers</h2><table><tr><th>row</th><th class=l>id</th><th class=l>type</th><th class=l>status</th>"
          "<th class=l>outlier</th><th class=l>causes</th>"
          + "".join(f"<th>ident. RMSE {e(m)} [N]</th>" for m in models)

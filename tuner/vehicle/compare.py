@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +30,7 @@ from tuner.vehicle.cosim import VehicleCosim, check_damper_fmu
 from tuner.vehicle.hunting import critical_speed_time_domain, eigen_critical_speed
 from tuner import strict_json
 
-__all__ = ["SCENARIO_NAMES", "compare_fmus", "fmu_scenarios", "ScenarioTask", "FmuScenarios", "scenario_runs",
+__all__ = ["SCENARIO_NAMES", "compare_fmus", "fmu_scenarios", "ScenarioOptions", "ScenarioTask", "FmuScenarios", "scenario_runs",
            "run_figures", "summary_rows", "format_table",
            "VEHICLE_FOLDER", "fmu_labels", "maxwell_values"]
 
@@ -96,18 +96,27 @@ def fmu_labels(paths) -> list[str]:
 
 
 @dataclass(frozen=True)
+class ScenarioOptions:
+    """How ``compare_fmus`` runs each FMU's ``scenarios`` (of SCENARIO_NAMES): the co-simulation ``step`` [s], the
+    irregularity realisations' master ``seed``; the hunting search between ``v_min`` and ``v_max`` to ``tol`` [m/s]
+    after a lateral ``kick`` [m]."""
+
+    scenarios: tuple = SCENARIO_NAMES
+    step: float = 1e-3
+    seed: int = 0
+    v_min: float = 100 / 3.6
+    v_max: float = 1000 / 3.6
+    tol: float = 1 / 3.6
+    kick: float = 3e-3
+
+
+@dataclass(frozen=True)
 class ScenarioTask:
-    """One FMU's scenarios for ``fmu_scenarios`` (a worker's task): speeds in m/s, ``kick`` in m, ``step`` in s."""
+    """One FMU's scenarios for ``fmu_scenarios`` (a worker's task): its label, its path and the ``options``."""
 
     label: str
     fmu: str
-    scenarios: tuple
-    step: float
-    seed: int
-    v_min: float
-    v_max: float
-    tol: float
-    kick: float
+    options: ScenarioOptions
 
 
 @dataclass
@@ -126,27 +135,27 @@ def fmu_scenarios(task: ScenarioTask, log=None) -> FmuScenarios:
     come (None, in a worker: the lines are kept in the result for the job's log)."""
     lines, entries, histories = [], {"fmu": task.fmu}, {}
     say = log if log is not None else lines.append
-    runs, lab = scenario_runs(), task.label
-    with VehicleCosim(Path(task.fmu), step=task.step) as co:
-        for name in task.scenarios:
+    runs, lab, o = scenario_runs(), task.label, task.options
+    with VehicleCosim(Path(task.fmu), step=o.step) as co:
+        for name in o.scenarios:
             stage(say, f"{lab}: {name}")
             t0 = time.perf_counter()
             if name == "critical_speed":
-                say(f"{lab}: critical speed, kick runs of 8 s between {task.v_min * 3.6:.0f} and "
-                    f"{task.v_max * 3.6:.0f} km/h")
-                res = critical_speed_time_domain(co, task.v_min, task.v_max, tol=task.tol, kick=task.kick, log=say)
+                say(f"{lab}: critical speed, kick runs of 8 s between {o.v_min * 3.6:.0f} and "
+                    f"{o.v_max * 3.6:.0f} km/h")
+                res = critical_speed_time_domain(co, o.v_min, o.v_max, tol=o.tol, kick=o.kick, log=say)
                 entry = {"critical_speed_kmh": res.speed_kmh if math.isfinite(res.speed) else None,
                          "stable_up_to_max": not math.isfinite(res.speed), "unstable_at_min": res.unstable_at_min,
                          "runs": [{"speed_kmh": v * 3.6, "growth_rate_per_s": s, "completed": d}
-                                  for v, s, d in res.runs], "kick_m": task.kick}
+                                  for v, s, d in res.runs], "kick_m": o.kick}
                 mx = maxwell_values(Path(task.fmu))
                 if mx is not None:
-                    ve = eigen_critical_speed(mx["k_s"], mx["c"], co.params, v_max=task.v_max)
+                    ve = eigen_critical_speed(mx["k_s"], mx["c"], co.params, v_max=o.v_max)
                     entry["eigenvalue_critical_speed_kmh"] = ve * 3.6 if math.isfinite(ve) else None
                 histories[name] = res
             else:
                 sc = runs[name]
-                run = co.run(sc.speed, sc.track(), _irregularity(sc, task.seed, co.params), sc.duration_s,
+                run = co.run(sc.speed, sc.track(), _irregularity(sc, o.seed, co.params), sc.duration_s,
                              s0=START_OFFSET)
                 entry = run_figures(run)
                 histories[name] = run
@@ -157,15 +166,15 @@ def fmu_scenarios(task: ScenarioTask, log=None) -> FmuScenarios:
     return FmuScenarios(lab, entries, histories, lines)
 
 
-def compare_fmus(fmus, out: Path, *, scenarios=SCENARIO_NAMES, step: float = 1e-3, seed: int = 0,
-                 v_min: float = 100 / 3.6, v_max: float = 1000 / 3.6, tol: float = 1 / 3.6, kick: float = 3e-3,
-                 executor=None, log=print) -> dict:
-    """Run ``scenarios`` with each damper FMU of ``fmus`` (paths), write ``vehicle.json`` and one figure per
-    scenario (``<scenario>.png``) into ``out``; return the JSON content. Speeds in m/s, ``kick`` in m,
-    ``step`` in s; ``seed``: master seed of the irregularity realisations. ``executor``: an entered
+def compare_fmus(fmus, out: Path, *, options: ScenarioOptions = ScenarioOptions(), executor=None, log=print) -> dict:
+    """Run the scenarios of ``options`` (``ScenarioOptions``) with each damper FMU of ``fmus`` (paths), write
+    ``vehicle.json`` and one figure per scenario (``<scenario>.png``) into ``out``; return the JSON content.
+    ``executor``: an entered
     ``tuner.executors.FleetExecutor`` on which the FMUs run side by side (None: one after the other in
     this process; the results are the same). ``log``: progress lines (a :class:`tuner.progress.JobProgress`
     also gets the stages; each FMU's lines come when it is done)."""
+    options = replace(options, scenarios=tuple(options.scenarios))
+    scenarios, step, seed, kick = options.scenarios, options.step, options.seed, options.kick
     paths = [Path(f) for f in fmus]
     if not paths:
         raise ValueError("give at least one damper FMU")
@@ -176,8 +185,7 @@ def compare_fmus(fmus, out: Path, *, scenarios=SCENARIO_NAMES, step: float = 1e-
         raise ValueError(f"unknown scenario(s) {unknown}; choose from {list(SCENARIO_NAMES)}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    tasks = [ScenarioTask(lab, str(p), tuple(scenarios), step, seed, v_min, v_max, tol, kick)
-             for lab, p in zip(fmu_labels(paths), paths)]
+    tasks = [ScenarioTask(lab, str(p), options) for lab, p in zip(fmu_labels(paths), paths)]
     done = {}
     for k, found, err in (executor.run(fmu_scenarios, tasks) if executor is not None else
                           ((k, fmu_scenarios(t, log), None) for k, t in enumerate(tasks))):

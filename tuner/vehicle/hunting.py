@@ -34,6 +34,7 @@ from campaign.track import Track, straight
 from campaign.vehicle import VehicleParams, critical_speed
 
 __all__ = ["kick_state", "dominant_rate", "HuntingSearch", "critical_speed_time_domain", "critical_speed_near",
+           "NearSearch",
            "eigen_critical_speed",
            "DEFAULT_KICK", "WHEELSET_LATERAL"]
 
@@ -162,11 +163,26 @@ def _bisect(sigma, low: tuple, high: tuple, tol: float, runs: list, kick: float)
     return HuntingSearch(float(speed), (lo, hi), runs, kick)
 
 
-def critical_speed_near(cosim, guess: float, *, half_width: float = 30.0 / 3.6, v_min: float = 100.0 / 3.6,
-                        v_max: float = 1000.0 / 3.6, kick: float = DEFAULT_KICK, points: int = 3,
-                        stages: int = 3, t_end: float = 8.0, abort_ratio: float = 20.0) -> HuntingSearch:
+@dataclass(frozen=True)
+class NearSearch:
+    """How ``critical_speed_near`` searches: the first bracket's ``half_width`` around the guess, within [``v_min``,
+    ``v_max``] [m/s]; ``points`` kick runs of ``kick`` [m] and ``t_end`` [s] per stage, ``stages`` stages; a run
+    stops once its motion grows ``abort_ratio`` x (``_sigma``)."""
+
+    half_width: float = 30.0 / 3.6
+    v_min: float = 100.0 / 3.6
+    v_max: float = 1000.0 / 3.6
+    kick: float = DEFAULT_KICK
+    points: int = 3
+    stages: int = 3
+    t_end: float = 8.0
+    abort_ratio: float = 20.0
+
+
+def critical_speed_near(cosim, guess: float, *, search: NearSearch = NearSearch()) -> HuntingSearch:
     """Critical speed [m/s] of a vehicle whose critical speed is expected near ``guess`` [m/s] (a damper close
-    to one whose critical speed is known), robust to a run whose growth rate is wrong.
+    to one whose critical speed is known), robust to a run whose growth rate is wrong; ``search``: the
+    ``NearSearch`` below.
 
     Bracket: ``guess +- half_width`` [m/s]; when sigma has the same sign at both ends, the bracket moves away
     from ``guess`` in steps that double, never beyond [``v_min``, ``v_max``] [m/s]. Then sigma on ``points``
@@ -184,6 +200,8 @@ def critical_speed_near(cosim, guess: float, *, half_width: float = 30.0 / 3.6, 
     its extrapolation, from at most a third of the bracket's width / 3^(stages - 2) below. With the linear
     Maxwell FMU it agrees with the eigenvalues (``tests/test_vehicle_propagation.py``). ``bracket`` of the
     result: the runs' bracket [m/s]."""
+    half_width, v_min, v_max, kick = search.half_width, search.v_min, search.v_max, search.kick
+    points, stages, t_end, abort_ratio = search.points, search.stages, search.t_end, search.abort_ratio
     if not (0.0 < v_min < v_max and math.isfinite(v_max) and half_width > 0.0 and points >= 2 and stages >= 1):
         raise ValueError(f"need 0 < v_min < v_max, half_width > 0, points >= 2 and stages >= 1, got {v_min}, "
                          f"{v_max} m/s, {half_width} m/s, {points}, {stages}")

@@ -49,7 +49,7 @@ from tuner.metrics import Z95
 from tuner.progress import advance
 from tuner.vehicle.compare import VEHICLE_FOLDER, run_figures, scenario_run
 from tuner.vehicle.cosim import DEFAULT_STEP, VehicleCosim
-from tuner.vehicle.hunting import DEFAULT_KICK, critical_speed_near
+from tuner.vehicle.hunting import DEFAULT_KICK, NearSearch, critical_speed_near
 
 __all__ = ["PropagationSettings", "DrawTask", "DrawOutcome", "FigureInterval", "FmuIntervals", "run_draw",
            "figure_interval", "propagate", "close_cached", "INTERVALS_FILE", "INTERVALS_FOR", "NOMINAL_OFFSETS"]
@@ -163,8 +163,9 @@ def run_draw(task: DrawTask) -> DrawOutcome:
     try:
         co = _cosim(task.fmu, s.step_s)
         co.set_fmu_parameters(task.parameters)
-        hunt = critical_speed_near(co, task.guess, half_width=s.half_width_ms, v_min=s.v_min_ms, v_max=s.v_max_ms,
-                                   kick=s.kick_m, points=s.points, stages=s.stages)
+        hunt = critical_speed_near(co, task.guess, search=NearSearch(
+            half_width=s.half_width_ms, v_min=s.v_min_ms, v_max=s.v_max_ms, kick=s.kick_m, points=s.points,
+            stages=s.stages))
         peak = run_figures(scenario_run(co, "curve_entry", s.irregularity_seed))["peak_damper_force_n"]
     except Exception as err:  # noqa: BLE001 -- a draw the FMU cannot run is counted, not fatal
         return DrawOutcome(task.index, math.nan, False, math.nan, 0, time.perf_counter() - t0,

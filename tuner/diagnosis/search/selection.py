@@ -1,0 +1,220 @@
+"""From the candidates' rows to the causes: the ranking (``rank``: ``promote``, the lead's continuation
+``continue_lead``, the ``intervals``, the first decision) and the forward selection (``select``: ``next_cause``
+on top of the causes found, named by ``name_next``). SI units; forces in N."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from damper_fmu.effect_catalogue import ALL_EFFECTS
+
+from tuner.diagnosis.cost_model import after_ranking
+from tuner.diagnosis.extended_parametrization import ExtendedParametrization, base_jacobian
+from tuner.diagnosis.refit import RefitProfile, effect_intervals, refit
+from tuner.diagnosis.rules import ACCEPT_SCORE, cross_check, decide, earned, scores
+from tuner.diagnosis.screen import profile_screen
+from tuner.diagnosis.search.reference import base_settled, set_none
+from tuner.diagnosis.search.rows import attach_interval, held_out
+from tuner.diagnosis.search.state import Fit, SearchState
+from tuner.diagnosis.verdict import UNITS, interval_text
+from tuner.formatting import fmt_quantity
+
+__all__ = ["expect_after_ranking", "rank", "promote", "continue_lead", "intervals", "select", "next_cause",
+           "rescreened", "name_next"]
+
+
+def expect_after_ranking(s: SearchState) -> None:
+    """The cost of the steps the ranking decides (``tuner.diagnosis.cost_model.after_ranking``): a leading
+    candidate's continuation, the intervals, the forward selection, the passes of the forms (they run where
+    the lead, or the base when nothing scores, leaves a residual above the floor: ``form_steps.weigh_forms``,
+    ``form_steps.forms_on_top``)."""
+    scoring = [r for r in s.ranking if r["effect"] != "none" and scores(r)]
+    lead = max(scoring, key=lambda r: r["score"]) if scoring else s.none_row
+    after_ranking(s.cost, s.par.dimension, s.settings, scoring=len(scoring),
+                  forms_run=s.above_floor(s.none_row["identification_rmse_n"])
+                  and s.above_floor(lead["identification_rmse_n"]))
+    s.forecast()
+
+
+def rank(s: SearchState, refitted: list[str]) -> tuple:
+    """From the candidates' rows: ``promote`` among the ``refitted`` effects, the lead's continuation, the
+    intervals, the ranking sorted with 'none' last, and its first decision (``rules.decide``: the cause, its
+    row, the unresolved rows)."""
+    s.ranking[:] = [r for r in s.ranking if r["effect"] != "none"]
+    promote(s, refitted)
+    expect_after_ranking(s)
+    continue_lead(s)
+    s.step_done("continuation")
+    s.at("intervals of the candidates", 0.8)
+    intervals(s)
+    s.step_done("intervals")
+    s.ranking.sort(key=lambda r: -r["score"])
+    s.ranking.append(s.none_row)
+    return decide(s.ranking)
+
+
+def promote(s: SearchState, effects) -> None:
+    """One best model: when a refit of one of ``effects`` fits the identification data better with its
+    effect switched off than the base refit does, that point is the base ('none') and every score is
+    taken against it again, so 'none' never loses to an effect of size zero."""
+    offs = [(e, {**s.refits[e].params(), **{n: 0.0 for n in s.refits[e].ext.extra}}) for e in effects]
+    if not offs:
+        return
+    sse = s.eid.sse_batch([p for _, p in offs])
+    for (effect, _), sse_e in zip(offs, sse):
+        row = next(r for r in s.ranking if r["effect"] == effect)
+        row["identification_rmse_effect_off_n"] = math.sqrt(sse_e / s.eid.n_samples)
+    k = int(np.argmin(sse))
+    if not (np.isfinite(sse[k]) and s.eid.n_samples / sse[k] > s.g_none):
+        return
+    effect, params = offs[k]
+    set_none(s, s.par.from_params(params), s.eid.n_samples / float(sse[k]), s.none_row["evaluations"] + len(offs))
+    s.none_row["from_refit_of"] = effect
+    s.log(f"  none           the {effect} refit with its effect off fits better than the base refit: it is "
+          f"the base now (identification RMSE {s.none_row['identification_rmse_n']:.1f} N); scores "
+          f"taken again")
+
+
+def continue_lead(s: SearchState) -> None:
+    """The leading candidate's refit is continued to convergence (absorbed effects converge slowly), and
+    so is the base refit, so that the continuation is not credited to the effect; a base refit that settled
+    where it still is (``reference.refit_none``) is not continued: its own rule says more Jacobians would not
+    move it beyond the data's resolution (on a hidden 0.52 mm gap, 3 Jacobians of the two-chamber base, 10 s,
+    left it at 847.0 N)."""
+    lead = max(s.ranking, key=lambda r: r["score"] if r["resolved"] else -math.inf, default=None)
+    if not (lead and scores(lead) and s.settings.final_jacobians > 0):
+        return
+    if not base_settled(s):
+        pol = s.polish_quietly(s.par, s.z_none, s.settings.final_jacobians)
+        s.converged[""] = s.settled(pol, pol.fitness)
+        set_none(s, pol.z, pol.fitness, s.none_row["evaluations"] + pol.evaluations, rescore_ranking=False)
+    fit = s.refits[lead["effect"]]
+    pol = s.polish_quietly(fit.ext, fit.z, s.settings.final_jacobians)
+    g = pol.fitness
+    fit = s.refits[lead["effect"]] = Fit(fit.ext, pol.z, fit.evaluations + pol.evaluations)
+    s.converged[lead["effect"]] = s.settled(pol, g)
+    row = held_out(s, lead["effect"], fit.params(), fit.ext.extra, g, fit.evaluations, s.mse_none)
+    row.update({k: lead[k] for k in ("refitted", "screen") if k in lead})
+    s.ranking[s.ranking.index(lead)] = row
+    s.log(f"  {lead['effect']:14s} refined (base refit continued alike): " + ", ".join(
+        f"{k} = {v:.4g} {UNITS[k]}" for k, v in row["parameters"].items())
+        + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
+        + f"  identification RMSE {row['identification_rmse_n']:.1f} N (none: "
+        + f"{s.none_row['identification_rmse_n']:.1f} N)")
+    promote(s, [lead["effect"]])
+
+
+def intervals(s: SearchState) -> None:
+    """Significance: a 95 % interval of the magnitude (correlated residuals: block sandwich) for every
+    extension that earned its score with a force above the noise; then the cross-check of a fitted
+    delay with the one the base residual shows (the refit alone can trade a delay for table changes)."""
+    for row in s.ranking:
+        if row["effect"] != "none" and scores(row):
+            fit = s.refits[row["effect"]]
+            ci = effect_intervals(s.eid, fit.ext, fit.z)
+            attach_interval(row, ci, fit.ext, fit.ext.extra)
+            s.log(f"  {row['effect']:14s} 95 % interval " + ", ".join(
+                f"{n} {fmt_quantity(ci[n]['low'], UNITS[n])} .. {fmt_quantity(ci[n]['high'], UNITS[n])}"
+                for n in fit.ext.extra) + f" ({ci['_blocks']} residual blocks of "
+                f"{3 * ci['_correlation_time_s']:.2g} s): " + ("excludes zero" if row["significant"]
+                                                                else "NOT distinct from zero"))
+    for r in cross_check(s.ranking, s.evidence):
+        s.log(f"  time_delay {1e3 * r['parameters']['time_delay']:.3g} ms disagrees with the residual's "
+              f"delay: not a cause")
+
+
+def select(s: SearchState, causes: list[str], best: dict, selection: list) -> dict:
+    """Forward selection: add the best significant effect to the causes found, refit, repeat (up to
+    ``max_causes``); returns the final model's row (``causes`` and ``selection`` grow in place)."""
+    while causes and len(causes) < s.settings.max_causes:
+        step = next_cause(s, s.refits["+".join(causes)], best)
+        selection.append(step)
+        if step["cause"] == "none":
+            break
+        causes.append(step["cause"])
+        s.refits["+".join(causes)] = step.pop("refit")
+        best = step.pop("row")
+    return best
+
+
+def next_cause(s: SearchState, current: Fit, current_row: dict) -> dict:
+    """One forward-selection step from the current model (``current``: the Fit of the causes selected so
+    far, ``current_row`` its ranking row). Every catalogue effect not selected yet that earned its score
+    alone with a resolved force, and every other one the screen on top of the current model passes
+    (``rescreened``), is added to the current model and refitted as in the first round; the best is
+    continued to convergence. It is named when, against the current model, it earns a cause's rules.
+    Returns {"cause": effect or 'none', "tried": rows, and for a named cause "row" and "refit"}."""
+    others = [r["effect"] for r in s.ranking if r["effect"] not in current.ext.effects and r["effect"] != "none"
+              and "+" not in r["effect"] and scores(r)]
+    left = [e for e in s.settings.candidates if e not in current.ext.effects and e not in others]
+    exts = {e: ExtendedParametrization(s.par, f"{current.ext.effect}+{e}", s.peak, current.ext.stroke_range_m,
+                                       current.ext.stroke_limits, fixed=current.ext.fixed) for e in others + left}
+    if not exts:
+        return {"cause": "none", "tried": []}
+    params_cur = current.params()
+    sse_cur = float(s.eid.sse_batch([params_cur])[0])
+    first = next(iter(exts.values()))  # every new effect is off at the current point: its Jacobian, shared
+    jac = base_jacobian(s.eid, first, first.from_params(params_cur), dims=s.par.dimension)
+    others += rescreened(s, params_cur, {e: exts[e] for e in left}, jac, current.ext.effect)
+    if not others:
+        return {"cause": "none", "tried": []}
+    rows, fits = [], {}
+    for e in others:
+        ext = exts[e]
+        z0 = ext.from_params({**params_cur, **{n: 0.0 for n in ALL_EFFECTS[e].identified}})
+        fit = refit(s.eid, ext, z0, sse_cur, jac, s.settings, s.share,
+                    profile=RefitProfile(indices=range(len(current.ext.extra), len(ext.extra))))
+        fits[ext.effect] = Fit(ext, fit.z, fit.evaluations)
+        row = held_out(s, ext.effect, ext.to_params(fit.z), ext.extra, fit.fitness, fit.evaluations,
+                       current_row["validation_mse"], new=ALL_EFFECTS[e].identified)
+        row["added"] = e
+        rows.append(row)
+        s.log(f"  + {e:12s} on {current.ext.effect}: " + ", ".join(
+            f"{k} = {row['parameters'][k]:.4g} {UNITS[k]}" for k in ALL_EFFECTS[e].identified)
+            + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
+            + f"  effect {row['effect_rms_n']:.3g} N rms{'' if row['resolved'] else ' (below the noise)'}")
+    return name_next(s, rows, fits, current_row)
+
+
+def rescreened(s: SearchState, current: dict, exts: dict, jac, key: str) -> list[str]:
+    """The candidates that did not score alone (``exts``: {effect: the current model extended by it}), screened
+    again on top of the current model (its values ``current``, Jacobian ``jac``; ``key`` its causes): a fault
+    hidden beside another one can be screened out, or refitted without earning its score, while the other is
+    unexplained (a worn damper's 180 N rod-seal friction beside a 0.35 mm free play: its refit on the base
+    scored -3.3 %). Returns those predicted to win SCREEN_SHARE of the current identification SSE: they are
+    refitted on the current model with the candidates that scored alone."""
+    if not exts:
+        return []
+    screened = profile_screen(s.eid, exts, current, jac, s.settings.grid_points)
+    passed = [e for e in exts if e in screened and screened[e].passes]
+    s.log(f"  screen on top of {key} (the candidates that did not score alone): " + ", ".join(
+        f"{e} {100 * r.share:.1f} %" for e, r in screened.items()) + "; refitted: " + (", ".join(passed) or "none"))
+    return passed
+
+
+def name_next(s: SearchState, rows: list[dict], fits: dict, current_row: dict) -> dict:
+    """The best of a forward-selection step's rows continued, given intervals, and named if earned."""
+    lead = max(rows, key=lambda r: r["score"] if r["resolved"] else -math.inf)
+    if scores(lead) and s.settings.final_jacobians > 0:
+        fit = fits[lead["effect"]]
+        pol = s.polish_quietly(fit.ext, fit.z, s.settings.final_jacobians)
+        fit = fits[lead["effect"]] = Fit(fit.ext, pol.z, fit.evaluations + pol.evaluations)
+        row = held_out(s, fit.ext.effect, fit.params(), fit.ext.extra, pol.fitness, fit.evaluations,
+                       current_row["validation_mse"], new=ALL_EFFECTS[lead["added"]].identified)
+        row["added"] = lead["added"]
+        rows[rows.index(lead)] = row
+    cross_check(rows, s.evidence)
+    for row in rows:
+        if scores(row):
+            fit = fits[row["effect"]]
+            attach_interval(row, effect_intervals(s.eid, fit.ext, fit.z), fit.ext,
+                            ALL_EFFECTS[row["added"]].identified)
+    named = [r for r in sorted(rows, key=lambda r: -r["score"]) if r["score"] > ACCEPT_SCORE and earned(r)]
+    if not named:
+        s.log(f"  no further cause on top of {current_row['effect']}")
+        return {"cause": "none", "tried": rows}
+    s.log(f"  further cause: {named[0]['added']} (" + interval_text(named[0])
+          + f"), score {named[0]['score']:+.3f}")
+    return {"cause": named[0]["added"], "tried": rows, "row": named[0], "refit": fits[named[0]["effect"]]}
+
