@@ -389,6 +389,25 @@ def test_two_effects_hidden_together_are_both_named(tmp_path):
     assert (tmp_path / "out" / "fmu" / f"DamperLumped_{'_'.join(res['causes'])}_tuned.fmu").exists()
 
 
+@pytest.mark.slow
+def test_a_free_play_and_a_rod_seal_friction_together_are_both_named(tmp_path):
+    """A worn damper: a 0.41 mm free play and a 216 N rod-seal friction hidden together in a random lumped damper
+    with soft, lightly damped silent blocks (``benchmarks/blind_class.py --broad --cases free_play+friction``'s
+    first pair, seed 915, four tests instead of six). Beside the unexplained free play the friction's refit on the
+    base does not earn its score; screened again on top of the free play it is refitted and named."""
+    from campaign.damper_class import write_class_dataset
+
+    hidden = {"k_B": 4.31e7, "c_B": 5.99e4, "free_play": 0.413e-3, "friction_force": 216.0}
+    data = write_class_dataset(tmp_path / "data", "lumped", 915, noise_n=34.0, hidden=hidden,
+                               durations=[14.0, 13.0, 12.0, 13.0])
+    tests = load_dataset(data)
+    res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
+                   DiagnosisSettings(engine=fastest_engine(), base_model="lumped"), log=lambda m: None)
+    assert sorted(res["causes"]) == ["free_play", "friction"], (res["verdict"], res["selection"])
+    for name in ("free_play", "friction_force"):
+        assert res["effect_parameters"][name]["value"] == pytest.approx(hidden[name], rel=0.3)
+
+
 def test_the_diagnosis_base_is_the_fitted_form_with_the_lower_pooled_held_out_mse():
     """choose_base pools the validation tests sample-weighted (a long test counts more) and ignores
     models without the effect catalogue (Maxwell) and the identification tests."""

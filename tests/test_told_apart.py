@@ -31,3 +31,19 @@ def test_the_row_on_top_of_the_causes_counts_and_the_threshold_is_the_rule():
     assert [r["parameters"]["valve_tau"] for r in indistinguishable(ranking, selection, at)] == [6e-3]
     assert indistinguishable(ranking, selection, below) == []
     assert told_apart_text([]) == ""
+
+
+def test_a_limit_the_base_absorbs_says_what_absorbs_it_and_a_verdict_with_causes_lists_it():
+    from tuner.diagnosis.verdict import limit_text, untold_text
+
+    absorbed = {"reachable": False, "absorbed_share": 0.99, "absorbed_by": {"the elastic table": 0.97},
+                "parameter": "preload_force"}
+    weak = {"reachable": False, "absorbed_share": 0.2, "absorbed_by": {}, "parameter": "thermal_beta"}
+    seen = {"reachable": True, "absorbed_share": 0.95, "absorbed_by": {"the masses": 1.0}, "limit": 30.0,
+            "best_test": "val1", "parameter": "inertia_mass"}
+    assert limit_text(absorbed) == "not detectable within its search range (the elastic table absorbs 99 % of its force)"
+    assert limit_text(weak) == "not detectable within its search range"  # too little absorbed: no reason given
+    text = untold_text({"preload": absorbed, "thermal_drift": weak, "inertia": seen})
+    assert "preload (the elastic table absorbs 99 %" in text
+    assert "thermal_drift" not in text and "inertia" not in text  # an inertia above 30 kg these tests would name
+    assert untold_text({"thermal_drift": weak}) == "" and untold_text(None) == ""

@@ -7,11 +7,12 @@ from damper_fmu.effect_catalogue import ALL_EFFECTS, EFFECT_PARAMETERS, effect_o
 
 from tuner.diagnosis.effect_sizes import DamperSize, typical_range
 from tuner.diagnosis.forms import settings_text
-from tuner.diagnosis.rules import ACCEPT_SCORE, FORM_EXCESS_SHARE, earned
+from tuner.diagnosis.rules import ACCEPT_SCORE, CONFOUNDED_SHARE, FORM_EXCESS_SHARE, earned
 from tuner.formatting import fmt_quantity
 
 __all__ = ["UNITS", "NOTES", "ACQUISITION_CAUSES", "unexplained_record", "effect_parameters", "interval_text",
-           "limit_text", "verdict_text", "why_not", "map_text", "told_apart_text"]
+           "limit_text", "verdict_text", "why_not", "map_text", "told_apart_text",
+           "absorbed_text", "untold_text"]
 
 UNITS = {p.name: p.unit for p in EFFECT_PARAMETERS}
 
@@ -69,10 +70,29 @@ def interval_text(row: dict, names=None) -> str:
 
 
 def limit_text(row: dict) -> str:
-    """'above 400 N (val2_curve)' of a detection limit, or 'not detectable within the search range'."""
+    """'above 400 N (val2_curve)' of a detection limit, or 'not detectable within the search range' with, when the
+    base absorbs its force (``rules.CONFOUNDED_SHARE``), what absorbs it."""
     if not row["reachable"]:
-        return "not detectable within its search range"
+        return "not detectable within its search range" + absorbed_text(row)
     return f"above {fmt_quantity(row['limit'], UNITS[row['parameter']])} ({row['best_test']})"
+
+
+def absorbed_text(row: dict) -> str:
+    """' (the elastic table absorbs 99 % of its force)' of a detection limit whose effect the base absorbs to at
+    least CONFOUNDED_SHARE, else ''."""
+    share = row.get("absorbed_share", 0.0)
+    if share < CONFOUNDED_SHARE:
+        return ""
+    by = " and ".join(row.get("absorbed_by") or {}) or "the base parameters"
+    return f" ({by} absorb{'s' if len(row.get('absorbed_by') or {}) == 1 else ''} {100 * share:.0f} % of its force)"
+
+
+def untold_text(limits: dict | None) -> str:
+    """For a verdict with causes: the other candidates these tests cannot tell from the base model's own elements
+    (not detectable within their search range, their force absorbed: ``absorbed_text``); '' when none."""
+    untold = [f"{e}{absorbed_text(r)}" for e, r in (limits or {}).items()
+              if not r["reachable"] and absorbed_text(r)]
+    return "; these tests cannot tell from the base model's own elements: " + ", ".join(untold) if untold else ""
 
 
 def verdict_text(causes: list[str], best: dict, none_row: dict, rejected: list[dict], unexplained: dict | None,
@@ -99,7 +119,7 @@ def verdict_text(causes: list[str], best: dict, none_row: dict, rejected: list[d
     elif causes:
         change = 100 * (best["validation_mse"] / none_row["validation_mse"] - 1)
         text = (f"cause{'s' if len(causes) > 1 else ''}: {' + '.join(causes)} ({interval_text(best)}); "
-                f"validation MSE {change:+.0f} % against the base refitted alike")
+                f"validation MSE {change:+.0f} % against the base refitted alike" + untold_text(limits))
     else:
         none_inner = ("no extension earns its parameters on held-out data"
                       + ("; " + ", ".join(f"{r['effect']} scored {r['score']:+.3f} but " + why_not(r, noise)
