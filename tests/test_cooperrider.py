@@ -1,0 +1,80 @@
+"""The Cooperrider car on the S1002/UIC60 contact table against DYTSI, the DTU railway vehicle
+simulator, and the table's interpolation against GSL's cubic spline.
+
+The reference numbers below were produced by ``python benchmarks/dytsi_cooperrider.py`` (which builds
+DYTSI outside the repository); the tests themselves need no DYTSI build, only the published input
+file and contact table in ``../shared/reference/dytsi`` (or ``$DYTSI_REFERENCE``), which the project
+does not contain (LGPL-3.0): without them those tests are skipped.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from campaign.contact_table import ContactTableError, read_contact_table
+from campaign.cooperrider import LEADING_WHEELSET, N_STATES, CooperriderCar, state_index
+from campaign.cooperrider_params import ModelFileError, read_cooperrider_xml
+from campaign.cooperrider_runs import hunting_eigenvalue, offset_state, run_speeds
+
+REFERENCE = Path(os.environ.get("DYTSI_REFERENCE", Path(__file__).resolve().parents[2] / "shared/reference/dytsi"))
+XML = REFERENCE / "input/InputFiles/inputBifurcation-Cooperrider-straight.xml"
+needs_reference = pytest.mark.skipif(not XML.exists(), reason=f"DYTSI's published input not found at {REFERENCE} "
+                                     "(set DYTSI_REFERENCE to the dytsi/ folder of the reference engines)")
+
+# GSL 2.7 (Debian 12 libgsl-dev) gsl_interp_cspline of RSGEO/1o40/RSGEO.dat, the interpolation DYTSI 1.0r2
+# uses with Interp="cspline": benchmarks/dytsi_cooperrider.py, gsl_spline_values(); columns by name.
+GSL_POINTS = [0.0, 1.234e-3, -5.6789e-3, 8.0005e-3, 1.69999e-2]
+GSL_VALUES = {
+    "N": [66661.236634, 66656.25816943051, 66664.80915203625, 63308.46476843377, 56115.906242321835],
+    "angle": [0.014223235000003014, 0.01875255439163292, 0.009753169864227638, 0.3188125852833744,
+              0.5703315543576295],
+    "a": [0.00595184999999999, 0.005833278107544119, 0.006524192893082117, 0.00740882114105542,
+          0.00839371853233013],
+    "rw": [0.4248829, 0.424921676646759, 0.42481624495885345, 0.4287687511724622, 0.4507703934010197],
+    "c22": [3.563104846300018, 3.403139208026614, 4.206430446854147, 6.3496608228065545, 12.004009499356423],
+}
+
+
+def _write_table(path: Path, lat, columns) -> Path:
+    lines = ["#", " ".join(f'"c{k}"' for k in range(13))]
+    for i, y in enumerate(lat):
+        lines.append(" ".join(f"{v:.17g}" for v in [y] + [c[i] for c in columns]))
+    path.write_text("\n".join(lines) + "\n\n")
+    return path
+
+
+def test_table_spline_reproduces_a_line_and_rejects_bad_input(tmp_path):
+    """A natural cubic spline through samples of a straight line is that line; bad files and
+    displacements outside the table raise errors naming the cause."""
+    lat = np.linspace(-0.01, 0.01, 21)
+    cols = [3.0 + 7.0 * lat * (k + 1) for k in range(12)]
+    table = read_contact_table(_write_table(tmp_path / "line.dat", lat, cols))
+    y = np.array([-0.00999, -0.0012345, 0.0, 0.004567, 0.01])
+    got = table.evaluate(y)
+    for k in range(12):
+        np.testing.assert_allclose(got[:, k], 3.0 + 7.0 * y * (k + 1), rtol=1e-13, atol=1e-15)
+    with pytest.raises(ContactTableError, match="derailment"):
+        table.evaluate(0.0101)
+    bad = tmp_path / "bad.dat"
+    bad.write_text("#\n" + " ".join("x" * 13) + "\n" + "0 " * 12 + "\n")
+    with pytest.raises(ContactTableError, match=r"bad.dat:3: 12 columns"):
+        read_contact_table(bad)
+
+
+def test_model_file_errors_name_the_parameter(tmp_path):
+    f = tmp_path / "in.xml"
+    f.write_text("<input><Bifurcation><Model><CooperriderOrthogonalModel><r0>0.425</r0>"
+                 "</CooperriderOrthogonalModel></Model></Bifurcation></input>")
+    with pytest.raises(ModelFileError, match="no <h1>"):
+        read_cooperrider_xml(f)
+
+
+@needs_reference
+def test_table_interpolation_matches_gsl_cspline():
+    table = read_contact_table(REFERENCE / "input/RSGEO/1o40/RSGEO.dat")
+    got = table.evaluate(np.array(GSL_POINTS))
+    for name, want in GSL_VALUES.items():
+        np.testing.assert_allclose(got[:, table.column(name)], want, rtol=1e-10, err_msg=name)
