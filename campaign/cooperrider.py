@@ -37,7 +37,7 @@ from .contact import saturation_factor
 from .contact_table import ContactTable
 from .cooperrider_params import CooperriderParams
 
-__all__ = ["CooperriderCar", "N_STATES", "N_POS", "LEADING_WHEELSET", "state_index"]
+__all__ = ["CooperriderCar", "WheelForces", "N_STATES", "N_POS", "LEADING_WHEELSET", "state_index"]
 
 N_BODIES = 7
 N_POS = 31
@@ -161,6 +161,21 @@ def _point_maps(links: Links) -> tuple:
     return A, rot_up, rot_low
 
 
+@dataclass(frozen=True)
+class WheelForces:
+    """Forces of the rails on the wheels, index [wheel (0 left, 1 right), wheelset, car]:
+    ``creep`` (3, 2, 4, m) [N] the saturated creep force in the track frame (x, y, z), ``normal``
+    (2, 2, 4, m) [N] the normal force's lateral and vertical components, and the moments [N m] they
+    exert on the wheelset about its roll (``roll``) and yaw (``yaw``) axes and about its axle
+    (``spin``, driving the spin perturbation)."""
+
+    creep: np.ndarray
+    normal: np.ndarray
+    roll: np.ndarray
+    yaw: np.ndarray
+    spin: np.ndarray
+
+
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Cross product along axis 1 of (n, 3, m) arrays (broadcasting)."""
     a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
@@ -239,9 +254,10 @@ class CooperriderCar:
         moment = (self._incidence @ m_low.reshape(n, 3 * m) + self._incidence_up @ m_up.reshape(n, 3 * m))
         return force, moment.reshape(N_BODIES, 3, m)
 
-    def contact(self, pos: np.ndarray, vel: np.ndarray, beta: np.ndarray) -> tuple:
-        """Contact forces on the four wheelsets: lateral and vertical force [N] (4, m), roll, yaw
-        and spin moments [N m] (4, m), summed over both wheels."""
+    def wheel_forces(self, pos: np.ndarray, vel: np.ndarray, beta: np.ndarray) -> "WheelForces":
+        """Forces of the rails on each wheel (left, right) of the four wheelsets, (2, 4, m) each,
+        from the wheelsets' positions and rates (``pos``, ``vel`` (7, 5, m) of :meth:`body_states`)
+        and spin perturbations ``beta`` (4, m) [rad/s]; see :class:`WheelForces`."""
         y, z, phi, psi = pos[3:, 0], pos[3:, 1], pos[3:, 2], pos[3:, 4]
         yd, zd, phid, psid = vel[3:, 0], vel[3:, 1], vel[3:, 2], vel[3:, 4]
         s = np.array([1.0, -1.0])[:, None, None]                # left (+y) and right wheel
@@ -272,9 +288,8 @@ class CooperriderCar:
         Fz = s * fy * np.sin(dprime)
         Ny, Nz = -s * N * np.sin(dprime), N * np.cos(dprime)
         lever = Fx + (Fy + Ny) * psi
-        t_roll = s * aw * (Fz + Nz - (Fy + Ny) * phi)
-        return ((Fy + Ny).sum(0), (Fz + Nz).sum(0), t_roll.sum(0), (-s * aw * lever).sum(0),
-                (-rw * lever).sum(0))
+        return WheelForces(creep=np.stack([Fx, Fy, Fz]), normal=np.stack([Ny, Nz]),
+                           roll=s * aw * (Fz + Nz - (Fy + Ny) * phi), yaw=-s * aw * lever, spin=-rw * lever)
 
     def rhs(self, t: float, x: np.ndarray) -> np.ndarray:
         """``dx/dt`` of the state ``x`` (66,) or (66, m) at time ``t`` [s] (autonomous: ``t`` unused)."""
@@ -283,9 +298,10 @@ class CooperriderCar:
         pos, vel = self.body_states(x)
         beta = x[2 * N_POS:]
         force, moment = self.suspension(x[:N_POS], x[N_POS:2 * N_POS])
-        fy, fz, m_roll, m_yaw, m_spin = self.contact(pos, vel, beta)
-        force[3:, 1] += fy
-        force[3:, 2] += fz
+        wf = self.wheel_forces(pos, vel, beta)
+        force[3:, 1] += (wf.creep[1] + wf.normal[0]).sum(0)
+        force[3:, 2] += (wf.creep[2] + wf.normal[1]).sum(0)
+        m_roll, m_yaw, m_spin = wf.roll.sum(0), wf.yaw.sum(0), wf.spin.sum(0)
         p = self.params
         omega = self.speed / self.r0_table + beta
         jx, jy, jz = p.wheelset_inertia

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from campaign.contact_table import ContactTableError, read_contact_table
-from campaign.cooperrider import LEADING_WHEELSET, N_STATES, CooperriderCar, state_index
+from campaign.cooperrider import N_STATES, CooperriderCar
 from campaign.cooperrider_params import ModelFileError, read_cooperrider_xml
-from campaign.cooperrider_runs import hunting_eigenvalue, offset_state, run_speeds
+from campaign.cooperrider_runs import offset_state, run_speeds
 
 REFERENCE = Path(os.environ.get("DYTSI_REFERENCE", Path(__file__).resolve().parents[2] / "shared/reference/dytsi"))
 XML = REFERENCE / "input/InputFiles/inputBifurcation-Cooperrider-straight.xml"
@@ -78,3 +78,39 @@ def test_table_interpolation_matches_gsl_cspline():
     got = table.evaluate(np.array(GSL_POINTS))
     for name, want in GSL_VALUES.items():
         np.testing.assert_allclose(got[:, table.column(name)], want, rtol=1e-10, err_msg=name)
+
+
+# DYTSI 1.0r2, `DYTSI -T -nt InputFiles/inputBifurcation-Cooperrider-straight.xml` (BDF, rtol 1e-6,
+# atol 1e-8), segment at 110 m/s: the leading wheelset's lateral displacement [m] from the 0.1 mm offset.
+DYTSI_110 = {"t": [0.1, 0.5, 1.0], "y": [-3.5427739746e-05, 1.4730160442e-05, -1.8790096023e-05]}
+# The same run's Jacobian stored at the end of the 100 m/s segment (Jacobians/jac-81.dat, the state 2e-9 m
+# from equilibrium): its least damped eigenvalue [1/s] of the hunting family (20..40 rad/s).
+DYTSI_HUNTING_EIGENVALUE_100 = complex(-1.2469, 27.7353)
+
+
+@pytest.fixture(scope="module")
+def reference_car():
+    model = read_cooperrider_xml(XML)
+    return model.params, read_contact_table(model.table_path)
+
+
+@needs_reference
+def test_short_straight_run_follows_dytsi(reference_car):
+    """1 s at 110 m/s from DYTSI's initial state: the leading wheelset within 1e-8 m (1e-4 of the
+    offset) of DYTSI's stored response, RK4 at 0.5 ms against its BDF."""
+    params, table = reference_car
+    run = run_speeds(params, table, [110.0], offset_state(), 1.0, dt=5e-4)
+    got = np.interp(DYTSI_110["t"], run.t, run.signal()[:, 0])
+    np.testing.assert_allclose(got, DYTSI_110["y"], rtol=0.0, atol=1e-8)
+    assert run.states.shape == (101, N_STATES, 1)
+
+
+@needs_reference
+def test_hunting_eigenvalue_matches_dytsi_jacobian(reference_car):
+    from campaign.cooperrider_runs import equilibrium, jacobian
+    params, table = reference_car
+    car = CooperriderCar(params, table, 100.0)
+    ev = np.linalg.eigvals(jacobian(car, equilibrium(car)))
+    band = ev[(ev.imag > 20.0) & (ev.imag < 40.0)]
+    least = band[np.argmax(band.real)]
+    assert abs(least - DYTSI_HUNTING_EIGENVALUE_100) < 5e-3, least
