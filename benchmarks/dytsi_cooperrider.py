@@ -37,7 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
-from campaign.contact_table import read_contact_table  # noqa: E402
+from campaign.contact_table import ContactTableError, read_contact_table  # noqa: E402
 from campaign.cooperrider import N_STATES, CooperriderCar, state_index  # noqa: E402
 from campaign.cooperrider_params import read_cooperrider_xml  # noqa: E402
 from campaign.cooperrider_runs import (cycle_amplitude, equilibrium, jacobian, linear_critical_speed,  # noqa: E402
@@ -288,13 +288,13 @@ def cycle_both(binary, xml, params, table, speed, args) -> dict:
 
 
 def step_down(binary, xml, params, table, data: dict, args) -> dict:
-    """Both cars stepped down from the large cycle DYTSI's straight-track run ends on at its highest
-    completed speed (both from that same state) by ``args.step`` m/s to ``args.v_low``, 10 s per
+    """Both cars stepped down from the large cycle DYTSI's straight-track run ends on at ``args.top``
+    m/s (both from that same state) by ``args.step`` m/s to ``args.v_low``, 10 s per
     speed, each from the last state of the speed before; the amplitude [m] over the last 2 s of each
     speed and the nonlinear critical speed: the lowest speed whose amplitude stays above 1 mm (below,
     the response decays to the tangent track)."""
-    top = float(data["speeds"][-1])
-    start = data["states"][-1][-1]
+    j = int(np.argmin(np.abs(data["speeds"] - args.top)))
+    top, start = float(data["speeds"][j]), data["states"][j][-1]
     print(f"  from DYTSI's state at the end of {top} m/s (leading wheelset {1e3 * start[state_index(3, 'y')]:.3f} mm)")
     speeds = np.arange(top - args.step, args.v_low - 1e-9, -args.step)
     test = f"03-StepDown-{top:.0f}-{args.step:g}"
@@ -306,7 +306,11 @@ def step_down(binary, xml, params, table, data: dict, args) -> dict:
     amp_o = {}
     t0 = time.time()
     for v in speeds:
-        run = run_speeds(params, table, [v], x, 10.0, dt=args.dt)
+        try:
+            run = run_speeds(params, table, [v], x, 10.0, dt=args.dt)
+        except ContactTableError as exc:
+            print(f"  ours at {v} m/s: {exc}")
+            break
         amp_o[float(v)] = cycle_amplitude(run.t, run.signal()[:, 0])
         x = run.final[:, 0]
         if amp_o[float(v)] < 1e-4:
@@ -333,13 +337,15 @@ def parse_args(argv=None):
                     help="where DYTSI is copied, built and run (outside the repository)")
     ap.add_argument("--dt", type=float, default=5e-4, help="our RK4 step [s]")
     ap.add_argument("--around", type=int, default=3, help="speeds on each side of DYTSI's bracket we also run")
-    ap.add_argument("--cycle-time", type=float, default=120.0, help="run time for the limit cycle [s]")
+    ap.add_argument("--cycle-time", type=float, default=120.0, help="run time for the limit cycle [s] (0: leave the cycle out)")
     ap.add_argument("--window", type=float, default=10.0,
                     help="the cycle amplitude is half the peak-to-peak value over this last time [s]")
     ap.add_argument("--rerun", action="store_true", help="run DYTSI again even where its output exists")
     ap.add_argument("--nonlinear", action="store_true", help="also step down from the cycle")
     ap.add_argument("--small-offset", type=float, default=0.0,
                     help="also run ours from this offset [m] (e.g. 1e-7: towards the eigenvalues' limit)")
+    ap.add_argument("--top", type=float, default=130.0,
+                    help="speed [m/s] of DYTSI's straight-track segment whose end state starts the step-down")
     ap.add_argument("--step", type=float, default=2.0, help="speed step of the step-down [m/s]")
     ap.add_argument("--v-low", type=float, default=60.0, help="lowest speed of the step-down [m/s]")
     return ap.parse_args(argv)
@@ -406,16 +412,19 @@ def main(argv=None) -> None:
     dytsi, ours, v_eig, data = linear_part(binary, xml, out_dir, model.params, table, args)
     v_cr = dytsi.critical_speed
     speed = round(1.05 * v_cr, 2)
-    print(f"\nLimit cycle at 1.05 x DYTSI's critical speed = {speed} m/s, {args.cycle_time} s from the offset")
-    cyc = cycle_both(binary, xml, model.params, table, speed, args)
+    cyc = None
+    if args.cycle_time > 0:
+        print(f"\nLimit cycle at 1.05 x DYTSI's critical speed = {speed} m/s, {args.cycle_time} s from the offset")
+        cyc = cycle_both(binary, xml, model.params, table, speed, args)
     print("\nSide by side                               DYTSI        ours      ours/DYTSI")
     print(f"  linear critical speed (time) [m/s]   {v_cr:10.3f}  {ours.critical_speed:10.3f}  "
           f"{ours.critical_speed / v_cr:10.4f}")
     print(f"  linear critical speed (eigen) [m/s]  {'':10s}  {v_eig:10.3f}  {v_eig / v_cr:10.4f}")
-    print(f"  cycle amplitude at {speed} m/s [mm] {1e3 * cyc['dytsi']:10.5f}  {1e3 * cyc['ours']:10.5f}  "
-          f"{cyc['ours'] / cyc['dytsi']:10.5f}")
-    print(f"    (the {args.window:g} s before: DYTSI {1e3 * cyc['dytsi_before']:.4f} mm, ours "
-          f"{1e3 * cyc['ours_before']:.4f} mm)")
+    if cyc is not None:
+        print(f"  cycle amplitude at {speed} m/s [mm] {1e3 * cyc['dytsi']:10.5f}  {1e3 * cyc['ours']:10.5f}  "
+              f"{cyc['ours'] / cyc['dytsi']:10.5f}")
+        print(f"    (the {args.window:g} s before: DYTSI {1e3 * cyc['dytsi_before']:.4f} mm, ours "
+              f"{1e3 * cyc['ours_before']:.4f} mm)")
     if args.nonlinear:
         down = step_down(binary, xml, model.params, table, data, args)
         print("\nStep-down from the cycle: speed [m/s] -> end amplitude [mm], DYTSI / ours")

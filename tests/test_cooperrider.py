@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from campaign.contact_table import ContactTableError, read_contact_table
-from campaign.cooperrider import N_STATES, CooperriderCar
+from campaign.cooperrider import N_STATES, CooperriderCar, state_index
 from campaign.cooperrider_params import ModelFileError, read_cooperrider_xml
 from campaign.cooperrider_runs import offset_state, run_speeds
 
@@ -114,3 +114,31 @@ def test_hunting_eigenvalue_matches_dytsi_jacobian(reference_car):
     band = ev[(ev.imag > 20.0) & (ev.imag < 40.0)]
     least = band[np.argmax(band.real)]
     assert abs(least - DYTSI_HUNTING_EIGENVALUE_100) < 5e-3, least
+
+
+# The same run, 125 m/s segment at t = 9.77 s, the trailing bogie's leading wheelset in flange contact
+# (output.dat columns "Trailing Bogie - Leading Wheelset[ID 5]::..."): its state (y, ydot, z, zdot, phi,
+# phidot, beta, psi, psidot; SI) and DYTSI's rail forces on it, left then right wheel: creep (track frame)
+# x, y, z [N], then normal y, z [N] of left and right.
+DYTSI_FLANGE_STATE = [8.0418128267e-03, 1.8510302608e-02, 1.7082921880e-07, -3.8888960308e-03, 3.7312847776e-05,
+                      3.1900267243e-03, -5.3038533554e-01, -9.7942422672e-04, -2.8437174259e-01]
+DYTSI_FLANGE_CREEP = [[5.4617744497e+03, 5.8007721912e+02, 1.9943411493e+02],
+                      [-3.3620745316e+03, -1.3319063303e+04, 1.4922066321e+02]]
+DYTSI_FLANGE_NORMAL = [[-1.1815419857e+04, 3.4683407095e+04], [1.0872071434e+03, 9.7065289899e+04]]
+
+
+@needs_reference
+def test_wheel_forces_in_flange_contact_match_dytsi(reference_car):
+    """Each wheel's creep and normal forces at a stored flange-contact state, to 1e-8 of the largest
+    (DYTSI prints 11 significant digits)."""
+    params, table = reference_car
+    car = CooperriderCar(params, table, 125.0)
+    x = np.zeros(N_STATES)
+    for (coord, rate), value in zip([("y", 0), ("y", 1), ("z", 0), ("z", 1), ("phi", 0), ("phi", 1), ("beta", 0),
+                                     ("psi", 0), ("psi", 1)], DYTSI_FLANGE_STATE):
+        x[state_index(5, coord, rate=bool(rate))] = value
+    pos, vel = car.body_states(x[:, None])
+    wf = car.wheel_forces(pos, vel, x[-4:, None])
+    scale = 1e-8 * np.max(np.abs(DYTSI_FLANGE_NORMAL))
+    np.testing.assert_allclose(wf.creep[:, :, 2, 0].T, DYTSI_FLANGE_CREEP, rtol=0.0, atol=scale)
+    np.testing.assert_allclose(wf.normal[:, :, 2, 0].T, DYTSI_FLANGE_NORMAL, rtol=0.0, atol=scale)
