@@ -142,3 +142,21 @@ def test_wheel_forces_in_flange_contact_match_dytsi(reference_car):
     scale = 1e-8 * np.max(np.abs(DYTSI_FLANGE_NORMAL))
     np.testing.assert_allclose(wf.creep[:, :, 2, 0].T, DYTSI_FLANGE_CREEP, rtol=0.0, atol=scale)
     np.testing.assert_allclose(wf.normal[:, :, 2, 0].T, DYTSI_FLANGE_NORMAL, rtol=0.0, atol=scale)
+
+
+@needs_reference
+def test_batch_runs_each_speed_and_mirror_symmetry(reference_car):
+    """A batch of two speeds gives each speed's own run; a leftward offset gives the mirror image of a
+    rightward one (lateral family odd, vertical family even: left and right wheel read one table)."""
+    params, table = reference_car
+    both = run_speeds(params, table, [60.0, 120.0], offset_state(m=2), 0.2, dt=5e-4)
+    one = run_speeds(params, table, [120.0], offset_state(), 0.2, dt=5e-4)
+    np.testing.assert_allclose(both.states[:, :, 1], one.states[:, :, 0], rtol=0.0, atol=1e-15)
+    assert np.max(np.abs(both.signal()[:, 0] - both.signal()[:, 1])) > 1e-6
+    mirror = run_speeds(params, table, [120.0], offset_state(-1e-4), 0.2, dt=5e-4)
+    odd = np.zeros(N_STATES, dtype=bool)
+    for body in range(7):
+        for coord in ("y", "phi", "psi"):
+            odd[[state_index(body, coord), state_index(body, coord, rate=True)]] = True
+    sign = np.where(odd, -1.0, 1.0)
+    np.testing.assert_allclose(mirror.states[:, :, 0], sign * one.states[:, :, 0], rtol=0.0, atol=1e-12)
