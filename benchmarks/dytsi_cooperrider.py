@@ -3,7 +3,7 @@ same parameters and S1002/UIC60 contact table: linear critical speed on straight
 limit-cycle amplitude 5 % above it, side by side.
 
     python benchmarks/dytsi_cooperrider.py [--reference ../shared/reference/dytsi] [--build /work/dytsi-build]
-                                           [--dt 5e-4] [--around 3] [--cycle-time 120] [--nonlinear]
+                                           [--dt 5e-4] [--around 3] [--cycle-time 120] [--nonlinear --start TEST:SPEED --v-low 60]
 
 DYTSI (LGPL-3.0) is never part of the project: this script copies its source from ``--reference``
 into ``--build`` (outside the repository) and builds it there as the reference README says (Debian's
@@ -287,17 +287,21 @@ def cycle_both(binary, xml, params, table, speed, args) -> dict:
             "ours_before": cycle_amplitude(t[early], yo[early], w)}
 
 
-def step_down(binary, xml, params, table, data: dict, args) -> dict:
-    """Both cars stepped down from the large cycle DYTSI's straight-track run ends on at ``args.top``
-    m/s (both from that same state) by ``args.step`` m/s to ``args.v_low``, 10 s per
-    speed, each from the last state of the speed before; the amplitude [m] over the last 2 s of each
-    speed and the nonlinear critical speed: the lowest speed whose amplitude stays above 1 mm (below,
-    the response decays to the tangent track)."""
-    j = int(np.argmin(np.abs(data["speeds"] - args.top)))
-    top, start = float(data["speeds"][j]), data["states"][j][-1]
-    print(f"  from DYTSI's state at the end of {top} m/s (leading wheelset {1e3 * start[state_index(3, 'y')]:.3f} mm)")
+def step_down(binary, xml, params, table, args) -> dict:
+    """Both cars stepped down from a large cycle of DYTSI: the end state of its segment at the speed
+    of ``args.start`` (``TEST:SPEED``, a DYTSI output folder of this build and a speed it ran; both
+    cars start from that same state), by ``args.step`` m/s to ``args.v_low``, 10 s per speed, each
+    from the last state of the speed before; the amplitude [m] over the last 2 s of each speed and the
+    nonlinear critical speed: the lowest speed whose amplitude stays above 1 mm (below, the response
+    leaves the large cycle)."""
+    test_from, _, speed_from = args.start.partition(":")
+    src = read_dytsi_output(binary.parents[2] / "input" / "Output" / "Cooperrider" / test_from / "output.dat", 10.0)
+    j = int(np.argmin(np.abs(src["speeds"] - float(speed_from))))
+    top, start = float(src["speeds"][j]), src["states"][j][-1]
+    print(f"  from DYTSI's state at the end of {top} m/s of {test_from} (leading wheelset "
+          f"{1e3 * start[state_index(3, 'y')]:.3f} mm)")
     speeds = np.arange(top - args.step, args.v_low - 1e-9, -args.step)
-    test = f"03-StepDown-{top:.0f}-{args.step:g}"
+    test = f"03-StepDown-{top:.0f}-{args.v_low:.0f}-{args.step:g}"
     run_xml = write_run_xml(xml, xml.parent / f"{test}.xml", test, (speeds[0], speeds[-1], -args.step), 10.0, start)
     out_dir = run_dytsi(binary, run_xml, args.rerun)
     d = read_dytsi_output(out_dir / "output.dat", 10.0)
@@ -344,8 +348,8 @@ def parse_args(argv=None):
     ap.add_argument("--nonlinear", action="store_true", help="also step down from the cycle")
     ap.add_argument("--small-offset", type=float, default=0.0,
                     help="also run ours from this offset [m] (e.g. 1e-7: towards the eigenvalues' limit)")
-    ap.add_argument("--top", type=float, default=130.0,
-                    help="speed [m/s] of DYTSI's straight-track segment whose end state starts the step-down")
+    ap.add_argument("--start", default="01-BifurcationUp-Straight:130",
+                    help="TEST:SPEED, DYTSI's output and segment whose end state starts the step-down")
     ap.add_argument("--step", type=float, default=2.0, help="speed step of the step-down [m/s]")
     ap.add_argument("--v-low", type=float, default=60.0, help="lowest speed of the step-down [m/s]")
     return ap.parse_args(argv)
@@ -426,7 +430,7 @@ def main(argv=None) -> None:
         print(f"    (the {args.window:g} s before: DYTSI {1e3 * cyc['dytsi_before']:.4f} mm, ours "
               f"{1e3 * cyc['ours_before']:.4f} mm)")
     if args.nonlinear:
-        down = step_down(binary, xml, model.params, table, data, args)
+        down = step_down(binary, xml, model.params, table, args)
         print("\nStep-down from the cycle: speed [m/s] -> end amplitude [mm], DYTSI / ours")
         for v in sorted(set(down["dytsi"]) | set(down["ours"]), reverse=True):
             print(f"    {v:7.2f}  {1e3 * down['dytsi'].get(v, np.nan):8.4f}  {1e3 * down['ours'].get(v, np.nan):8.4f}")
