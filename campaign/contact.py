@@ -38,7 +38,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-__all__ = ["saturation", "rolling_radius_difference", "flange_force", "WheelRailContact", "WheelsetForces"]
+__all__ = ["saturation", "saturation_factor", "rolling_radius_difference", "flange_force", "WheelRailContact", "WheelsetForces"]
 
 
 def saturation(beta):
@@ -48,10 +48,10 @@ def saturation(beta):
     b = np.asarray(beta, dtype=float)
     if np.any(b < 0.0) or not np.all(np.isfinite(b)):
         raise ValueError("beta must be finite and >= 0")
-    return np.where(b < 3.0, b * _scale(b), 1.0)
+    return np.where(b < 3.0, b * saturation_factor(b), 1.0)
 
 
-def _scale(beta: np.ndarray) -> np.ndarray:
+def saturation_factor(beta: np.ndarray) -> np.ndarray:
     """``s(beta) / beta`` [-], the factor on the linear creep force, without a division at small ``beta``:
     ``1 - beta/3 + beta^2/27`` below 3, ``1 / beta`` beyond (unchecked: the integrators' inner loop)."""
     return np.where(beta < 3.0, 1.0 - beta * (1.0 / 3.0 - beta / 27.0), 1.0 / np.maximum(beta, 3.0))
@@ -118,7 +118,7 @@ class WheelRailContact:
         (arrays of one shape): the linear Kalker forces scaled by ``s(beta) / beta``."""
         fx = -self.f11 * np.asarray(xi_x, dtype=float)
         fy = -self.f22 * np.asarray(xi_y, dtype=float)
-        scale = _scale(np.sqrt(fx * fx + fy * fy) * (1.0 / self.creep_limit()))
+        scale = saturation_factor(np.sqrt(fx * fx + fy * fy) * (1.0 / self.creep_limit()))
         return fx * scale, fy * scale
 
     def wheelset_forces(self, y, psi, y_dot, yaw_rate, speed: float) -> WheelsetForces:
