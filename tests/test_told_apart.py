@@ -1,4 +1,6 @@
 """'Cannot be told apart' (tuner.diagnosis.rules.indistinguishable, verdict.told_apart_text): pure rules."""
+import pytest
+
 from tuner.diagnosis.rules import CONFOUNDED_SHARE, indistinguishable
 from tuner.diagnosis.verdict import told_apart_text
 
@@ -47,3 +49,16 @@ def test_a_limit_the_base_absorbs_says_what_absorbs_it_and_a_verdict_with_causes
     assert "preload (the elastic table absorbs 99 %" in text
     assert "thermal_drift" not in text and "inertia" not in text  # an inertia above 30 kg these tests would name
     assert untold_text({"thermal_drift": weak}) == "" and untold_text(None) == ""
+
+
+def test_the_absorbing_elements_are_summed_by_group_and_read_at_most_whole():
+    from types import SimpleNamespace
+
+    from tuner.diagnosis.search.run import absorbing_groups
+
+    par = SimpleNamespace(model="lumped", names=["Fc_01", "Fc_02", "k_B", "c_B", "M_C", "Fk_01"])
+    groups = absorbing_groups(par, [0.7, 0.35, 0.02, 0.03, -0.15, 0.05])
+    assert groups == {"the damping table": 1.0}  # 1.05 read as whole; the others below 10 % or negative
+    groups = absorbing_groups(par, [0.3, 0.1, 0.3, 0.3, 0.0, 0.0])
+    assert list(groups) == ["the series elasticity (k_B, c_B)", "the damping table"]
+    assert groups["the series elasticity (k_B, c_B)"] == pytest.approx(0.6)

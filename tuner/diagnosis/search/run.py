@@ -100,9 +100,10 @@ def detection(s: SearchState, candidates: list[str]) -> dict:
 def absorbing_groups(par, parts: list[float]) -> dict[str, float]:
     """{element: its share of the absorbed force} (``tuner.diagnosis.detection.absorption``'s parts per coordinate
     of the parametrization ``par`` summed by ``damper_fmu.parameters.parameter_group``), the elements carrying at
-    least 10 %, largest first."""
+    least 10 %, largest first; a share is at most 1 (the parts of elements working against the others, negative,
+    are left out: the damping table at 101.5 % beside -1.5 % elsewhere reads 100 %)."""
     groups: dict[str, float] = {}
     for name, part in zip(par.names, parts):
         g = parameter_group(par.model, name)
         groups[g] = groups.get(g, 0.0) + float(part)
-    return dict(sorted(((g, v) for g, v in groups.items() if v >= 0.1), key=lambda kv: -kv[1]))
+    return dict(sorted(((g, min(v, 1.0)) for g, v in groups.items() if v >= 0.1), key=lambda kv: -kv[1]))
