@@ -9,6 +9,10 @@ It never imports the tuner; the tuner uses its vehicle (``tuner.vehicle``) and i
 - ``vehicle_nonlinear``: the same car with that contact on straight track, for hunting limit cycles;
 - ``bifurcation``: hunting limit cycles against speed by ramp-down, nonlinear critical speed, conicity sweep;
 - ``periodic_orbits``: limit cycles by shooting, stable or unstable, continued in amplitude through the fold;
+- ``contact_table``: the tabulated S1002-on-UIC60 contact geometry against the wheelset's lateral displacement;
+- ``cooperrider``: the DTU group's full Cooperrider car (body, two frames, four wheelsets) on that contact;
+- ``cooperrider_params``: its parameters, read from DYTSI's input file, with the ones DYTSI fixes in its source;
+- ``cooperrider_runs``: its hunting runs (batches of speeds), growth rates, cycles and critical speeds;
 - ``scenarios``: the six manoeuvres of the paper's Table 1 and the front-right yaw damper's stroke [m];
 - ``rig``: the virtual damper test rig (stroke imposed, force and stroke recorded);
 - ``rig_damper``: the rig's physically based twin-tube damper (the "real" damper);
