@@ -111,7 +111,8 @@ BROAD_NOISE_N = (10.0, 50.0)
 def broad_data(model: str, seed: int) -> dict:
     """The seed's broad draw: {"series": {parameter: value}, "sample_rate": Hz, "noise_n": N rms}."""
     rng = np.random.default_rng([seed, 7177])
-    series = {k: float(math.exp(rng.uniform(math.log(lo), math.log(hi)))) for k, (lo, hi) in BROAD_SERIES[model].items()}
+    series = {k: float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+              for k, (lo, hi) in BROAD_SERIES[model].items()}
     return {"series": series, "sample_rate": float(rng.choice(BROAD_RATES_HZ)),
             "noise_n": float(rng.uniform(*BROAD_NOISE_N))}
 
@@ -198,7 +199,8 @@ def _arguments(argv) -> argparse.Namespace:
 def _row_line(row: dict) -> str:
     hid = ", ".join(f"{k} {v:.3g}" for k, v in row["hidden"].items()) or "nothing"
     fit = ", ".join(f"{k} {v:.3g}" for k, v in row["fitted"].items() if v is not None)
-    return (f"{row['case']:20s} seed {row['seed']:4d} {row['sample_rate']:5.0f} Hz {row['noise_n']:3.0f} N  hidden {hid:60s}"
+    return (f"{row['case']:20s} seed {row['seed']:4d} {row['sample_rate']:5.0f} Hz {row['noise_n']:3.0f} N  "
+            f"hidden {hid:60s}"
             f" -> {'+'.join(row['causes']) or row['named']:22s} base {row['base']:10s}"
             + (f" fitted {fit}" if fit else "") + f"  [{row['elapsed_s']:.0f} s]")
 

@@ -27,7 +27,8 @@ def test_an_effect_that_gains_but_that_the_base_absorbs_is_reported_with_its_fig
 
 def test_the_row_on_top_of_the_causes_counts_and_the_threshold_is_the_rule():
     ranking = [_row("valve_lag", +2.0, valve_tau=1e-3)]  # on the base: no gain
-    selection = [{"cause": "none", "tried": [{**_row("preload+valve_lag", -3.0, valve_tau=6e-3), "added": "valve_lag"}]}]
+    on_top = {**_row("preload+valve_lag", -3.0, valve_tau=6e-3), "added": "valve_lag"}
+    selection = [{"cause": "none", "tried": [on_top]}]
     at = {"valve_lag": _limit(CONFOUNDED_SHARE)}
     below = {"valve_lag": _limit(CONFOUNDED_SHARE - 0.01)}
     assert [r["parameters"]["valve_tau"] for r in indistinguishable(ranking, selection, at)] == [6e-3]
@@ -43,7 +44,8 @@ def test_a_limit_the_base_absorbs_says_what_absorbs_it_and_a_verdict_with_causes
     weak = {"reachable": False, "absorbed_share": 0.2, "absorbed_by": {}, "parameter": "thermal_beta"}
     seen = {"reachable": True, "absorbed_share": 0.95, "absorbed_by": {"the masses": 1.0}, "limit": 30.0,
             "best_test": "val1", "parameter": "inertia_mass"}
-    assert limit_text(absorbed) == "not detectable within its search range (the elastic table absorbs 99 % of its force)"
+    assert limit_text(absorbed) == ("not detectable within its search range (the elastic table absorbs 99 % of its "
+                                    "force)")
     assert limit_text(weak) == "not detectable within its search range"  # too little absorbed: no reason given
     text = untold_text({"preload": absorbed, "thermal_drift": weak, "inertia": seen})
     assert "preload (the elastic table absorbs 99 %" in text

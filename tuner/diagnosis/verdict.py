@@ -153,8 +153,10 @@ def verdict_text(causes: list[str], best: dict, none_row: dict, rejected: list[d
             low_t = sum(v["time_share"] for k, v in loop.items() if k.startswith("below"))
             sig += (f"; {100 * low:.0f} % of it at speeds below the blow-off knee ({100 * low_t:.0f} % of the time), "
                     f"{100 * (1 - low):.0f} % beyond")
-        what = ("a model-form error that no catalogue effect explains" + told_apart_text(unexplained.get("indistinguishable"))
-                if unexplained.get("fit_converged") is not False else "but the refit did not converge within its Jacobian cap, so this may be an unfinished fit: "
+        apart = told_apart_text(unexplained.get("indistinguishable"))
+        what = ("a model-form error that no catalogue effect explains" + apart
+                if unexplained.get("fit_converged") is not False
+                else "but the refit did not converge within its Jacobian cap, so this may be an unfinished fit: "
                      "it is NOT shown to be a model-form error")
         text = ("unexplained: " if not causes else text + ". Not explained: ") + (
             f"the remaining residual, {unexplained['identification_rmse_n']:.3g} N rms, is "
@@ -173,7 +175,8 @@ def told_apart_text(records: list[dict] | None) -> str:
     for r in records:
         by = " and ".join(f"{g} ({100 * v:.0f} %)" for g, v in r["absorbed_by"].items()) or "the base parameters"
         values = ", ".join(f"{n} = {fmt_quantity(v, UNITS[n])}" for n, v in r["parameters"].items())
-        parts.append(f"{ALL_EFFECTS[r['effect']].label} ({values}; held-out MSE {r['validation_mse_change_pct']:+.0f} %) "
+        change = r["validation_mse_change_pct"]
+        parts.append(f"{ALL_EFFECTS[r['effect']].label} ({values}; held-out MSE {change:+.0f} %) "
                      f"and {by} explain the same residual: the base refit absorbs {100 * r['absorbed_share']:.0f} % of "
                      f"its force")
     return (" apart from what these tests cannot tell from the base model's own elements: " + "; ".join(parts)
