@@ -1,6 +1,6 @@
 """Blind diagnoses of random dampers of the model classes with a hidden free play or form gap.
 
-    python benchmarks/blind_class.py [--seeds 3] [--cases free_play_soft,free_play_stiff,bypass,none]
+    python benchmarks/blind_class.py [--seeds 3] [--seed-offset 0] [--cases free_play_soft,free_play_stiff,bypass,none]
                                      [--model lumped|twochamber] [--noise 25] [--broad] [--out results/blind_class]
                                      [--scheduler pool | pool:N | local:N | tcp://HOST:PORT]
     python benchmarks/blind_class.py --broad --cases pairs --seeds 10     # the fault pairs, data as broad as users'
@@ -182,6 +182,7 @@ def run_case(case: dict) -> dict:
 def _arguments(argv) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--seed-offset", type=int, default=0, help="start at each case's k-th seed (new seeds)")
     ap.add_argument("--cases", default=",".join(SINGLES), help="comma-separated; 'pairs' stands for every pair")
     ap.add_argument("--model", choices=("lumped", "twochamber"), default="lumped")
     ap.add_argument("--noise", type=float, default=25.0, help="force noise [N rms] (without --broad)")
@@ -224,7 +225,7 @@ def _table(rows: list[dict], names: list[str], model: str) -> None:
 def main(argv=None) -> int:
     a = _arguments(argv)
     (a.out / "logs").mkdir(parents=True, exist_ok=True)
-    cases = [_case(c, k, a) for c in a.case_names for k in range(a.seeds)]
+    cases = [_case(c, k, a) for c in a.case_names for k in range(a.seed_offset, a.seed_offset + a.seeds)]
     rows = []
     with FleetExecutor(a.scheduler) as ex:
         print(f"{len(cases)} blind diagnoses of random {a.model} dampers on a {ex.description}", flush=True)
