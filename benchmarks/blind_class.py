@@ -1,6 +1,7 @@
-"""Blind diagnoses of random dampers of the model classes with a hidden free play or form gap.
+"""Blind diagnoses of random dampers of the model classes with a hidden free play, form gap or pair of faults.
 
-    python benchmarks/blind_class.py [--seeds 3] [--seed-offset 0] [--cases free_play_soft,free_play_stiff,bypass,none]
+    python benchmarks/blind_class.py [--seeds 3] [--seed-offset 0]
+                                     [--cases free_play_soft,free_play_stiff,bypass,none]
                                      [--model lumped|twochamber] [--noise 25] [--broad] [--out results/blind_class]
                                      [--scheduler pool | pool:N | local:N | tcp://HOST:PORT]
     python benchmarks/blind_class.py --broad --cases pairs --seeds 10     # the fault pairs, data as broad as users'
