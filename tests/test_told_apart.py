@@ -44,11 +44,11 @@ def test_a_limit_the_base_absorbs_says_what_absorbs_it_and_a_verdict_with_causes
     weak = {"reachable": False, "absorbed_share": 0.2, "absorbed_by": {}, "parameter": "thermal_beta"}
     seen = {"reachable": True, "absorbed_share": 0.95, "absorbed_by": {"the masses": 1.0}, "limit": 30.0,
             "best_test": "val1", "parameter": "inertia_mass"}
-    assert limit_text(absorbed) == ("not detectable within its search range (the elastic table absorbs 99 % of its "
-                                    "force)")
+    assert limit_text(absorbed) == ("not detectable within its search range (99 % of its force absorbed by the "
+                                    "elastic table)")
     assert limit_text(weak) == "not detectable within its search range"  # too little absorbed: no reason given
     text = untold_text({"preload": absorbed, "thermal_drift": weak, "inertia": seen})
-    assert "preload (the elastic table absorbs 99 %" in text
+    assert "preload (99 % of its force absorbed by the elastic table)" in text
     assert "thermal_drift" not in text and "inertia" not in text  # an inertia above 30 kg these tests would name
     assert untold_text({"thermal_drift": weak}) == "" and untold_text(None) == ""
 

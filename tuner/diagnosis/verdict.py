@@ -78,13 +78,13 @@ def limit_text(row: dict) -> str:
 
 
 def absorbed_text(row: dict) -> str:
-    """' (the elastic table absorbs 99 % of its force)' of a detection limit whose effect the base absorbs to at
+    """' (99 % of its force absorbed by the elastic table)' of a detection limit whose effect the base absorbs to at
     least CONFOUNDED_SHARE, else ''."""
     share = row.get("absorbed_share", 0.0)
     if share < CONFOUNDED_SHARE:
         return ""
     by = " and ".join(row.get("absorbed_by") or {}) or "the base parameters"
-    return f" ({by} absorb{'s' if len(row.get('absorbed_by') or {}) == 1 else ''} {100 * share:.0f} % of its force)"
+    return f" ({100 * share:.0f} % of its force absorbed by {by})"
 
 
 def untold_text(limits: dict | None) -> str:
