@@ -166,7 +166,10 @@ def run_case(case: dict) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         data = write_class_dataset(Path(tmp) / "data", case["model"], case["seed"], noise_n=case["noise_n"],
                                    sample_rate=case["sample_rate"], hidden=case["hidden"])
-        tests = load_dataset(data)
+        # the generator's sign and unit conventions are ours: the reader's plausibility check (there for a user's
+        # sign or unit mistakes) is not asked; it refused one passive damper of the class (seed 1128: a 7 ms valve
+        # lag with 1e9 N/m blocks damped at 2.3e4 N s/m, force and velocity correlated -0.14 on one test)
+        tests = load_dataset(data, check_plausible=False)
         log_file = Path(case["log_dir"]) / f"{case['case']}-{case['seed']}.log" if case.get("log_dir") else None
         with open(log_file or "/dev/null", "w") as out:
             res = diagnose([t for t in tests if t.role == "identification"],
