@@ -19,6 +19,7 @@ from tuner.data.reading import load_dataset
 from tuner.diagnosis.bases import FittedBases
 from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
 from tuner.diagnosis.forms import shape_grid
+from tuner.diagnosis.search.form_steps import COULOMB_EDGE
 from tuner.identification.engine import fastest_engine
 from tuner.job import write_diagnosis
 
@@ -83,6 +84,26 @@ def test_a_hidden_bypass_groove_is_named_where_it_is(tmp_path):
     assert p["bypass_center"]["value"] == pytest.approx(3e-3, abs=0.5e-3)
     assert p["bypass_width"]["value"] == pytest.approx(6e-3, abs=1e-3)
     assert "position-dependent damping" in res["verdict"]
+
+
+def test_a_friction_the_catalogue_missed_comes_out_of_the_forms_as_a_friction(tmp_path):
+    """A rod-seal friction (250 N) in lumped-model data, the catalogue's search not given the friction (as when it
+    was screened out beside another fault): the Dahl element of the forms fits it at its smallest displacement
+    scale, where a pre-yield hysteresis is a Coulomb friction, and it is named as the friction it equals, near the
+    truth, with the hysteresis it was found as on record."""
+    data = write_model_dataset(tmp_path / "data", "lumped", {**defaults("lumped"), "friction_force": 250.0}, seed=3,
+                               durations=(6.0, 6.0, 6.0, 6.0), noise_n=10.0)
+    tests = load_dataset(data)
+    res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
+                   DiagnosisSettings(engine=fastest_engine(), base_iterations=0, base_model="lumped",
+                                     candidates=("preload",)),
+                   from_fit=FittedBases("lumped", defaults("lumped")), log=lambda m: None)
+    assert res["causes"] == ["friction"] and res["form"] is None, res["verdict"]
+    assert res["effect_parameters"]["friction_force"]["value"] == pytest.approx(250.0, rel=0.1)
+    found_as = res["friction_found_as_hysteresis"]
+    lo = search_bounds("hysteresis_displacement", 2e4, 0.03)[0]  # the edge does not depend on the data's size
+    assert found_as["hysteresis_displacement"] <= COULOMB_EDGE * lo
+    assert "found as a pre-yield hysteresis" in res["verdict"], res["verdict"]
 
 
 def test_no_form_is_tried_where_the_base_reaches_the_floor(tmp_path):

@@ -95,6 +95,17 @@ def untold_text(limits: dict | None) -> str:
     return "; these tests cannot tell from the base model's own elements: " + ", ".join(untold) if untold else ""
 
 
+def coulomb_text(form_step: dict | None) -> str:
+    """'; the friction found as a pre-yield hysteresis at its smallest displacement scale ...' when the forms'
+    step named a friction in a hysteresis's place (``search.form_steps.as_friction``), else ''."""
+    hyst = (form_step or {}).get("coulomb")
+    if not hyst:
+        return ""
+    return (f"; the friction was found as a pre-yield hysteresis of {fmt_quantity(hyst['hysteresis_force'], 'N')} at "
+            f"its smallest displacement scale (x_h = {fmt_quantity(hyst['hysteresis_displacement'], 'm')}), "
+            "which is a Coulomb friction")
+
+
 def verdict_text(causes: list[str], best: dict, none_row: dict, rejected: list[dict], unexplained: dict | None,
              noise: float, limits: dict | None = None, form_step: dict | None = None) -> str:
     """One-paragraph verdict: the causes with magnitudes and intervals and their held-out gain, or
@@ -119,7 +130,8 @@ def verdict_text(causes: list[str], best: dict, none_row: dict, rejected: list[d
     elif causes:
         change = 100 * (best["validation_mse"] / none_row["validation_mse"] - 1)
         text = (f"cause{'s' if len(causes) > 1 else ''}: {' + '.join(causes)} ({interval_text(best)}); "
-                f"validation MSE {change:+.0f} % against the base refitted alike" + untold_text(limits))
+                f"validation MSE {change:+.0f} % against the base refitted alike" + coulomb_text(form_step)
+                + untold_text(limits))
     else:
         none_inner = ("no extension earns its parameters on held-out data"
                       + ("; " + ", ".join(f"{r['effect']} scored {r['score']:+.3f} but " + why_not(r, noise)

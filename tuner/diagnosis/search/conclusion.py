@@ -103,6 +103,8 @@ def result(s: SearchState, end: Conclusion, limits: dict) -> dict:
     return {"cause": cause, "causes": causes, "verdict": verdict, "selection": end.selection,
             "detection_limits": limits, "form": form_step["form"] if form_step else None,
             "forms_tried": form_step["tried"] if form_step else None,
+            # a friction found as a pre-yield hysteresis at its Coulomb edge: that hysteresis's values (SI)
+            "friction_found_as_hysteresis": form_step.get("coulomb") if form_step else None,
             "forms_weighed": weighed["tried"] if weighed else None,
             "unexplained": unexplained, "ranking": s.ranking,
             "effect_parameters": effect_parameters(best, s.size) if causes else {},

@@ -19,13 +19,21 @@ from tuner.diagnosis.search.state import Fit, SearchState
 from tuner.diagnosis.verdict import UNITS, interval_text
 from tuner.formatting import fmt_quantity
 
-__all__ = ["FORM_REFIT_EXCESS", "fit_form", "forms", "form_row", "name_form", "weigh_forms", "forms_on_top"]
+__all__ = ["FORM_REFIT_EXCESS", "COULOMB_EDGE", "fit_form", "forms", "form_row", "name_form", "at_coulomb_edge",
+           "as_friction", "weigh_forms", "forms_on_top"]
 
 #: a form's shape is refitted only when the screen predicts it to win at least this share of the identification
 #: residual power above the floor: a fifth of the held-out share a form must remove to be named
 #: (FORM_EXCESS_SHARE), since the linear screen under-predicts what a refit realises (a rebound orifice of the
 #: twin-tube rig: 21 % predicted, 66 % realised; half the naming share there left the groove unrefitted)
 FORM_REFIT_EXCESS = 0.2 * FORM_EXCESS_SHARE
+
+#: a pre-yield hysteresis (Dahl element) whose displacement scale x_h ends within this factor of the smallest its
+#: search allows is a Coulomb friction: it saturates within a few x_h of each reversal, a few hundredths of a
+#: millimetre, where the catalogue's rod-seal friction switches within a velocity band (a rod-seal friction of
+#: 140 N hidden beside a 4 ms delay came out as a 140 N hysteresis at its 0.01 mm lower end). Such a form is
+#: named as the friction it equals (``as_friction``).
+COULOMB_EDGE = 1.5
 
 
 def fit_form(s: SearchState, form: str, ext: ExtendedParametrization, jac, current: dict, sse_cur: float):
@@ -109,7 +117,10 @@ def forms(s: SearchState, current: dict, current_row: dict, causes: list[str]) -
               + f"  [{row['elapsed_s']:.0f} s]")
     if not rows:
         return {"form": None, "tried": rows}
-    return name_form(s, rows, fits, current_row)
+    step = name_form(s, rows, fits, current_row)
+    if step["form"] is not None and at_coulomb_edge(step["refit"]):
+        return as_friction(s, step, current, current_row, causes)
+    return step
 
 
 def form_row(s: SearchState, form: str, fit: Fit, g: float, current_row: dict) -> dict:
@@ -149,6 +160,53 @@ def name_form(s: SearchState, rows: list[dict], fits: dict, current_row: dict) -
     return {"form": None, "tried": rows}
 
 
+def at_coulomb_edge(fit: Fit) -> bool:
+    """A pre-yield hysteresis fit whose displacement scale x_h [m] ends within COULOMB_EDGE of its lower search
+    bound: a Coulomb friction."""
+    ext = fit.ext
+    if "hysteresis_displacement" not in ext.extra:
+        return False
+    lo = ext.extra_bounds[ext.extra.index("hysteresis_displacement")][0]
+    return fit.params()["hysteresis_displacement"] <= COULOMB_EDGE * lo
+
+
+def as_friction(s: SearchState, step: dict, current: dict, current_row: dict, causes: list[str]) -> dict:
+    """A hysteresis named at its Coulomb edge (``at_coulomb_edge``) is the catalogue's rod-seal friction: the
+    friction is refitted on top of ``causes`` (model values ``current``, ranking row ``current_row``),
+    continued and given its interval, and named on a cause's rules in the form's place; the forms' ``step``
+    is returned with {"effect": "friction", "row", "refit"} and no form when it earns them, unchanged (the
+    hysteresis stays) when it does not or a friction is named already. SI units; forces in N."""
+    if "friction" in causes:
+        return step
+    ext = ExtendedParametrization(s.par, "+".join([*causes, "friction"]), s.peak, s.stroke_range, s.stroke_limits)
+    z0 = ext.from_params({**current, "friction_force": 0.0})
+    sse_cur = float(s.eid.sse_batch([current])[0])
+    jac = base_jacobian(s.eid, ext, z0, dims=ext.dimension - 1)
+    fit = refit(s.eid, ext, z0, sse_cur, jac, s.settings, s.share,
+                profile=RefitProfile(indices=[ext.extra.index("friction_force")]))
+    found, g, settled = Fit(ext, fit.z, fit.evaluations), fit.fitness, False
+    if s.settings.final_jacobians > 0:
+        pol = s.polish_quietly(ext, fit.z, s.settings.final_jacobians)
+        found, g = Fit(ext, pol.z, fit.evaluations + pol.evaluations), pol.fitness
+        settled = s.settled(pol, g)
+    row = held_out(s, ext.effect, found.params(), ext.extra, g, found.evaluations, current_row["validation_mse"],
+                   new=["friction_force"])
+    row["added"] = "friction"
+    attach_interval(row, effect_intervals(s.eid, ext, found.z), ext, ["friction_force"])
+    hyst = step["row"]["parameters"]
+    said = (f"  the pre-yield hysteresis ends at its smallest displacement scale (x_h = "
+            f"{fmt_quantity(hyst['hysteresis_displacement'], 'm')}): a Coulomb friction of "
+            f"{fmt_quantity(hyst['hysteresis_force'], 'N')}; the rod-seal friction refitted in its place: "
+            f"{interval_text(row, ['friction_force'])}, validation MSE {row['validation_mse_change_pct']:+.0f} %, "
+            f"score {row['score']:+.3f}")
+    if not (row["score"] > ACCEPT_SCORE and earned(row)):
+        s.log(said + ": it does not earn its parameter, the hysteresis stays")
+        return step
+    s.log(said + ": named as the friction")
+    return {**step, "form": None, "effect": "friction", "row": row, "refit": found,
+            "settled": settled, "coulomb": dict(hyst)}
+
+
 def weigh_forms(s: SearchState, cause: str, best: dict):
     """Forms weighed with the causes: where the base leaves a residual above the floor and the cause's
     model still does, the catalogue's cause may only patch a form gap; the forms are fitted on the base
@@ -166,13 +224,14 @@ def weigh_forms(s: SearchState, cause: str, best: dict):
         return cause, best, None
     s.at("forms weighed with the causes")
     weighed = forms(s, s.par.to_params(s.z_none), s.none_row, [])
-    if weighed["form"] is not None and not weighed["row"]["score"] > best["score"]:
-        s.log(f"  {cause} scores above the form {weighed['form']} on the base ({best['score']:+.3f} against "
+    named = weighed.get("effect") or weighed["form"]
+    if named is not None and not weighed["row"]["score"] > best["score"]:
+        s.log(f"  {cause} scores above the form {named} on the base ({best['score']:+.3f} against "
               f"{weighed['row']['score']:+.3f}): {cause} stays the first cause")
-    if weighed["form"] is not None and weighed["row"]["score"] > best["score"]:
-        s.log(f"  the form {weighed['form']} scores above {cause} on the base ({weighed['row']['score']:+.3f} "
+    if named is not None and weighed["row"]["score"] > best["score"]:
+        s.log(f"  the form {named} scores above {cause} on the base ({weighed['row']['score']:+.3f} "
               f"against {best['score']:+.3f}): it is the first cause")
-        cause, best = weighed["form"], weighed["row"]
+        cause, best = named, weighed["row"]
         s.refits[cause] = weighed.pop("refit")
         s.converged[cause] = weighed.pop("settled")
         weighed["first"] = True
@@ -191,12 +250,13 @@ def forms_on_top(s: SearchState, cause: str, causes: list[str], best: dict):
     current = s.refits[key].params() if causes else s.par.to_params(s.z_none)
     s.at("forms beyond the catalogue", 0.9)
     step = forms(s, current, best if causes else s.none_row, causes)
-    if step["form"] is not None:
-        causes.append(step["form"])
+    named = step.get("effect") or step["form"]
+    if named is not None:
+        causes.append(named)
         key = "+".join(causes)
         s.refits[key] = step.pop("refit")
         s.converged[key] = step.pop("settled")
         best = step["row"]
         if cause in ("none", "unexplained"):
-            cause = step["form"]
+            cause = named
     return cause, best, step
