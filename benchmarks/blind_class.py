@@ -31,8 +31,12 @@ in 10-50 N rms, per seed; without it the damper's own draw, 500 Hz and ``--noise
 Printed per run: what was hidden, the sampling rate and noise, the causes named, the base form kept, the
 fitted magnitudes and the time; then per case the runs with every hidden effect named, with some named, with
 all named on the base that made the data (``--model``: a free play must be found there), named
-"unexplained", and with a false cause (a catalogue effect named that was not hidden). Writes
-``blind_class.json`` and each run's diagnosis log (``logs/<case>-<seed>.log``) into ``--out``.
+"unexplained", and with a false cause (a catalogue effect named that was not hidden), with every hidden effect
+named or said to be absorbed by the base (the verdict's "these tests cannot tell ... from the base model's own
+elements"), and failed runs (kept as rows; the other runs go on). Appends each run's row to ``rows.jsonl`` in
+``--out`` as it ends, so that the same command resumes a stopped run and more seeds (``--seed-offset``) add to
+it (the table counts every row of the cases and seeds listed); writes ``blind_class.json`` and each run's
+diagnosis log (``logs/<case>-<seed>.log``) there.
 """
 from __future__ import annotations
 
@@ -53,6 +57,7 @@ from campaign.damper_class import class_tests, random_damper, write_class_datase
 from tuner.data.reading import load_dataset  # noqa: E402
 from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose  # noqa: E402
 from tuner.diagnosis.effect_sizes import DamperSize, typical_range  # noqa: E402
+from tuner.diagnosis.rules import CONFOUNDED_SHARE  # noqa: E402
 from tuner.executors import FleetExecutor  # noqa: E402
 from tuner.identification.engine import fastest_engine  # noqa: E402
 from tuner.results.fleet_summary import write_atomic  # noqa: E402
@@ -155,7 +160,7 @@ def _case(name: str, k: int, a: argparse.Namespace) -> dict:
         rate, noise = draw["sample_rate"], draw["noise_n"]
     return {"case": name, "model": a.model, "seed": seed, "noise_n": noise, "sample_rate": rate,
             "workers": a.workers, "hidden": hidden, "log_dir": str(a.out / "logs"),
-            "base": a.base}
+            "base_setting": a.base, "broad": a.broad}
 
 
 def run_case(case: dict) -> dict:
@@ -175,12 +180,46 @@ def run_case(case: dict) -> dict:
             res = diagnose([t for t in tests if t.role == "identification"],
                            [t for t in tests if t.role == "validation"],
                            DiagnosisSettings(engine=fastest_engine(), workers=case["workers"],
-                                             base_model=case.get("base", "auto")),
+                                             base_model=case.get("base_setting", "auto")),
                            log=lambda m: print(m, file=out, flush=True))
     names = [MAGNITUDE_OF[e] for e in expected(case["case"])]
     fitted = {n: (res["effect_parameters"].get(n) or {}).get("value") for n in names}
     return {**case, "causes": res["causes"], "named": res["cause"], "base": res["base_model"],
-            "fitted": fitted, "truth": {n: case["hidden"][n] for n in names}, "elapsed_s": time.perf_counter() - t0}
+            "fitted": fitted, "truth": {n: case["hidden"][n] for n in names}, "confounded": confounded(res),
+            "elapsed_s": time.perf_counter() - t0}
+
+
+def confounded(res: dict) -> dict:
+    """{effect: share of its force the base absorbs} of the effects the detection limits say the base absorbs
+    at least ``CONFOUNDED_SHARE`` of: what the verdict says these tests cannot tell from the base's own elements."""
+    return {e: lim["absorbed_share"] for e, lim in (res.get("detection_limits") or {}).items()
+            if lim.get("absorbed_share", 0.0) >= CONFOUNDED_SHARE}
+
+
+def failed_row(case: dict, err: BaseException) -> dict:
+    """The row of a run that raised: kept in the table as a failure, never dropped."""
+    return {**case, "causes": [], "named": "failed", "base": None, "fitted": {}, "confounded": {},
+            "error": f"{type(err).__name__}: {err}"[:500], "elapsed_s": None}
+
+
+def run_key(row: dict) -> tuple:
+    """What makes a run the same run again (resume): case, model, seed, data breadth, base setting (the row's
+    ``base`` is the base form the diagnosis kept)."""
+    return (row["case"], row["model"], row["seed"], bool(row.get("broad")), row.get("base_setting", "auto"))
+
+
+def done_rows(path: Path) -> list[dict]:
+    """The rows of ``path`` (one JSON object a line, as ``main`` appends them); [] without the file."""
+    if not path.exists():
+        return []
+    rows = []
+    for i, line in enumerate(path.read_text().splitlines(), 1):
+        try:
+            rows.append(json.loads(line))
+        except json.JSONDecodeError as exc:
+            raise SystemExit(f"{path}, line {i}: not a JSON row ({exc}); remove the line or the file to start "
+                             "over") from exc
+    return rows
 
 
 def _arguments(argv) -> argparse.Namespace:
@@ -211,36 +250,50 @@ def _row_line(row: dict) -> str:
 
 
 def _table(rows: list[dict], names: list[str], model: str) -> None:
-    """Per case: runs, every hidden effect named, some named, on the base that made the data, unexplained,
-    a false cause (an effect named that was not hidden), median time."""
+    """Per case: runs, every hidden effect named, some named, on the base that made the data, every hidden effect
+    named or said to be absorbed by the base (``confounded``), unexplained, a false cause (an effect named that was
+    not hidden), failed runs, median time."""
     print(f"\n{'case':20s} {'runs':>5s} {'all named':>10s} {'some named':>11s} {'on its base':>12s} "
-          f"{'unexplained':>12s} {'false cause':>12s} {'median s':>9s}")
+          f"{'named/said':>11s} {'unexplained':>12s} {'false cause':>12s} {'failed':>7s} {'median s':>9s}")
     for c in names:
         sub = [r for r in rows if r["case"] == c]
+        if not sub:
+            continue
         want = set(expected(c))
         right = [r for r in sub if want <= set(r["causes"]) and (want or not r["causes"])]
+        said = [r for r in sub if want <= set(r["causes"]) | set(r.get("confounded") or {})]
         some = [r for r in sub if want & set(r["causes"])]
         false = [r for r in sub if set(r["causes"]) - want]
+        times = [r["elapsed_s"] for r in sub if "error" not in r]
         print(f"{c:20s} {len(sub):5d} {len(right):10d} {len(some):11d} {sum(r['base'] == model for r in right):12d} "
-              f"{sum(r['named'] == 'unexplained' for r in sub):12d} {len(false):12d} "
-              f"{float(np.median([r['elapsed_s'] for r in sub])):9.0f}")
+              f"{len(said):11d} {sum(r['named'] == 'unexplained' for r in sub):12d} {len(false):12d} "
+              f"{sum('error' in r for r in sub):7d} {float(np.median(times)) if times else math.nan:9.0f}")
 
 
 def main(argv=None) -> int:
     a = _arguments(argv)
     (a.out / "logs").mkdir(parents=True, exist_ok=True)
+    rows_file = a.out / "rows.jsonl"
+    rows = done_rows(rows_file)
+    done = {run_key(r) for r in rows}
     cases = [_case(c, k, a) for c in a.case_names for k in range(a.seed_offset, a.seed_offset + a.seeds)]
-    rows = []
+    todo = [c for c in cases if run_key(c) not in done]
     with FleetExecutor(a.scheduler) as ex:
-        print(f"{len(cases)} blind diagnoses of random {a.model} dampers on a {ex.description}", flush=True)
-        for i, row, err in ex.run(run_case, cases):
-            if err is not None:
-                raise RuntimeError(f"run {i} ({cases[i]['case']}, seed {cases[i]['seed']}) failed: {err}") from err
+        print(f"{len(todo)} blind diagnoses of random {a.model} dampers on a {ex.description}"
+              + (f" ({len(cases) - len(todo)} done before, in {rows_file})" if len(todo) < len(cases) else ""),
+              flush=True)
+        for i, row, err in ex.run(run_case, todo):
+            if err is not None:  # kept as a failure: the other runs go on, and the table counts it
+                row = failed_row(todo[i], err)
+                print(f"run {i} ({todo[i]['case']}, seed {todo[i]['seed']}) failed: {row['error']}", flush=True)
             rows.append(row)
-            print(_row_line(row), flush=True)
-    a.out.mkdir(parents=True, exist_ok=True)
-    write_atomic(a.out / "blind_class.json", json.dumps({"rows": rows}, indent=1))
-    _table(rows, a.case_names, a.model)
+            with open(rows_file, "a") as f:  # one strict-JSON row a line, so that a stopped run resumes
+                f.write(json.dumps(row, allow_nan=False) + "\n")
+            if err is None:
+                print(_row_line(row), flush=True)
+    write_atomic(a.out / "blind_class.json", json.dumps({"rows": rows}, indent=1, allow_nan=False))
+    keys = {run_key(c) for c in cases}
+    _table([r for r in rows if run_key(r) in keys], a.case_names, a.model)
     return 0
 
 
