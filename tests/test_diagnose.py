@@ -323,6 +323,21 @@ def test_a_delay_the_residual_does_not_show_is_not_a_cause():
     assert decide([row2, _row("none", 0.0, 0.0)])[0] == "time_delay"
 
 
+def test_a_delay_that_removes_most_of_the_held_out_error_is_its_own_evidence():
+    """The blind pair friction + delay (seed 1240): an 8.5 ms delay the base absorbed into its series compliance,
+    fitted at 8.14 ms with the held-out MSE -94.7 %, while the base residual's first-order regression showed far
+    less. Refusing it left the damper 'unexplained' at 32 x the floor. A delay that removes most of the held-out
+    error needs no agreement with that regression; the real-data delay of the test above (-27 %) still does."""
+    def row(change_pct):
+        return {**_row("time_delay", 2.9, 1040.0), "parameters": {"time_delay": 8.14e-3},
+                "validation_mse_change_pct": change_pct}
+    seen = {"effects": {"time_delay": {"value": 0.9e-3}}}
+    assert cross_check([row(-94.7)], seen) == []
+    assert cross_check([row(-94.7)], {"effects": {}}) == []  # no regression at all
+    refused = row(-27.0)
+    assert cross_check([refused], seen) == [refused] and not refused["resolved"]
+
+
 def test_delay_agreement_allows_for_what_the_base_refit_absorbed():
     """The lumped blind case: 2.20 ms fitted (2.22 ms hidden) while the base residual showed 0.71 ms
     (the base refit had absorbed two thirds); a residual showing more than three times the fitted
