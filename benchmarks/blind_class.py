@@ -276,7 +276,8 @@ def main(argv=None) -> int:
     rows_file = a.out / "rows.jsonl"
     rows = done_rows(rows_file)
     done = {run_key(r) for r in rows}
-    cases = [_case(c, k, a) for c in a.case_names for k in range(a.seed_offset, a.seed_offset + a.seeds)]
+    # seed by seed across the cases, so that a run stopped early leaves every case with as many seeds
+    cases = [_case(c, k, a) for k in range(a.seed_offset, a.seed_offset + a.seeds) for c in a.case_names]
     todo = [c for c in cases if run_key(c) not in done]
     with FleetExecutor(a.scheduler) as ex:
         print(f"{len(todo)} blind diagnoses of random {a.model} dampers on a {ex.description}"
