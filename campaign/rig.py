@@ -34,7 +34,7 @@ from campaign import effects as fx
 from campaign.rig_damper import DamperConfig, DamperParams, RigDamper, StrokeInput
 from campaign.sensors import SensorChain
 from damper_fmu import defaults
-from damper_fmu.integrator import REPLAY, Simulator, simulate
+from damper_fmu.integrator import REPLAY, Simulator, SolverOptions, simulate
 from damper_fmu.models import make_model
 
 DAMPERS = ("twin-tube", "lumped")
@@ -180,7 +180,7 @@ def _run_lumped(t, stroke, t_int, effects, params: DamperParams):
     p = lumped_parameters(effects, params)
     max_step = float(np.min(np.diff(t_int))) * (1 + 1e-9)
     if p.get("thermal_beta", 0.0) == 0.0:
-        force = simulate("lumped", t_int, x, v, params=p, max_step=max_step, input_mode=REPLAY)
+        force = simulate("lumped", t_int, x, v, params=p, solver=SolverOptions(max_step=max_step, input_mode=REPLAY))
         return x, force, _oil_temperature(t_int, force, v, params)
     sim = Simulator(make_model("lumped", p), max_step=max_step, input_mode=REPLAY)
     force = np.empty(t_int.size)

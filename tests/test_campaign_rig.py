@@ -15,7 +15,7 @@ from campaign.rig import _run_lumped, lumped_parameters, measure
 from campaign.rig_damper import (BW_BETA, BW_GAMMA, BW_N, IZ, N_STATES, DamperConfig, DamperParams,
                                  RigDamper, StrokeInput, quasi_static_force, series_stiffness)
 from campaign.sensors import SensorChain
-from damper_fmu.integrator import REPLAY, Simulator
+from damper_fmu.integrator import REPLAY, Simulator, SolverOptions
 from damper_fmu.models import make_model
 
 IDEAL = SensorChain.ideal()
@@ -503,7 +503,7 @@ def test_lumped_damper_on_the_rig_is_the_model_and_its_effects_obey_their_laws()
     tt = clean["time"].to_numpy()
     x = clean["stroke"].to_numpy()
     v = np.gradient(x, tt)
-    ref = simulate("lumped", tt, x, v, params=lumped_parameters({}), max_step=2.5e-4)
+    ref = simulate("lumped", tt, x, v, params=lumped_parameters({}), solver=SolverOptions(max_step=2.5e-4))
     steady = (tt > 1.0) & (tt < tt[-1] - 0.1)  # FIR filter and np.gradient edges excluded
     err = np.abs(clean["force"].to_numpy() - ref)[steady]
     assert err.max() < 0.01 * np.abs(ref[steady]).max()
