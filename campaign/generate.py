@@ -22,7 +22,7 @@ from pathlib import Path
 
 from campaign.effects import SPECS, validate_effects
 from campaign.plots import plot_dataset
-from campaign.rig import check_damper, check_oil_temperature, measure
+from campaign.rig import Acquisition, check_damper, check_oil_temperature, measure
 from campaign.scenarios import SCENARIOS, damper_stroke
 from damper_dataset.writer import write_dataset
 
@@ -99,7 +99,7 @@ def generate_dataset(out, *, seed: int = DEFAULT_SEED, effects: dict | None = No
         sc = SCENARIOS[name]
         t0 = time.perf_counter()
         t, x, _ = damper_stroke(sc, seed=seed, fs=STROKE_RATE_HZ, t_end=t_end)
-        frame = measure(t, x, effects=eff, seed=seed * 1000 + k, sample_rate=sample_rate,
+        frame = measure(t, x, effects=eff, acquisition=Acquisition(sample_rate=sample_rate, seed=seed * 1000 + k),
                         damper=damper, oil_temperature=temps.get(name))
         log(f"  {name:24s} {sc.role:14s} {t[-1]:5.1f} s  peak stroke {1e3 * abs(x).max():5.1f} mm  "
             f"peak force {abs(frame['force']).max() / 1e3:5.1f} kN  ({time.perf_counter() - t0:.1f} s)")
