@@ -24,7 +24,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from campaign.generate import generate_dataset  # noqa: E402
+from campaign.generate import CampaignPlan, generate_dataset  # noqa: E402
 from tuner.fleet.batch import BatchOptions, run_batch  # noqa: E402
 
 ID_FILES = ("id1_straight_250", "id2_curve_R400_72", "id3_switch_R190_43")
@@ -49,8 +49,8 @@ def main(argv=None) -> int:
         lines = ["damper_id,type,identification,validation,seed"]
         for k in range(a.rows):
             name = f"D{k + 1:02d}"
-            generate_dataset(base / "data" / name, seed=100 + k, damper="lumped", t_end=a.t_end, overwrite=True,
-                             log=lambda m: None)
+            generate_dataset(base / "data" / name, seed=100 + k, damper="lumped", plan=CampaignPlan(t_end=a.t_end),
+                             overwrite=True, log=lambda m: None)
             ident = ";".join(f"data/{name}/{f}.csv" for f in ID_FILES)
             valid = ";".join(f"data/{name}/{f}.csv" for f in VAL_FILES)
             lines.append(f"{name},A,{ident},{valid},0")

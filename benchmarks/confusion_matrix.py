@@ -47,7 +47,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from campaign.effects import FORMS, SPECS  # noqa: E402
-from campaign.generate import CHAMBER_TEMPERATURES_C, generate_dataset  # noqa: E402
+from campaign.generate import CHAMBER_TEMPERATURES_C, CampaignPlan, generate_dataset  # noqa: E402
 from tuner.data.reading import load_dataset  # noqa: E402
 from tuner.identification.engine import fastest_engine  # noqa: E402
 from tuner.executors import FleetExecutor  # noqa: E402
@@ -73,16 +73,14 @@ def run_case(case: dict) -> dict:
     tmp = Path(tempfile.mkdtemp(prefix="confusion_"))
     try:
         t0 = time.perf_counter()
-        data = generate_dataset(tmp / "data", seed=case["seed"], effects=effects, t_end=case["t_end"],
-                                damper=case["damper"],
-                                oil_temperatures=CHAMBER_TEMPERATURES_C if case["chamber"] else None,
+        plan = CampaignPlan(t_end=case["t_end"], oil_temperatures=CHAMBER_TEMPERATURES_C if case["chamber"] else None)
+        data = generate_dataset(tmp / "data", seed=case["seed"], effects=effects, damper=case["damper"], plan=plan,
                                 log=lambda m: None)
         tests = load_dataset(data)
         effect_force = {}
         if truth != "none":  # what the hidden effect does to the measured force: the same seed without it
             clean = load_dataset(generate_dataset(
-                tmp / "clean", seed=case["seed"], effects={}, t_end=case["t_end"], damper=case["damper"],
-                oil_temperatures=CHAMBER_TEMPERATURES_C if case["chamber"] else None, log=lambda m: None))
+                tmp / "clean", seed=case["seed"], effects={}, damper=case["damper"], plan=plan, log=lambda m: None))
             effect_force = {r: effect_force_n(tests, clean, r) for r in ("identification", "validation")}
         res = diagnose([t for t in tests if t.role == "identification"],
                        [t for t in tests if t.role == "validation"],

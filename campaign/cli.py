@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from campaign.effects import parse_effect
-from campaign.generate import generate_dataset
+from campaign.generate import CampaignPlan, generate_dataset
 
 __all__ = ["add_generate_arguments", "cmd_generate", "main", "float_list"]
 
@@ -44,9 +44,9 @@ def add_generate_arguments(p: argparse.ArgumentParser) -> None:
 def cmd_generate(args, log=print) -> int:
     """Write the dataset that ``args`` (``add_generate_arguments``) describe; 0 on success."""
     effects = dict(parse_effect(spec) for spec in args.effect or [])
-    out = generate_dataset(args.out, seed=args.seed, effects=effects, sample_rate=args.sample_rate,
-                           overwrite=args.overwrite, damper=args.damper, t_end=args.t_end,
-                           oil_temperatures=args.oil_temperatures, log=log)
+    plan = CampaignPlan(t_end=args.t_end, sample_rate=args.sample_rate, oil_temperatures=args.oil_temperatures)
+    out = generate_dataset(args.out, seed=args.seed, effects=effects, damper=args.damper, plan=plan,
+                           overwrite=args.overwrite, log=log)
     log(f"dataset written to {out}")
     return 0
 

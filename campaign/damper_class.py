@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from damper_dataset.writer import write_dataset
-from damper_fmu import REPLAY, simulate
+from damper_fmu import REPLAY, SolverOptions, simulate
 from damper_fmu.integrator import DEFAULT_MAX_STEP
 from damper_fmu.parameters import (FC_ABSCISSAE, FK_ABSCISSAE, FK_REFERENCE_STIFFNESS, TWOCHAMBER_FC_ABSCISSAE,
                                    defaults)
@@ -228,8 +228,8 @@ def class_tests(model: str, seed: int, *, durations=None, noise_n: float | None 
         x, v = _capped(x, v, MAX_VELOCITY)
         n = (t.size - 1) // OVERSAMPLING * OVERSAMPLING + 1
         t, x, v = t[:n], x[:n], v[:n]
-        f = simulate(model, t, x, v, params=params, max_step=min(DEFAULT_MAX_STEP, 1.0 / fs_int),
-                     input_mode=REPLAY)
+        f = simulate(model, t, x, v, params=params,
+                     solver=SolverOptions(max_step=min(DEFAULT_MAX_STEP, 1.0 / fs_int), input_mode=REPLAY))
         peak = float(np.abs(f).max())
         chain = SensorChain(**{"force_noise": noise_n, "oversampling": OVERSAMPLING,
                                "force_range": max(5e3, 2.0 ** math.ceil(math.log2(1.25 * peak))), **(sensors or {})})

@@ -17,17 +17,18 @@ from __future__ import annotations
 
 import platform
 import time
+from dataclasses import dataclass
 from importlib.metadata import version
 from pathlib import Path
 
 from campaign.effects import SPECS, validate_effects
 from campaign.plots import plot_dataset
-from campaign.rig import check_damper, check_oil_temperature, measure
+from campaign.rig import Acquisition, check_damper, check_oil_temperature, measure
 from campaign.scenarios import SCENARIOS, damper_stroke
 from damper_dataset.writer import write_dataset
 
-__all__ = ["generate_dataset", "library_versions", "numerical_kernels", "STROKE_RATE_HZ", "DEFAULT_SEED", "CHAMBER_TEMPERATURES_C",
-           "GENERATING_LIBRARIES"]
+__all__ = ["CampaignPlan", "generate_dataset", "library_versions", "numerical_kernels", "STROKE_RATE_HZ", "DEFAULT_SEED",
+           "CHAMBER_TEMPERATURES_C", "GENERATING_LIBRARIES"]
 
 STROKE_RATE_HZ = 2000.0
 DEFAULT_SEED = 2023
@@ -65,23 +66,38 @@ def numerical_kernels() -> dict:
             "blas": blas}
 
 
-def generate_dataset(out, *, seed: int = DEFAULT_SEED, effects: dict | None = None,
-                     sample_rate: float = 1000.0, scenarios=None, t_end: float | None = None,
-                     overwrite: bool = False, damper: str = "twin-tube", oil_temperatures=None,
-                     overview: bool = True, log=print) -> Path:
+@dataclass(frozen=True)
+class CampaignPlan:
+    """The test programme of a campaign: which manoeuvres, how long, at which oil temperature, recorded how fast.
+
+    scenarios: names of ``scenarios.SCENARIOS`` to run, in this order (None: all six);
+    t_end: optional shorter duration [s] of each manoeuvre, for quick test datasets (None: the scenario's own);
+    sample_rate: rig sample rate [Hz];
+    oil_temperatures: optional oil (climatic chamber) temperature [degC] per scenario, a sequence in the
+    order of ``scenarios`` or a mapping scenario name -> degC (None: 20 degC for every test;
+    ``CHAMBER_TEMPERATURES_C`` is the climatic-chamber campaign)."""
+
+    scenarios: tuple[str, ...] | list[str] | None = None
+    t_end: float | None = None
+    sample_rate: float = 1000.0
+    oil_temperatures: tuple[float, ...] | list[float] | dict[str, float] | None = None
+
+
+def generate_dataset(out, *, seed: int = DEFAULT_SEED, effects: dict | None = None, damper: str = "twin-tube",
+                     plan: CampaignPlan = CampaignPlan(), overwrite: bool = False, overview: bool = True,
+                     log=print) -> Path:
     """Run the campaign and write a dataset folder; return its path.
 
     effects: {name: value or None for the documented default} (campaign.effects.EFFECTS and the
-    model forms campaign.effects.FORMS, twin-tube only);
-    sample_rate: rig sample rate [Hz]; scenarios: names to run (default all six);
-    t_end: optional shorter duration [s] for quick test datasets; damper: the damper on the rig
+    model forms campaign.effects.FORMS, twin-tube only); damper: the damper on the rig
     (``campaign.rig.DAMPERS``: the physical ``twin-tube``, or ``lumped`` for the paper's model itself);
-    oil_temperatures: optional oil (climatic chamber) temperature [degC] per scenario, a sequence in
-    the order of ``scenarios`` or a mapping scenario name -> degC (default: 20 degC for every test);
+    plan: the scenarios, their duration [s], the rig sample rate [Hz] and the oil temperatures [degC]
+    (``CampaignPlan``; default all six scenarios in full at 1 kHz and 20 degC);
     overview: draw the overview figure ``overview.png`` (``campaign.plots``; about 1.5 s) into the folder.
     """
     if int(seed) != seed or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    scenarios, t_end, sample_rate = plan.scenarios, plan.t_end, plan.sample_rate
     chosen = list(SCENARIOS) if scenarios is None else list(scenarios)
     unknown = [s for s in chosen if s not in SCENARIOS]
     if unknown:
@@ -90,7 +106,7 @@ def generate_dataset(out, *, seed: int = DEFAULT_SEED, effects: dict | None = No
     check_damper(damper, eff)
     if t_end is not None and not (t_end > 0):
         raise ValueError(f"t_end must be a positive duration [s], got {t_end!r}")
-    temps = _oil_temperatures(oil_temperatures, chosen)
+    temps = _oil_temperatures(plan.oil_temperatures, chosen)
     out = Path(out)
     if out.exists() and any(out.iterdir()) and not overwrite:
         raise FileExistsError(f"{out} exists and is not empty; use --overwrite to replace it")
@@ -99,7 +115,7 @@ def generate_dataset(out, *, seed: int = DEFAULT_SEED, effects: dict | None = No
         sc = SCENARIOS[name]
         t0 = time.perf_counter()
         t, x, _ = damper_stroke(sc, seed=seed, fs=STROKE_RATE_HZ, t_end=t_end)
-        frame = measure(t, x, effects=eff, seed=seed * 1000 + k, sample_rate=sample_rate,
+        frame = measure(t, x, effects=eff, acquisition=Acquisition(sample_rate=sample_rate, seed=seed * 1000 + k),
                         damper=damper, oil_temperature=temps.get(name))
         log(f"  {name:24s} {sc.role:14s} {t[-1]:5.1f} s  peak stroke {1e3 * abs(x).max():5.1f} mm  "
             f"peak force {abs(frame['force']).max() / 1e3:5.1f} kN  ({time.perf_counter() - t0:.1f} s)")

@@ -24,7 +24,7 @@ Two dampers can be mounted (``damper``):
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Mapping
 
 import numpy as np
@@ -34,10 +34,21 @@ from campaign import effects as fx
 from campaign.rig_damper import DamperConfig, DamperParams, RigDamper, StrokeInput
 from campaign.sensors import SensorChain
 from damper_fmu import defaults
-from damper_fmu.integrator import REPLAY, Simulator, simulate
+from damper_fmu.integrator import REPLAY, Simulator, SolverOptions, simulate
 from damper_fmu.models import make_model
 
 DAMPERS = ("twin-tube", "lumped")
+
+
+@dataclass(frozen=True)
+class Acquisition:
+    """How the rig records a test: sample_rate [Hz] of the recorded channels (time starts at the stroke's
+    first sample), the sensor chain (noise, ranges, ADC, oversampling and anti-alias filter relative to the
+    sample rate; ``campaign.sensors.SensorChain``) and the seed of its noise (a non-negative int)."""
+
+    sample_rate: float = 1000.0
+    sensors: SensorChain = SensorChain()
+    seed: int = 0
 
 
 def _check_inputs(t, stroke, sample_rate, seed):
@@ -72,17 +83,16 @@ def _check_inputs(t, stroke, sample_rate, seed):
     return t, stroke, float(sample_rate), int(seed)
 
 
-def measure(t, stroke, effects: Mapping[str, float | None] | None = None, seed: int = 0,
-            sample_rate: float = 1000.0, *, sensors: SensorChain | None = None,
-            params: DamperParams | None = None, rtol: float = 1e-7,
+def measure(t, stroke, effects: Mapping[str, float | None] | None = None, *,
+            acquisition: Acquisition = Acquisition(), params: DamperParams | None = None, rtol: float = 1e-7,
             damper: str = "twin-tube", oil_temperature: float | None = None) -> pd.DataFrame:
     """Run the virtual rig.
 
     t [s] (strictly increasing), stroke [m] (extension +, from mid-stroke, |stroke| <=
     75 mm); effects: {name: value or None (= default)} from ``campaign.effects.EFFECTS`` or
-    the model forms ``campaign.effects.FORMS`` (twin-tube only);
-    seed: noise seed; sample_rate [Hz] of the recorded channels (time starts at t[0]).
-    Keyword-only: sensors (default ``SensorChain()``), params (damper, default
+    the model forms ``campaign.effects.FORMS`` (twin-tube only).
+    Keyword-only: acquisition (sample rate [Hz], sensor chain, noise seed: ``Acquisition``; default
+    1000 Hz, ``SensorChain()``, seed 0), params (damper, default
     ``DamperParams()``; for the lumped damper only its thermal data are used), rtol
     (integrator tolerance, twin-tube only),
     damper (``DAMPERS``, see the module docstring), oil_temperature [degC] (the damper
@@ -91,13 +101,13 @@ def measure(t, stroke, effects: Mapping[str, float | None] | None = None, seed: 
     time [s], stroke [m], force [N], temperature [degC]; ``attrs`` holds the effects,
     seed, sample rate and damper. Bad input raises ValueError naming the problem.
     """
-    t, stroke, fs, seed = _check_inputs(t, stroke, sample_rate, seed)
+    t, stroke, fs, seed = _check_inputs(t, stroke, acquisition.sample_rate, acquisition.seed)
     check_damper(damper)
     if oil_temperature is not None:
         oil_temperature = check_oil_temperature(oil_temperature)
     eff = fx.validate_effects(effects)
     check_damper(damper, eff)
-    chain = sensors or SensorChain()
+    chain = acquisition.sensors
     n_out = int(math.floor((t[-1] - t[0]) * fs + 1e-9)) + 1
     os_ = chain.oversampling
     t_int = t[0] + np.arange(os_ * (n_out - 1) + 1) / (os_ * fs)
@@ -180,7 +190,7 @@ def _run_lumped(t, stroke, t_int, effects, params: DamperParams):
     p = lumped_parameters(effects, params)
     max_step = float(np.min(np.diff(t_int))) * (1 + 1e-9)
     if p.get("thermal_beta", 0.0) == 0.0:
-        force = simulate("lumped", t_int, x, v, params=p, max_step=max_step, input_mode=REPLAY)
+        force = simulate("lumped", t_int, x, v, params=p, solver=SolverOptions(max_step=max_step, input_mode=REPLAY))
         return x, force, _oil_temperature(t_int, force, v, params)
     sim = Simulator(make_model("lumped", p), max_step=max_step, input_mode=REPLAY)
     force = np.empty(t_int.size)

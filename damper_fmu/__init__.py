@@ -11,6 +11,7 @@ tuner or the campaign.
 - ``tables``: piecewise-linear characteristics through the origin;
 - ``models``: the model equations (lumped, Maxwell, table Maxwell, two-chamber), single source for all engines;
 - ``effects``: the optional effect elements (the diagnosis's catalogue and the forms beyond it);
+- ``solver_options``: the solver options record (largest internal step, tolerance, input mode) and its defaults;
 - ``integrator``: L-stable SDIRK2 stepping with sub-steps, and the in-process ``simulate``;
 - ``native``: the same in C (``c/damper_kernel.c``), compiled on first use, through ctypes;
 - ``c_header``: the C names of the parameters' indices (``c/damper_index.h``), generated from ``parameters``;
@@ -22,9 +23,9 @@ C sources in ``c/``: the kernel ``damper_kernel.c``, the FMI-independent ``fmu_c
 wrappers ``fmi2_damper.c`` and ``fmi3_damper.c``, and the standard FMI headers ``fmi2/``, ``fmi3/``
 with their ``ORIGIN``.
 """
-from .integrator import EXTRAPOLATE, REPLAY, Simulator, simulate
+from .integrator import EXTRAPOLATE, REPLAY, Simulator, SolverOptions, simulate
 from .models import ConvergenceError, make_model
 from .parameters import MODEL_PARAMETERS, defaults, tunable_names
 
-__all__ = ["EXTRAPOLATE", "REPLAY", "Simulator", "simulate", "ConvergenceError", "make_model",
+__all__ = ["EXTRAPOLATE", "REPLAY", "Simulator", "SolverOptions", "simulate", "ConvergenceError", "make_model",
            "MODEL_PARAMETERS", "defaults", "tunable_names"]

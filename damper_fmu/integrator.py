@@ -43,18 +43,13 @@ from . import native
 from .effects import Effects
 from .models import ConvergenceError, make_model
 from .parameters import EFFECT_MODELS, EFFECTS_INSIDE
+from .solver_options import DEFAULT_MAX_STEP, DEFAULT_TOLERANCE, EXTRAPOLATE, REPLAY, SolverOptions
 
 __all__ = ["EXTRAPOLATE", "REPLAY", "GAMMA", "DEFAULT_MAX_STEP", "DEFAULT_TOLERANCE", "INPUT_INTERPOLATION_DESCRIPTION", "Simulator",
-           "simulate", "velocity_extrapolation"]
+           "SolverOptions", "simulate", "velocity_extrapolation"]
 
-EXTRAPOLATE = 0
-REPLAY = 1
 GAMMA = 1.0 - 1.0 / math.sqrt(2.0)
 _C21 = (1.0 - GAMMA) / GAMMA
-#: Default largest internal step [s].
-DEFAULT_MAX_STEP = 1e-3
-#: Default local error tolerance of the internal steps, relative to the model's force scale.
-DEFAULT_TOLERANCE = 1e-4
 #: What the FMU parameter ``input_interpolation`` means (shared by the Python and native FMUs).
 INPUT_INTERPOLATION_DESCRIPTION = (
     "0 (co-simulation, default): stroke and stroke_velocity are the values at the START of each "
@@ -327,13 +322,13 @@ def _check_input(x1: float, v1: float) -> None:
         raise ValueError(f"non-finite input: stroke={x1}, stroke_velocity={v1}")
 
 
-def simulate(model, time, stroke, stroke_velocity, *, params=None, max_step=DEFAULT_MAX_STEP,
-             input_mode=REPLAY, temperature=None, tolerance=DEFAULT_TOLERANCE,
-             backend: str = "auto") -> np.ndarray:
+def simulate(model, time, stroke, stroke_velocity, *, params=None, temperature=None,
+             solver: SolverOptions = SolverOptions(), backend: str = "auto") -> np.ndarray:
     """In-process run of ``model`` (instance or kind name) under a sampled stroke.
 
     time [s] (strictly increasing), stroke [m], stroke_velocity [m/s]: arrays of equal length;
-    temperature [degC]: optional measured oil temperature for the thermal drift element.
+    temperature [degC]: optional measured oil temperature for the thermal drift element;
+    solver: largest internal step [s], tolerance and input mode (``SolverOptions``).
     Returns the force [N] at every sample; sample 0 is the initial (force-free) state. With the
     default REPLAY mode, this is what the FMU computes when driven by ``tuner.identification.runner``.
     backend: 'python' (this module), 'native' (the C kernel; error if not compiled) or 'auto'
@@ -355,11 +350,11 @@ def simulate(model, time, stroke, stroke_velocity, *, params=None, max_step=DEFA
     if backend != "python" and (native.available() or backend == "native"):
         kind, values = (model, params or {}) if isinstance(model, str) else (model.kind, model.params)
         if kind in native.KINDS:
-            return native.simulate(kind, values, t, x, v, max_step=max_step, input_mode=input_mode,
-                                   temperature=temp, tolerance=tolerance)
+            return native.simulate(kind, values, t, x, v, solver=solver, temperature=temp)
     if isinstance(model, str):
         model = make_model(model, params)  # ValueError naming an unknown kind or a bad parameter
-    sim = Simulator(model, max_step=max_step, input_mode=input_mode, tolerance=tolerance)
+    input_mode = solver.input_mode
+    sim = Simulator(model, max_step=solver.max_step, input_mode=input_mode, tolerance=solver.tolerance)
     out = np.empty(t.size)
     tl, xl, vl = t.tolist(), x.tolist(), v.tolist()
     tk = temp.tolist() if temp is not None else None

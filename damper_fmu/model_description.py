@@ -10,6 +10,7 @@ one value-reference space cannot keep (``FMI3_VR``).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from xml.etree.ElementTree import Element, SubElement, tostring
 
 from .integrator import DEFAULT_MAX_STEP, DEFAULT_TOLERANCE, INPUT_INTERPOLATION_DESCRIPTION
@@ -46,6 +47,24 @@ _DESCRIPTION = ("Railway hydraulic damper, {kind} model (native C; SI units, str
 _GENERATION_TOOL = "yaw-damper-toolchain damper_fmu.fmu"
 
 
+@dataclass(frozen=True)
+class _Role:
+    """What a variable is to the importer: its FMI 2.0 causality, variability and initial attributes and its
+    type ('Real' or 'Integer'); no units (the unit is the variable's own)."""
+
+    causality: str
+    variability: str
+    initial: str | None = None
+    type: str = "Real"
+
+
+_INPUT = _Role("input", "continuous")
+_OUTPUT = _Role("output", "continuous", "calculated")
+_FIXED = _Role("parameter", "fixed", "exact")
+_TUNABLE = _Role("parameter", "tunable", "exact")
+_FIXED_INTEGER = _Role("parameter", "fixed", "exact", "Integer")
+
+
 def variables(kind: str, start_values: dict, settings: dict, notes: dict | None = None) -> list[dict]:
     """The native FMU's variables, the one list both model descriptions (FMI 2.0, 3.0) and the pythonfmu
     slaves are written from, in FMI 2.0 order: name, vr (FMI 2.0), vr3 (FMI 3.0), type ('Real' or
@@ -56,21 +75,19 @@ def variables(kind: str, start_values: dict, settings: dict, notes: dict | None 
     well the identification tests determine each identified value: its 95 % range and flags)."""
     out = []
 
-    def var(name, vr, causality, variability, unit, description, start=None, initial=None, kind_="Real",
-            known=False):
-        out.append({"name": name, "vr": vr, "vr3": FMI3_VR.get(name, vr), "type": kind_, "causality": causality,
-                    "variability": variability, "initial": initial, "unit": unit or None, "start": start,
-                    "description": description, "known": known})
+    def var(name, vr, role: _Role, unit, description, start=None, known=False):
+        out.append({"name": name, "vr": vr, "vr3": FMI3_VR.get(name, vr), "type": role.type,
+                    "causality": role.causality, "variability": role.variability, "initial": role.initial,
+                    "unit": unit or None, "start": start, "description": description, "known": known})
 
-    var("stroke", 0, "input", "continuous", "m", "Damper stroke, positive in extension", 0.0, known=True)
-    var("stroke_velocity", 1, "input", "continuous", "m/s", "Damper stroke velocity, positive in extension", 0.0,
-        known=True)
+    var("stroke", 0, _INPUT, "m", "Damper stroke, positive in extension", 0.0, known=True)
+    var("stroke_velocity", 1, _INPUT, "m/s", "Damper stroke velocity, positive in extension", 0.0, known=True)
     if kind in EFFECT_MODELS:
-        var("oil_temperature", 3, "input", "continuous", "degC",
+        var("oil_temperature", 3, _INPUT, "degC",
             "Measured oil temperature; used by the thermal drift element when thermal_source = 1", 20.0)
-    var("force", 2, "output", "continuous", "N", "Damper force, positive in tension", initial="calculated")
+    var("force", 2, _OUTPUT, "N", "Damper force, positive in tension")
     for i, (name, (unit, text)) in enumerate(DIAGNOSTICS[kind].items()):
-        var(name, 10 + i, "output", "continuous", unit, text, initial="calculated")
+        var(name, 10 + i, _OUTPUT, unit, text)
     for i, p in enumerate(MODEL_PARAMETERS[kind]):
         tunable = p.tunable or p.effect
         span = (f"range [{p.low:g}, {p.high:g}]" if check_rule(p) == "range" else
@@ -80,16 +97,15 @@ def variables(kind: str, start_values: dict, settings: dict, notes: dict | None 
                 if p.effect else f"{p.description} [{p.unit}]")
         if notes and notes.get(p.name):
             text = f"{text}; {notes[p.name]}"
-        var(p.name, 100 + i, "parameter", "tunable" if tunable else "fixed", p.unit, text,
-            start_values.get(p.name, p.default), initial="exact", known=True)
+        var(p.name, 100 + i, _TUNABLE if tunable else _FIXED, p.unit, text, start_values.get(p.name, p.default),
+            known=True)
     for name, (value, unit, text) in NATIVE_SETTINGS.items():
-        var(name, SETTING_VR[name], "parameter", "fixed", unit, text, settings.get(name, value), initial="exact")
-    var("input_interpolation", 0, "parameter", "fixed", None, INPUT_INTERPOLATION_DESCRIPTION,
-        settings.get("input_interpolation", 0), initial="exact", kind_="Integer")
+        var(name, SETTING_VR[name], _FIXED, unit, text, settings.get(name, value))
+    var("input_interpolation", 0, _FIXED_INTEGER, None, INPUT_INTERPOLATION_DESCRIPTION,
+        settings.get("input_interpolation", 0))
     if kind in EFFECT_MODELS:
-        var("thermal_source", 1, "parameter", "fixed", None,
-            "Oil temperature of the thermal drift element: 0 internal thermal balance, 1 the oil_temperature input",
-            0, initial="exact", kind_="Integer")
+        var("thermal_source", 1, _FIXED_INTEGER, None,
+            "Oil temperature of the thermal drift element: 0 internal thermal balance, 1 the oil_temperature input", 0)
     return out
 
 

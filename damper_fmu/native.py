@@ -26,6 +26,7 @@ import numpy as np
 from .models import ConvergenceError
 from .parameter_spec import check_rule
 from .parameters import MODEL_PARAMETERS
+from .solver_options import SolverOptions
 
 __all__ = ["available", "reason", "library", "simulate", "parameter_header", "KINDS", "CFLAGS", "compiler",
            "compile_object", "compile_library"]
@@ -188,18 +189,19 @@ def _ptr(a):
     return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double)) if a is not None else None
 
 
-def simulate(kind: str, params: dict, t, x, v, *, max_step: float, input_mode: int, tolerance: float,
-             temperature=None) -> np.ndarray:
+def simulate(kind: str, params: dict, t, x, v, *, solver: SolverOptions, temperature=None) -> np.ndarray:
     """Force [N] at every sample of a stroke (time [s], stroke [m], velocity [m/s]; temperature
-    [degC] or None), as ``damper_fmu.simulate``; raises ValueError with the kernel's message."""
+    [degC] or None) stepped as ``solver`` says (largest internal step [s], tolerance, input mode), as
+    ``damper_fmu.simulate``; raises ValueError with the kernel's message."""
     lib = library()
     p = _values(kind, params)
     t, x, v = (np.ascontiguousarray(a, dtype=float) for a in (t, x, v))
     temp = None if temperature is None else np.ascontiguousarray(temperature, dtype=float)
     out = np.empty(t.size)
     msg = ctypes.create_string_buffer(512)
-    st = lib.dk_simulate(KINDS[kind], _ptr(p), p.size, float(max_step), float(tolerance), int(input_mode),
-                         t.size, _ptr(t), _ptr(x), _ptr(v), _ptr(temp), _ptr(out), msg, len(msg))
+    st = lib.dk_simulate(KINDS[kind], _ptr(p), p.size, float(solver.max_step), float(solver.tolerance),
+                         int(solver.input_mode), t.size, _ptr(t), _ptr(x), _ptr(v), _ptr(temp), _ptr(out), msg,
+                         len(msg))
     if st != 0:
         text = msg.value.decode()
         raise (ConvergenceError if "converge" in text or "internal step" in text or "Jacobian" in text

@@ -22,7 +22,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from campaign.synthetic import random_stroke
-from damper_fmu import defaults, simulate
+from damper_fmu import SolverOptions, defaults, simulate
 from tuner.data.reading import RigTest
 from tuner.identification.engine import (IDENTIFICATION_STEP, IDENTIFICATION_TOLERANCE, Engine, fastest_engine,
                                          simulate_signals)
@@ -37,8 +37,8 @@ KINDS = ("multisine", "slow", "fast")
 #: the truth's integration: 'fine' (internal steps of at most 0.1 ms, local error 1e-7 of the force scale:
 #: the model itself) or 'identification' (the identification engine's fixed 1 ms steps: what the fit can
 #: represent exactly, which separates the intervals' statistics from the identification grid's own error)
-TRUTH_STEPS = {"fine": {"max_step": 1e-4, "tolerance": 1e-7},
-               "identification": {"max_step": IDENTIFICATION_STEP, "tolerance": IDENTIFICATION_TOLERANCE}}
+TRUTH_STEPS = {"fine": SolverOptions(max_step=1e-4, tolerance=1e-7),
+               "identification": SolverOptions(max_step=IDENTIFICATION_STEP, tolerance=IDENTIFICATION_TOLERANCE)}
 
 
 def truth() -> dict:
@@ -73,7 +73,8 @@ def rig_tests(params: dict, kind: str, seed: int, durations=(10.0,), noise_n: fl
     tests = []
     for i, duration in enumerate(durations):
         t, x, v = stroke(kind, 100 * seed + i, duration, slow_amp)
-        f = simulate("lumped", t, x, v, params=params, **TRUTH_STEPS[truth_steps]) + rng.normal(0.0, noise_n, t.size)
+        f = (simulate("lumped", t, x, v, params=params, solver=TRUTH_STEPS[truth_steps])
+             + rng.normal(0.0, noise_n, t.size))
         tests.append(RigTest(name=f"{kind}{i + 1}", role="identification", scenario=f"{kind} stroke", time=t,
                              stroke=x, force=f, sample_rate=FS, velocity=v if measured_velocity else None))
     return tests
@@ -112,7 +113,7 @@ def run_on_truth(params: dict, candidate, seed: int, noise_n: float = 25.0) -> R
     # the stroke's own velocity (a cubic spline's derivative: error ~(w h)^4; central differences lose
     # (w h)^2 / 6 = 1.7e-3 of a 16 Hz sine at 1 kHz, a damping force error that biased the masses)
     v = CubicSpline(c.time, c.stroke)(c.time, 1)
-    force = simulate("lumped", c.time, c.stroke, v, params=params, **TRUTH_STEPS["fine"])
+    force = simulate("lumped", c.time, c.stroke, v, params=params, solver=TRUTH_STEPS["fine"])
     force = force + np.random.default_rng(seed + 20_000).normal(0.0, noise_n, c.time.size)
     return RigTest(name=c.name, role="identification", scenario=c.description, time=c.time, stroke=c.stroke,
                    force=force, sample_rate=(c.time.size - 1) / (c.time[-1] - c.time[0]))

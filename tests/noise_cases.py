@@ -29,7 +29,7 @@ from scipy import signal
 
 from campaign.damper_class import OVERSAMPLING, random_damper, random_stroke
 from campaign.sensors import SensorChain
-from damper_fmu import REPLAY, simulate
+from damper_fmu import REPLAY, SolverOptions, simulate
 from damper_fmu.integrator import DEFAULT_MAX_STEP
 from tuner.data.preprocess import Resampler
 from tuner.data.reading import RigTest
@@ -102,7 +102,7 @@ def noise_case(shape: str, seed: int, *, noise_n: float | None = None, duration_
     n = (t.size - 1) // OVERSAMPLING * OVERSAMPLING + 1
     t, x, v = t[:n], x[:n], v[:n]
     force = simulate("lumped", t, x, v, params=random_damper("lumped", seed),
-                     max_step=min(DEFAULT_MAX_STEP, 1.0 / fs_int), input_mode=REPLAY)
+                     solver=SolverOptions(max_step=min(DEFAULT_MAX_STEP, 1.0 / fs_int), input_mode=REPLAY))
     peak = float(np.abs(force).max())
     sensors = dict(oversampling=OVERSAMPLING, force_range=max(5e3, 2.0 ** math.ceil(math.log2(1.25 * peak))))
     if quantised:

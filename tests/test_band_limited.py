@@ -5,7 +5,7 @@ the model generated, whose only misfit is the measurement noise that survives th
 import numpy as np
 
 from campaign.synthetic import random_stroke
-from damper_fmu import defaults, simulate
+from damper_fmu import SolverOptions, defaults, simulate
 from tuner.data.reading import RigTest
 from tuner.data.preprocess import Resampler, prepare
 from tuner.identification.engine import oversampling, simulate_signals
@@ -15,7 +15,7 @@ from tuner.identification.problem import to_signals
 def _data(seed=3, noise_n=20.0):
     t, x, v = random_stroke(seed, 8.0, 1000.0, slow_amp=0.02, fast_amp=4e-3)
     truth = defaults("lumped")
-    force = simulate("lumped", t, x, v, params=truth, tolerance=1e-6, max_step=2.5e-4)
+    force = simulate("lumped", t, x, v, params=truth, solver=SolverOptions(tolerance=1e-6, max_step=2.5e-4))
     noise = np.random.default_rng(seed).normal(0.0, noise_n, t.size)
     return truth, RigTest("rand", "identification", "random", t, x, force + noise, sample_rate=1000.0), noise
 

@@ -42,12 +42,13 @@ def _files(name: str, role: str) -> str:
 
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory):
-    from campaign.generate import generate_dataset
+    from campaign.generate import CampaignPlan, generate_dataset
 
     base = tmp_path_factory.mktemp("fleet")
     for name, _, damper, seed, effects in DAMPERS:
-        generate_dataset(base / "data" / name, seed=seed, damper=damper, t_end=5.0, effects=effects,
-                         scenarios=IDENTIFICATION + VALIDATION, overview=False, log=lambda m: None)
+        generate_dataset(base / "data" / name, seed=seed, damper=damper, effects=effects,
+                         plan=CampaignPlan(scenarios=IDENTIFICATION + VALIDATION, t_end=5.0), overview=False,
+                         log=lambda m: None)
     lines = ["# fleet of the batch test: two types, A3 with hidden friction, X9 with a missing file",
              "damper_id,type,identification,validation,seed"]
     lines += [f"{name},{typ},{_files(name, 'id')},{_files(name, 'val')},7" for name, typ, *_ in DAMPERS]

@@ -7,7 +7,7 @@ import matplotlib.image as plt_image
 import numpy as np
 import pytest
 
-from campaign.generate import DEFAULT_SEED, generate_dataset, library_versions, numerical_kernels
+from campaign.generate import DEFAULT_SEED, CampaignPlan, generate_dataset, library_versions, numerical_kernels
 from campaign.sensors import SensorChain
 from tuner.data.reading import load_dataset
 
@@ -57,7 +57,7 @@ def test_regenerating_the_bundled_dataset_reproduces_it(tmp_path):
 def test_generating_twice_on_one_machine_gives_the_same_bytes(tmp_path):
     """What the byte-for-byte claim rests on: with the same versions and kernels (one environment), the
     generator is deterministic, every file of a dataset the same byte for byte."""
-    kw = dict(seed=5, scenarios=["id3_switch_R190_43"], t_end=2.0, log=lambda m: None)
+    kw = dict(seed=5, plan=CampaignPlan(scenarios=["id3_switch_R190_43"], t_end=2.0), log=lambda m: None)
     a, b = generate_dataset(tmp_path / "a", **kw), generate_dataset(tmp_path / "b", **kw)
     names = sorted(p.name for p in a.iterdir())
     match, mismatch, errors = filecmp.cmpfiles(a, b, names, shallow=False)
@@ -96,7 +96,8 @@ def test_bundled_dataset_has_the_six_scenarios_with_roles_and_plausible_forces()
 
 
 def test_effects_change_the_data_and_are_recorded(tmp_path):
-    kw = dict(seed=3, scenarios=["id3_switch_R190_43"], t_end=4.0, overview=False, log=lambda m: None)
+    kw = dict(seed=3, plan=CampaignPlan(scenarios=["id3_switch_R190_43"], t_end=4.0), overview=False,
+              log=lambda m: None)
     clean = generate_dataset(tmp_path / "clean", **kw)
     fric = generate_dataset(tmp_path / "fric", effects={"friction": 200.0}, **kw)
     a, b = load_dataset(clean)[0], load_dataset(fric)[0]
@@ -110,7 +111,7 @@ def test_model_forms_are_generated_and_recorded_like_effects(tmp_path, capsys):
     and are recorded in the manifest with their units; the lumped damper refuses them up front."""
     from campaign.cli import main
 
-    kw = dict(seed=3, scenarios=["id1_straight_250"], t_end=2.0, overview=False, log=lambda m: None)
+    kw = dict(seed=3, plan=CampaignPlan(scenarios=["id1_straight_250"], t_end=2.0), overview=False, log=lambda m: None)
     clean = load_dataset(generate_dataset(tmp_path / "clean", **kw))[0]
     assert main(["generate", "--out", str(tmp_path / "forms"), "--t-end", "2", "--seed", "3",
                  "--effect", "bypass", "--effect", "hysteresis=300"]) == 0
@@ -130,12 +131,13 @@ def test_generator_refuses_to_overwrite_and_rejects_bad_effects(tmp_path):
     (tmp_path / "taken").mkdir()
     (tmp_path / "taken" / "x.txt").write_text("mine")
     with pytest.raises(FileExistsError):
-        generate_dataset(tmp_path / "taken", t_end=2.0, scenarios=["id1_straight_250"], log=lambda m: None)
+        generate_dataset(tmp_path / "taken", plan=CampaignPlan(scenarios=["id1_straight_250"], t_end=2.0),
+                         log=lambda m: None)
     assert (tmp_path / "taken" / "x.txt").read_text() == "mine"
     with pytest.raises(ValueError, match="unknown effect"):
-        generate_dataset(tmp_path / "n", effects={"gremlins": 1.0}, t_end=2.0, log=lambda m: None)
+        generate_dataset(tmp_path / "n", effects={"gremlins": 1.0}, plan=CampaignPlan(t_end=2.0), log=lambda m: None)
     with pytest.raises(ValueError, match="unknown scenario"):
-        generate_dataset(tmp_path / "n", scenarios=["moon_landing"], log=lambda m: None)
+        generate_dataset(tmp_path / "n", plan=CampaignPlan(scenarios=["moon_landing"]), log=lambda m: None)
 
 
 def test_campaign_command_generates_and_refuses_to_overwrite(tmp_path):

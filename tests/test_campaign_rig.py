@@ -11,14 +11,15 @@ import pandas as pd
 import pytest
 
 from campaign import effects as fx
-from campaign.rig import _run_lumped, lumped_parameters, measure
+from campaign.rig import Acquisition, _run_lumped, lumped_parameters, measure
 from campaign.rig_damper import (BW_BETA, BW_GAMMA, BW_N, IZ, N_STATES, DamperConfig, DamperParams,
                                  RigDamper, StrokeInput, quasi_static_force, series_stiffness)
 from campaign.sensors import SensorChain
-from damper_fmu.integrator import REPLAY, Simulator
+from damper_fmu.integrator import REPLAY, Simulator, SolverOptions
 from damper_fmu.models import make_model
 
 IDEAL = SensorChain.ideal()
+IDEAL_ACQUISITION = Acquisition(sensors=IDEAL)
 PAR = DamperParams()
 BYPASS_AREA = 6e-8  # m^2, the bypass form's default (campaign.effects.FORMS)
 
@@ -269,7 +270,7 @@ def test_forms_are_selectable_like_the_effects():
     assert (cfg.preyield_force, cfg.bypass_area) == (300.0, BYPASS_AREA)
     assert fx.physics_config({}) == DamperConfig()
     t, s = sine(2.0, 0.002, 1.0)
-    df = measure(t, s, {"hysteresis": None}, seed=2)
+    df = measure(t, s, {"hysteresis": None}, acquisition=Acquisition(seed=2))
     assert df.attrs["effects"] == {"hysteresis": 400.0}
     with pytest.raises(ValueError, match="twin-tube physics only"):
         measure(t, s, {"bypass": None}, damper="lumped")
@@ -280,13 +281,13 @@ def test_forms_are_selectable_like_the_effects():
 # ---------------------------------------------------------------- rig output
 def test_measure_output_format_and_determinism():
     t, s = sine(2.0, 0.002, 2.0)
-    df = measure(t, s, seed=4, sample_rate=500.0)
+    df = measure(t, s, acquisition=Acquisition(seed=4, sample_rate=500.0))
     assert list(df.columns) == ["time", "stroke", "force", "temperature"]
     assert len(df) == 1001
     np.testing.assert_allclose(np.diff(df["time"]), 1 / 500.0, rtol=1e-9)
     assert (df["temperature"] == PAR.ambient_temperature).all()
-    pd.testing.assert_frame_equal(df, measure(t, s, seed=4, sample_rate=500.0))
-    other = measure(t, s, seed=5, sample_rate=500.0)
+    pd.testing.assert_frame_equal(df, measure(t, s, acquisition=Acquisition(seed=4, sample_rate=500.0)))
+    other = measure(t, s, acquisition=Acquisition(seed=5, sample_rate=500.0))
     assert not np.array_equal(df["force"].to_numpy(), other["force"].to_numpy())
     assert 15e3 < df["force"].abs().max() < 25e3
     assert df.attrs["effects"] == {} and df.attrs["seed"] == 4
@@ -299,9 +300,9 @@ def test_measure_output_format_and_determinism():
     (dict(t=[0.0, 0.1, 0.2], stroke=[0, 0]), "differ in length"),
     (dict(t=[0.0, 0.1, 0.2], stroke=[0, 0, 0], effects={"frobnicate": 1.0}), "unknown effect 'frobnicate'"),
     (dict(t=[0.0, 0.1, 0.2], stroke=[0, 0, 0], effects={"friction": 1000.0}), "outside the realistic range"),
-    (dict(t=[0.0, 0.1, 0.2], stroke=[0, 0, 0], sample_rate=0.0), "sample_rate"),
+    (dict(t=[0.0, 0.1, 0.2], stroke=[0, 0, 0], acquisition=Acquisition(sample_rate=0.0)), "sample_rate"),
     (dict(t=[0.0, 0.1, 0.2], stroke=[0, 0.09, 0]), "travel"),
-    (dict(t=[0.0, 0.1, 0.2], stroke=[0, 0, 0], seed=-1), "seed"),
+    (dict(t=[0.0, 0.1, 0.2], stroke=[0, 0, 0], acquisition=Acquisition(seed=-1)), "seed"),
 ])
 def test_measure_rejects_bad_input(kwargs, match):
     with pytest.raises(ValueError, match=match):
@@ -333,9 +334,9 @@ def test_effect_registry_and_parser():
 
 
 # ---------------------------------------------------------------- effects
-def _pair(t, s, effects, **kw):
-    base = measure(t, s, sensors=IDEAL, **kw)
-    eff = measure(t, s, effects, sensors=IDEAL, **kw)
+def _pair(t, s, effects, acquisition=IDEAL_ACQUISITION):
+    base = measure(t, s, acquisition=acquisition)
+    eff = measure(t, s, effects, acquisition=acquisition)
     return base, eff
 
 
@@ -403,7 +404,7 @@ def test_valve_lag_hysteresis_widens_with_frequency():
     change, peaks = [], []
     for f in (1.0, 4.0):
         t, s = sine(f, v_amp / (2 * np.pi * f), 4.0 / f, fs=2000 * max(1.0, f / 2))
-        base, eff = _pair(t, s, {"valve_lag": tau}, sample_rate=2000.0)
+        base, eff = _pair(t, s, {"valve_lag": tau}, Acquisition(sample_rate=2000.0, sensors=IDEAL))
         last = base["time"].to_numpy() >= 3.0 / f
         vel = np.gradient(s, t)
         v = np.interp(base["time"].to_numpy()[last], t, vel)
@@ -483,7 +484,7 @@ def test_sensor_chain_creates_no_skew_between_channels():
 
 def test_measured_stroke_matches_imposed_stroke_within_noise():
     t, s = sine(2.0, 0.002, 3.0)
-    df = measure(t, s, seed=1)
+    df = measure(t, s, acquisition=Acquisition(seed=1))
     err = df["stroke"].to_numpy() - np.interp(df["time"], t, s)
     chain = SensorChain()
     q_s = chain.lsb(chain.stroke_range)
@@ -498,12 +499,12 @@ def test_lumped_damper_on_the_rig_is_the_model_and_its_effects_obey_their_laws()
     from damper_fmu import simulate
 
     t, s = sine(2.0, 0.004, 3.0)
-    kw = dict(sensors=IDEAL, damper="lumped")
+    kw = dict(acquisition=IDEAL_ACQUISITION, damper="lumped")
     clean = measure(t, s, **kw)
     tt = clean["time"].to_numpy()
     x = clean["stroke"].to_numpy()
     v = np.gradient(x, tt)
-    ref = simulate("lumped", tt, x, v, params=lumped_parameters({}), max_step=2.5e-4)
+    ref = simulate("lumped", tt, x, v, params=lumped_parameters({}), solver=SolverOptions(max_step=2.5e-4))
     steady = (tt > 1.0) & (tt < tt[-1] - 0.1)  # FIR filter and np.gradient edges excluded
     err = np.abs(clean["force"].to_numpy() - ref)[steady]
     assert err.max() < 0.01 * np.abs(ref[steady]).max()
@@ -525,14 +526,14 @@ def test_oil_temperature_scales_the_damping_only_when_it_depends_on_temperature(
     beta = 0.01
     t, s = sine(0.5, 0.01, 6.0)
     for damper in ("lumped", "twin-tube"):
-        cold = measure(t, s, damper=damper, sensors=IDEAL)
-        warm = measure(t, s, damper=damper, sensors=IDEAL, oil_temperature=40.0)
+        cold = measure(t, s, damper=damper, acquisition=IDEAL_ACQUISITION)
+        warm = measure(t, s, damper=damper, oil_temperature=40.0, acquisition=IDEAL_ACQUISITION)
         # equal up to the twin-tube integrator's tolerance (the temperature is one of its states)
         tol = 0.0 if damper == "lumped" else 1e-4 * cold["force"].abs().max()
         np.testing.assert_allclose(cold["force"], warm["force"], rtol=0.0, atol=tol)
         assert warm["temperature"].iloc[0] == 40.0
-    ref = measure(t, s, {"thermal_drift": beta}, damper="lumped", sensors=IDEAL, oil_temperature=20.0)
-    warm = measure(t, s, {"thermal_drift": beta}, damper="lumped", sensors=IDEAL, oil_temperature=40.0)
+    ref = measure(t, s, {"thermal_drift": beta}, damper="lumped", oil_temperature=20.0, acquisition=IDEAL_ACQUISITION)
+    warm = measure(t, s, {"thermal_drift": beta}, damper="lumped", oil_temperature=40.0, acquisition=IDEAL_ACQUISITION)
     tt, temp = warm["time"].to_numpy(), warm["temperature"].to_numpy()
     speed = np.abs(np.gradient(warm["stroke"].to_numpy(), tt))
     fast = (tt > 2.0) & (speed > 0.8 * speed.max())  # away from reversals, where compliance acts
@@ -542,8 +543,8 @@ def test_oil_temperature_scales_the_damping_only_when_it_depends_on_temperature(
     work = np.trapezoid(warm["force"] * np.gradient(warm["stroke"], tt), tt)
     heat = PAR.heat_capacity * (temp[-1] - temp[0]) + PAR.heat_transfer * np.trapezoid(temp - 40.0, tt)
     assert heat == pytest.approx(work, rel=0.02)
-    tw = measure(t, s, {"thermal_drift": beta}, sensors=IDEAL, oil_temperature=40.0)
-    tw_ref = measure(t, s, {"thermal_drift": beta}, sensors=IDEAL)
+    tw = measure(t, s, {"thermal_drift": beta}, oil_temperature=40.0, acquisition=IDEAL_ACQUISITION)
+    tw_ref = measure(t, s, {"thermal_drift": beta}, acquisition=IDEAL_ACQUISITION)
     assert tw["force"].abs().max() < 0.95 * tw_ref["force"].abs().max()
 
 

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from campaign.effects import EFFECTS
-from campaign.generate import CHAMBER_TEMPERATURES_C, generate_dataset
+from campaign.generate import CHAMBER_TEMPERATURES_C, CampaignPlan, generate_dataset
 from damper_fmu import defaults
 from tuner.__main__ import main
 from tuner.data.reading import load_dataset
@@ -72,8 +72,9 @@ def test_search_bounds_scale_with_the_data():
 def run_diagnosis(tmp_path, effects, seed, damper="lumped", base_model="auto", candidates=CANDIDATES):
     """A blind diagnosis of virtual-rig data; base_model 'lumped' skips identifying the two-chamber
     base on lumped-damper data (the clean tests check that 'auto' keeps the right one)."""
-    data = generate_dataset(tmp_path / "data", seed=seed, effects=effects, t_end=6.0, damper=damper,
-                            oil_temperatures=CHAMBER_TEMPERATURES_C, overview=False, log=lambda m: None)
+    data = generate_dataset(tmp_path / "data", seed=seed, effects=effects, damper=damper,
+                            plan=CampaignPlan(t_end=6.0, oil_temperatures=CHAMBER_TEMPERATURES_C), overview=False,
+                            log=lambda m: None)
     tests = load_dataset(data)
     res = diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
                    DiagnosisSettings(engine=fastest_engine(), base_iterations=0, base_model=base_model,
@@ -198,8 +199,8 @@ def test_clean_data_gives_no_false_cause_and_a_complete_diagnosis_json(tmp_path,
 
 
 def test_diagnose_command_needs_validation_tests_and_a_real_fit_folder(tmp_path, capsys):
-    data = generate_dataset(tmp_path / "d", seed=1, scenarios=["id1_straight_250"], t_end=3.0, overview=False,
-                            log=lambda m: None)
+    data = generate_dataset(tmp_path / "d", seed=1, plan=CampaignPlan(scenarios=["id1_straight_250"], t_end=3.0),
+                            overview=False, log=lambda m: None)
     assert main(["diagnose", "--identification", str(next(data.glob("*.csv"))), "--out", str(tmp_path / "o")]) == 2
     assert "validation" in capsys.readouterr().err
     assert main(["diagnose", "--from", str(tmp_path), "--out", str(tmp_path / "o2")]) == 2

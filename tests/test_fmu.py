@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from fmpy import read_model_description
 
-from damper_fmu import EXTRAPOLATE, MODEL_PARAMETERS, REPLAY, defaults, simulate
+from damper_fmu import EXTRAPOLATE, MODEL_PARAMETERS, REPLAY, SolverOptions, defaults, simulate
 from damper_fmu.fmu import build, validate
 from tuner.identification.runner import FmuRunner, SimulationError
 from stroke_cases import two_sines
@@ -77,9 +77,10 @@ def test_co_simulation_input_mode_matches_in_process_too(fmu_paths):
     t, x, v = stroke()
     with FmuRunner(fmu_paths["lumped"], input_mode=EXTRAPOLATE) as r:
         f = r.run(t, x, v)
-    np.testing.assert_allclose(f, simulate("lumped", t, x, v, input_mode=EXTRAPOLATE), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(f, simulate("lumped", t, x, v, solver=SolverOptions(input_mode=EXTRAPOLATE)),
+                               rtol=0, atol=1e-9)
     # the co-simulation convention lags the replay convention by about one sample
-    replay = simulate("lumped", t, x, v, input_mode=REPLAY)
+    replay = simulate("lumped", t, x, v, solver=SolverOptions(input_mode=REPLAY))
     assert np.abs(f - replay).max() > 10.0
 
 
@@ -161,7 +162,7 @@ def test_communication_steps_from_0p1_to_10_ms_are_stable_and_accurate(runners, 
     w = 2 * np.pi * 0.5
     x, v = 0.02 * np.sin(w * t), 0.02 * w * np.cos(w * t)
     f = runners["lumped"].run(t, x, v)
-    ref = simulate("lumped", t, x, v, max_step=1e-5)
+    ref = simulate("lumped", t, x, v, solver=SolverOptions(max_step=1e-5))
     assert np.all(np.isfinite(f))
     assert np.abs(f - ref).max() < 2e-3 * np.abs(ref).max()
 

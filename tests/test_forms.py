@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import pytest
 
-from campaign.generate import CHAMBER_TEMPERATURES_C, generate_dataset
+from campaign.generate import CHAMBER_TEMPERATURES_C, CampaignPlan, generate_dataset
 from campaign.synthetic import write_model_dataset
 from damper_fmu import defaults
 from damper_fmu.effect_catalogue import search_bounds
@@ -128,8 +128,9 @@ def test_a_form_error_the_forms_do_not_represent_stays_unexplained(tmp_path):
 
 def _blind(tmp_path, effects: dict, seed: int):
     """A blind diagnosis of the virtual twin-tube rig's data (the whole catalogue, then the forms)."""
-    data = generate_dataset(tmp_path / "data", seed=seed, effects=effects, t_end=6.0, damper="twin-tube",
-                            oil_temperatures=CHAMBER_TEMPERATURES_C, overview=False, log=lambda m: None)
+    data = generate_dataset(tmp_path / "data", seed=seed, effects=effects, damper="twin-tube",
+                            plan=CampaignPlan(t_end=6.0, oil_temperatures=CHAMBER_TEMPERATURES_C), overview=False,
+                            log=lambda m: None)
     tests = load_dataset(data)
     return diagnose([t for t in tests if t.role == "identification"], [t for t in tests if t.role == "validation"],
                     DiagnosisSettings(engine=fastest_engine(), base_iterations=0), log=lambda m: None)

@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from damper_fmu import defaults, simulate
+from damper_fmu import SolverOptions, defaults, simulate
 from tuner.data.reading import RigTest
 from tuner.identification.fit import FitSettings, full_rate_checks
 from tuner.identification.full_rate import MIN_RATE_RATIO, comparison_rate
@@ -27,7 +27,7 @@ def lumped_data():
     arg = np.outer(t, 2 * np.pi * FREQS) + np.random.default_rng(5).uniform(0, 2 * np.pi, FREQS.size)
     x, v = np.sin(arg) @ AMPS, np.cos(arg) @ (AMPS * 2 * np.pi * FREQS)
     truth = defaults("lumped")
-    force = simulate("lumped", t, x, v, params=truth, tolerance=1e-6, max_step=2.5e-4)
+    force = simulate("lumped", t, x, v, params=truth, solver=SolverOptions(tolerance=1e-6, max_step=2.5e-4))
     return t, x, force + np.random.default_rng(6).normal(0.0, NOISE_N, t.size), truth
 
 

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from damper_fmu import defaults, make_model, simulate, tunable_names
+from damper_fmu import SolverOptions, defaults, make_model, simulate, tunable_names
 from damper_fmu.parameters import FC_ABSCISSAE, check_values
 from damper_fmu.tables import PwlTable
 
@@ -99,18 +99,21 @@ def test_step_refinement_converges():
     w1, w2 = 2 * np.pi * 2, 2 * np.pi * 7
     x = 2e-3 * (1 - np.cos(w1 * t)) + 5e-4 * (1 - np.cos(w2 * t))
     v = 2e-3 * w1 * np.sin(w1 * t) + 5e-4 * w2 * np.sin(w2 * t)
-    ref = simulate("lumped", t, x, v, max_step=2e-6, tolerance=0.0)
+    ref = simulate("lumped", t, x, v, solver=SolverOptions(max_step=2e-6, tolerance=0.0))
     steps = [2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4]
-    rms = [np.sqrt(np.mean((simulate("lumped", t, x, v, max_step=h, tolerance=0.0) - ref) ** 2))
+    rms = [np.sqrt(np.mean((simulate("lumped", t, x, v, solver=SolverOptions(max_step=h, tolerance=0.0)) - ref)
+                           ** 2))
            for h in steps]
     assert all(b < a for a, b in zip(rms, rms[1:])), rms
     order = np.log(rms[1] / rms[-1]) / np.log(steps[1] / steps[-1])
     assert order > 1.2, order  # second order asymptotically; table kinks slow the pre-asymptotic range
     peak = np.abs(ref).max()
-    assert np.abs(simulate("lumped", t, x, v, max_step=1e-3, tolerance=0.0) - ref).max() < 1e-3 * peak
+    coarse = simulate("lumped", t, x, v, solver=SolverOptions(max_step=1e-3, tolerance=0.0))
+    assert np.abs(coarse - ref).max() < 1e-3 * peak
     # error control: the default tolerance (1e-4 of the force scale, local) lands near the
     # converged solution, and a tighter tolerance lands nearer
-    err = [np.abs(simulate("lumped", t, x, v, max_step=1.0, tolerance=tol) - ref).max() for tol in (1e-4, 1e-6)]
+    err = [np.abs(simulate("lumped", t, x, v, solver=SolverOptions(max_step=1.0, tolerance=tol)) - ref).max()
+           for tol in (1e-4, 1e-6)]
     assert err[0] < 1e-3 * peak and err[1] < 0.2 * err[0], (err, peak)
 
 
@@ -121,8 +124,8 @@ def test_stable_at_the_stiff_preset_without_substeps(h):
     t = np.arange(0.0, 4.0, h)
     w = 2 * np.pi * 0.5
     x, v = 0.02 * np.sin(w * t), 0.02 * w * np.cos(w * t)
-    fine = simulate("lumped", t, x, v, max_step=1e-5, tolerance=0.0)
-    coarse = simulate("lumped", t, x, v, max_step=1.0, tolerance=0.0)
+    fine = simulate("lumped", t, x, v, solver=SolverOptions(max_step=1e-5, tolerance=0.0))
+    coarse = simulate("lumped", t, x, v, solver=SolverOptions(max_step=1.0, tolerance=0.0))
     assert np.all(np.isfinite(coarse))
     assert np.abs(coarse - fine).max() < 0.02 * np.abs(fine).max()
 

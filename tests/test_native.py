@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from damper_fmu import EXTRAPOLATE, REPLAY, defaults, simulate
+from damper_fmu import EXTRAPOLATE, REPLAY, SolverOptions, defaults, simulate
 from damper_fmu import native
 from damper_fmu.parameters import MODEL_PARAMETERS, check_values
 
@@ -89,7 +89,7 @@ def test_kernel_equals_python_reference(kind, seed):
     t, x, v = random_stroke(rng)
     for mode in (REPLAY, EXTRAPOLATE):
         for tol, max_step in ((1e-4, 1e-3), (0.0, 7e-4), (1e-6, 0.01)):
-            kw = dict(params=p, input_mode=mode, tolerance=tol, max_step=max_step)
+            kw = dict(params=p, solver=SolverOptions(input_mode=mode, tolerance=tol, max_step=max_step))
             assert_equal_forces(simulate(kind, t, x, v, backend="native", **kw),
                                 simulate(kind, t, x, v, backend="python", **kw))
 
@@ -100,7 +100,7 @@ def test_two_chamber_kernel_equals_python_reference(seed):
     p = random_params("twochamber", rng)
     t, x, v = random_stroke(rng)
     for mode, tol, max_step in ((REPLAY, 1e-4, 1e-3), (EXTRAPOLATE, 1e-6, 0.01)):
-        kw = dict(params=p, input_mode=mode, tolerance=tol, max_step=max_step)
+        kw = dict(params=p, solver=SolverOptions(input_mode=mode, tolerance=tol, max_step=max_step))
         assert_equal_forces(simulate("twochamber", t, x, v, backend="native", **kw),
                             simulate("twochamber", t, x, v, backend="python", **kw))
 
@@ -117,7 +117,7 @@ def test_two_chamber_kernel_equals_python_reference_with_effects(effect):
     t, x, v = random_stroke(rng)
     for mode, temperature, tol in ((REPLAY, None, 1e-4), (EXTRAPOLATE, 20.0 + 15.0 * (t - t[0]), 1e-4),
                                    (REPLAY, None, 0.0)):
-        kw = dict(params=p, input_mode=mode, temperature=temperature, tolerance=tol)
+        kw = dict(params=p, temperature=temperature, solver=SolverOptions(input_mode=mode, tolerance=tol))
         assert_equal_forces(simulate("twochamber", t, x, v, backend="native", **kw),
                             simulate("twochamber", t, x, v, backend="python", **kw))
 
@@ -131,7 +131,7 @@ def test_kernel_equals_python_reference_with_effects(effect):
     temp = 20.0 + 15.0 * (t - t[0])
     for mode in (REPLAY, EXTRAPOLATE):
         for temperature in (None, temp):
-            kw = dict(params=p, input_mode=mode, temperature=temperature)
+            kw = dict(params=p, temperature=temperature, solver=SolverOptions(input_mode=mode))
             assert_equal_forces(simulate("lumped", t, x, v, backend="native", **kw),
                                 simulate("lumped", t, x, v, backend="python", **kw))
 
@@ -154,7 +154,7 @@ def test_kernel_equals_python_reference_with_the_form_elements_on_a_sine(kind, f
     p = {**defaults(kind), **FORMS[form]}
     base = simulate(kind, t, x, v, params=defaults(kind), backend="native")
     for mode, tol in ((REPLAY, 1e-4), (EXTRAPOLATE, 1e-4), (REPLAY, 0.0)):
-        kw = dict(params=p, input_mode=mode, tolerance=tol)
+        kw = dict(params=p, solver=SolverOptions(input_mode=mode, tolerance=tol))
         c = simulate(kind, t, x, v, backend="native", **kw)
         assert_equal_forces(c, simulate(kind, t, x, v, backend="python", **kw))
         assert np.abs(c - base).max() > 400.0

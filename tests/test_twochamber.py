@@ -4,7 +4,7 @@ import ctypes
 import numpy as np
 import pytest
 
-from damper_fmu import defaults, make_model, models, native, simulate
+from damper_fmu import SolverOptions, defaults, make_model, models, native, simulate
 
 needs_c = pytest.mark.skipif(not native.available(), reason=f"C kernel not available: {native.reason()}")
 
@@ -71,7 +71,7 @@ def test_an_independent_first_order_implementation_converges_to_it():
     p = defaults("twochamber")
     t = np.arange(0.0, 3.0, 1e-3)
     x, v = multisine(t)
-    ref = simulate("twochamber", t, x, v, tolerance=0.0, max_step=2e-5)
+    ref = simulate("twochamber", t, x, v, solver=SolverOptions(tolerance=0.0, max_step=2e-5))
     errors = []
     for k in (10, 40):
         tf = np.arange((t.size - 1) * k + 1) * (1e-3 / k)
@@ -84,8 +84,9 @@ def test_an_independent_first_order_implementation_converges_to_it():
 def test_fixed_steps_converge_at_second_order_and_the_default_tolerance_is_accurate():
     t = np.arange(0.0, 3.0, 1e-3)
     x, v = multisine(t)
-    ref = simulate("twochamber", t, x, v, tolerance=0.0, max_step=5e-6)
-    rms = [np.sqrt(np.mean((simulate("twochamber", t, x, v, tolerance=0.0, max_step=h) - ref) ** 2))
+    ref = simulate("twochamber", t, x, v, solver=SolverOptions(tolerance=0.0, max_step=5e-6))
+    rms = [np.sqrt(np.mean((simulate("twochamber", t, x, v, solver=SolverOptions(tolerance=0.0, max_step=h)) - ref)
+                           ** 2))
            for h in (1e-4, 5e-5, 2.5e-5)]
     assert rms[0] / rms[1] > 3.0 and rms[1] / rms[2] > 3.0, rms
     assert np.abs(simulate("twochamber", t, x, v) - ref).max() < 1e-4 * np.abs(ref).max()
@@ -193,11 +194,12 @@ def test_free_play_at_fixed_steps_is_accurate_and_converges():
     t = np.arange(0.0, 1.0, 1e-3)
     x, v = 0.01 * np.sin(2 * np.pi * 3 * t), 0.01 * 2 * np.pi * 3 * np.cos(2 * np.pi * 3 * t)
     p = {**defaults("twochamber"), "free_play": 2e-4}
-    ref = simulate("twochamber", t, x, v, params=p, tolerance=1e-7, max_step=1e-4)
+    ref = simulate("twochamber", t, x, v, params=p, solver=SolverOptions(tolerance=1e-7, max_step=1e-4))
     rms = []
     for h in (1e-3, 5e-4):
-        c = simulate("twochamber", t, x, v, params=p, tolerance=0.0, max_step=h)
-        py = simulate("twochamber", t, x, v, params=p, tolerance=0.0, max_step=h, backend="python")
+        c = simulate("twochamber", t, x, v, params=p, solver=SolverOptions(tolerance=0.0, max_step=h))
+        py = simulate("twochamber", t, x, v, params=p, solver=SolverOptions(tolerance=0.0, max_step=h),
+                      backend="python")
         assert np.abs(c - py).max() <= 1e-9 * np.abs(py).max()
         rms.append(np.sqrt(np.mean((c - ref) ** 2)))
     assert rms[0] < 2e-3 * np.abs(ref).max() and rms[1] < rms[0], rms
@@ -215,7 +217,7 @@ def test_a_free_plays_crossings_are_solved_by_the_joint_newton_iteration(monkeyp
     t = np.arange(0.0, 1.0, 1e-3)
     x, v = 0.01 * np.sin(2 * np.pi * 3 * t), 0.01 * 2 * np.pi * 3 * np.cos(2 * np.pi * 3 * t)
     p = {**defaults("twochamber"), "free_play": 5e-4, "k_M": mount_scale * defaults("twochamber")["k_M"]}
-    f = simulate("twochamber", t, x, v, params=p, tolerance=0.0, max_step=1e-3, backend="python")
+    f = simulate("twochamber", t, x, v, params=p, solver=SolverOptions(tolerance=0.0, max_step=1e-3), backend="python")
     assert np.isfinite(f).all()
     assert not calls
 
@@ -233,8 +235,9 @@ def test_free_play_is_a_dead_band_in_the_mount_the_force_vanishes_for_gap_over_s
     x = amp * np.where(ph < 0.5, -1 + 4 * ph, 3 - 4 * ph)
     v = np.where(ph < 0.5, v0, -v0)
     base = {**defaults("twochamber"), "k_gas": 0.0}
-    f0 = simulate("twochamber", t, x, v, params=base, tolerance=1e-7, max_step=1e-4)
-    fg = simulate("twochamber", t, x, v, params={**base, "free_play": gap}, tolerance=1e-7, max_step=1e-4)
+    f0 = simulate("twochamber", t, x, v, params=base, solver=SolverOptions(tolerance=1e-7, max_step=1e-4))
+    fg = simulate("twochamber", t, x, v, params={**base, "free_play": gap},
+                  solver=SolverOptions(tolerance=1e-7, max_step=1e-4))
     peak = np.abs(f0).max()
     reversals = [k for k in range(1, t.size) if v[k] != v[k - 1] and t[k] > period]
     assert len(reversals) >= 2
@@ -244,7 +247,8 @@ def test_free_play_is_a_dead_band_in_the_mount_the_force_vanishes_for_gap_over_s
         quiet_none = np.count_nonzero(np.abs(f0[window]) < 0.01 * peak) * 1e-4
         assert 0.7 * gap / v0 <= quiet_gap <= 1.2 * gap / v0, (t[k], quiet_gap)
         assert quiet_none <= 0.1 * gap / v0, (t[k], quiet_none)
-    tiny = simulate("twochamber", t, x, v, params={**base, "free_play": 1e-9}, tolerance=1e-7, max_step=1e-4)
+    tiny = simulate("twochamber", t, x, v, params={**base, "free_play": 1e-9},
+                    solver=SolverOptions(tolerance=1e-7, max_step=1e-4))
     assert np.abs(tiny - f0).max() <= 1e-3 * peak
 
 

@@ -34,7 +34,7 @@ from threadpoolctl import threadpool_limits
 
 from damper_fmu import native, simulate
 from damper_fmu.fmu import ensure_fmu
-from damper_fmu.integrator import DEFAULT_MAX_STEP, DEFAULT_TOLERANCE
+from damper_fmu.integrator import DEFAULT_MAX_STEP, DEFAULT_TOLERANCE, SolverOptions
 from damper_fmu.models import ConvergenceError
 from tuner.data.prefilter import Prefilter
 from tuner.data.preprocess import Resampler
@@ -161,10 +161,11 @@ class _Simulator:
         temp = temperature if params.get("thermal_beta", 0.0) and temperature is not None else None
         if self.runner is not None:
             return self.runner.run(t, x, v, params, temperature=temp)
-        return simulate(self.model, t, x, v, params=params,
-                        max_step=DEFAULT_MAX_STEP if self.max_internal_step is None else self.max_internal_step,
-                        tolerance=DEFAULT_TOLERANCE if self.tolerance is None else self.tolerance,
-                        temperature=temp, backend="native" if self.engine == "native" else "python")
+        solver = SolverOptions(
+            max_step=DEFAULT_MAX_STEP if self.max_internal_step is None else self.max_internal_step,
+            tolerance=DEFAULT_TOLERANCE if self.tolerance is None else self.tolerance)
+        return simulate(self.model, t, x, v, params=params, temperature=temp, solver=solver,
+                        backend="native" if self.engine == "native" else "python")
 
     def residuals(self, params: dict, tests: list[Signals]) -> tuple[np.ndarray | None, str]:
         """(measured minus simulated force [N] over the counted samples of all tests, ''), or
