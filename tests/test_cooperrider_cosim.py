@@ -173,6 +173,9 @@ def _study_json(folder: Path) -> dict:
             "search": asdict(CooperriderSearch()),
             "results": {k: {"fmu": None if k.startswith("built") else f"{k}.fmu", **r.to_json()}
                         for k, r in results.items()}}
+    v = data["results"]["DamperMaxwell_tuned"]["critical_speed_ms"]
+    data["results"]["DamperMaxwell_tuned"].update(cycle_speed_ms=1.05 * v, cycle_amplitude_m=7.3e-4,
+                                                  cycle_stopped_at_s=None, cycle_time_s=60.0, cycle_wall_time_s=5.0)
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "cooperrider.json").write_text(json.dumps(data, allow_nan=False))
     return data
@@ -197,7 +200,8 @@ def test_report_and_summary_show_the_cooperrider_critical_speeds_beside_the_cone
     v_ref = data["results"]["built-in D6 dashpot"]["critical_speed_ms"]
     v_max = data["results"]["DamperMaxwell_tuned"]["critical_speed_ms"]
     assert f"<td>{v_ref:.2f} m/s ({3.6 * v_ref:.0f} km/h)</td><td>1.000</td><td>-</td>" in section
-    assert f"<td>{v_max:.2f} m/s ({3.6 * v_max:.0f} km/h)</td><td>{v_max / v_ref:.3f}</td><td>648</td>" in section
+    assert (f"<td>{v_max:.2f} m/s ({3.6 * v_max:.0f} km/h)</td><td>{v_max / v_ref:.3f}</td><td>648</td>"
+            f"<td>cycle 0.730 mm at {1.05 * v_max:.2f} m/s</td>") in section
     assert "<td>DamperLumped_tuned</td><td>&gt; 250 m/s</td><td>-</td><td>-</td>" in section
     assert "166.7 kN s/m" in section and "0.5 ms" in section
     got = cooperrider_summary(out)
@@ -223,3 +227,21 @@ def test_cooperrider_command_without_the_simulators_input_says_where_to_get_it(t
     code = main(["vehicle", "--fmus", str(ensure_fmu("maxwell")), "--cooperrider", "--nonlinear", "--quiet",
                  "--out", str(tmp_path / "out")])
     assert code == 2 and "choose one of --nonlinear and --cooperrider" in capsys.readouterr().err
+
+
+def test_cycle_amplitude_above_the_critical_speed_of_a_known_cycle():
+    """A response settling on a cycle of 0.73 mm: its amplitude over the last 10 s, at 1.05 times the speed given."""
+    from tuner.vehicle.cooperrider_hunting import cycle_above
+
+    class Cycle(_KnownGrowth):
+        def run(self, speeds, x0, t_end, *, store=0.01, abort=5e-3):
+            run = super().run(speeds, x0, t_end, store=store, abort=abort)
+            t = run.t
+            run.states[:, state_index(3, "y"), 0] = 7.3e-4 * (1.0 - np.exp(-t / 5.0)) * np.sin(29.0 * t)
+            return run
+
+    got = cycle_above(Cycle(1e4), 100.0, CooperriderSearch(cycle_time=60.0))
+    assert got["cycle_speed_ms"] == pytest.approx(105.0) and got["cycle_stopped_at_s"] is None
+    assert got["cycle_amplitude_m"] == pytest.approx(7.3e-4 * (1.0 - math.exp(-10.0)), rel=1e-3)
+    with pytest.raises(ValueError, match="cycle_time"):
+        CooperriderSearch(cycle_time=5.0)

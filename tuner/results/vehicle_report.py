@@ -11,7 +11,7 @@ from pathlib import Path
 
 from tuner.results.html import esc, figure_html, table
 from tuner.vehicle.compare import VEHICLE_FOLDER, summary_rows
-from tuner.vehicle.cooperrider_hunting import BUILT_IN, COOPERRIDER_FILE, speed_text
+from tuner.vehicle.cooperrider_hunting import BUILT_IN, COOPERRIDER_FILE, cycle_text, speed_text
 from tuner.vehicle.limit_cycles import CONICITY_FIGURE, DIAGRAM_FIGURE, STUDY_FILE, study_rows
 from tuner.vehicle.propagation import INTERVALS_FILE, SKEWED
 from tuner import strict_json
@@ -193,7 +193,8 @@ def cooperrider_html(folder: Path) -> str:
         v = r["critical_speed_ms"]
         cone_v = (cone.get(label, {}).get("critical_speed") or {}).get("critical_speed_kmh")
         rows.append([esc(label), esc(speed_text(r)), "-" if v is None or ref is None else f"{v / ref:.3f}",
-                     "-" if cone_v is None else f"{cone_v:.0f}", f"{r['wall_time_s']:.0f}"])
+                     "-" if cone_v is None else f"{cone_v:.0f}", esc(cycle_text(r) or "-"),
+                     f"{r['wall_time_s'] + r.get('cycle_wall_time_s', 0.0):.0f}"])
     s, m = data["search"], data["model"]
     return ("<h3>Cooperrider car, S1002/UIC60</h3>"
             "<p>Each FMU as the four yaw dampers (the longitudinal secondary dashpots, D6 = "
@@ -201,12 +202,14 @@ def cooperrider_html(folder: Path) -> str:
             f"{m['yaw_spring_k6_n_per_m'] * 1e-3:.4g} kN/m kept) of DTU's Cooperrider car: car body, two bogie frames, "
             "four wheelsets, the tabulated S1002 wheel on UIC60 rail at 1:40, Kalker creep saturating at mu N "
             "(<code>python -m tuner vehicle --cooperrider</code>; the car's parameters and contact table read at run "
-            "time from the published input of the DTU simulator DYTSI, whose linear critical speed the car reproduces). "
+            "time from the published input of the DTU simulator DYTSI, whose linear critical speed the car "
+            "reproduces). "
             f"Co-simulated at {1e3 * s['step']:g} ms, the car by Runge-Kutta. Linear critical speed: the response to a "
             f"{1e3 * s['offset']:g} mm offset of the leading wheelset over {s['duration']:g} s turns from decay to "
             "growth (growth rate of its largest |y| in the last fifth against 40-60 % of the run), interpolated "
             f"between neighbouring speeds; {s['rounds']} rounds of {s['per_round']} speeds between "
             f"{s['v_min']:g} and {s['v_max']:g} m/s. Cone car: the same FMU's critical speed on the 14-degree-of-"
-            "freedom car above (constant conicity, linear creep).</p>"
-            + table(["yaw damper", "linear critical speed", "/ D6 dashpot's", "cone car [km/h]", "wall time [s]"],
-                    rows))
+            "freedom car above (constant conicity, linear creep). Limit cycle: at 1.05 times the critical speed, "
+            f"half the leading wheelset's peak-to-peak motion over the last 10 s of {s['cycle_time']:g} s.</p>"
+            + table(["yaw damper", "linear critical speed", "/ D6 dashpot's", "cone car [km/h]",
+                     "limit cycle at 1.05 x", "wall time [s]"], rows))

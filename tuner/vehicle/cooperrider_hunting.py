@@ -13,6 +13,11 @@ inside the bracket found, so that the last bracket is ``(v_max - v_min) / ((per_
 (per_round + 1) ^ (rounds - 1))`` wide (0.39 m/s by default). A speed whose response leaves ``abort``
 (5 mm) counts as growing; if the first growing speed of the last bracket did, only the bracket is given.
 
+Above the critical speed, the response grows into a limit cycle: at 1.05 times each damper's critical speed
+the car runs ``cycle_time`` (60 s) from the same offset and the cycle's amplitude is half the leading
+wheelset's peak-to-peak motion over the last 10 s (the benchmark's measure; its amplitude beats for about
+40 s before it settles). A run leaving the contact table's range (16 mm) gives no amplitude.
+
 Writes ``cooperrider.json`` (strict JSON, SI units and km/h as the keys say) into the output folder (in a fit
 output folder: its ``vehicle/`` sub-folder), which the report's vehicle section shows beside the cone car.
 """
@@ -27,27 +32,35 @@ import numpy as np
 
 from campaign.contact_table import read_contact_table
 from campaign.cooperrider_params import read_cooperrider_xml
-from campaign.cooperrider_runs import DEFAULT_OFFSET, offset_state, response_growth
+from campaign.cooperrider_runs import DEFAULT_OFFSET, cycle_amplitude, offset_state, response_growth
 from tuner import strict_json
 from tuner.vehicle.compare import fmu_labels
 from tuner.vehicle.cooperrider_cosim import (DEFAULT_ABORT, DEFAULT_COMM_STEP, DEFAULT_SUBSTEPS, CooperriderCosim,
                                              DamperCarRun)
 from tuner.vehicle.cosim import check_damper_fmu
 
-__all__ = ["CooperriderSearch", "CriticalSpeedSearch", "search_critical_speed", "growth_rates", "cooperrider_study",
-           "format_cooperrider_table", "speed_text", "COOPERRIDER_FILE", "BUILT_IN"]
+__all__ = ["CooperriderSearch", "CriticalSpeedSearch", "search_critical_speed", "growth_rates", "cycle_above",
+           "cooperrider_study", "format_cooperrider_table", "speed_text", "cycle_text", "COOPERRIDER_FILE", "BUILT_IN",
+           "CYCLE_FACTOR", "CYCLE_WINDOW", "CYCLE_ABORT"]
 
 COOPERRIDER_FILE = "cooperrider.json"
 """The study's file in its output folder."""
 BUILT_IN = "built-in D6 dashpot"
 """Label of the reference row: the car's own linear yaw dampers."""
+CYCLE_FACTOR = 1.05
+"""The limit cycle's speed, relative to the critical speed."""
+CYCLE_WINDOW = 10.0
+"""The last seconds [s] of the cycle run over which its amplitude is taken."""
+CYCLE_ABORT = 0.016
+"""Lateral displacement [m] of any wheelset that ends the cycle run (the contact table ends at 17 mm)."""
 
 
 @dataclass(frozen=True)
 class CooperriderSearch:
     """Settings of the search (SI units): speeds ``v_min``..``v_max`` [m/s], ``per_round`` speeds per batch,
     ``rounds`` batches, each run ``duration`` [s] from the leading wheelset's ``offset`` [m], stopped past
-    ``abort`` [m]; the co-simulation's communication ``step`` [s] and ``substeps``."""
+    ``abort`` [m]; the limit cycle's run ``cycle_time`` [s] (0: none); the co-simulation's communication
+    ``step`` [s] and ``substeps``."""
 
     v_min: float = 30.0
     v_max: float = 250.0
@@ -56,6 +69,7 @@ class CooperriderSearch:
     duration: float = 10.0
     offset: float = DEFAULT_OFFSET
     abort: float = DEFAULT_ABORT
+    cycle_time: float = 60.0
     step: float = DEFAULT_COMM_STEP
     substeps: int = DEFAULT_SUBSTEPS
 
@@ -69,6 +83,9 @@ class CooperriderSearch:
         if not (self.duration >= 1.0 and 0.0 < self.offset < self.abort):
             raise ValueError(f"need duration >= 1 s and 0 < offset < abort, got {self.duration}, {self.offset}, "
                              f"{self.abort}")
+        if not (self.cycle_time == 0.0 or self.cycle_time >= 2.0 * CYCLE_WINDOW):
+            raise ValueError(f"cycle_time must be 0 (no cycle) or at least {2.0 * CYCLE_WINDOW:g} s, "
+                             f"got {self.cycle_time}")
 
 
 @dataclass
@@ -148,6 +165,18 @@ def search_critical_speed(cosim: CooperriderCosim, search: CooperriderSearch, *,
     return res
 
 
+def cycle_above(cosim: CooperriderCosim, critical_speed: float, search: CooperriderSearch) -> dict:
+    """The limit cycle at :data:`CYCLE_FACTOR` times ``critical_speed`` [m/s] (module docstring), as its
+    ``cooperrider.json`` entry: ``cycle_speed_ms``, ``cycle_amplitude_m`` (None when the run left
+    :data:`CYCLE_ABORT`), ``cycle_stopped_at_s`` (None: ran to the end), ``cycle_time_s``."""
+    speed = CYCLE_FACTOR * critical_speed
+    run = cosim.run([speed], offset_state(search.offset)[:, 0], search.cycle_time, abort=CYCLE_ABORT)
+    stopped = float(run.stopped_at[0])
+    amp = None if math.isfinite(stopped) else cycle_amplitude(run.t, run.signal()[:, 0], window=CYCLE_WINDOW)
+    return {"cycle_speed_ms": speed, "cycle_amplitude_m": amp, "cycle_stopped_at_s": stopped if math.isfinite(stopped)
+            else None, "cycle_time_s": search.cycle_time}
+
+
 def cooperrider_study(fmus, out: Path, input_file, search: CooperriderSearch | None = None, *,
                       table_path=None, log=print) -> dict:
     """The linear critical speed of the Cooperrider car (parameters from the simulator's ``input_file``,
@@ -167,8 +196,13 @@ def cooperrider_study(fmus, out: Path, input_file, search: CooperriderSearch | N
             f"{search.duration:g} s each")
         with CooperriderCosim(fmu, model.params, table, step=search.step, substeps=search.substeps) as co:
             res = search_critical_speed(co, search, log=log)
-        results[label] = {"fmu": None if fmu is None else str(fmu), **res.to_json()}
-        log(f"Cooperrider car, {label}: " + speed_text(results[label]) + f" ({res.wall_time_s:.0f} s)")
+            results[label] = {"fmu": None if fmu is None else str(fmu), **res.to_json()}
+            log(f"Cooperrider car, {label}: " + speed_text(results[label]) + f" ({res.wall_time_s:.0f} s)")
+            if search.cycle_time > 0.0 and res.critical_speed is not None:
+                t0 = time.perf_counter()
+                results[label].update(cycle_above(co, res.critical_speed, search))
+                results[label]["cycle_wall_time_s"] = time.perf_counter() - t0
+                log(f"Cooperrider car, {label}: " + cycle_text(results[label]) + f" ({time.perf_counter() - t0:.0f} s)")
     p = model.params
     data = {"model": {"input_file": str(input_file),
                       "contact_table": str(table_path), "yaw_damper_D6_ns_per_m": p.D6,
@@ -196,7 +230,18 @@ def speed_text(entry: dict) -> str:
     return "no change from decay to growth found"
 
 
+def cycle_text(entry: dict) -> str:
+    """The limit cycle of a ``cooperrider.json`` entry as text ('' when none was run)."""
+    if entry.get("cycle_speed_ms") is None:
+        return ""
+    v, a = entry["cycle_speed_ms"], entry["cycle_amplitude_m"]
+    if a is None:
+        return f"at {v:.2f} m/s past {1e3 * CYCLE_ABORT:g} mm after {entry['cycle_stopped_at_s']:.1f} s"
+    return f"cycle {1e3 * a:.3f} mm at {v:.2f} m/s"
+
+
 def format_cooperrider_table(data: dict) -> str:
-    """The study's critical speeds as text, one line per damper."""
+    """The study's critical speeds (and limit cycles) as text, one line per damper."""
     w = max(len(k) for k in data["results"])
-    return "\n".join(f"{lab.ljust(w)}  {speed_text(r)}" for lab, r in data["results"].items())
+    return "\n".join(f"{lab.ljust(w)}  {speed_text(r)}" + (f"; {cycle_text(r)}" if cycle_text(r) else "")
+                     for lab, r in data["results"].items())
