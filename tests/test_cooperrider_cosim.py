@@ -204,10 +204,18 @@ def test_report_and_summary_show_the_cooperrider_critical_speeds_beside_the_cone
             f"<td>cycle 0.730 mm at {1.05 * v_max:.2f} m/s</td>") in section
     assert "<td>DamperLumped_tuned</td><td>&gt; 250 m/s</td><td>-</td><td>-</td>" in section
     assert "166.7 kN s/m" in section and "0.5 ms" in section
+    assert "the tuned FMUs&#x27; linear critical speeds range" not in section  # one FMU speed: no range
+    data["results"]["DamperLumped_tuned"]["critical_speed_ms"] = 140.0
+    (out / "vehicle" / "cooperrider.json").write_text(json.dumps(data, allow_nan=False))
+    cone["results"]["DamperLumped_tuned"] = json.loads(json.dumps(cone["results"]["DamperMaxwell_tuned"]))
+    cone["results"]["DamperLumped_tuned"]["critical_speed"]["critical_speed_kmh"] = 804.1
+    (out / "vehicle" / "vehicle.json").write_text(json.dumps(cone))
+    assert (f"range from {v_max:.2f} m/s (DamperMaxwell_tuned) to 140.00 m/s (DamperLumped_tuned): "
+            f"{3.6 * (140.0 - v_max):.0f} km/h, against 156 km/h on the cone car.") in vehicle_section_html(out)
     got = cooperrider_summary(out)
+    assert got["DamperLumped_tuned"]["critical_speed_ms"] == 140.0
     assert got["DamperMaxwell_tuned"] == {"critical_speed_ms": v_max, "critical_speed_kmh": 3.6 * v_max,
                                           "bracket_ms": data["results"]["DamperMaxwell_tuned"]["bracket_ms"]}
-    assert got["DamperLumped_tuned"]["critical_speed_ms"] is None
     assert not update_cooperrider_summary(out)  # no summary.json: nothing to update
     (out / "summary.json").write_text(json.dumps({"verdict": "x"}))
     assert update_cooperrider_summary(out)

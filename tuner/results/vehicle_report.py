@@ -211,5 +211,22 @@ def cooperrider_html(folder: Path) -> str:
             f"{s['v_min']:g} and {s['v_max']:g} m/s. Cone car: the same FMU's critical speed on the 14-degree-of-"
             "freedom car above (constant conicity, linear creep). Limit cycle: at 1.05 times the critical speed, "
             f"half the leading wheelset's peak-to-peak motion over the last 10 s of {s['cycle_time']:g} s.</p>"
+            + _cooperrider_spread(data["results"], cone)
             + table(["yaw damper", "linear critical speed", "/ D6 dashpot's", "cone car [km/h]",
                      "limit cycle at 1.05 x", "wall time [s]"], rows))
+
+
+def _cooperrider_spread(results: dict, cone: dict) -> str:
+    """A paragraph: the range of the FMUs' critical speeds on the Cooperrider car beside their range on the cone car
+    ('' with fewer than two FMU speeds)."""
+    v = {lab: r["critical_speed_ms"] for lab, r in results.items() if lab != BUILT_IN and r["critical_speed_ms"]}
+    if len(v) < 2:
+        return ""
+    lo, hi = min(v, key=v.get), max(v, key=v.get)
+    text = (f"On the Cooperrider car the tuned FMUs' linear critical speeds range from {v[lo]:.2f} m/s ({lo}) to "
+            f"{v[hi]:.2f} m/s ({hi}): {3.6 * (v[hi] - v[lo]):.0f} km/h")
+    c = {lab: (cone.get(lab, {}).get("critical_speed") or {}).get("critical_speed_kmh") for lab in v}
+    c = {lab: x for lab, x in c.items() if x is not None}
+    if len(c) > 1:
+        text += f", against {max(c.values()) - min(c.values()):.0f} km/h on the cone car"
+    return f"<p>{esc(text)}.</p>"
