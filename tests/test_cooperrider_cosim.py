@@ -253,3 +253,21 @@ def test_cycle_amplitude_above_the_critical_speed_of_a_known_cycle():
     assert got["cycle_amplitude_m"] == pytest.approx(7.3e-4 * (1.0 - math.exp(-10.0)), rel=1e-3)
     with pytest.raises(ValueError, match="cycle_time"):
         CooperriderSearch(cycle_time=5.0)
+
+
+@needs_reference
+def test_a_speed_past_the_abort_limit_leaves_the_batch_without_disturbing_the_others():
+    """Two speeds, the second started at 0.3 mm with the limit at 0.2 mm: it stops after the first step (NaN from
+    then on, its time recorded); the first runs on with its FMUs as if alone."""
+    from damper_fmu.fmu import ensure_fmu
+    model = read_cooperrider_xml(XML)
+    params, table = model.params, read_contact_table(model.table_path)
+    x0 = np.hstack([offset_state(1e-4), offset_state(3e-4)])
+    with CooperriderCosim(ensure_fmu("maxwell"), params, table, fmu_parameters={"c": params.D6}) as co:
+        both = co.run([60.0, 60.0], x0, 0.2, abort=2e-4)
+        alone = co.run([60.0], x0[:, 0], 0.2, abort=2e-4)
+    assert both.stopped_at[1] == pytest.approx(5e-4) and math.isnan(both.stopped_at[0])
+    assert np.all(np.isnan(both.states[1:, :, 1])) and np.all(np.isnan(both.forces[1:, :, 1]))
+    assert np.max(np.abs(both.signal()[:, 0])) < 2e-4 and np.max(np.abs(both.forces[:, :, 0])) > 1.0
+    np.testing.assert_allclose(both.states[:, :, 0], alone.states[:, :, 0], rtol=0.0, atol=1e-15)
+    np.testing.assert_allclose(both.forces[:, :, 0], alone.forces[:, :, 0], rtol=1e-12, atol=1e-9)

@@ -104,7 +104,8 @@ class CooperriderCosim:
             abort: float = DEFAULT_ABORT) -> DamperCarRun:
         """Run at each of ``speeds`` [m/s] from ``x0`` (66,) or (66, m) for ``t_end`` [s], storing every
         ``store`` [s] (a multiple of the communication step); a speed stops once a wheelset's lateral
-        displacement exceeds ``abort`` [m]. FMUs start afresh at the elongations and rates of ``x0``."""
+        displacement exceeds ``abort`` [m] (checked every communication step). FMUs start afresh at the
+        elongations and rates of ``x0``."""
         speeds = np.atleast_1d(np.asarray(speeds, dtype=float))
         x = np.array(x0, dtype=float)
         x = np.repeat(x[:, None], speeds.size, axis=1) if x.ndim == 1 else x
@@ -123,19 +124,19 @@ class CooperriderCosim:
         dampers = self._instances(m) if self.fmu is not None else None
         F = self._start(car, x, dampers)
         states[0], forces[0] = x, F
-        for k in range(1, n_out + 1):
-            for i in range(every):
-                t = ((k - 1) * every + i) * self.step
-                x, F = self._exchange(car, x, F, t, dampers)
+        for step in range(n_out * every):
+            x, F = self._exchange(car, x, F, step * self.step, dampers)
             out = np.max(np.abs(x[WHEELSET_Y]), axis=0) > abort
             if np.any(out):
-                stopped[cols[out]] = k * store
+                stopped[cols[out]] = (step + 1) * self.step
                 cols, x, F = cols[~out], x[:, ~out], F[:, ~out]
                 if not cols.size:
                     break
                 car = CooperriderCar(self.params, self.table, speeds[cols])
                 dampers = None if dampers is None else [d for d, gone in zip(dampers, out) if not gone]
-            states[k][:, cols], forces[k][:, cols] = x, F
+            if (step + 1) % every == 0:
+                k = (step + 1) // every
+                states[k][:, cols], forces[k][:, cols] = x, F
         return DamperCarRun(t=np.arange(n_out + 1) * store, speeds=speeds, states=states, forces=forces,
                             stopped_at=stopped)
 
