@@ -162,15 +162,13 @@ def test_search_settings_are_checked():
 
 def _study_json(folder: Path) -> dict:
     """A cooperrider.json as ``cooperrider_study`` writes it, from searches on responses of known growth."""
-    from dataclasses import asdict
-
     quiet = lambda line: None  # noqa: E731
     results = {"built-in D6 dashpot": search_critical_speed(_KnownGrowth(107.4), CooperriderSearch(), log=quiet),
                "DamperMaxwell_tuned": search_critical_speed(_KnownGrowth(131.0), CooperriderSearch(), log=quiet),
                "DamperLumped_tuned": search_critical_speed(_KnownGrowth(400.0), CooperriderSearch(), log=quiet)}
     data = {"model": {"input_file": "in.xml", "contact_table": "RSGEO.dat", "yaw_damper_D6_ns_per_m": 166669.0,
                       "yaw_spring_k6_n_per_m": 903350.0},
-            "search": asdict(CooperriderSearch()),
+            "search": CooperriderSearch().to_json(),
             "results": {k: {"fmu": None if k.startswith("built") else f"{k}.fmu", **r.to_json()}
                         for k, r in results.items()}}
     v = data["results"]["DamperMaxwell_tuned"]["critical_speed_ms"]

@@ -204,13 +204,14 @@ def cooperrider_html(folder: Path) -> str:
             "(<code>python -m tuner vehicle --cooperrider</code>; the car's parameters and contact table read at run "
             "time from the published input of the DTU simulator DYTSI, whose linear critical speed the car "
             "reproduces). "
-            f"Co-simulated at {1e3 * s['step']:g} ms, the car by Runge-Kutta. Linear critical speed: the response to a "
-            f"{1e3 * s['offset']:g} mm offset of the leading wheelset over {s['duration']:g} s turns from decay to "
-            "growth (growth rate of its largest |y| in the last fifth against 40-60 % of the run), interpolated "
-            f"between neighbouring speeds; {s['rounds']} rounds of {s['per_round']} speeds between "
-            f"{s['v_min']:g} and {s['v_max']:g} m/s. Cone car: the same FMU's critical speed on the 14-degree-of-"
-            "freedom car above (constant conicity, linear creep). Limit cycle: at 1.05 times the critical speed, "
-            f"half the leading wheelset's peak-to-peak motion over the last 10 s of {s['cycle_time']:g} s.</p>"
+            f"Co-simulated at {1e3 * s['step_s']:g} ms, the car by Runge-Kutta. Linear critical speed: the response "
+            f"to a {1e3 * s['offset_m']:g} mm offset of the leading wheelset over {s['duration_s']:g} s turns from "
+            "decay to growth (growth rate of its largest |y| in the last fifth against 40-60 % of the run), "
+            f"interpolated between neighbouring speeds; {s['rounds']} rounds of {s['per_round']} speeds between "
+            f"{s['v_min_ms']:g} and {s['v_max_ms']:g} m/s. Cone car: the same FMU's critical speed on the "
+            "14-degree-of-freedom car above (constant conicity, linear creep). Limit cycle: at "
+            f"{s['cycle_factor']:g} times the critical speed, half the leading wheelset's peak-to-peak motion over "
+            f"the last {s['cycle_window_s']:g} s of {s['cycle_time_s']:g} s.</p>"
             + _cooperrider_spread(data["results"], cone)
             + table(["yaw damper", "linear critical speed", "/ D6 dashpot's", "cone car [km/h]",
                      "limit cycle at 1.05 x", "wall time [s]"], rows))

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -73,6 +73,13 @@ class CooperriderSearch:
     cycle_time: float = 120.0
     step: float = DEFAULT_COMM_STEP
     substeps: int = DEFAULT_SUBSTEPS
+
+    def to_json(self) -> dict:
+        """The settings as ``cooperrider.json``'s ``search`` (units in the keys)."""
+        return {"v_min_ms": self.v_min, "v_max_ms": self.v_max, "per_round": self.per_round, "rounds": self.rounds,
+                "duration_s": self.duration, "offset_m": self.offset, "abort_m": self.abort,
+                "cycle_time_s": self.cycle_time, "cycle_factor": CYCLE_FACTOR, "cycle_window_s": CYCLE_WINDOW,
+                "cycle_abort_m": CYCLE_ABORT, "step_s": self.step, "substeps": self.substeps}
 
     def __post_init__(self) -> None:
         if not (25.0 <= self.v_min < self.v_max and math.isfinite(self.v_max)):
@@ -208,7 +215,7 @@ def cooperrider_study(fmus, out: Path, input_file, search: CooperriderSearch | N
     data = {"model": {"input_file": str(input_file),
                       "contact_table": str(table_path), "yaw_damper_D6_ns_per_m": p.D6,
                       "yaw_spring_k6_n_per_m": p.k6},
-            "search": asdict(search), "results": results}
+            "search": search.to_json(), "results": results}
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     (out / COOPERRIDER_FILE).write_text(strict_json.dumps(data, indent=1))
