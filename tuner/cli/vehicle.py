@@ -73,7 +73,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=2, help="--nonlinear: processes (default 2)")
     p.add_argument("--cooperrider", action="store_true",
                    help="the FMUs as the yaw dampers of DTU's Cooperrider car on S1002/UIC60 contact instead: linear "
-                        "critical speed per FMU beside the car's own dashpots (about 5 min per FMU; --cycle-time 0: 1-2 min)")
+                        "critical speed per FMU beside the car's own dashpots (about 5-7 min per FMU; --cycle-time 0: 1-2 min)")
     p.add_argument("--cooperrider-input", type=Path, default=None, metavar="XML",
                    help=f"--cooperrider: the DTU simulator DYTSI's input file with the car (default {STRAIGHT_INPUT} "
                         "in $DYTSI_REFERENCE or ../shared/reference/dytsi beside the repository)")
