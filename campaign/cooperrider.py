@@ -37,13 +37,16 @@ from .contact import saturation_factor
 from .contact_table import ContactTable
 from .cooperrider_params import CooperriderParams
 
-__all__ = ["CooperriderCar", "WheelForces", "N_STATES", "N_POS", "LEADING_WHEELSET", "state_index"]
+__all__ = ["CooperriderCar", "WheelForces", "N_STATES", "N_POS", "LEADING_WHEELSET", "YAW_DAMPER_NAMES", "state_index"]
 
 N_BODIES = 7
 N_POS = 31
 N_STATES = 2 * N_POS + 4
 LEADING_WHEELSET = 3
 """Body index of the leading bogie's leading wheelset (its ``y`` is the hunting signal)."""
+YAW_DAMPER_NAMES = ("front_right", "front_left", "rear_right", "rear_left")
+"""The four yaw dampers (the ``D6`` dashpots), in the order of :func:`yaw_damper_links`: front = leading
+bogie (body 1), right = -y; the names and order of :data:`campaign.vehicle.DAMPER_NAMES`."""
 
 _COORDS = ("y", "z", "phi", "chi", "psi")
 _POS_MAP = np.full((N_BODIES, 5), -1, dtype=int)
@@ -70,7 +73,8 @@ class Links:
     """The suspension links as arrays (one row per link): ``upper``/``lower`` body indices,
     points ``p_up``/``p_low`` (n, 3) [m] in body axes, ``axis`` 0/1/2 (x/y/z) or -1 (along the link),
     ``rest`` (n, 3) [m] the vector lower->upper point at rest, ``k`` [N/m], ``c`` [N s/m] and
-    ``preload`` [N] (force on the lower body at zero deflection, along ``axis``)."""
+    ``preload`` [N] (force on the lower body at zero deflection, along ``axis``); ``yaw_dampers`` (4,) the
+    rows of the yaw dampers (the ``D6`` dashpots, present whatever ``D6``) in :data:`YAW_DAMPER_NAMES` order."""
 
     upper: np.ndarray
     lower: np.ndarray
@@ -81,6 +85,7 @@ class Links:
     k: np.ndarray
     c: np.ndarray
     preload: np.ndarray
+    yaw_dampers: np.ndarray
 
 
 def body_centres(p: CooperriderParams) -> np.ndarray:
@@ -93,11 +98,13 @@ def body_centres(p: CooperriderParams) -> np.ndarray:
 
 def build_links(p: CooperriderParams) -> Links:
     """The 24 secondary and 24 primary links (and the primary dampers if their coefficient is
-    non-zero), placed as the simulator's Cooperrider model places them."""
+    non-zero), placed as the simulator's Cooperrider model places them. The yaw dampers (``D6``): one each
+    side of each bogie, longitudinal, from the bogie frame's centre line to the car body at the lateral
+    offset ``a + l1 + l2 + l3 / 2``, the car body's point ``s4`` further from the car's centre."""
     g = p.gravity
     sec_load = -p.car_mass * g / 4.0
     prim_load = -(p.car_mass + 2.0 * p.bogie_mass) * g / 8.0
-    rows = []
+    rows, yaw = [], {}
     for bogie, sign in ((1, 1.0), (2, -1.0)):
         for s in (1.0, -1.0):
             lat_up = (sign * p.u1, s * (p.a + p.l1 + p.l2 + p.l3), -(p.h2 - p.s2))
@@ -105,13 +112,14 @@ def build_links(p: CooperriderParams) -> Links:
             ver_up, ver_low = (sign * p.u1, s * p.s3, -p.v4), (0.0, s * p.s3, p.v1 + p.v2)
             yaw_y = s * (p.a + p.l1 + p.l2 + p.l3 / 2.0)
             yaw_up, yaw_low = (sign * (p.u1 + p.s4), yaw_y, -p.h2), (0.0, yaw_y, 0.0)
+            yaw[("front" if bogie == 1 else "rear") + ("_left" if s > 0 else "_right")] = len(rows) + 4  # D6 below
             rows += [(0, bogie, lat_up, lat_low, 1, p.k4, 0.0, 0.0), (0, bogie, lat_up, lat_low, 1, 0.0, p.D2, 0.0),
                      (0, bogie, ver_up, ver_low, 2, p.k5, 0.0, sec_load),
                      (0, bogie, ver_up, ver_low, 2, 0.0, p.D1, 0.0),
                      (0, bogie, yaw_up, yaw_low, 0, 0.0, p.D6, 0.0), (0, bogie, yaw_up, yaw_low, 0, p.k6, 0.0, 0.0)]
         for wheelset, ahead in ((2 * bogie + 1, 1.0), (2 * bogie + 2, -1.0)):
             rows += _primary_rows(p, bogie, wheelset, ahead, prim_load)
-    return _links_from_rows(p, rows)
+    return _links_from_rows(p, rows, [yaw[name] for name in YAW_DAMPER_NAMES])
 
 
 def _primary_rows(p: CooperriderParams, bogie: int, wheelset: int, ahead: float, load: float) -> list:
@@ -126,7 +134,7 @@ def _primary_rows(p: CooperriderParams, bogie: int, wheelset: int, ahead: float,
     return rows
 
 
-def _links_from_rows(p: CooperriderParams, rows: list) -> Links:
+def _links_from_rows(p: CooperriderParams, rows: list, yaw_dampers: list) -> Links:
     centres = body_centres(p)
     upper = np.array([r[0] for r in rows])
     lower = np.array([r[1] for r in rows])
@@ -135,7 +143,8 @@ def _links_from_rows(p: CooperriderParams, rows: list) -> Links:
     rest = centres[upper] + p_up - centres[lower] - p_low
     return Links(upper=upper, lower=lower, p_up=p_up, p_low=p_low, axis=np.array([r[4] for r in rows]),
                  rest=rest, k=np.array([r[5] for r in rows], dtype=float),
-                 c=np.array([r[6] for r in rows], dtype=float), preload=np.array([r[7] for r in rows], dtype=float))
+                 c=np.array([r[6] for r in rows], dtype=float), preload=np.array([r[7] for r in rows], dtype=float),
+                 yaw_dampers=np.array(yaw_dampers, dtype=int))
 
 
 def _point_maps(links: Links) -> tuple:
@@ -221,6 +230,18 @@ class CooperriderCar:
         self._rot_up2 = self._rot_up.reshape(-1, N_POS)
         self._on_axis = np.nonzero(L.axis >= 0)[0]
         self._along = np.nonzero(L.axis < 0)[0]
+        self._yaw_sign = np.sign(L.rest[L.yaw_dampers, 0])[:, None]
+        self._yaw_map = self._yaw_sign * self._A[L.yaw_dampers, 0, :]
+
+    def yaw_damper_strokes(self, x: np.ndarray) -> tuple:
+        """Elongations [m] and their rates [m/s], (4, m) each, of the yaw dampers (:data:`YAW_DAMPER_NAMES`
+        order) at the states ``x`` (66, m): the change of the distance between the bogie's and the car body's
+        attachment points along the track (x), positive in extension (the points moving apart)."""
+        return self._yaw_map @ x[:N_POS], self._yaw_map @ x[N_POS:2 * N_POS]
+
+    def yaw_damper_acceleration(self, dx: np.ndarray) -> np.ndarray:
+        """Rates [m/s^2] (4, m) of the yaw dampers' elongation rates from ``dx`` = :meth:`rhs` (66, m)."""
+        return self._yaw_map @ dx[N_POS:2 * N_POS]
 
     def body_states(self, x: np.ndarray) -> tuple:
         """Positions and rates (7, 5, m) of every body (``y, z, phi, chi, psi``; wheelset pitch 0)
@@ -230,9 +251,11 @@ class CooperriderCar:
         vel = np.where(mask, x[N_POS + np.maximum(_POS_MAP, 0)], 0.0)
         return pos, vel
 
-    def suspension(self, q: np.ndarray, qd: np.ndarray) -> tuple:
+    def suspension(self, q: np.ndarray, qd: np.ndarray, damper_forces: np.ndarray | None = None) -> tuple:
         """Forces and moments (7, 3, m) [N], [N m] of all links on all bodies (track-frame forces,
-        body-axis moments) at positions ``q`` and rates ``qd`` (31, m)."""
+        body-axis moments) at positions ``q`` and rates ``qd`` (31, m). ``damper_forces`` (4, m) [N]:
+        forces of the yaw dampers (:data:`YAW_DAMPER_NAMES` order), tension positive (pulling the bogie's
+        and the car body's points together), applied where the ``D6`` dashpots act, in addition to them."""
         L = self.links
         n, m = L.k.size, q.shape[1]
         d = (self._A2 @ q).reshape(n, 3, m)
@@ -241,6 +264,8 @@ class CooperriderCar:
         k = self._on_axis
         ax = L.axis[k]
         F[k, ax] = L.k[k, None] * d[k, ax] + L.c[k, None] * v[k, ax] + L.preload[k, None]
+        if damper_forces is not None:                           # on the bogie: towards the car body's point
+            F[L.yaw_dampers, 0] += self._yaw_sign * damper_forces
         if self._along.size:
             j = self._along
             vec = L.rest[j][..., None] + d[j]
@@ -291,13 +316,17 @@ class CooperriderCar:
         return WheelForces(creep=np.stack([Fx, Fy, Fz]), normal=np.stack([Ny, Nz]),
                            roll=s * aw * (Fz + Nz - (Fy + Ny) * phi), yaw=-s * aw * lever, spin=-rw * lever)
 
-    def rhs(self, t: float, x: np.ndarray) -> np.ndarray:
-        """``dx/dt`` of the state ``x`` (66,) or (66, m) at time ``t`` [s] (autonomous: ``t`` unused)."""
+    def rhs(self, t: float, x: np.ndarray, damper_forces: np.ndarray | None = None) -> np.ndarray:
+        """``dx/dt`` of the state ``x`` (66,) or (66, m) at time ``t`` [s] (autonomous: ``t`` unused);
+        ``damper_forces`` (4,) or (4, m) [N]: yaw damper forces added to the ``D6`` dashpots' (see
+        :meth:`suspension`; zero ``D6`` in the parameters to replace them)."""
         single = x.ndim == 1
         x = x[:, None] if single else x
+        if damper_forces is not None and single:
+            damper_forces = np.asarray(damper_forces, dtype=float)[:, None]
         pos, vel = self.body_states(x)
         beta = x[2 * N_POS:]
-        force, moment = self.suspension(x[:N_POS], x[N_POS:2 * N_POS])
+        force, moment = self.suspension(x[:N_POS], x[N_POS:2 * N_POS], damper_forces)
         wf = self.wheel_forces(pos, vel, beta)
         force[3:, 1] += (wf.creep[1] + wf.normal[0]).sum(0)
         force[3:, 2] += (wf.creep[2] + wf.normal[1]).sum(0)

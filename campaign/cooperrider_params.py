@@ -20,15 +20,28 @@ longitudinal/vertical/lateral, ``D6`` secondary longitudinal (the yaw damper).
 """
 from __future__ import annotations
 
+import os
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
-__all__ = ["CooperriderParams", "ModelFile", "ModelFileError", "XML_NAMES", "read_cooperrider_xml"]
+__all__ = ["CooperriderParams", "ModelFile", "ModelFileError", "XML_NAMES", "STRAIGHT_INPUT", "read_cooperrider_xml",
+           "reference_input"]
 
 XML_NAMES = ("r0", "h1", "h2", "a", "l1", "l2", "l3", "v1", "v2", "v3", "v4", "u1", "u2", "x1",
              "s1", "s2", "s3", "s4", "k1", "k2", "k3", "k4", "k5", "k6", "D1", "D2", "D3", "D4", "D5", "D6")
 """The parameters read from the simulator's input file (SI units, meaning in the module docstring)."""
+STRAIGHT_INPUT = "input/InputFiles/inputBifurcation-Cooperrider-straight.xml"
+"""The simulator's published straight-track input file, relative to its folder."""
+
+
+def reference_input() -> Path:
+    """Where the simulator's straight-track input file is expected: ``$DYTSI_REFERENCE/`` +
+    :data:`STRAIGHT_INPUT`, else the reference engines' folder beside the repository
+    (``../shared/reference/dytsi``). The file is not part of the project and may be absent."""
+    env = os.environ.get("DYTSI_REFERENCE")
+    folder = Path(env) if env else Path(__file__).resolve().parents[1].parent / "shared" / "reference" / "dytsi"
+    return folder / STRAIGHT_INPUT
 
 
 class ModelFileError(ValueError):

@@ -7,10 +7,12 @@ from tuner.cli.log import log
 from tuner.identification.intervals import ModelIntervals
 from tuner.results.recommendation import MODEL_NAME, recommend
 from tuner.vehicle.compare import VEHICLE_FOLDER
+from tuner.vehicle.cooperrider_hunting import COOPERRIDER_FILE
 from tuner.vehicle.propagation import INTERVALS_FILE
 from tuner import strict_json
 
-__all__ = ["end_summary", "print_table3", "interval_summary", "vehicle_interval_summary"]
+__all__ = ["end_summary", "print_table3", "interval_summary", "vehicle_interval_summary", "cooperrider_summary",
+           "update_cooperrider_summary"]
 
 
 def interval_summary(parameters: dict) -> dict:
@@ -57,6 +59,32 @@ def vehicle_interval_summary(out: Path) -> dict:
     return out_
 
 
+def cooperrider_summary(out: Path) -> dict:
+    """summary.json's ``cooperrider``, from ``vehicle/cooperrider.json`` (``tuner.vehicle.cooperrider_hunting``): per
+    yaw damper (the Cooperrider car's own D6 dashpot and each FMU) the linear critical speed on S1002/UIC60 in m/s
+    and km/h (null when none was found) and its bracket [m/s]; {} when the study was not run."""
+    path = Path(out) / VEHICLE_FOLDER / COOPERRIDER_FILE
+    if not path.exists():
+        return {}
+    data = strict_json.loads(path.read_text())
+    return {label: {k: r[k] for k in ("critical_speed_ms", "critical_speed_kmh", "bracket_ms")}
+            for label, r in data["results"].items()}
+
+
+def update_cooperrider_summary(out: Path) -> bool:
+    """Put :func:`cooperrider_summary` into an existing ``out/summary.json`` (after ``python -m tuner vehicle
+    --cooperrider --out RUN``); False when there is no summary.json."""
+    path = Path(out) / "summary.json"
+    if not path.exists():
+        return False
+    summary = strict_json.loads(path.read_text())
+    summary["cooperrider"] = cooperrider_summary(out)
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(strict_json.dumps(summary, indent=1))
+    tmp.replace(path)
+    return True
+
+
 def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
     """Write ``summary.json`` and print the end-of-run summary once, after everything is written: the
     recommendation (``tuner.results.recommendation``: the model and FMU to use and why, the same as the
@@ -87,6 +115,7 @@ def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
         "critical_speed_kmh": {k: (r.get("critical_speed") or {}).get("critical_speed_kmh")
                                for k, r in vehicle.get("results", {}).items()},
         "vehicle_intervals": vehicle_interval_summary(out),
+        "cooperrider": cooperrider_summary(out),
         "warnings": [str(w) for w in metrics.get("warnings") or []],
         "report": str(out / "report.html") if (out / "report.html").exists() else None,
         "fmus": sorted(str(f) for f in out.rglob("*.fmu")),

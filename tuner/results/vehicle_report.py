@@ -1,7 +1,9 @@
 """The report's vehicle section: the tuned FMUs as the vehicle's yaw dampers, side by side (``vehicle/vehicle.json``,
-``python -m tuner --vehicle``), and hunting with nonlinear wheel-rail contact (``vehicle/hunting_nonlinear.json`` and
+``python -m tuner --vehicle``), hunting with nonlinear wheel-rail contact (``vehicle/hunting_nonlinear.json`` and
 its figures, ``python -m tuner vehicle --nonlinear --out RUN``): linear and nonlinear critical speeds per FMU and
-conicity, the bifurcation diagrams, what the damper model changes for a worn-wheel bogie."""
+conicity, the bifurcation diagrams, what the damper model changes for a worn-wheel bogie; and the tuned FMUs as
+the yaw dampers of DTU's Cooperrider car on S1002/UIC60 contact (``vehicle/cooperrider.json``,
+``python -m tuner vehicle --cooperrider --out RUN``) beside the cone car's critical speeds."""
 from __future__ import annotations
 
 import math
@@ -9,13 +11,14 @@ from pathlib import Path
 
 from tuner.results.html import esc, figure_html, table
 from tuner.vehicle.compare import VEHICLE_FOLDER, summary_rows
+from tuner.vehicle.cooperrider_hunting import BUILT_IN, COOPERRIDER_FILE, cycle_text, speed_text
 from tuner.vehicle.limit_cycles import CONICITY_FIGURE, DIAGRAM_FIGURE, STUDY_FILE, study_rows
 from tuner.vehicle.propagation import INTERVALS_FILE, SKEWED
 from tuner import strict_json
 
 
 __all__ = ["vehicle_section_html", "linear_vehicle_html", "nonlinear_hunting_html", "worn_wheel_sentence",
-           "intervals_html", "SUBCRITICAL"]
+           "intervals_html", "cooperrider_html", "SUBCRITICAL"]
 
 SUBCRITICAL = 0.005
 """Relative margin [-] by which the nonlinear critical speed must lie below the linear one to be called
@@ -27,7 +30,7 @@ def vehicle_section_html(out_dir) -> str:
     the tuned FMUs as the vehicle's yaw dampers side by side and, where it was run, hunting with nonlinear
     contact ('' when there is neither)."""
     folder = Path(out_dir) / VEHICLE_FOLDER
-    parts = linear_vehicle_html(folder) + nonlinear_hunting_html(folder)
+    parts = linear_vehicle_html(folder) + nonlinear_hunting_html(folder) + cooperrider_html(folder)
     if not parts:
         return ""
     return "<section id='vehicle'><h2>In the vehicle: what the damper model changes</h2>" + parts + "</section>"
@@ -171,3 +174,60 @@ def intervals_html(folder: Path) -> str:
             + table(["FMU", "critical speed", "Monte-Carlo", "search scatter [km/h]", "curve peak damper force",
                      "Monte-Carlo", "draws", "interval"], rows)
             + f"<ul>{''.join(notes)}{errors}</ul>")
+
+
+def cooperrider_html(folder: Path) -> str:
+    """The Cooperrider car on S1002/UIC60 from ``folder/cooperrider.json`` (``tuner.vehicle.cooperrider_hunting``):
+    the method in a paragraph and a table, per yaw damper (the car's own ``D6`` dashpot first, then each FMU), of
+    the linear critical speed, its ratio to the ``D6`` row's and the same FMU's critical speed on the cone car
+    (``vehicle.json``, where it was run) ('' without the file)."""
+    path = Path(folder) / COOPERRIDER_FILE
+    if not path.exists():
+        return ""
+    data = strict_json.loads(path.read_text())
+    cone_path = Path(folder) / "vehicle.json"
+    cone = strict_json.loads(cone_path.read_text()).get("results", {}) if cone_path.exists() else {}
+    ref = data["results"].get(BUILT_IN, {}).get("critical_speed_ms")
+    rows = []
+    for label, r in data["results"].items():
+        v = r["critical_speed_ms"]
+        cone_v = (cone.get(label, {}).get("critical_speed") or {}).get("critical_speed_kmh")
+        rows.append([esc(label), esc(speed_text(r)), "-" if v is None or ref is None else f"{v / ref:.3f}",
+                     "-" if cone_v is None else f"{cone_v:.0f}", esc(cycle_text(r) or "-"),
+                     f"{r['wall_time_s'] + r.get('cycle_wall_time_s', 0.0):.0f}"])
+    s, m = data["search"], data["model"]
+    return ("<h3>Cooperrider car, S1002/UIC60</h3>"
+            "<p>Each FMU as the four yaw dampers (the longitudinal secondary dashpots, D6 = "
+            f"{m['yaw_damper_D6_ns_per_m'] * 1e-3:.4g} kN s/m, replaced; the parallel spring k6 = "
+            f"{m['yaw_spring_k6_n_per_m'] * 1e-3:.4g} kN/m kept) of DTU's Cooperrider car: car body, two bogie frames, "
+            "four wheelsets, the tabulated S1002 wheel on UIC60 rail at 1:40, Kalker creep saturating at mu N "
+            "(<code>python -m tuner vehicle --cooperrider</code>; the car's parameters and contact table read at run "
+            "time from the published input of the DTU simulator DYTSI, whose linear critical speed the car "
+            "reproduces). "
+            f"Co-simulated at {1e3 * s['step_s']:g} ms, the car by Runge-Kutta. Linear critical speed: the response "
+            f"to a {1e3 * s['offset_m']:g} mm offset of the leading wheelset over {s['duration_s']:g} s turns from "
+            "decay to growth (growth rate of its largest |y| in the last fifth against 40-60 % of the run), "
+            f"interpolated between neighbouring speeds; {s['rounds']} rounds of {s['per_round']} speeds between "
+            f"{s['v_min_ms']:g} and {s['v_max_ms']:g} m/s. Cone car: the same FMU's critical speed on the "
+            "14-degree-of-freedom car above (constant conicity, linear creep). Limit cycle: at "
+            f"{s['cycle_factor']:g} times the critical speed, half the leading wheelset's peak-to-peak motion over "
+            f"the last {s['cycle_window_s']:g} s of {s['cycle_time_s']:g} s.</p>"
+            + _cooperrider_spread(data["results"], cone)
+            + table(["yaw damper", "linear critical speed", "/ D6 dashpot's", "cone car [km/h]",
+                     "limit cycle at 1.05 x", "wall time [s]"], rows))
+
+
+def _cooperrider_spread(results: dict, cone: dict) -> str:
+    """A paragraph: the range of the FMUs' critical speeds on the Cooperrider car beside their range on the cone car
+    ('' with fewer than two FMU speeds)."""
+    v = {lab: r["critical_speed_ms"] for lab, r in results.items() if lab != BUILT_IN and r["critical_speed_ms"]}
+    if len(v) < 2:
+        return ""
+    lo, hi = min(v, key=v.get), max(v, key=v.get)
+    text = (f"On the Cooperrider car the tuned FMUs' linear critical speeds range from {v[lo]:.2f} m/s ({lo}) to "
+            f"{v[hi]:.2f} m/s ({hi}): {3.6 * (v[hi] - v[lo]):.0f} km/h")
+    c = {lab: (cone.get(lab, {}).get("critical_speed") or {}).get("critical_speed_kmh") for lab in v}
+    c = {lab: x for lab, x in c.items() if x is not None}
+    if len(c) > 1:
+        text += f", against {max(c.values()) - min(c.values()):.0f} km/h on the cone car"
+    return f"<p>{esc(text)}.</p>"

@@ -7,6 +7,10 @@
   yaw damper FMUs, Runge-Kutta within each communication step (``NonlinearCosim``);
 - ``limit_cycles``: per FMU and wheel conicity the linear and nonlinear critical speeds and the bifurcation
   diagrams, side by side (``python -m tuner vehicle --nonlinear``);
+- ``cooperrider_cosim``: DTU's Cooperrider car on tabulated S1002/UIC60 contact (``campaign.cooperrider``) with
+  four yaw damper FMUs per speed, several speeds per batch (``CooperriderCosim``);
+- ``cooperrider_hunting``: its linear critical speed and limit cycle per FMU beside its own D6 dashpots
+  (``python -m tuner vehicle --cooperrider``, ``cooperrider.json``);
 - ``compare``: the same scenarios with several FMUs side by side (``python -m tuner vehicle``);
 - ``propagation``: the identification's parameter uncertainty carried to the critical speed and the curve's
   peak damper force (95 % intervals from parameter sets drawn from the fitted covariance).
