@@ -59,7 +59,8 @@ from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose  # noqa: E402
 from tuner.diagnosis.effect_sizes import DamperSize, typical_range  # noqa: E402
 from tuner.diagnosis.rules import CONFOUNDED_SHARE  # noqa: E402
 from tuner.executors import FleetExecutor  # noqa: E402
-from tuner.identification.engine import fastest_engine  # noqa: E402
+from tuner.identification.engine import IDENTIFICATION_STEP as DEFAULT_STEP, fastest_engine  # noqa: E402
+from tuner.identification.problem import DataSettings  # noqa: E402
 from tuner.results.fleet_summary import write_atomic  # noqa: E402
 
 SINGLES = ("free_play_soft", "free_play_stiff", "bypass", "none")
@@ -160,7 +161,7 @@ def _case(name: str, k: int, a: argparse.Namespace) -> dict:
         rate, noise = draw["sample_rate"], draw["noise_n"]
     return {"case": name, "model": a.model, "seed": seed, "noise_n": noise, "sample_rate": rate,
             "workers": a.workers, "hidden": hidden, "log_dir": str(a.out / "logs"),
-            "base_setting": a.base, "broad": a.broad}
+            "base_setting": a.base, "broad": a.broad, "sim_step_s": 1e-3 * a.sim_step}
 
 
 def run_case(case: dict) -> dict:
@@ -180,7 +181,8 @@ def run_case(case: dict) -> dict:
             res = diagnose([t for t in tests if t.role == "identification"],
                            [t for t in tests if t.role == "validation"],
                            DiagnosisSettings(engine=fastest_engine(), workers=case["workers"],
-                                             base_model=case.get("base_setting", "auto")),
+                                             base_model=case.get("base_setting", "auto"),
+                                             data=DataSettings(sim_step_s=case.get("sim_step_s", DEFAULT_STEP))),
                            log=lambda m: print(m, file=out, flush=True))
     names = [MAGNITUDE_OF[e] for e in expected(case["case"])]
     fitted = {n: (res["effect_parameters"].get(n) or {}).get("value") for n in names}
@@ -204,8 +206,9 @@ def failed_row(case: dict, err: BaseException) -> dict:
 
 def run_key(row: dict) -> tuple:
     """What makes a run the same run again (resume): case, model, seed, data breadth, base setting (the row's
-    ``base`` is the base form the diagnosis kept)."""
-    return (row["case"], row["model"], row["seed"], bool(row.get("broad")), row.get("base_setting", "auto"))
+    ``base`` is the base form the diagnosis kept), simulation grid [s]."""
+    return (row["case"], row["model"], row["seed"], bool(row.get("broad")), row.get("base_setting", "auto"),
+            row.get("sim_step_s", DEFAULT_STEP))
 
 
 def done_rows(path: Path) -> list[dict]:
@@ -233,6 +236,8 @@ def _arguments(argv) -> argparse.Namespace:
     ap.add_argument("--base", choices=("auto", "lumped", "twochamber"), default="auto",
                     help="the diagnosis's base form: 'auto' identifies both and keeps the better (the blind default)")
     ap.add_argument("--workers", type=int, default=0, help="evaluation processes inside each run")
+    ap.add_argument("--sim-step", type=float, default=1e3 * DataSettings().sim_step_s, metavar="MS",
+                    help="the diagnosis's simulation grid [ms] (DataSettings.sim_step_s, default %(default)g)")
     ap.add_argument("--scheduler", default=None, metavar="SPEC")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "blind_class")
     a = ap.parse_args(argv)

@@ -119,9 +119,13 @@ class Signals:
         return rs.first_index(), rs.output_length((len(self.time) - 1) * self.oversample + 1)
 
 
-def oversampling(rate_hz: float) -> int:
-    """Oversampling factor that puts the simulation grid at the identification step or finer (>= 1)."""
-    return max(1, int(math.ceil(1.0 / (IDENTIFICATION_STEP * rate_hz) - 1e-9)))
+def oversampling(rate_hz: float, step_s: float = IDENTIFICATION_STEP) -> int:
+    """Oversampling factor that puts the simulation grid at ``step_s`` [s] (the identification step) or finer
+    (>= 1). The fixed sub-steps of the identification runs are then that grid's intervals (``Engine``'s
+    ``max_internal_step`` is never smaller than ``IDENTIFICATION_STEP``)."""
+    if not (step_s > 0.0 and math.isfinite(step_s)):
+        raise ValueError(f"the simulation step must be a positive number of seconds, got {step_s!r}")
+    return max(1, int(math.ceil(1.0 / (step_s * rate_hz) - 1e-9)))
 
 
 def simulate_signals(model: str, params: dict, s: Signals, *, engine: str = "fmu", fmu_path=None,

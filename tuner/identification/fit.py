@@ -708,7 +708,7 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
         "elapsed_s": {m: histories[m]["elapsed_s"] for m in settings.models},
         "stop_reason": {m: histories[m]["stop_reason"] for m in settings.models},
         "parametrization_text": {m: histories[m]["parametrization"] for m in settings.models},
-        "fit_internal_step_s": IDENTIFICATION_STEP,
+        "fit_internal_step_s": settings.data.sim_step_s,
         "identification_tests": [t.name for t in identification],
         "validation_tests": [t.name for t in validation],
         **(provenance or {}),
