@@ -121,8 +121,8 @@ class Signals:
 
 def oversampling(rate_hz: float, step_s: float = IDENTIFICATION_STEP) -> int:
     """Oversampling factor that puts the simulation grid at ``step_s`` [s] (the identification step) or finer
-    (>= 1). The fixed sub-steps of the identification runs are then that grid's intervals (``Engine``'s
-    ``max_internal_step`` is never smaller than ``IDENTIFICATION_STEP``)."""
+    (>= 1). The fixed sub-steps of the identification runs are then that grid's intervals wherever the grid is
+    finer than the ``Engine``'s ``max_internal_step`` (``IDENTIFICATION_STEP`` by default)."""
     if not (step_s > 0.0 and math.isfinite(step_s)):
         raise ValueError(f"the simulation step must be a positive number of seconds, got {step_s!r}")
     return max(1, int(math.ceil(1.0 / (step_s * rate_hz) - 1e-9)))

@@ -40,7 +40,7 @@ from damper_fmu.parameters import EFFECT_MODELS, defaults
 
 from tuner.data.reading import RigTest
 from tuner.identification import firefly
-from tuner.identification.engine import IDENTIFICATION_STEP, Engine, Signals
+from tuner.identification.engine import Engine, Signals
 from tuner.identification.floor import ResidualFloor
 from tuner.identification.full_rate import MIN_RATE_RATIO, comparison_rate, full_rate_check
 from tuner.identification.intervals import parameter_intervals, reached_ranges
