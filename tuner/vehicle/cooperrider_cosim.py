@@ -43,7 +43,7 @@ from campaign.contact_table import ContactTable
 from campaign.cooperrider import N_STATES, YAW_DAMPER_NAMES, CooperriderCar, state_index
 from campaign.cooperrider_params import CooperriderParams
 from campaign.cooperrider_runs import CarRun
-from tuner.vehicle.cosim import DamperInstance, check_damper_fmu
+from tuner.vehicle.cosim import DamperInstance, check_damper_fmu, rk4_linear_forces
 
 __all__ = ["CooperriderCosim", "DamperCarRun", "DEFAULT_COMM_STEP", "DEFAULT_SUBSTEPS", "DEFAULT_ABORT", "WHEELSET_Y"]
 
@@ -154,14 +154,14 @@ class CooperriderCosim:
         h = self.step
         dx = car.rhs(t, x, F if dampers is not None else None)
         if dampers is None:
-            return _advance(car, x, None, None, h, self.substeps, dx), F
+            return rk4_linear_forces(lambda y, f: car.rhs(0.0, y, f), x, None, None, h, self.substeps, dx), F
         e, v = car.yaw_damper_strokes(x)
         a = car.yaw_damper_acceleration(dx)
         F1 = np.empty_like(F)
         for j, four in enumerate(dampers):
             for i in range(4):
                 F1[i, j] = four[i].step(t, h, float(e[i, j]), float(v[i, j]), float(a[i, j]))
-        return _advance(car, x, F, F1, h, self.substeps, dx), F1
+        return rk4_linear_forces(lambda y, f: car.rhs(0.0, y, f), x, F, F1, h, self.substeps, dx), F1
 
     def close(self) -> None:
         """Free the FMU instances and their extracted files."""
@@ -174,23 +174,3 @@ class CooperriderCosim:
 
     def __exit__(self, *exc):
         self.close()
-
-
-def _advance(car: CooperriderCar, x: np.ndarray, F0, F1, h: float, n: int, dx0: np.ndarray) -> np.ndarray:
-    """``n`` RK4 steps of the states ``x`` (66, m) over ``h`` [s] with the yaw damper forces linear from
-    ``F0`` to ``F1`` (4, m) [N] (both None: the car's own dashpots); ``dx0``: the derivative at the start."""
-    hs = h / n
-    dF = None if F0 is None else (F1 - F0) / h
-
-    def force(tau):
-        return None if F0 is None else F0 + dF * tau
-
-    for j in range(n):
-        tau = j * hs
-        k1 = dx0 if j == 0 else car.rhs(0.0, x, force(tau))
-        fm = force(tau + 0.5 * hs)
-        k2 = car.rhs(0.0, x + 0.5 * hs * k1, fm)
-        k3 = car.rhs(0.0, x + 0.5 * hs * k2, fm)
-        k4 = car.rhs(0.0, x + hs * k3, force(tau + hs))
-        x = x + (hs / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
-    return x

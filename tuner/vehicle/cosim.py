@@ -42,7 +42,7 @@ from damper_fmu.native import compile_library
 from tuner.identification.runner import FmuRunner
 
 __all__ = ["VehicleCosim", "VehicleRun", "DamperInstance", "reference_run", "check_damper_fmu", "master_loop",
-           "compiled_loop", "FmuDampers", "N_MECH", "DEFAULT_STEP"]
+           "compiled_loop", "FmuDampers", "N_MECH", "DEFAULT_STEP", "rk4_linear_forces"]
 
 N_MECH = 2 * N_DOF
 """Mechanical states of the vehicle: y_0..y_6, Psi_0..Psi_6 [m, rad], their rates [m/s, rad/s]."""
@@ -428,3 +428,26 @@ def reference_run(params: VehicleParams, speed: float, track, irregularity=None,
     Xf = model.simulate(tf, Uf, xi)[::sub]
     return VehicleRun(tf[::sub], np.ascontiguousarray(Xf[:, :N_MECH]), np.ascontiguousarray(Xf[:, N_MECH:]),
                       Uf[::sub], model, track, float(s0))
+
+
+def rk4_linear_forces(rhs, x: np.ndarray, F0, F1, h: float, n: int, dx0: np.ndarray) -> np.ndarray:
+    """``n`` classical Runge-Kutta steps of the states ``x`` over ``h`` [s] with the damper forces linear from
+    ``F0`` to ``F1`` [N] over the step (each stage sees the force at its own time; both None: no forces put
+    in, ``rhs`` gets None); ``rhs(x, F)`` the state derivative, ``dx0`` the derivative at the start (already
+    computed). The co-simulation masters' one integration of a car between communication points
+    (``nonlinear_cosim``, ``cooperrider_cosim``)."""
+    hs = h / n
+    dF = None if F0 is None else (F1 - F0) / h
+
+    def force(tau):
+        return None if F0 is None else F0 + dF * tau
+
+    for j in range(n):
+        tau = j * hs
+        k1 = dx0 if j == 0 else rhs(x, force(tau))
+        fm = force(tau + 0.5 * hs)
+        k2 = rhs(x + 0.5 * hs * k1, fm)
+        k3 = rhs(x + 0.5 * hs * k2, fm)
+        k4 = rhs(x + hs * k3, force(tau + hs))
+        x = x + (hs / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
+    return x

@@ -28,7 +28,7 @@ import numpy as np
 
 from campaign.vehicle import N_BODIES, N_DAMPERS, N_DOF, N_STATES, WHEELSETS, VehicleParams
 from campaign.vehicle_nonlinear import N_MECH, ContactSettings, NonlinearRun, NonlinearVehicle
-from tuner.vehicle.cosim import DEFAULT_STEP, FmuDampers, compiled_loop
+from tuner.vehicle.cosim import DEFAULT_STEP, FmuDampers, compiled_loop, rk4_linear_forces
 
 __all__ = ["NonlinearCosim", "nonlinear_master_loop"]
 
@@ -90,7 +90,7 @@ class NonlinearCosim(FmuDampers):
                 dx = model.mechanical_rhs(x, F)
                 e, v, a = E @ x[:N_DOF], E @ x[N_DOF:], E @ dx[N_DOF:]
                 F1 = np.array([d.step(t, h, e[i], v[i], a[i]) for i, d in enumerate(self.dampers)])
-                x = _advance(model, x, F, F1, h, m, dx)
+                x = rk4_linear_forces(model.mechanical_rhs, x, F, F1, h, m, dx)
                 F = F1
                 out[k + 1, :N_MECH], out[k + 1, N_MECH:] = x, F
         return NonlinearRun(np.arange(n + 1) * h, out, model.speed)
@@ -128,19 +128,3 @@ class NonlinearCosim(FmuDampers):
     def runner(self):
         """This co-simulation as the ``runner(speed, x0, duration)`` of :mod:`campaign.bifurcation`."""
         return self.run
-
-
-def _advance(model: NonlinearVehicle, x, F0, F1, h: float, m: int, dx0) -> np.ndarray:
-    """``m`` RK4 steps of the mechanical state ``x`` over ``h`` [s] with the damper forces linear from
-    ``F0`` to ``F1`` [N]; ``dx0``: the derivative at the start (already computed)."""
-    hs = h / m
-    dF = (F1 - F0) / h
-    for j in range(m):
-        tau = j * hs
-        k1 = dx0 if j == 0 else model.mechanical_rhs(x, F0 + dF * tau)
-        fm = F0 + dF * (tau + 0.5 * hs)
-        k2 = model.mechanical_rhs(x + 0.5 * hs * k1, fm)
-        k3 = model.mechanical_rhs(x + 0.5 * hs * k2, fm)
-        k4 = model.mechanical_rhs(x + hs * k3, F0 + dF * (tau + hs))
-        x = x + (hs / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
-    return x
