@@ -11,6 +11,7 @@ from pathlib import Path
 from damper_fmu.parameters import EFFECT_MODELS, defaults
 
 from tuner.diagnosis.cost_model import EXTENDED_COST, expected_cost, identification_cost
+from tuner.diagnosis.grid_check import GRID_PART
 from tuner.identification.engine import Engine
 from tuner.identification.floor import ResidualFloor
 from tuner.identification.fit import (RACE_RATIO, FitResult, FitSettings, IdentifyOptions, fit_order, identify,
@@ -146,10 +147,12 @@ PLAN_WEIGHTS = {"identification": 1.0, "diagnosis": 1.5}
 
 def progress_plan(log, settings: DiagnosisSettings, fitted: FittedBases | None) -> Plan:
     """The progress plan: the identification of each base form (unless ``fitted`` gives them), the diagnosis on
-    each one (the first, and a repeat on each other that may follow: skipped when it does not)."""
+    each one (the first, and a repeat on each other that may follow: skipped when it does not), and the diagnosis
+    again on a finer grid (``tuner.diagnosis.grid_check``: skipped when the final model does not need it)."""
     kinds = base_kinds(settings, fitted)
     weights = {} if fitted is not None else {f"identification of the {k} base": PLAN_WEIGHTS["identification"] for k in kinds}
     weights.update({f"diagnosis on the {k} base": PLAN_WEIGHTS["diagnosis"] for k in kinds})
+    weights[GRID_PART] = PLAN_WEIGHTS["diagnosis"]
     return Plan(log, weights)
 
 

@@ -52,6 +52,9 @@ Procedure (``diagnose``; the steps on one base form are the modules of ``tuner.d
    periodic tests, else the quiet band of the force's spectrum); when that estimate is not credible
    (filtered data, too few samples) the residual is not compared with the floor at all: no
    'unexplained', no "N x the floor", and the verdict says why (``residual_floor_credible``).
+5a. Grid: the final model's force on the grid the identification simulated on against a 4 x finer one
+   (``tuner.diagnosis.grid_check``); when it moves by more than half the force noise (a free play in stiff
+   contact), the diagnosis on that base runs again on the finer grid (``_on_a_fine_enough_grid``).
 6. Output: a ``Diagnosis`` (``tuner.diagnosis.result``), as the fit returns a ``FitResult``: the record
    of ``diagnosis.json`` (cause, causes, selection steps, unexplained, ranking, noise (the estimate used
    and every one made), effect parameters with units, intervals and typical ranges, validation MSE/AME
@@ -74,6 +77,7 @@ import json
 import math
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -86,6 +90,7 @@ from tuner.diagnosis.bases import (BASE_MODELS, Base, FittedBases, choose_base, 
                                    progress_plan, why_not_repeated)
 from tuner.diagnosis.cost_model import EXTENDED_COST, expected_cost
 from tuner.diagnosis.extended_parametrization import ExtendedParametrization  # noqa: F401
+from tuner.diagnosis.grid_check import GRID_PART, GRID_REFINEMENT, GridCheck, grid_check
 from tuner.diagnosis.refit import MIN_BLOCKS  # noqa: F401
 from tuner.diagnosis.result import Diagnosis, DiagnosisFailed, failure_record
 from tuner.diagnosis.rules import (ACCEPT_SCORE, PENALTY_PER_PARAMETER, UNEXPLAINED_RATIO, cross_check,  # noqa: F401
@@ -194,7 +199,8 @@ def _diagnose_stages(problem: Problem, checkpoints: Path, settings: DiagnosisSet
     record["finished"].append("base identification")
     for k in bases:  # the first base's diagnosis runs; a repeat on another only if the first leaves a residual
         plan.maybe(f"diagnosis on the {k} base", None if k == kind else f"the diagnosis is repeated on the {k} base")
-    forecast_parts(plan, bases, problem, settings)
+    plan.maybe(GRID_PART, "the final model needs a finer grid")
+    forecast_parts(plan, bases, problem, settings, kind)
     runs = {kind: _checkpointed_run(kind, bases[kind], problem, settings, checkpoints, "figures", record,
                                     plan.part(f"diagnosis on the {kind} base"))}
     skipped = {}
@@ -227,36 +233,89 @@ def _diagnose_stages(problem: Problem, checkpoints: Path, settings: DiagnosisSet
                        "by": "held-out MSE of the final models (the first choice left a residual above the floor)"}
         log("diagnosis: final base form " + kind + " (held-out MSE of the final models " + ", ".join(
             f"{k} {math.sqrt(v):.1f} N rms" for k, v in final.items()) + ")")
+    runs[kind], grid = _on_a_fine_enough_grid(kind, bases[kind], problem, settings, checkpoints, runs[kind], record,
+                                              plan)
     run = runs[kind].run
     result = {k: v for k, v in run.items() if k not in ("after_params", "final_validation_mse", "base_validation_mse")}
+    if grid.get("refined"):
+        result["verdict"] = f"{result['verdict']}. {grid['text']}"
     result["base_choice"] = base_choice
+    result["grid"] = grid
     result["settings"] = _settings_record(settings, problem, time.perf_counter() - t_start)
     return Diagnosis(result, final_values=run["after_params"], stages=record,
                      residuals={r.figures: r.residuals for r in runs.values()})
 
 
-def forecast_parts(plan, bases: dict, problem: Problem, settings: DiagnosisSettings) -> None:
+def forecast_parts(plan, bases: dict, problem: Problem, settings: DiagnosisSettings, first: str) -> None:
     """Each base's diagnosis part of the progress ``plan`` gets its expected seconds (``tuner.diagnosis.
     cost_model``, at the cost per simulation its identification measured; the forms counted), so that the time
     left covers the first base's diagnosis and says what a repeat on another would add until it is known whether
-    it runs (a repeat runs only when the first base leaves a residual above the floor: ``Plan.maybe``). Nothing
-    when a base's cost per simulation is not known."""
+    it runs (a repeat runs only when the first base leaves a residual above the floor: ``Plan.maybe``); the
+    diagnosis on a finer grid, the ``first`` base's at ``GRID_REFINEMENT`` x its cost per simulation (said again
+    at the cost the grid check measures, when it runs). Nothing when a base's cost per simulation is not known."""
     share = sum(int(s.mask.sum()) for s in problem.sig_val) / sum(int(s.mask.sum()) for s in problem.sig_id)
+    seconds = {}
     for kind, base in bases.items():
         rate = base.refinement.seconds_per_evaluation
         if rate is None:
             return
         cost = expected_cost(base.par.dimension, settings, settled=base.settled is not None,
                              forms_run=bool(settings.forms), held_out_share=share)
-        plan.part(f"diagnosis on the {kind} base").expect(cost.total * rate * EXTENDED_COST)
+        seconds[kind] = cost.total * rate * EXTENDED_COST
+        plan.part(f"diagnosis on the {kind} base").expect(seconds[kind])
+    plan.part(GRID_PART).expect(seconds[first] * GRID_REFINEMENT)
+
+
+def _on_a_fine_enough_grid(kind: str, base: Base, problem: Problem, settings: DiagnosisSettings, checkpoints: Path,
+                           first: BaseRun, record: dict, plan) -> tuple[BaseRun, dict]:
+    """(the diagnosis on the ``kind`` base to report, the ``grid`` record of ``diagnosis.json``): ``first``, when its
+    final model's force moves by at most ``GRID_ERROR_SHARE`` x the force noise on a grid ``GRID_REFINEMENT`` times
+    finer (``tuner.diagnosis.grid_check``), else the diagnosis run again on that grid from the same base values
+    (the base refitted there; checkpointed in ``checkpoints/grid_<step in us>us``), its final model checked again.
+    Integration error above the noise is a systematic residual the search explains with false or biased causes
+    beside a free play in stiff contact; one refinement at most (each costs ``GridCheck.cost_ratio`` x the time)."""
+    record["stage"] = "grid check"
+    check = grid_check(kind, first.run["after_params"], problem, settings.engine)
+    plan(f"diagnosis: grid check: {check.text()}" + (": the diagnosis runs again on the finer grid"
+                                                     if check.too_coarse else ""))
+    out = {"check": check.to_dict(), "refined": check.too_coarse}
+    if not check.too_coarse:
+        plan.skip(GRID_PART)
+        return first, out
+    fine_settings = replace(settings, data=replace(settings.data, sim_step_s=check.finer_step_s))
+    finer = problem.on_grid(check.finer_step_s)
+    part = plan.part(GRID_PART)
+    plan.maybe(GRID_PART, None)
+    part.expect(check.cost_ratio * first.seconds)
+    folder = checkpoints / f"grid_{1e6 * check.finer_step_s:.0f}us"
+    folder.mkdir(exist_ok=True)
+    fine = _checkpointed_run(kind, Base(base.par, base.values), finer, fine_settings, folder, first.figures, record,
+                             part)
+    after = grid_check(kind, fine.run["after_params"], finer, settings.engine)
+    plan(f"diagnosis: grid check on the finer grid: {after.text()}")
+    out.update({"first_grid": {"causes": first.run["causes"], "validation_mse": first.run["final_validation_mse"]},
+                "after": after.to_dict(),
+                "text": _refined_text(check, after, first.run["causes"])})
+    return fine, out
+
+
+def _refined_text(check: GridCheck, after: GridCheck, first_causes: list[str]) -> str:
+    """The verdict's sentence on a diagnosis run again on a finer grid."""
+    ms = [f"{1e3 * t:g} ms" for t in (check.step_s, check.finer_step_s, after.finer_step_s)]
+    return (f"The diagnosis ran again on a {ms[1]} grid: the model it found on the {ms[0]} grid "
+            f"({' + '.join(first_causes) or 'no cause'}) moves by {check.change_n:.3g} N rms on the finer one "
+            f"({check.change_n / check.noise_n:.2g} x the force noise)"
+            + (f"; the final model still moves by {after.change_n:.3g} N rms on a {ms[2]} grid "
+               f"({after.change_n / after.noise_n:.2g} x the noise): small causes beside a stiff contact may be the "
+               f"grid's" if after.too_coarse else ""))
 
 
 def _checkpointed_run(kind: str, base: Base, problem: Problem, settings: DiagnosisSettings, checkpoints: Path,
                       figures: str, record: dict, log) -> BaseRun:
     """The diagnosis on the ``kind`` base (``diagnose_on``; its figures named in the folder ``figures``), or its
     checkpoint from an earlier call on the same data, settings and base values (``diagnosis_<kind>.json`` in
-    ``checkpoints``, written when it finishes; one of other data or settings: ValueError) with the base
-    model's residual series simulated again (the checkpoint holds numbers, not series)."""
+    ``checkpoints``, written when it finishes with its wall time; one of other data or settings: ValueError) with the
+    base model's residual series simulated again (the checkpoint holds numbers, not series)."""
     path = checkpoints / f"diagnosis_{kind}.json"
     # the flat record without what may change on resuming; the parametrization, always 'improved', is left out so
     # that checkpoints written before the settings held a DataSettings still match
@@ -271,19 +330,22 @@ def _checkpointed_run(kind: str, base: Base, problem: Problem, settings: Diagnos
             log(f"diagnosis: the {kind} base's diagnosis was finished before: taken from {path}")
             record["finished"].append(f"diagnosis on the {kind} base")
             advance(log, 1.0)
-            return BaseRun(saved["run"], figures, base_residuals(kind, base.values, problem, settings))
+            return BaseRun(saved["run"], figures, base_residuals(kind, base.values, problem, settings),
+                           float(saved.get("seconds", 0.0)))
         log(f"diagnosis: {path} holds the diagnosis of other {kind} base values (a refit since): diagnosed again")
     record["stage"] = f"diagnosis on the {kind} base"
     record["partial"] = {"base_model": kind}
+    t0 = time.perf_counter()
     done = diagnose_on(kind, base, problem, settings, figures, log, record)
+    seconds = time.perf_counter() - t0
     tmp = path.with_suffix(".tmp")
-    tmp.write_text(strict_json.dumps({"key": key, "base_key": base_key, "run": done.run}))
+    tmp.write_text(strict_json.dumps({"key": key, "base_key": base_key, "run": done.run, "seconds": seconds}))
     tmp.replace(path)
     record["finished"].append(f"diagnosis on the {kind} base")
     record["partial"] = None
     advance(log, 1.0)
     # the same values as a resumed run gets
-    return BaseRun(strict_json.loads(path.read_text())["run"], figures, done.residuals)
+    return BaseRun(strict_json.loads(path.read_text())["run"], figures, done.residuals, seconds)
 
 
 def _digest(value) -> str:

@@ -221,7 +221,8 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
     recent = collections.deque([(t_start, evals_start)], maxlen=RATE_WINDOW + 1)  # (time [s], evaluations)
 
     search_stop = {}
-    with Engine(model, signals, engine=settings.engine, workers=settings.workers, fmu_path=engine_path) as eng:
+    with Engine(model, signals, engine=settings.engine, workers=settings.workers, fmu_path=engine_path,
+                max_internal_step=settings.data.internal_step_s) as eng:
         def evaluate(Z):
             return eng.fitness_batch([par.to_params(z) for z in Z])
 

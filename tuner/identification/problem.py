@@ -11,7 +11,7 @@ diagnosis each prepared the tests, and the diagnosis ignored ``--force-limit``).
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -56,6 +56,12 @@ class DataSettings:
     spring_reference_n_per_m: float = FK_REFERENCE_STIFFNESS
     parametrization: str = "improved"
     sim_step_s: float = IDENTIFICATION_STEP
+
+    @property
+    def internal_step_s(self) -> float:
+        """The longest fixed sub-step of the identification's simulations [s]: ``sim_step_s``, at most
+        ``IDENTIFICATION_STEP`` (on data compared at its own rate, not oversampled, the sub-steps make the grid)."""
+        return min(self.sim_step_s, IDENTIFICATION_STEP)
 
     def to_dict(self) -> dict:
         """The fields by name (SI values as given; the abscissae as tuples or None)."""
@@ -253,6 +259,14 @@ class Problem:
             fixed = {k: fixed_from.get(k, v) for k, v in fixed.items()}
         return Parametrization(kind, scheme or self.settings.parametrization, force_limit=self.force_limit_n,
                                spring_reference=self.settings.spring_reference_n_per_m, fixed=fixed)
+
+    def on_grid(self, step_s: float) -> "Problem":
+        """This problem with the model simulated on a grid of ``step_s`` [s] (``DataSettings.sim_step_s``): the same
+        prepared tests, noise and tables, the engine signals made again."""
+        settings = replace(self.settings, sim_step_s=step_s)
+        sig_id, sig_val = ([to_signals(p, settings.warmup_s, sim_step_s=step_s) for p in prep]
+                           for prep in (self.prep_id, self.prep_val))
+        return replace(self, settings=settings, sig_id=sig_id, sig_val=sig_val)
 
     def residual_floor(self, engine: str = "fmu") -> ResidualFloor:
         """The residual floor of this problem's identification tests (``tuner.identification.floor``): the force

@@ -162,7 +162,8 @@ def _evidence_html(d: dict) -> str:
 
 
 def _base_html(d: dict) -> str:
-    """The base model and how it was chosen (again after the diagnosis when the first choice left a residual)."""
+    """The base model and how it was chosen (again after the diagnosis when the first choice left a residual), and
+    the grid the diagnosis ended on (``tuner.diagnosis.grid_check``)."""
     e = html.escape
     base_kind = d.get("base_model", "lumped")
     choice = d.get("base_choice") or {}
@@ -177,6 +178,14 @@ def _base_html(d: dict) -> str:
                      f"{e(MODEL_LABEL.get(k, k))} with {e(' + '.join(v['causes']) or 'no cause')} "
                      f"{math.sqrt(v['validation_mse']):.3g} N rms" for k, v in choice["after_diagnosis"].items())
                  + ".</p>")
+    grid = d.get("grid") or {}
+    if grid.get("refined"):
+        text += f"<p>{e(grid['text'])}.</p>"
+    elif grid.get("check"):
+        c = grid["check"]
+        text += (f"<p>Grid: the final model's force moves by {c['change_n']:.3g} N rms between the "
+                 f"{1e3 * c['step_s']:g} ms grid it was fitted on and a {1e3 * c['finer_step_s']:g} ms one, within "
+                 f"{c['share_allowed']:g} x the {c['noise_n']:.3g} N force noise.</p>")
     return text
 
 

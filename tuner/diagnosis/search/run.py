@@ -34,11 +34,12 @@ class BaseRun:
     ``after_params`` (the final model's values), ``final_validation_mse`` and ``base_validation_mse`` [N^2]
     (pooled, Table 3 definition) (``run``); ``figures``, the folder of its figures (relative to the output
     folder; ``run['figures']`` names the files); ``residuals``, the base model's residual on every test
-    (``reference.base_residuals``), which they show."""
+    (``reference.base_residuals``), which they show; ``seconds``, the wall time it took [s]."""
 
     run: dict
     figures: str
     residuals: list[TestResidual]
+    seconds: float = 0.0
 
 
 def diagnose_on(kind: str, base: Base, data: Problem, settings: DiagnosisSettings, figures: str, log,
@@ -55,7 +56,7 @@ def run(s: SearchState) -> dict:
     s.at("residual analysis")
     residual_floor(s)
     residual_evidence(s)
-    kw = dict(engine=s.settings.engine, workers=s.settings.workers,
+    kw = dict(engine=s.settings.engine, workers=s.settings.workers, max_internal_step=s.data.settings.internal_step_s,
               fmu_path=ensure_fmu(s.kind) if s.settings.engine == "fmu" else None)
     with Engine(s.kind, s.data.sig_id, **kw) as s.eid, Engine(s.kind, s.data.sig_val, **kw) as s.ev:
         s.eid.after_batch = s.ev.after_batch = s.tick
