@@ -188,6 +188,7 @@ def run_case(case: dict) -> dict:
     fitted = {n: (res["effect_parameters"].get(n) or {}).get("value") for n in names}
     return {**case, "causes": res["causes"], "named": res["cause"], "base": res["base_model"],
             "fitted": fitted, "truth": {n: case["hidden"][n] for n in names}, "confounded": confounded(res),
+            "grid_refined": bool((res.get("grid") or {}).get("refined")),
             "elapsed_s": time.perf_counter() - t0}
 
 
@@ -251,7 +252,8 @@ def _row_line(row: dict) -> str:
     return (f"{row['case']:20s} seed {row['seed']:4d} {row['sample_rate']:5.0f} Hz {row['noise_n']:3.0f} N  "
             f"hidden {hid:60s}"
             f" -> {'+'.join(row['causes']) or row['named']:22s} base {row['base']:10s}"
-            + (f" fitted {fit}" if fit else "") + f"  [{row['elapsed_s']:.0f} s]")
+            + (f" fitted {fit}" if fit else "") + (" (again on a finer grid)" if row.get("grid_refined") else "")
+            + f"  [{row['elapsed_s']:.0f} s]")
 
 
 def _table(rows: list[dict], names: list[str], model: str) -> None:
