@@ -22,5 +22,6 @@
 - ``significance``: block-sandwich statistics for correlated residuals;
 - ``effect_sizes``: typical and meaningful effect magnitudes scaled to the damper;
 - ``detection``: the smallest magnitude of each effect these tests could have named;
+- ``grid_check``: whether the simulation grid is fine enough for the final model (its force on a 4 x finer grid);
 - ``cost_model``: the expected simulations of each step still to come (the progress display's time left).
 """
