@@ -126,8 +126,10 @@ def intervals(s: SearchState) -> None:
 
 def select(s: SearchState, causes: list[str], best: dict, selection: list) -> dict:
     """Forward selection: add the best significant effect to the causes found, refit, repeat (up to
-    ``max_causes``); returns the final model's row (``causes`` and ``selection`` grow in place)."""
+    ``max_causes``); returns the final model's row (``causes`` and ``selection`` grow in place). The model of the
+    causes found is refitted from the data-driven guess before each step (``restarted``)."""
     while causes and len(causes) < s.settings.max_causes:
+        best = restarted(s, "+".join(causes), best)
         step = next_cause(s, s.refits["+".join(causes)], best)
         selection.append(step)
         if step["cause"] == "none":
@@ -136,6 +138,47 @@ def select(s: SearchState, causes: list[str], best: dict, selection: list) -> di
         s.refits["+".join(causes)] = step.pop("refit")
         best = step.pop("row")
     return best
+
+
+def restarted(s: SearchState, key: str, row: dict) -> dict:
+    """The model of the causes ``key`` refitted from the data-driven guess (``s.guess``, which has absorbed
+    nothing into its tables) with its effects at their fitted values, polished to convergence
+    (``final_jacobians`` at most); kept in ``s.refits[key]`` when it fits the identification tests better, with
+    its ranking row scored against the same reference as ``row`` and its intervals; returns the row kept.
+
+    Every refit on top of a named cause starts from that cause's model, and the first cause's from the fitted
+    base only when the base had settled: tables that absorbed one fault stay where they were, and the next
+    candidate is then scored for leaving that local minimum. Measured on blind pair seed 1273 (an 8.8 ms delay
+    and a 268 N friction, no preload): the delay + friction model stopped at 30.2 N rms (converged), a preload
+    of -311 N on top then won 17 % of the held-out MSE and was named; from the guess the same two causes reach
+    13.1 N (the true parameters leave 13.4 N) and 78 % less held-out MSE."""
+    fit = s.refits[key]
+    effects = {n: v for n, v in fit.params().items() if n in fit.ext.extra}
+    pol = s.polish_quietly(fit.ext, fit.ext.from_params({**s.guess, **effects}), s.settings.final_jacobians)
+    g_now = float(s.eid.fitness_batch([fit.params()])[0])
+    if not pol.fitness > g_now:
+        s.log(f"  {key} refitted from the data-driven guess: not better ({_rmse(pol.fitness):.4g} N against "
+              f"{_rmse(g_now):.4g} N rms on the identification tests)")
+        return row
+    fit = s.refits[key] = Fit(fit.ext, pol.z, fit.evaluations + pol.evaluations)
+    new = added_parameters(row, fit)
+    reference = row["validation_mse"] / (1.0 + row["validation_mse_change_pct"] / 100.0)
+    kept = {**row, **held_out(s, key, fit.params(), fit.ext.extra, pol.fitness, fit.evaluations, reference, new=new)}
+    attach_interval(kept, effect_intervals(s.eid, fit.ext, fit.z), fit.ext, new)
+    s.log(f"  {key} refitted from the data-driven guess: {_rmse(pol.fitness):.4g} N rms on the identification tests "
+          f"(from {_rmse(g_now):.4g} N), validation MSE {kept['validation_mse'] / row['validation_mse'] - 1:+.1%}: "
+          f"kept (" + interval_text(kept) + ")")
+    return kept
+
+
+def added_parameters(row: dict, fit: Fit) -> list[str]:
+    """The parameters of the effect the row added (its ``added``), else all of the fit's effects' parameters."""
+    return list(ALL_EFFECTS[row["added"]].identified) if "added" in row else list(fit.ext.extra)
+
+
+def _rmse(g: float) -> float:
+    """RMSE [N] of an identification fitness N / SSE."""
+    return 1.0 / math.sqrt(g) if g > 0 else math.inf
 
 
 def next_cause(s: SearchState, current: Fit, current_row: dict) -> dict:
