@@ -339,6 +339,21 @@ def test_a_delay_that_removes_most_of_the_held_out_error_is_its_own_evidence():
     assert cross_check([refused], seen) == [refused] and not refused["resolved"]
 
 
+def test_a_delay_named_before_is_not_judged_again_when_another_effect_is_added_on_top():
+    """The blind pair friction + delay (seed 1262): a 2.2 ms delay named for its -98 % (the residual's regression
+    disagrees), then a 64 N friction on top of it winning 60 % more was refused for that same delay. Only the row
+    that adds the delay is checked."""
+    seen = {"effects": {"time_delay": {"value": 0.2e-3}}}
+    friction_on_delay = {**_row("time_delay+friction", 0.9, 63.0), "added": "friction",
+                         "parameters": {"time_delay": 2.2e-3, "friction_force": 63.6},
+                         "validation_mse_change_pct": -60.2}
+    assert cross_check([friction_on_delay], seen) == [] and friction_on_delay["resolved"]
+    delay_on_friction = {**_row("friction+time_delay", 0.9, 63.0), "added": "time_delay",
+                         "parameters": {"time_delay": 2.2e-3, "friction_force": 63.6},
+                         "validation_mse_change_pct": -60.2}
+    assert cross_check([delay_on_friction], seen) == [delay_on_friction] and not delay_on_friction["resolved"]
+
+
 def test_delay_agreement_allows_for_what_the_base_refit_absorbed():
     """The lumped blind case: 2.20 ms fitted (2.22 ms hidden) while the base residual showed 0.71 ms
     (the base refit had absorbed two thirds); a residual showing more than three times the fitted
