@@ -74,8 +74,8 @@ def _small_diagnosis(tests, checkpoints, log):
 
 def test_a_final_model_the_grid_cannot_resolve_is_diagnosed_again_on_a_finer_grid(tmp_path, monkeypatch):
     """The wiring, with the share allowed set to 0 (every model 'too coarse'): the diagnosis runs again on the 0.25 ms
-    grid, checkpointed apart, says so in the verdict and the record, and is resumed from its checkpoints; set to
-    infinity, nothing runs again."""
+    grid, checkpointed apart, with the 1 ms grid's final model as a start, says so in the verdict and the record, and
+    is resumed from its checkpoints; set to infinity, nothing runs again."""
     from campaign.synthetic import model_tests
     from tuner.data.reading import RigTest
 
@@ -94,6 +94,8 @@ def test_a_final_model_the_grid_cannot_resolve_is_diagnosed_again_on_a_finer_gri
     assert grid["refined"] is True and grid["check"]["finer_step_s"] == pytest.approx(0.25e-3)
     assert grid["first_grid"]["causes"] is not None and grid["after"]["step_s"] == pytest.approx(0.25e-3)
     assert "ran again on a 0.25 ms grid" in res["verdict"]
+    # the finer grid's search also starts the model of its causes from the one the 1 ms grid found
+    assert any("refitted from the model the coarser grid found" in m for m in lines), lines
     assert (tmp_path / "fine" / "grid_250us" / "diagnosis_lumped.json").exists()
     lines.clear()
     again = _small_diagnosis(tests, tmp_path / "fine", lines.append)

@@ -61,11 +61,14 @@ class BaseRefinement:
 class Base:
     """A base form to diagnose on: its parametrization (the 'improved' scheme), its values [SI], and what its
     identification on these tests says (``BaseRefinement``). A settled base is not refitted again as 'none'
-    (the same refinement from the same point ends where it is)."""
+    (the same refinement from the same point ends where it is). ``found``: the values [SI] of the final model a
+    diagnosis on a coarser grid ended with (None: none), a start for the model of the causes found
+    (``search.selection.restarted``)."""
 
     par: Parametrization
     values: dict
     refinement: BaseRefinement = BaseRefinement()
+    found: dict | None = None
 
     @property
     def settled(self) -> str | None:

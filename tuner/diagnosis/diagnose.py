@@ -271,7 +271,8 @@ def _on_a_fine_enough_grid(kind: str, base: Base, problem: Problem, settings: Di
     """(the diagnosis on the ``kind`` base to report, the ``grid`` record of ``diagnosis.json``): ``first``, when its
     final model's force moves by at most ``GRID_ERROR_SHARE`` x the force noise on a grid ``GRID_REFINEMENT`` times
     finer (``tuner.diagnosis.grid_check``), else the diagnosis run again on that grid from the same base values
-    (the base refitted there; checkpointed in ``checkpoints/grid_<step in us>us``), its final model checked again.
+    (the base refitted there; checkpointed in ``checkpoints/grid_<step in us>us``; ``first``'s final model a start
+    for the models of the causes it finds, ``Base.found``), its final model checked again.
     Integration error above the noise is a systematic residual the search explains with false or biased causes
     beside a free play in stiff contact; one refinement at most (each costs ``GridCheck.cost_ratio`` x the time)."""
     record["stage"] = "grid check"
@@ -289,8 +290,8 @@ def _on_a_fine_enough_grid(kind: str, base: Base, problem: Problem, settings: Di
     part.expect(check.cost_ratio * first.seconds)
     folder = checkpoints / f"grid_{1e6 * check.finer_step_s:.0f}us"
     folder.mkdir(exist_ok=True)
-    fine = _checkpointed_run(kind, Base(base.par, base.values), finer, fine_settings, folder, first.figures, record,
-                             part)
+    fine = _checkpointed_run(kind, Base(base.par, base.values, found=first.run["after_params"]), finer, fine_settings,
+                             folder, first.figures, record, part)
     after = grid_check(kind, fine.run["after_params"], finer, settings.engine)
     plan(f"diagnosis: grid check on the finer grid: {after.text()}")
     out.update({"first_grid": {"causes": first.run["causes"], "validation_mse": first.run["final_validation_mse"]},
