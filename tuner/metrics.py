@@ -19,8 +19,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 __all__ = ["ErrorMetrics", "error_metrics", "pooled_mse", "fitness", "variation_percent", "compare_to_maxwell",
-           "PolyOddEven", "polyfit_odd_even", "correlation_time", "rmse_standard_error", "block_sandwich",
-           "interval", "Z95"]
+           "PolyOddEven", "polyfit_odd_even", "correlation_time", "rmse_of_fitness", "rmse_standard_error",
+           "block_sandwich", "interval", "Z95"]
 
 
 def _pair(measured, simulated, what: str = "force") -> tuple[np.ndarray, np.ndarray]:
@@ -108,6 +108,11 @@ def correlation_time(r: np.ndarray, max_lag: int | None = None) -> float:
     """Integrated autocorrelation time [samples] of ``r``: 1 + 2 sum of the autocorrelation up to
     its first drop below 0.05 (>= 1; white noise gives ~1)."""
     return max(1.0, 1.0 + 2.0 * float(np.sum(_autocorrelation(r, max_lag)[1:])))
+
+
+def rmse_of_fitness(g: float) -> float:
+    """RMSE [N] of the identification fitness G = N / SSE [1/N^2] (the paper's eq. 5); inf for G = 0."""
+    return 1.0 / math.sqrt(g) if g > 0 else math.inf
 
 
 def rmse_standard_error(r: np.ndarray) -> float:

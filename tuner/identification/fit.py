@@ -50,7 +50,7 @@ from tuner.identification.problem import DataSettings, Problem, prepared_signals
 from tuner.identification.restart_check import ROUNDS, TYPICAL_RESTARTS, RestartCheck, restart_check
 from tuner.identification.runner import SimulationError
 from tuner.identification.validation import validation_run
-from tuner.metrics import noise_std
+from tuner.metrics import noise_std, rmse_of_fitness
 from tuner.progress import advance, expect, stage
 from tuner import strict_json
 
@@ -243,7 +243,7 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
             el = time.perf_counter() - t_start
             rate = (st.evaluations - evals_start) / el if el > 0 else float("nan")
             best = st.best_fitness
-            rmse = 1.0 / math.sqrt(best) if best > 0 else float("inf")
+            rmse = rmse_of_fitness(best)
             left = (settings.iterations - st.iteration) * settings.population / rate if rate > 0 else float("nan")
             log(f"[{model}] iter {st.iteration:3d}/{settings.iterations}  best G {best:.4e} (RMSE {rmse:7.1f} N)"
                 f"  mean G {st.history_mean[-1]:.4e}  {rate:5.1f} eval/s  search ~{left / 60:4.1f} min left at most")
@@ -267,8 +267,8 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
                          f"stroke_limit) or use --parametrization improved")
     history = _history(result, ref, par, first_population, search_stop, elapsed)
     log(f"[{model}] done: Firefly {history['stop_reason']} after {result.iterations} iterations "
-        f"(RMSE {_rmse(result.fitness_best):.1f} N), {result.evaluations + ref.evaluations} evaluations, "
-        f"{elapsed:.0f} s; identification RMSE {_rmse(ref.g):.1f} N")
+        f"(RMSE {rmse_of_fitness(result.fitness_best):.1f} N), {result.evaluations + ref.evaluations} evaluations, "
+        f"{elapsed:.0f} s; identification RMSE {rmse_of_fitness(ref.g):.1f} N")
     return Identified(par.to_params(ref.z), history, ivs)
 
 
@@ -294,7 +294,7 @@ def search_stop_now(st: firefly.FireflyState, opts: firefly.FireflyOptions, eng,
     stop_window iterations, all after that first move (``tuner.identification.polish.resolution_stop``)."""
     if opts.stop_tol is None or st.iteration < opts.stop_start:
         return {}
-    rmse = _rmse(st.best_fitness)
+    rmse = rmse_of_fitness(st.best_fitness)
     if rival_at_floor is not None and rmse > RACE_RATIO * rival_at_floor[1]:
         return {"reason": "clearly the wrong form",
                 "text": f"search stopped: {rmse / rival_at_floor[1]:.1f} x the {rival_at_floor[0]} form's RMSE, "
@@ -369,10 +369,6 @@ def fit_order(models, problem: Problem, engine: str) -> list[str]:
     ranked = iter(sorted(bases, key=lambda k: sse[k]))
     return [next(ranked) if m in EFFECT_MODELS else m for m in models]
 
-
-def _rmse(g: float) -> float:
-    """RMSE [N] of a fitness G = N / SSE [1/N^2] (inf for 0)."""
-    return 1.0 / math.sqrt(g) if g > 0 else math.inf
 
 
 def _resumed_state(ckpt: Path, key: str, model: str, log):
@@ -469,7 +465,7 @@ def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result
         pol = polish(eng, par, z0, max_jacobians=settings.polish_jacobians, log=log)
         ref.evaluations += pol.evaluations
         g = pol.fitness
-        ref.runs.append({"start": label, "rmse_n": 1.0 / math.sqrt(g) if g > 0 else math.inf,
+        ref.runs.append({"start": label, "rmse_n": rmse_of_fitness(g),
                          "converged": pol.converged, "rule": pol.rule, "jacobians": pol.jacobians, "stop": pol.stop})
         log(f"[{model}] local refinement from the {label}: RMSE {ref.runs[-1]['rmse_n']:.2f} N, {pol.stop}")
         if len(ref.runs) == 1 or g > ref.g:  # polish never returns a point worse than its start
@@ -485,8 +481,8 @@ def _check_restarts(eng, model: str, par: Parametrization, settings: FitSettings
                     state: firefly.FireflyState, log) -> None:
     """The restart check (``tuner.identification.restart_check``) of the best refinement in ``ref``, from the
     Firefly's last generation (``state``); a lower point it finds becomes ``ref``'s, and ``ref.check`` records it."""
-    log(f"[{model}] restart check: is {_rmse(ref.g):.2f} N the fit's minimum or its basin's? (restarts from the "
-        f"bounds' mid-ranges and the brightest firefly elsewhere; a restart that ends lower by more than one "
+    log(f"[{model}] restart check: is {rmse_of_fitness(ref.g):.2f} N the fit's minimum or its basin's? (restarts "
+        f"from the bounds' mid-ranges and the brightest firefly elsewhere; a restart that ends lower by more than one "
         f"standard error of the RMSE continues the fit)")
     population = state.population[np.argsort(-state.fitness)]
     check = restart_check(eng, par, ref.z, ref.g, population, settings.polish_jacobians, log)
@@ -494,9 +490,10 @@ def _check_restarts(eng, model: str, par: Parametrization, settings: FitSettings
     ref.check = check
     if check.polished is not None:
         ref.z, ref.g, ref.polished = check.z, check.g, check.polished
-    moved = f"a restart ended lower, at {_rmse(ref.g):.2f} N; " if check.polished is not None else ""
+    rmse = rmse_of_fitness(ref.g)
+    moved = f"a restart ended lower, at {rmse:.2f} N; " if check.polished is not None else ""
     log(f"[{model}] restart check: {moved}" + (
-        f"{_rmse(ref.g):.2f} N stands: no restart ended more than one standard error ({check.standard_error_n:.2g} "
+        f"{rmse:.2f} N stands: no restart ended more than one standard error ({check.standard_error_n:.2g} "
         f"N) lower" if check.survived else
         f"the last of its {ROUNDS} rounds still ended lower: NOT converged"))
 
@@ -505,7 +502,7 @@ def _at_floor(ref: Refinement, model: str, par: Parametrization, floor: Residual
     """Whether the best refinement of ``ref`` so far ends at the residual ``floor`` of the model at its point
     (``ResidualFloor.reached``: within ``FLOOR_REACHED`` x); if so the restarts (or the restart check)
     ``skipped`` (their labels) are recorded in ``ref.floor_stop`` and the ``log`` says why."""
-    rmse = _rmse(ref.g)
+    rmse = rmse_of_fitness(ref.g)
     level = floor.reached(model, par.to_params(ref.z), rmse)
     if level is None:
         return False

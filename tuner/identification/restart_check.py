@@ -22,14 +22,13 @@ a difference the data can show) replaces the fit's point and the check runs agai
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.polish import PolishResult, polish
-from tuner.metrics import rmse_standard_error
+from tuner.metrics import rmse_of_fitness, rmse_standard_error
 
 __all__ = ["RestartCheck", "restart_check", "restart_starts", "DISTINCT", "ROUNDS", "AT_BOUND", "TYPICAL_RESTARTS"]
 
@@ -63,11 +62,8 @@ class RestartCheck:
 
     def to_dict(self) -> dict:
         return {"survived": self.survived, "rounds": self.rounds, "standard_error_n": self.standard_error_n,
-                "rmse_n": _rmse(self.g), "restarts": self.runs, "evaluations": self.evaluations}
+                "rmse_n": rmse_of_fitness(self.g), "restarts": self.runs, "evaluations": self.evaluations}
 
-
-def _rmse(g: float) -> float:
-    return 1.0 / math.sqrt(g) if g > 0 else math.inf
 
 
 def restart_starts(par: Parametrization, z: np.ndarray, population: np.ndarray | None) -> list[tuple]:
@@ -118,12 +114,13 @@ def restart_check(eng, par: Parametrization, z: np.ndarray, g: float, population
         for start in starts:
             pol, evaluations = _run(eng, par, start, jacobians)
             check.evaluations += evaluations
-            row = {"round": round_, "start": start[0], "rmse_n": _rmse(pol.fitness), "rule": pol.rule,
+            row = {"round": round_, "start": start[0], "rmse_n": rmse_of_fitness(pol.fitness), "rule": pol.rule,
                    "jacobians": pol.jacobians}
             check.runs.append(row)
             log(f"    restart check: from {start[0]}: RMSE {row['rmse_n']:.2f} N ({pol.rule}) against "
-                f"{_rmse(check.g):.2f} N")
-            if _rmse(check.g) - _rmse(pol.fitness) > se and (best is None or pol.fitness > best.fitness):
+                f"{rmse_of_fitness(check.g):.2f} N")
+            gained = rmse_of_fitness(check.g) - rmse_of_fitness(pol.fitness)
+            if gained > se and (best is None or pol.fitness > best.fitness):
                 best = pol
         if best is None:
             check.survived = True

@@ -19,6 +19,7 @@ from tuner.diagnosis.search.rows import attach_interval, held_out
 from tuner.diagnosis.search.state import Fit, SearchState
 from tuner.diagnosis.verdict import UNITS, interval_text
 from tuner.formatting import fmt_quantity
+from tuner.metrics import rmse_of_fitness
 
 __all__ = ["expect_after_ranking", "rank", "promote", "continue_lead", "intervals", "select", "next_cause",
            "rescreened", "name_next"]
@@ -156,8 +157,8 @@ def restarted(s: SearchState, key: str, row: dict) -> dict:
     best = None
     for name, start in restart_points(s, fit):
         pol = s.polish_quietly(fit.ext, fit.ext.from_params(start), s.settings.final_jacobians)
-        s.log(f"  {key} refitted from {name}: {_rmse(pol.fitness):.4g} N rms on the identification tests (the "
-              f"current model {_rmse(g_now):.4g} N)")
+        s.log(f"  {key} refitted from {name}: {rmse_of_fitness(pol.fitness):.4g} N rms on the identification tests "
+              f"(the current model {rmse_of_fitness(g_now):.4g} N)")
         if pol.fitness > max(g_now, best.fitness if best is not None else 0.0):
             best = pol
     if best is None:
@@ -167,7 +168,7 @@ def restarted(s: SearchState, key: str, row: dict) -> dict:
     reference = row["validation_mse"] / (1.0 + row["validation_mse_change_pct"] / 100.0)
     kept = {**row, **held_out(s, key, fit.params(), fit.ext.extra, best.fitness, fit.evaluations, reference, new=new)}
     attach_interval(kept, effect_intervals(s.eid, fit.ext, fit.z), fit.ext, new)
-    s.log(f"  {key}: the refit at {_rmse(best.fitness):.4g} N rms kept, validation MSE "
+    s.log(f"  {key}: the refit at {rmse_of_fitness(best.fitness):.4g} N rms kept, validation MSE "
           f"{kept['validation_mse'] / row['validation_mse'] - 1:+.1%} (" + interval_text(kept) + ")")
     return kept
 
@@ -189,10 +190,6 @@ def added_parameters(row: dict, fit: Fit) -> list[str]:
     """The parameters of the effect the row added (its ``added``), else all of the fit's effects' parameters."""
     return list(ALL_EFFECTS[row["added"]].identified) if "added" in row else list(fit.ext.extra)
 
-
-def _rmse(g: float) -> float:
-    """RMSE [N] of an identification fitness N / SSE."""
-    return 1.0 / math.sqrt(g) if g > 0 else math.inf
 
 
 def next_cause(s: SearchState, current: Fit, current_row: dict) -> dict:
