@@ -305,6 +305,30 @@ def test_a_magnitude_at_its_search_bound_or_beyond_its_plausible_range_is_never_
     assert cause == "none" and {r["effect"] for r in rejected} == {"inertia", "friction"}
 
 
+def test_a_magnitude_just_above_its_typical_range_is_plausible_one_far_above_it_is_not():
+    """Blind seed 992: a 231 N rod-seal friction on a 15.4 kN damper, whose typical range (the catalogue's
+    50-300 N scaled) ends at 232 N, fitted at 245 N beside a free play with an interval wholly above 232 N, was
+    refused as a patch. A typical range is not a limit: up to twice its top the interval is plausible; a friction
+    of 1.4 kN (a form gap patched, blind seed 959's friction refitted alone) is not."""
+    from types import SimpleNamespace
+
+    from tuner.diagnosis.search.rows import attach_interval
+
+    ext = SimpleNamespace(peak_force=15.4e3, stroke_range_m=0.08, extra=["friction_force"])
+
+    def row_with(low, high):
+        row = {"effect": "friction"}
+        ci = {"friction_force": {"low": low, "high": high, "excludes_zero": True}, "_blocks": 100}
+        attach_interval(row, ci, ext, ["friction_force"])
+        return row
+
+    top = 300.0 * 15.4e3 / 20e3
+    assert row_with(238.0, 251.0)["plausible"]  # 3-9 % above the top: a large friction, not a patch
+    assert row_with(1.3e3, 1.5e3)["plausible"] is False
+    assert row_with(2.05 * top, 2.3 * top)["plausible"] is False
+    assert row_with(1.9 * top, 2.3 * top)["plausible"]  # reaches into the plausible range
+
+
 def test_the_best_resolved_effect_above_the_threshold_is_named():
     ranking = [_row("time_delay", 0.9, 3.0), _row("valve_lag", 0.6, 40.0), _row("inertia", 0.04, 80.0),
                _row("none", 0.0, 0.0)]
@@ -610,8 +634,9 @@ def test_a_cause_on_a_damper_30_times_smaller_is_named_at_its_own_scale(tmp_path
     assert res["causes"] == ["friction"], res["verdict"]
     p = res["effect_parameters"]["friction_force"]
     assert p["value"] == pytest.approx(6.0, rel=0.2)
-    lo, hi = p["plausible_range"]  # the catalogue's 50-300 N at this damper's peak force (~0.8 kN of 20 kN)
+    lo, hi = p["typical_range"]  # the catalogue's 50-300 N at this damper's peak force (~0.8 kN of 20 kN)
     assert 0.5 < lo < 3.0 and 8.0 < hi < 20.0 and p["plausible"], p
+    assert p["plausible_range"] == pytest.approx([lo / 2, 2 * hi]), p
 
 
 def test_a_conclusion_a_rescue_replaces_is_kept_with_the_forms_it_tried(monkeypatch):

@@ -16,8 +16,12 @@ held-out error was refused as "below 10 kg"). So the ranges scale with the dampe
 Which parameter scales how is part of its effect's record (``Effect.scaling``: ``SCALES_WITH_FORCE``,
 ``SCALES_WITH_STROKE``).
 
-A magnitude is physically meaningful when it reaches ``MEANINGFUL_FRACTION`` of the low end of its scaled
-range (``meaningful_floor``); the report shows the scaled range beside the fitted value.
+The typical range is what dampers usually have, not a hard limit: a magnitude is plausible within
+``MEANINGFUL_FRACTION`` of the low end and ``1 / MEANINGFUL_FRACTION`` of the high end of its scaled range
+(``plausible_range``). Below it, it is no physical cause (``meaningful_floor``: a refit compensating something
+else); an interval wholly above it patches another error (a form gap). Within the margin above the top it is a
+large but real fault (a 231 N friction on a damper whose range ends at 232 N, fitted at 245 N beside a free play,
+was refused without it). The report shows the plausible range beside the fitted value.
 """
 from __future__ import annotations
 
@@ -25,10 +29,12 @@ from dataclasses import dataclass
 
 from damper_fmu.effect_catalogue import SCALES_WITH_FORCE, SCALES_WITH_STROKE, effect_of
 
-__all__ = ["DamperSize", "REFERENCE", "MEANINGFUL_FRACTION", "size_factor", "typical_range", "meaningful_floor"]
+__all__ = ["DamperSize", "REFERENCE", "MEANINGFUL_FRACTION", "size_factor", "typical_range", "plausible_range",
+           "meaningful_floor"]
 
 #: a magnitude below this fraction of the low end of its (scaled) typical range is no physical cause (a 0.2
-#: ms valve lag where valves lag 1-10 ms is the refit compensating something else)
+#: ms valve lag where valves lag 1-10 ms is the refit compensating something else); one above the high end
+#: divided by it is no value of the effect either (``plausible_range``)
 MEANINGFUL_FRACTION = 0.5
 
 
@@ -66,6 +72,13 @@ def typical_range(name: str, size: DamperSize | None = None) -> tuple[float, flo
     return lo * k, hi * k
 
 
+def plausible_range(name: str, size: DamperSize | None = None) -> tuple[float, float]:
+    """The |values| (SI) of effect parameter ``name`` that are physical values of its effect on a damper of
+    ``size``: its typical range widened by ``MEANINGFUL_FRACTION`` below and by its inverse above."""
+    lo, hi = typical_range(name, size)
+    return MEANINGFUL_FRACTION * lo, hi / MEANINGFUL_FRACTION
+
+
 def meaningful_floor(name: str, size: DamperSize | None = None) -> float:
     """The smallest |value| (SI) of ``name`` that is a physical cause on a damper of ``size``."""
-    return MEANINGFUL_FRACTION * typical_range(name, size)[0]
+    return plausible_range(name, size)[0]

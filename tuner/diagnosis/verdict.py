@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from damper_fmu.effect_catalogue import ALL_EFFECTS, EFFECT_PARAMETERS, effect_of
 
-from tuner.diagnosis.effect_sizes import DamperSize, typical_range
+from tuner.diagnosis.effect_sizes import DamperSize, plausible_range, typical_range
 from tuner.diagnosis.forms import settings_text
 from tuner.diagnosis.rules import ACCEPT_SCORE, CONFOUNDED_SHARE, FORM_EXCESS_SHARE, earned
 from tuner.formatting import fmt_quantity
@@ -51,14 +51,15 @@ def unexplained_record(final_rmse: float, noise: float, floor: float, stroke_noi
 
 
 def effect_parameters(best: dict, size: DamperSize) -> dict:
-    """The named causes' fitted magnitudes with units, 95 % intervals and their typical ranges on a damper
-    of ``size`` (``tuner.diagnosis.effect_sizes``)."""
+    """The named causes' fitted magnitudes with units, 95 % intervals, their typical and plausible ranges on a
+    damper of ``size`` (``tuner.diagnosis.effect_sizes``) and whether the value lies in the plausible one."""
     out = {}
     for n, v in best["parameters"].items():
         out[n] = {"value": v, "unit": UNITS[n], "interval_95": best["interval"][n]}
         if n in effect_of(n).typical:  # a form's shape (a groove's centre and length) has no typical size
-            lo, hi = typical_range(n, size)
-            out[n].update({"plausible_range": [lo, hi], "plausible": bool(lo <= abs(v) <= hi)})
+            lo, hi = plausible_range(n, size)
+            out[n].update({"typical_range": list(typical_range(n, size)), "plausible_range": [lo, hi],
+                           "plausible": bool(lo <= abs(v) <= hi)})
     return out
 
 

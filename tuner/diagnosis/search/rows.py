@@ -9,7 +9,7 @@ import numpy as np
 
 from damper_fmu.effect_catalogue import effect_of, search_bounds
 
-from tuner.diagnosis.effect_sizes import REFERENCE, DamperSize, meaningful_floor, typical_range
+from tuner.diagnosis.effect_sizes import REFERENCE, DamperSize, meaningful_floor, plausible_range
 from tuner.diagnosis.extended_parametrization import ExtendedParametrization
 from tuner.diagnosis.rules import score, within_bounds
 from tuner.diagnosis.search.state import SearchState
@@ -63,15 +63,16 @@ def held_out(s: SearchState, effect: str, params: dict, extra, g: float, evals: 
 def attach_interval(row: dict, ci: dict, ext: ExtendedParametrization, new) -> None:
     """The row's 95 % intervals of ``ext.extra`` from ``effect_intervals``' ``ci``; significant when the
     interval of every ``new`` magnitude excludes zero; plausible when none of them lies wholly above the
-    top of its effect's typical range on this damper (``effect_sizes.typical_range``): a magnitude no damper
-    of this size has patches another error (a form gap), it is not that effect."""
+    top of its effect's plausible range on this damper (``effect_sizes.plausible_range``: twice the top of the
+    typical range): a magnitude no damper of this size has patches another error (a form gap), it is not that
+    effect."""
     size = DamperSize(ext.peak_force, ext.stroke_range_m or REFERENCE.stroke_range_m)
     row["interval"] = {n: [ci[n]["low"], ci[n]["high"]] for n in ext.extra}
     row["significant"] = all(ci[n]["excludes_zero"] for n in new)
     row["interval_blocks"] = ci["_blocks"]
     nearest = {n: 0.0 if ci[n]["low"] <= 0.0 <= ci[n]["high"] else min(abs(ci[n]["low"]), abs(ci[n]["high"]))
                for n in new if n in effect_of(n).typical}
-    row["plausible"] = all(v <= typical_range(n, size)[1] for n, v in nearest.items())
+    row["plausible"] = all(v <= plausible_range(n, size)[1] for n, v in nearest.items())
 
 
 def log_row(s: SearchState, row: dict) -> None:

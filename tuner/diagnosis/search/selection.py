@@ -17,7 +17,7 @@ from tuner.diagnosis.screen import profile_screen
 from tuner.diagnosis.search.reference import base_settled, set_none
 from tuner.diagnosis.search.rows import attach_interval, held_out
 from tuner.diagnosis.search.state import Fit, SearchState
-from tuner.diagnosis.verdict import UNITS, interval_text
+from tuner.diagnosis.verdict import UNITS, interval_text, why_not
 from tuner.formatting import fmt_quantity
 from tuner.metrics import rmse_of_fitness
 
@@ -266,7 +266,9 @@ def name_next(s: SearchState, rows: list[dict], fits: dict, current_row: dict) -
                             ALL_EFFECTS[row["added"]].identified)
     named = [r for r in sorted(rows, key=lambda r: -r["score"]) if r["score"] > ACCEPT_SCORE and earned(r)]
     if not named:
-        s.log(f"  no further cause on top of {current_row['effect']}")
+        refused = [r for r in rows if r["score"] > ACCEPT_SCORE]
+        s.log(f"  no further cause on top of {current_row['effect']}" + "".join(
+            f"; {r['added']} scored {r['score']:+.3f} but {why_not(r, s.noise)}" for r in refused))
         return {"cause": "none", "tried": rows}
     s.log(f"  further cause: {named[0]['added']} (" + interval_text(named[0])
           + f"), score {named[0]['score']:+.3f}")
