@@ -101,3 +101,30 @@ def test_a_final_model_the_grid_cannot_resolve_is_diagnosed_again_on_a_finer_gri
     again = _small_diagnosis(tests, tmp_path / "fine", lines.append)
     assert sum("was finished before" in m for m in lines) == 2, lines
     assert again["causes"] == res["causes"] and again["grid"]["refined"] is True
+
+
+def test_a_series_ladder_that_kept_nothing_on_the_coarser_grid_is_not_run_again_on_the_finer_one():
+    """The ladder (a gap profiled with the mount held stiffer) looks for another basin of the fit, not for an
+    integration error: when it kept nothing on the coarser grid, the finer grid's diagnosis does not run it again
+    (it took 38 of the 83 s of the worn-damper case's rerun to end no better). A ladder whose refit was kept, or a
+    record written before the flag, runs again."""
+    from types import SimpleNamespace
+
+    from tuner.diagnosis.bases import CoarserGrid
+    from tuner.diagnosis.search.nonsmooth import series_ladder
+
+    run = {"after_params": {"free_play": 4e-4},
+           "ranking": [{"effect": "free_play", "series_element_released": False},
+                       {"effect": "friction"},
+                       {"effect": "valve_lag", "series_element_released": True}]}
+    coarser = CoarserGrid.of(run)
+    assert coarser.idle_ladders == ("free_play",) and coarser.found == {"free_play": 4e-4}
+    lines = []
+    # a state with no engine: running the ladder would fail on the first simulation
+    s = SimpleNamespace(kind="lumped", coarser=coarser, log=lines.append, above_floor=lambda rmse: True)
+    row = {"effect": "free_play", "identification_rmse_n": 176.0, "score": 3.3}
+    out = series_ladder(s, "free_play", None, row)
+    assert out == {**row, "series_element_released": False}
+    assert "not profiled again" in lines[0], lines
+    with pytest.raises(AttributeError):  # not idle: the ladder runs (and needs the state this stand-in lacks)
+        series_ladder(SimpleNamespace(**{**vars(s), "coarser": CoarserGrid({}, ())}), "free_play", None, row)

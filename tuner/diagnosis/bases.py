@@ -23,7 +23,7 @@ from tuner.diagnosis.settings import DiagnosisSettings
 from tuner.metrics import pooled_mse
 from tuner.progress import Plan
 
-__all__ = ["BASE_MODELS", "Base", "BaseRefinement", "FittedBases", "pooled_validation_mse", "choose_base", "base_kinds",
+__all__ = ["BASE_MODELS", "Base", "BaseRefinement", "CoarserGrid", "FittedBases", "pooled_validation_mse", "choose_base", "base_kinds",
            "PLAN_WEIGHTS",
            "progress_plan", "identified_bases", "why_not_repeated", "seconds_per_simulation", "forecast_identified",
            "DiagnosisForecast", "diagnosis_forecast"]
@@ -58,17 +58,35 @@ class BaseRefinement:
 
 
 @dataclass(frozen=True)
+class CoarserGrid:
+    """What the diagnosis on a coarser grid hands the same diagnosis run again on a finer one
+    (``diagnose._on_a_fine_enough_grid``): ``found``, the values [SI] of its final model, a start for the model of
+    the causes found (``search.selection.restarted``); ``idle_ladders``, the nonsmooth effects whose series ladder
+    (``search.nonsmooth.series_ladder``) it ran without a better fit: not run again. The ladder looks for a gap a
+    stiff mount hides (another basin of the fit), which a finer grid does not create; on the class damper of
+    ``tests/test_diagnose.py``'s worn-damper case it took 38 of the 83 s of the rerun to end no better again."""
+
+    found: dict
+    idle_ladders: tuple[str, ...] = ()
+
+    @classmethod
+    def of(cls, run: dict) -> "CoarserGrid":
+        """From the run record of the diagnosis on the coarser grid (its ``after_params`` and ``ranking``)."""
+        return cls(dict(run["after_params"]), tuple(r["effect"] for r in run.get("ranking") or []
+                                                    if r.get("series_element_released") is False))
+
+
+@dataclass(frozen=True)
 class Base:
     """A base form to diagnose on: its parametrization (the 'improved' scheme), its values [SI], and what its
     identification on these tests says (``BaseRefinement``). A settled base is not refitted again as 'none'
-    (the same refinement from the same point ends where it is). ``found``: the values [SI] of the final model a
-    diagnosis on a coarser grid ended with (None: none), a start for the model of the causes found
-    (``search.selection.restarted``)."""
+    (the same refinement from the same point ends where it is). ``coarser``: what a diagnosis on a coarser grid
+    found (``CoarserGrid``; None: there was none)."""
 
     par: Parametrization
     values: dict
     refinement: BaseRefinement = BaseRefinement()
-    found: dict | None = None
+    coarser: CoarserGrid | None = None
 
     @property
     def settled(self) -> str | None:

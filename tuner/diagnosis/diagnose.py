@@ -86,7 +86,7 @@ from damper_fmu.effect_catalogue import search_bounds  # noqa: F401
 
 from tuner import strict_json
 from tuner.data.reading import RigTest
-from tuner.diagnosis.bases import (BASE_MODELS, Base, FittedBases, choose_base, identified_bases,  # noqa: F401
+from tuner.diagnosis.bases import (BASE_MODELS, Base, CoarserGrid, FittedBases, choose_base, identified_bases,  # noqa: F401
                                    progress_plan, why_not_repeated)
 from tuner.diagnosis.cost_model import EXTENDED_COST, expected_cost
 from tuner.diagnosis.extended_parametrization import ExtendedParametrization  # noqa: F401
@@ -272,7 +272,8 @@ def _on_a_fine_enough_grid(kind: str, base: Base, problem: Problem, settings: Di
     final model's force moves by at most ``GRID_ERROR_SHARE`` x the force noise on a grid ``GRID_REFINEMENT`` times
     finer (``tuner.diagnosis.grid_check``), else the diagnosis run again on that grid from the same base values
     (the base refitted there; checkpointed in ``checkpoints/grid_<step in us>us``; ``first``'s final model a start
-    for the models of the causes it finds, ``Base.found``), its final model checked again.
+    for the models of the causes it finds, and its idle series ladders not run again: ``CoarserGrid``), its final
+    model checked again.
     Integration error above the noise is a systematic residual the search explains with false or biased causes
     beside a free play in stiff contact; one refinement at most (each costs ``GridCheck.cost_ratio`` x the time)."""
     record["stage"] = "grid check"
@@ -290,8 +291,8 @@ def _on_a_fine_enough_grid(kind: str, base: Base, problem: Problem, settings: Di
     part.expect(check.cost_ratio * first.seconds)
     folder = checkpoints / f"grid_{1e6 * check.finer_step_s:.0f}us"
     folder.mkdir(exist_ok=True)
-    fine = _checkpointed_run(kind, Base(base.par, base.values, found=first.run["after_params"]), finer, fine_settings,
-                             folder, first.figures, record, part)
+    fine = _checkpointed_run(kind, Base(base.par, base.values, coarser=CoarserGrid.of(first.run)), finer,
+                             fine_settings, folder, first.figures, record, part)
     after = grid_check(kind, fine.run["after_params"], finer, settings.engine)
     plan(f"diagnosis: grid check on the finer grid: {after.text()}")
     out.update({"first_grid": {"causes": first.run["causes"], "validation_mse": first.run["final_validation_mse"]},

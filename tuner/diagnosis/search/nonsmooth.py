@@ -30,10 +30,15 @@ def series_ladder(s: SearchState, effect: str, ext: ExtendedParametrization, row
     stiffness, at the guess's damping (``tuner.diagnosis.held_profiles.series_profiles``; a mount fitted as a dashpot carries a gap's
     lost motion; the second only when the first leaves the residual above the floor), then polished jointly;
     the better refit of the effect is kept. Returns its ranking row (``series_element_held``: the values held
-    [SI])."""
+    [SI]; ``series_element_released``: whether the ladder's refit was kept). Not run again in a diagnosis on a finer
+    grid when the coarser grid's ladder kept nothing (``CoarserGrid.idle_ladders``)."""
     names = SERIES_ELEMENT.get(s.kind)
     if names is None or not s.above_floor(row["identification_rmse_n"]):
         return row
+    if s.coarser is not None and effect in s.coarser.idle_ladders:
+        s.log(f"  {effect:14s} at {row['identification_rmse_n']:.1f} N, above the floor: the series element held "
+              f"fitted no better on the coarser grid: not profiled again")
+        return {**row, "series_element_released": False}
     k, c = names
     held = []
     for decades in (1, 2):
@@ -59,17 +64,18 @@ def series_ladder(s: SearchState, effect: str, ext: ExtendedParametrization, row
         s.refits[effect] = Fit(fit.ext, fit.z, fit.evaluations + prof.evaluations)
         s.log(f"  {effect:14s} no gap fits better than the base refit with the series element held: "
               f"not released")
-        return {**row, "evaluations": fit.evaluations + prof.evaluations, "series_element_held": held}
+        return {**row, "evaluations": fit.evaluations + prof.evaluations, "series_element_held": held,
+                "series_element_released": False}
     pol = s.polish_quietly(ext, prof.points[int(np.argmin(prof.sse))], s.share)
     s.cost.refits = max(0.0, s.cost.refits - cost)
     evals = fit.evaluations + prof.evaluations + pol.evaluations
     if not pol.fitness > 1.0 / row["identification_rmse_n"] ** 2:
         s.refits[effect] = Fit(fit.ext, fit.z, evals)
         s.log(f"  {effect:14s} no better with the series element held: {1.0 / math.sqrt(pol.fitness):.1f} N")
-        return {**row, "evaluations": evals, "series_element_held": held}
+        return {**row, "evaluations": evals, "series_element_held": held, "series_element_released": False}
     s.refits[effect] = Fit(ext, pol.z, evals)
     new = held_out(s, effect, ext.to_params(pol.z), ext.extra, pol.fitness, evals, s.mse_none)
-    return {**new, "series_element_held": held}
+    return {**new, "series_element_held": held, "series_element_released": True}
 
 
 def unearned_nonsmooth(effect: str, row: dict) -> bool:

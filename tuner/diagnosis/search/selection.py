@@ -96,7 +96,9 @@ def continue_lead(s: SearchState) -> None:
     fit = s.refits[lead["effect"]] = Fit(fit.ext, pol.z, fit.evaluations + pol.evaluations)
     s.converged[lead["effect"]] = s.settled(pol, g)
     row = held_out(s, lead["effect"], fit.params(), fit.ext.extra, g, fit.evaluations, s.mse_none)
-    row.update({k: lead[k] for k in ("refitted", "screen") if k in lead})
+    # how the refit was reached stays with its continuation (``series_ladder``'s record)
+    row.update({k: lead[k] for k in ("refitted", "screen", "series_element_held", "series_element_released")
+                if k in lead})
     s.ranking[s.ranking.index(lead)] = row
     s.log(f"  {lead['effect']:14s} refined (base refit continued alike): " + ", ".join(
         f"{k} = {v:.4g} {UNITS[k]}" for k, v in row["parameters"].items())
@@ -176,13 +178,13 @@ def restarted(s: SearchState, key: str, row: dict) -> dict:
 def restart_points(s: SearchState, fit: Fit) -> list[tuple[str, dict]]:
     """(name, values [SI]) of the starts ``restarted`` tries for the model ``fit``: the data-driven guess (its tables
     have absorbed nothing) with the effects at their fitted values, and, in a diagnosis run again on a finer
-    grid, the final model the coarser grid found (``SearchState.found``: its base and the values of the effects
+    grid, the final model the coarser grid found (``CoarserGrid.found``: its base and the values of the effects
     this model has; a coarse grid's search can end in a better basin than the finer one's, as on blind seed
     1150: 126 N rms at 1 ms, 268 N from the 0.25 ms grid's own steps)."""
     effects = {n: v for n, v in fit.params().items() if n in fit.ext.extra}
     points = [("the data-driven guess", {**s.guess, **effects})]
-    if s.found is not None:
-        points.append(("the model the coarser grid found", {**fit.params(), **s.found}))
+    if s.coarser is not None:
+        points.append(("the model the coarser grid found", {**fit.params(), **s.coarser.found}))
     return points
 
 

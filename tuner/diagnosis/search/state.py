@@ -12,7 +12,7 @@ import numpy as np
 from damper_fmu.effect_catalogue import EFFECT_PARAMETERS
 from damper_fmu.parameters import defaults
 
-from tuner.diagnosis.bases import Base
+from tuner.diagnosis.bases import Base, CoarserGrid
 from tuner.diagnosis.cost_model import EXTENDED_COST, DiagnosisCost
 from tuner.diagnosis.effect_sizes import DamperSize
 from tuner.diagnosis.residual_tests import TestResidual
@@ -72,7 +72,7 @@ class SearchState:
     record: dict
     figures_folder: str  # where the job draws the figures, relative to the output folder
     settled_by: str | None  # how the refinement of the base on these tests ended (``Base.settled``)
-    found: dict | None  # the final model a diagnosis on a coarser grid ended with (``Base.found``)
+    coarser: CoarserGrid | None  # what a diagnosis on a coarser grid found (``Base.coarser``)
     rate_prior: float | None  # [s per simulation] the diagnosis's expected, from the fit's
     peak: float  # [N]
     stroke_range: float  # [m]
@@ -127,7 +127,7 @@ class SearchState:
         for p in EFFECT_PARAMETERS:
             guess[p.name] = p.default
         return cls(kind=kind, par=base.par, data=data, settings=settings, log=log, record=record,
-                   figures_folder=figures, settled_by=base.refinement.settled, found=base.found,
+                   figures_folder=figures, settled_by=base.refinement.settled, coarser=base.coarser,
                    rate_prior=None if rate is None else rate * EXTENDED_COST,
                    peak=data.peak_n, stroke_range=data.stroke_range_m, noise=data.noise_n,
                    size=DamperSize(data.peak_n, data.stroke_range_m),
