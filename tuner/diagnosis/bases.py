@@ -23,10 +23,9 @@ from tuner.diagnosis.settings import DiagnosisSettings
 from tuner.metrics import pooled_mse
 from tuner.progress import Plan
 
-__all__ = ["BASE_MODELS", "Base", "BaseRefinement", "CoarserGrid", "FittedBases", "pooled_validation_mse", "choose_base", "base_kinds",
-           "PLAN_WEIGHTS",
-           "progress_plan", "identified_bases", "why_not_repeated", "seconds_per_simulation", "forecast_identified",
-           "DiagnosisForecast", "diagnosis_forecast"]
+__all__ = ["BASE_MODELS", "Base", "BaseRefinement", "CoarserGrid", "FittedBases", "pooled_validation_mse",
+           "choose_base", "base_kinds", "PLAN_WEIGHTS", "progress_plan", "identified_bases", "why_not_repeated",
+           "seconds_per_simulation", "forecast_identified", "DiagnosisForecast", "diagnosis_forecast"]
 
 #: base forms the diagnosis chooses from (the models that carry the effect catalogue): the lumped
 #: model of the paper, and the two-chamber form of a twin-tube damper

@@ -86,8 +86,8 @@ from damper_fmu.effect_catalogue import search_bounds  # noqa: F401
 
 from tuner import strict_json
 from tuner.data.reading import RigTest
-from tuner.diagnosis.bases import (BASE_MODELS, Base, CoarserGrid, FittedBases, choose_base, identified_bases,  # noqa: F401
-                                   progress_plan, why_not_repeated)
+from tuner.diagnosis.bases import (BASE_MODELS, Base, CoarserGrid, FittedBases, choose_base,  # noqa: F401
+                                   identified_bases, progress_plan, why_not_repeated)
 from tuner.diagnosis.cost_model import EXTENDED_COST, expected_cost
 from tuner.diagnosis.extended_parametrization import ExtendedParametrization  # noqa: F401
 from tuner.diagnosis.grid_check import GRID_PART, GRID_REFINEMENT, GridCheck, grid_check
