@@ -665,3 +665,31 @@ def test_a_conclusion_a_rescue_replaces_is_kept_with_the_forms_it_tried(monkeypa
         assert concluded(search) == expected
     assert before_rescue(first) == {"cause": "unexplained", "forms_tried": tried, "forms_weighed": None}
     assert before_rescue(None) is None
+
+
+def test_an_interval_whose_steps_cannot_be_simulated_is_not_significant_and_says_why():
+    """Blind seed 1396: a two-chamber refit whose stepped points the stage's Newton could not solve ended the whole
+    diagnosis with a KeyError in the intervals. The interval is then unbounded, its row not significant (nothing is
+    named on it), and the log and the verdict's reason say what failed."""
+    from tuner.diagnosis.extended_parametrization import ExtendedParametrization
+    from tuner.diagnosis.refit import effect_intervals
+    from tuner.diagnosis.rules import earned
+    from tuner.diagnosis.search.rows import attach_interval
+    from tuner.diagnosis.verdict import why_not
+    from tuner.identification.parametrization import Parametrization
+
+    ext = ExtendedParametrization(Parametrization("lumped"), "inertia", 20e3, 0.04)
+
+    class Failing:  # the fitted point simulates, one of its steps does not
+        last_failure = "two-chamber stage: Newton stalled"
+
+        def residuals_batch(self, points):
+            return [np.zeros(10)] + [None] * (len(points) - 1)
+
+    ci = effect_intervals(Failing(), ext, np.full(ext.dimension, 0.5))
+    assert ci["_blocks"] == 0 and "Newton stalled" in ci["_not_computed"]
+    assert ci["inertia_mass"]["excludes_zero"] is False
+    row = {"effect": "inertia", "score": 0.12, "resolved": True, "parameters": {"inertia_mass": 200.0}}
+    attach_interval(row, ci, ext, ["inertia_mass"])
+    assert row["significant"] is False and not earned(row)
+    assert "could not be computed" in why_not(row, 20.0) and "Newton stalled" in why_not(row, 20.0)

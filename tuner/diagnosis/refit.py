@@ -137,7 +137,10 @@ def effect_intervals(eid: Engine, ext: ExtendedParametrization, z: np.ndarray, s
     units), from the identification residual's Jacobian by the block sandwich
     (``tuner.diagnosis.significance``: valid for correlated residuals). Base coordinates at a bound are held
     there. Returns {name: {value, std, low, high, excludes_zero}} plus '_blocks' and
-    '_correlation_time_s' (the residual's, which sets the block length: 3 correlation times)."""
+    '_correlation_time_s' (the residual's, which sets the block length: 3 correlation times). When the point or
+    one of its steps cannot be simulated, every interval is unbounded (not significant: no magnitude is named on
+    it), '_blocks' is 0, '_correlation_time_s' NaN and '_not_computed' says why (blind seed 1396: a two-chamber
+    refit whose steps the stage's Newton could not solve had ended the whole diagnosis with a KeyError)."""
     z = np.clip(np.asarray(z, dtype=float), 0.0, 1.0)
     dim = ext.base.dimension
     free = [i for i in range(ext.dimension) if i >= dim or 1e-9 < z[i] < 1 - 1e-9]
@@ -147,8 +150,11 @@ def effect_intervals(eid: Engine, ext: ExtendedParametrization, z: np.ndarray, s
     r0 = res[0]
     out: dict = {}
     if r0 is None or any(r is None for r in res[1:]):
-        return {n: {"value": ext.to_params(z)[n], "std": math.inf, "low": -math.inf, "high": math.inf,
-                    "excludes_zero": False} for n in ext.extra}
+        why = ("the fitted point" if r0 is None else "a step of it") + " could not be simulated (" + (
+            eid.last_failure or "no reason given") + ")"
+        return {**{n: {"value": ext.to_params(z)[n], "std": math.inf, "low": -math.inf, "high": math.inf,
+                       "excludes_zero": False} for n in ext.extra},
+                "_blocks": 0, "_correlation_time_s": math.nan, "_not_computed": why}
     jac = np.column_stack([(r - r0) / steps[i] for r, i in zip(res[1:], free)])
     lengths = [int(s.mask.sum()) for s in eid.tests]
     tau = correlation_time(r0)

@@ -215,6 +215,8 @@ def why_not(row: dict, noise: float) -> str:
     if not row.get("meaningful", True):
         return ("its magnitude (" + ", ".join(f"{fmt_quantity(v, UNITS[n])}" for n, v in row["parameters"].items())
                 + ") is below the physical range of the effect")
+    if row.get("interval_not_computed"):
+        return f"its 95 % interval could not be computed: {row['interval_not_computed']}"
     ci = "; ".join(f"{n} {fmt_quantity(lo, UNITS[n])} .. {fmt_quantity(hi, UNITS[n])}"
                    for n, (lo, hi) in row.get("interval", {}).items())
     return f"its 95 % interval includes zero ({ci or 'not computed'})"

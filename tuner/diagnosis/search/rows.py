@@ -70,6 +70,8 @@ def attach_interval(row: dict, ci: dict, ext: ExtendedParametrization, new) -> N
     row["interval"] = {n: [ci[n]["low"], ci[n]["high"]] for n in ext.extra}
     row["significant"] = all(ci[n]["excludes_zero"] for n in new)
     row["interval_blocks"] = ci["_blocks"]
+    if "_not_computed" in ci:
+        row["interval_not_computed"] = ci["_not_computed"]
     nearest = {n: 0.0 if ci[n]["low"] <= 0.0 <= ci[n]["high"] else min(abs(ci[n]["low"]), abs(ci[n]["high"]))
                for n in new if n in effect_of(n).typical}
     row["plausible"] = all(v <= plausible_range(n, size)[1] for n, v in nearest.items())

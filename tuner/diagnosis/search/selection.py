@@ -117,6 +117,9 @@ def intervals(s: SearchState) -> None:
             fit = s.refits[row["effect"]]
             ci = effect_intervals(s.eid, fit.ext, fit.z)
             attach_interval(row, ci, fit.ext, fit.ext.extra)
+            if "_not_computed" in ci:
+                s.log(f"  {row['effect']:14s} 95 % interval not computed: {ci['_not_computed']}: not significant")
+                continue
             s.log(f"  {row['effect']:14s} 95 % interval " + ", ".join(
                 f"{n} {fmt_quantity(ci[n]['low'], UNITS[n])} .. {fmt_quantity(ci[n]['high'], UNITS[n])}"
                 for n in fit.ext.extra) + f" ({ci['_blocks']} residual blocks of "
