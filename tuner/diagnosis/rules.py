@@ -10,8 +10,8 @@ from __future__ import annotations
 import math
 
 __all__ = ["PENALTY_PER_PARAMETER", "ACCEPT_SCORE", "UNEXPLAINED_RATIO", "FORM_EXCESS_SHARE", "AT_BOUND",
-           "DELAY_AGREEMENT", "DELAY_SELF_EVIDENT_PCT", "score", "rescore", "excess_explained", "cross_check", "earned", "scores",
-           "within_bounds", "decide", "CONFOUNDED_SHARE", "indistinguishable"]
+           "DELAY_AGREEMENT", "DELAY_SELF_EVIDENT_PCT", "score", "rescore", "excess_explained", "residual_delay",
+           "cross_check", "earned", "scores", "within_bounds", "decide", "CONFOUNDED_SHARE", "indistinguishable"]
 
 PENALTY_PER_PARAMETER = 0.02
 
@@ -74,6 +74,12 @@ def excess_explained(row: dict, current_row: dict, floor: float) -> float:
     return (current_row["validation_mse"] - row["validation_mse"]) / excess if excess > 0 else 0.0
 
 
+def residual_delay(evidence: dict | None) -> float | None:
+    """The force-channel delay [s] the base model's residual shows (``evidence['effects']['time_delay']['value']``,
+    the residual's first-order regression); None without one."""
+    return ((evidence or {}).get("effects", {}).get("time_delay") or {}).get("value")
+
+
 def cross_check(ranking: list[dict], evidence: dict) -> list[dict]:
     """Mark a row that adds a force-channel delay (a first-round row ``time_delay``, or a forward step's whose
     ``added`` effect is the delay) whose fitted delay disagrees (fitted / residual outside ``DELAY_AGREEMENT``,
@@ -82,7 +88,7 @@ def cross_check(ranking: list[dict], evidence: dict) -> list[dict]:
     ``DELAY_SELF_EVIDENT_PCT`` of its reference's held-out MSE; return the rows so marked. A delay named before
     is not judged again when another effect is added on top of it (blind seed 1262: a 64 N friction on top of a
     2.2 ms delay named at -98 % won 60 % more and was refused for the delay's disagreement)."""
-    ev_delay = ((evidence or {}).get("effects", {}).get("time_delay") or {}).get("value")
+    ev_delay = residual_delay(evidence)
     marked = []
     for r in ranking:
         fitted = r["parameters"].get("time_delay", 0.0) if r.get("added", r["effect"]) == "time_delay" else 0.0

@@ -12,7 +12,7 @@ from damper_fmu.effect_catalogue import ALL_EFFECTS
 from tuner.diagnosis.cost_model import after_ranking
 from tuner.diagnosis.extended_parametrization import ExtendedParametrization, base_jacobian
 from tuner.diagnosis.refit import RefitProfile, effect_intervals, refit
-from tuner.diagnosis.rules import ACCEPT_SCORE, cross_check, decide, earned, scores
+from tuner.diagnosis.rules import ACCEPT_SCORE, cross_check, decide, earned, residual_delay, scores
 from tuner.diagnosis.screen import profile_screen
 from tuner.diagnosis.search.reference import base_settled, set_none
 from tuner.diagnosis.search.rows import attach_interval, held_out
@@ -129,7 +129,7 @@ def intervals(s: SearchState) -> None:
                 for n in fit.ext.extra) + f" ({ci['_blocks']} residual blocks of "
                 f"{3 * ci['_correlation_time_s']:.2g} s): " + ("excludes zero" if row["significant"]
                                                                 else "NOT distinct from zero"))
-    shown = ((s.evidence or {}).get("effects", {}).get("time_delay") or {}).get("value")
+    shown = residual_delay(s.evidence)
     residual = "" if shown is None else f" ({1e3 * shown:.3g} ms)"
     for r in cross_check(s.ranking, s.evidence):
         s.log(f"  time_delay {1e3 * r['parameters']['time_delay']:.3g} ms disagrees with the residual's "
@@ -207,7 +207,6 @@ def restart_points(s: SearchState, fit: Fit) -> list[tuple[str, dict]]:
 def added_parameters(row: dict, fit: Fit) -> list[str]:
     """The parameters of the effect the row added (its ``added``), else all of the fit's effects' parameters."""
     return list(ALL_EFFECTS[row["added"]].identified) if "added" in row else list(fit.ext.extra)
-
 
 
 def next_cause(s: SearchState, current: Fit, current_row: dict) -> dict:
