@@ -57,7 +57,7 @@ from campaign.damper_class import class_tests, random_damper, write_class_datase
 from tuner.data.reading import load_dataset  # noqa: E402
 from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose  # noqa: E402
 from tuner.diagnosis.effect_sizes import DamperSize, typical_range  # noqa: E402
-from tuner.diagnosis.rules import CONFOUNDED_SHARE  # noqa: E402
+from tuner.diagnosis.rules import untold  # noqa: E402
 from tuner.executors import FleetExecutor  # noqa: E402
 from tuner.identification.engine import IDENTIFICATION_STEP as DEFAULT_STEP, fastest_engine  # noqa: E402
 from tuner.identification.problem import DataSettings  # noqa: E402
@@ -193,10 +193,9 @@ def run_case(case: dict) -> dict:
 
 
 def confounded(res: dict) -> dict:
-    """{effect: share of its force the base absorbs} of the effects the detection limits say the base absorbs
-    at least ``CONFOUNDED_SHARE`` of: what the verdict says these tests cannot tell from the base's own elements."""
-    return {e: lim["absorbed_share"] for e, lim in (res.get("detection_limits") or {}).items()
-            if lim.get("absorbed_share", 0.0) >= CONFOUNDED_SHARE}
+    """{effect: share of its force the base absorbs} of the effects the verdict says these tests cannot tell from
+    the base's own elements (``tuner.diagnosis.rules.untold`` of their detection limits)."""
+    return {e: lim["absorbed_share"] for e, lim in (res.get("detection_limits") or {}).items() if untold(lim)}
 
 
 def failed_row(case: dict, err: BaseException) -> dict:

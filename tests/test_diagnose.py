@@ -16,6 +16,7 @@ Every manoeuvre runs at its own oil temperature (a climatic-chamber campaign, th
 every test, clean data included), so temperature dependence is observable.
 """
 import json
+import math
 import zlib
 
 import numpy as np
@@ -183,6 +184,10 @@ def test_clean_data_gives_no_false_cause_and_a_complete_diagnosis_json(tmp_path,
     assert saved["cause"] == res["cause"]
     assert {r["effect"] for r in saved["ranking"]} == set(CANDIDATES) | {"none"}  # none: the base refitted alike
     assert saved["noise_std_n"] > 0
+    # each detection limit carries the physical range's top it is weighed against (rules.untold)
+    limits = saved["detection_limits"]
+    assert limits and all(0 < r["plausible_top"] < math.inf and r["within_plausible"] == (
+        r["reachable"] and r["limit"] <= r["plausible_top"]) for r in limits.values()), limits
     if damper == "lumped":   # a model that can represent the data: no signature carries force above the noise
         assert saved["evidence"]["joint_screen"]["kept"] == [], saved["evidence"]["joint_screen"]
     assert all("score" in r and "validation_mse_change_pct" in r for r in saved["ranking"])

@@ -53,6 +53,27 @@ def test_a_limit_the_base_absorbs_says_what_absorbs_it_and_a_verdict_with_causes
     assert untold_text({"thermal_drift": weak}) == "" and untold_text(None) == ""
 
 
+def test_an_absorbed_effect_detectable_only_beyond_its_physical_range_is_said_untold():
+    """Blind seed 1363 (a 106 N preload beside a valve lag): the damping table absorbs 98 % of the preload's
+    force and the limit, 2.34 kN, lies within the search bound but far above any preload a damper this size
+    has; the verdict said nothing of it. Now it says these tests cannot tell it apart; a limit within the
+    physical range, or a force the base does not absorb, is not said."""
+    from tuner.diagnosis.rules import untold
+    from tuner.diagnosis.verdict import limit_text, untold_text
+
+    beyond = {"reachable": True, "within_plausible": False, "plausible_top": 800.0, "limit": 2340.0,
+              "absorbed_share": 0.98, "absorbed_by": {"the damping table": 0.98}, "best_test": "val5",
+              "parameter": "preload_force"}
+    within = {**beyond, "within_plausible": True, "limit": 300.0}
+    free = {**beyond, "absorbed_share": 0.5}
+    assert untold(beyond) and not untold(within) and not untold(free)
+    assert "preload (98 % of its force absorbed by the damping table)" in untold_text({"preload": beyond})
+    assert untold_text({"preload": within}) == "" and untold_text({"preload": free}) == ""
+    text = limit_text(beyond)
+    assert text == ("above 2.34e+03 N (val5; beyond the 800 N a damper this size plausibly has; 98 % of its force "
+                    "absorbed by the damping table)")
+
+
 def test_the_absorbing_elements_are_summed_by_group_and_read_at_most_whole():
     from types import SimpleNamespace
 

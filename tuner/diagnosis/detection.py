@@ -44,13 +44,15 @@ RCOND = 1e-9
 @dataclass(frozen=True)
 class EffectMagnitude:
     """One effect's magnitude in ``detection_limits``: its ``parameter`` (name), the ``reference`` magnitude to
-    linearise at first (the low end of its typical range), its search ``bounds`` and the ``smallest`` magnitude the
-    diagnosis names (its physical range), all in the parameter's unit."""
+    linearise at first (the low end of its typical range), its search ``bounds``, the ``smallest`` magnitude the
+    diagnosis names and the ``largest`` a damper of this size plausibly has (its physical range,
+    ``tuner.diagnosis.effect_sizes.plausible_range``), all in the parameter's unit."""
 
     parameter: str
     reference: float
     bounds: tuple[float, float]
     smallest: float
+    largest: float = math.inf
 
 
 @dataclass(frozen=True)
@@ -145,7 +147,8 @@ def detection_limits(eid, ev, par, z0: np.ndarray, magnitudes: dict[str, EffectM
                      refine: int = 2, step: float = 1e-4) -> dict:
     """Detection limit of every effect: {effect: {"parameter", "limit", "by_score", "by_noise",
     "by_range", "limited_by", "best_test", "per_test": {test: limit}, "reachable": limit within the search
-    bounds, "linearised_at", "absorbed_share", "absorbed_by_coordinate" (``absorption`` at that magnitude, per
+    bounds, "plausible_top", "within_plausible": limit within the physical range (``EffectMagnitude.largest``),
+    "linearised_at", "absorbed_share", "absorbed_by_coordinate" (``absorption`` at that magnitude, per
     coordinate of ``par``)}}.
 
     eid, ev: engines of the base model on the identification and held-out tests (``residuals_batch``; the
@@ -181,12 +184,13 @@ def detection_limits(eid, ev, par, z0: np.ndarray, magnitudes: dict[str, EffectM
                 m[e] = max(rows[e]["limit"], 1e-6 * top[e])
                 still.append(e)
         active = still
-    return {e: _finish(rows[e], parameters[e], magnitudes[e].smallest, top[e]) for e in parameters if e in rows}
+    return {e: _finish(rows[e], magnitudes[e], top[e]) for e in parameters if e in rows}
 
 
-def _finish(row: dict, name: str, smallest: float, top: float) -> dict:
-    """The limit at least ``smallest`` (the physical range's meaningful floor), what limits it, the test that
-    would show it and whether it lies within the search bound ``top``."""
+def _finish(row: dict, mag: EffectMagnitude, top: float) -> dict:
+    """The limit at least ``mag.smallest`` (the physical range's meaningful floor), what limits it, the test that
+    would show it, whether it lies within the search bound ``top`` and within the physical range's top."""
+    name, smallest = mag.parameter, mag.smallest
     row["parameter"] = name
     row["by_range"] = smallest
     row["limited_by"] = max(("score", row["by_score"]), ("noise", row["by_noise"]), ("range", smallest),
@@ -195,4 +199,6 @@ def _finish(row: dict, name: str, smallest: float, top: float) -> dict:
     row["per_test"] = {t: max(v, smallest) for t, v in row["per_test"].items()}
     row["best_test"] = min(row["per_test"], key=row["per_test"].get) if row["per_test"] else None
     row["reachable"] = bool(row["limit"] <= top)
+    row["plausible_top"] = mag.largest
+    row["within_plausible"] = bool(row["limit"] <= min(top, mag.largest))
     return row

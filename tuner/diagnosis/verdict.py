@@ -7,7 +7,7 @@ from damper_fmu.effect_catalogue import ALL_EFFECTS, EFFECT_PARAMETERS, effect_o
 
 from tuner.diagnosis.effect_sizes import DamperSize, plausible_range, typical_range
 from tuner.diagnosis.forms import settings_text
-from tuner.diagnosis.rules import ACCEPT_SCORE, CONFOUNDED_SHARE, FORM_EXCESS_SHARE, earned
+from tuner.diagnosis.rules import ACCEPT_SCORE, CONFOUNDED_SHARE, FORM_EXCESS_SHARE, earned, untold
 from tuner.formatting import fmt_quantity
 
 __all__ = ["UNITS", "NOTES", "ACQUISITION_CAUSES", "unexplained_record", "effect_parameters", "interval_text",
@@ -71,11 +71,18 @@ def interval_text(row: dict, names=None) -> str:
 
 
 def limit_text(row: dict) -> str:
-    """'above 400 N (val2_curve)' of a detection limit, or 'not detectable within the search range' with, when the
-    base absorbs its force (``rules.CONFOUNDED_SHARE``), what absorbs it."""
+    """'above 400 N (val2_curve)' of a detection limit, or 'not detectable within the search range', with, when the
+    base absorbs its force (``rules.CONFOUNDED_SHARE``), what absorbs it and, for a limit above the physical
+    range, that range's top."""
     if not row["reachable"]:
         return "not detectable within its search range" + absorbed_text(row)
-    return f"above {fmt_quantity(row['limit'], UNITS[row['parameter']])} ({row['best_test']})"
+    unit = UNITS[row["parameter"]]
+    notes = [row["best_test"]]
+    if not row.get("within_plausible", True):
+        notes.append(f"beyond the {fmt_quantity(row['plausible_top'], unit)} a damper this size plausibly has")
+    if absorbed_text(row):
+        notes.append(absorbed_text(row).strip()[1:-1])
+    return f"above {fmt_quantity(row['limit'], unit)} ({'; '.join(str(n) for n in notes)})"
 
 
 def absorbed_text(row: dict) -> str:
@@ -90,10 +97,10 @@ def absorbed_text(row: dict) -> str:
 
 def untold_text(limits: dict | None) -> str:
     """For a verdict with causes: the other candidates these tests cannot tell from the base model's own elements
-    (not detectable within their search range, their force absorbed: ``absorbed_text``); '' when none."""
-    untold = [f"{e}{absorbed_text(r)}" for e, r in (limits or {}).items()
-              if not r["reachable"] and absorbed_text(r)]
-    return "; these tests cannot tell from the base model's own elements: " + ", ".join(untold) if untold else ""
+    (``rules.untold``: their force absorbed, ``absorbed_text``, and no plausible magnitude detectable); '' when
+    none."""
+    told = [f"{e}{absorbed_text(r)}" for e, r in (limits or {}).items() if untold(r)]
+    return "; these tests cannot tell from the base model's own elements: " + ", ".join(told) if told else ""
 
 
 def coulomb_text(form_step: dict | None) -> str:

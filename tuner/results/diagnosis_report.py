@@ -8,6 +8,7 @@ from pathlib import Path
 
 from tuner.formatting import effect_value, fmt_quantity
 from tuner.diagnosis.residual_map import MIN_BIN_SAMPLES
+from tuner.diagnosis.rules import untold
 from tuner.results.html import MODEL_LABEL, esc, figure_html, table, write_page
 from tuner.results.recommendation import recommend, recommendation_html
 from tuner import strict_json
@@ -29,8 +30,7 @@ def detection_html(limits: dict) -> str:
     """The detection limits of a diagnosis (``tuner.diagnosis.detection``) as a table ('' without any)."""
     if not limits:
         return ""
-    rows = [[esc(effect), esc(r.get("covers") or "-"),
-             esc(fmt_quantity(r["limit"], r["unit"]) if r["reachable"] else "not within its search range"),
+    rows = [[esc(effect), esc(r.get("covers") or "-"), esc(_detectable_from(r)),
              esc(r["best_test"] or "-"),
              {"score": "held-out score", "noise": "force above the noise", "range": "physical range"}[r["limited_by"]]]
             for effect, r in limits.items()]
@@ -39,6 +39,17 @@ def detection_html(limits: dict) -> str:
             "force the base refit cannot absorb, against the acceptance score and the noise), and the held-out "
             "test that shows it best. A verdict 'none' means nothing above these sizes.</p>"
             + table(["effect", "the kind it covers", "detectable from", "best test", "limited by"], rows))
+
+
+def _detectable_from(r: dict) -> str:
+    """A detection limit's magnitude for the table: the limit, 'not within its search range', and, when the base
+    absorbs the effect (``rules.untold``), that these tests cannot tell it from the base's own elements."""
+    text = fmt_quantity(r["limit"], r["unit"]) if r["reachable"] else "not within its search range"
+    if not r.get("within_plausible", True) and r["reachable"]:
+        text += f" (above the plausible {fmt_quantity(r['plausible_top'], r['unit'])})"
+    if untold(r):
+        text += f"; {100 * r['absorbed_share']:.0f} % of its force absorbed by the base: not told apart"
+    return text
 
 
 #: the captions of the diagnosis's figures by topic (``tuner.diagnosis.residuals.FIGURE_TOPICS``, the file

@@ -12,7 +12,7 @@ from damper_fmu.parameters import parameter_group
 from tuner.diagnosis.bases import Base
 from tuner.diagnosis.cost_model import expected_cost
 from tuner.diagnosis.detection import EffectMagnitude, NamingRule, detection_limits
-from tuner.diagnosis.effect_sizes import meaningful_floor, typical_range
+from tuner.diagnosis.effect_sizes import plausible_range, typical_range
 from tuner.diagnosis.residual_tests import TestResidual
 from tuner.diagnosis.rules import ACCEPT_SCORE, PENALTY_PER_PARAMETER
 from tuner.diagnosis.search.candidates import candidates
@@ -86,7 +86,7 @@ def detection(s: SearchState, candidates: list[str]) -> dict:
     rules (acceptance score, penalty, search bounds, physical range); logged, units added."""
     names = {e: ALL_EFFECTS[e].identified[0] for e in candidates}
     magnitudes = {e: EffectMagnitude(n, typical_range(n, s.size)[0], search_bounds(n, s.peak, s.stroke_range),
-                                     meaningful_floor(n, s.size)) for e, n in names.items()}
+                                     *plausible_range(n, s.size)) for e, n in names.items()}
     limits = detection_limits(s.eid, s.ev, s.par, s.z_none, magnitudes,
                               NamingRule(s.mse_none, s.noise, ACCEPT_SCORE, PENALTY_PER_PARAMETER))
     for e, r in limits.items():
