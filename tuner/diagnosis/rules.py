@@ -40,7 +40,7 @@ def untold(limit: dict) -> bool:
     (``tuner.diagnosis.detection.detection_limits``): the base absorbs at least ``CONFOUNDED_SHARE`` of its force and
     no magnitude the damper could plausibly have would be named (the limit beyond the search bound or above the
     physical range's top; blind seed 1363: a 106 N preload beside a valve lag, 98 % absorbed by the damping table,
-    named only above 2.34 kN where preloads end at 0.8 kN)."""
+    named only above 2.34 kN where a damper of its size plausibly has at most 1.15 kN)."""
     if limit.get("absorbed_share", 0.0) < CONFOUNDED_SHARE:
         return False
     return not limit["reachable"] or not limit.get("within_plausible", True)
