@@ -10,8 +10,9 @@ from __future__ import annotations
 import math
 
 __all__ = ["PENALTY_PER_PARAMETER", "ACCEPT_SCORE", "UNEXPLAINED_RATIO", "FORM_EXCESS_SHARE", "AT_BOUND",
-           "DELAY_AGREEMENT", "DELAY_SELF_EVIDENT_PCT", "untold", "score", "rescore", "excess_explained", "residual_delay",
-           "cross_check", "earned", "scores", "within_bounds", "decide", "CONFOUNDED_SHARE", "indistinguishable"]
+           "DELAY_AGREEMENT", "DELAY_SELF_EVIDENT_PCT", "untold", "score", "rescore", "excess_explained",
+           "residual_delay", "cross_check", "earned", "scores", "within_bounds", "decide", "CONFOUNDED_SHARE",
+           "indistinguishable"]
 
 PENALTY_PER_PARAMETER = 0.02
 
