@@ -194,8 +194,12 @@ def run_case(case: dict) -> dict:
 
 def confounded(res: dict) -> dict:
     """{effect: share of its force the base absorbs} of the effects the verdict says these tests cannot tell from
-    the base's own elements (``tuner.diagnosis.rules.untold`` of their detection limits)."""
-    return {e: lim["absorbed_share"] for e, lim in (res.get("detection_limits") or {}).items() if untold(lim)}
+    the base's own elements: ``tuner.diagnosis.rules.untold`` of their detection limits, and the candidates an
+    unexplained residual lists as explaining the same residual as the base (``unexplained.indistinguishable``)."""
+    said = {e: lim["absorbed_share"] for e, lim in (res.get("detection_limits") or {}).items() if untold(lim)}
+    for r in (res.get("unexplained") or {}).get("indistinguishable") or []:
+        said.setdefault(r["effect"], r["absorbed_share"])
+    return said
 
 
 def failed_row(case: dict, err: BaseException) -> dict:

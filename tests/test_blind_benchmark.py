@@ -67,3 +67,15 @@ def test_a_damaged_rows_file_is_named_with_its_line(tmp_path):
     (tmp_path / "rows.jsonl").write_text('{"case": "x"}\n{"case": \n')
     with pytest.raises(SystemExit, match=r"rows.jsonl, line 2"):
         bc.done_rows(tmp_path / "rows.jsonl")
+
+
+def test_said_is_what_the_verdict_says():
+    """A fault counts as said when the verdict lists it as not told apart: its detection limit untold (absorbed,
+    no plausible magnitude detectable) or, under an unexplained residual, a candidate explaining the same residual
+    as the base; absorbed alone, with a plausible magnitude detectable, is not said."""
+    limit = {"reachable": True, "within_plausible": False, "absorbed_share": 0.98, "limit": 2340.0}
+    res = {"detection_limits": {"preload": limit, "friction": {**limit, "within_plausible": True},
+                                "free_play": {**limit, "absorbed_share": 0.5, "reachable": False}},
+           "unexplained": {"indistinguishable": [{"effect": "time_delay", "absorbed_share": 0.99}]}}
+    assert bc.confounded(res) == {"preload": 0.98, "time_delay": 0.99}
+    assert bc.confounded({"detection_limits": None, "unexplained": None}) == {}
