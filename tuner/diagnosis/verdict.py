@@ -12,7 +12,7 @@ from tuner.formatting import fmt_quantity
 
 __all__ = ["UNITS", "NOTES", "ACQUISITION_CAUSES", "unexplained_record", "effect_parameters", "interval_text",
            "limit_text", "verdict_text", "why_not", "map_text", "told_apart_text",
-           "absorbed_text", "untold_text"]
+           "absorbed_text", "untold_text", "traded_delay_text"]
 
 UNITS = {p.name: p.unit for p in EFFECT_PARAMETERS}
 
@@ -103,6 +103,17 @@ def untold_text(limits: dict | None) -> str:
     return "; these tests cannot tell from the base model's own elements: " + ", ".join(told) if told else ""
 
 
+def traded_delay_text(best: dict) -> str:
+    """For a named delay whose signature the base absorbs (``best['delay_absorbed_share']`` at least
+    ``CONFOUNDED_SHARE``): that its size trades with the base's own elements beyond its interval; '' otherwise."""
+    share = best.get("delay_absorbed_share", 0.0)
+    if share < CONFOUNDED_SHARE:
+        return ""
+    return (f"; {100 * share:.0f} % of the delay's signature is what the base model's own elements make (its series "
+            "compliance is a lag too): its size trades with theirs, and the interval does not hold that trade (the "
+            "fit may stop short of the whole delay)")
+
+
 def coulomb_text(form_step: dict | None) -> str:
     """'; the friction found as a pre-yield hysteresis at its smallest displacement scale ...' when the forms'
     step named a friction in a hysteresis's place (``search.form_steps.as_friction``), else ''."""
@@ -139,7 +150,7 @@ def verdict_text(causes: list[str], best: dict, none_row: dict, rejected: list[d
         change = 100 * (best["validation_mse"] / none_row["validation_mse"] - 1)
         text = (f"cause{'s' if len(causes) > 1 else ''}: {' + '.join(causes)} ({interval_text(best)}); "
                 f"validation MSE {change:+.0f} % against the base refitted alike" + coulomb_text(form_step)
-                + untold_text(limits))
+                + traded_delay_text(best) + untold_text(limits))
     else:
         none_inner = ("no extension earns its parameters on held-out data"
                       + ("; " + ", ".join(f"{r['effect']} scored {r['score']:+.3f} but " + why_not(r, noise)

@@ -16,7 +16,7 @@ from tuner.diagnosis.verdict import NOTES, effect_parameters, unexplained_record
 from tuner.identification.fit import validation_run
 from tuner.metrics import pooled_mse
 
-__all__ = ["Conclusion", "concluded", "conclude", "before_rescue", "result", "before_after"]
+__all__ = ["Conclusion", "concluded", "conclude", "before_rescue", "delay_share", "result", "before_after"]
 
 
 @dataclass
@@ -78,6 +78,15 @@ def before_rescue(first: Conclusion | None) -> dict | None:
             "forms_weighed": first.weighed["tried"] if first.weighed else None}
 
 
+def delay_share(ranking: list[dict], selection: list[dict]) -> float:
+    """The share of the named delay's signature the base absorbs (``selection.delay_absorption``), from the row that
+    added the delay (the first round's or a forward step's; the latest that has one); 0 without one."""
+    rows = [*ranking, *(r for step in selection for r in step.get("tried", []))]
+    shares = [r["delay_absorbed_share"] for r in rows
+              if r.get("added", r["effect"]) == "time_delay" and "delay_absorbed_share" in r]
+    return shares[-1] if shares else 0.0
+
+
 def result(s: SearchState, end: Conclusion, limits: dict) -> dict:
     """What the final model of ``end`` leaves (at the floor, or 'unexplained'), the validation before and after
     in the Table 3 definition (the FMU at its own steps, so that "before" is the Table 3 figure of the same base
@@ -92,6 +101,8 @@ def result(s: SearchState, end: Conclusion, limits: dict) -> dict:
         unexplained["indistinguishable"] = indistinguishable(s.ranking, end.selection, limits)
         if not causes:
             cause = "unexplained"
+    if "time_delay" in causes:
+        best["delay_absorbed_share"] = delay_share(s.ranking, end.selection)
     after_params = s.refits["+".join(causes)].params() if causes else s.base
     s.at("validation before and after", 0.98)
     validation, base_metrics, final_metrics = before_after(s.kind, s.base, after_params if causes else None,

@@ -10,9 +10,11 @@ import numpy as np
 from damper_fmu.effect_catalogue import ALL_EFFECTS
 
 from tuner.diagnosis.cost_model import after_ranking
+from tuner.diagnosis.detection import absorption
 from tuner.diagnosis.extended_parametrization import ExtendedParametrization, base_jacobian
 from tuner.diagnosis.refit import RefitProfile, effect_intervals, refit
-from tuner.diagnosis.rules import ACCEPT_SCORE, cross_check, decide, earned, residual_delay, scores
+from tuner.diagnosis.rules import (ACCEPT_SCORE, CONFOUNDED_SHARE, cross_check, decide, earned,
+                                    expected_residual_delay, residual_delay, scores)
 from tuner.diagnosis.screen import profile_screen
 from tuner.diagnosis.search.reference import base_settled, set_none
 from tuner.diagnosis.search.rows import attach_interval, held_out
@@ -21,8 +23,8 @@ from tuner.diagnosis.verdict import UNITS, interval_text, why_not
 from tuner.formatting import fmt_quantity
 from tuner.metrics import rmse_of_fitness
 
-__all__ = ["expect_after_ranking", "rank", "promote", "continue_lead", "intervals", "select", "next_cause",
-           "rescreened", "name_next"]
+__all__ = ["expect_after_ranking", "rank", "promote", "continue_lead", "intervals", "delay_absorption", "select",
+           "next_cause", "rescreened", "name_next"]
 
 
 def expect_after_ranking(s: SearchState) -> None:
@@ -131,6 +133,7 @@ def intervals(s: SearchState) -> None:
                                                                 else "NOT distinct from zero"))
     shown = residual_delay(s.evidence)
     residual = "" if shown is None else f" ({1e3 * shown:.3g} ms)"
+    delay_absorption(s, s.ranking)
     for r in cross_check(s.ranking, s.evidence):
         s.log(f"  time_delay {1e3 * r['parameters']['time_delay']:.3g} ms disagrees with the residual's "
               f"delay{residual}" + (": refitted from other starts before it is refused" if r["score"] > ACCEPT_SCORE
@@ -138,9 +141,34 @@ def intervals(s: SearchState) -> None:
         if r["score"] > ACCEPT_SCORE:
             again = restarted(s, r["effect"], r)
             s.ranking[s.ranking.index(r)] = again
+            delay_absorption(s, [again])
             if cross_check([again], s.evidence):
                 s.log(f"  time_delay {1e3 * again['parameters']['time_delay']:.3g} ms disagrees with the residual's "
                       f"delay{residual}: not a cause")
+
+
+def delay_absorption(s: SearchState, rows: list[dict]) -> None:
+    """Set ``delay_absorbed_share`` on each row that adds a force-channel delay and scores: the share of that delay's
+    signature on the identification tests (the fitted base, which the residual evidence is of, with and without
+    the row's delay) that the base's own parameters absorb (``tuner.diagnosis.detection.absorption`` on the base
+    Jacobian), for ``rules.cross_check`` to weigh the residual's delay against what such a delay leaves there
+    (``rules.expected_residual_delay``); logged when the base absorbs it (``rules.CONFOUNDED_SHARE``)."""
+    todo = [r for r in rows if r.get("added", r["effect"]) == "time_delay" and r["score"] > ACCEPT_SCORE
+            and r["parameters"].get("time_delay", 0.0) > 0.0 and s.jac_base is not None]
+    if not todo:
+        return
+    u, sv, vt = s.jac_base
+    jacobian = (u * sv) @ vt
+    delays = [r["parameters"]["time_delay"] for r in todo]
+    res = s.eid.residuals_batch([s.base, *({**s.base, "time_delay": d} for d in delays)])
+    for r, d, r_delay in zip(todo, delays, res[1:]):
+        if res[0] is None or r_delay is None:
+            continue
+        r["delay_absorbed_share"], _ = absorption((res[0] - r_delay) / d, jacobian)
+        if r["delay_absorbed_share"] >= CONFOUNDED_SHARE:
+            s.log(f"  time_delay {1e3 * d:.3g} ms: the base absorbs {100 * r['delay_absorbed_share']:.1f} % of its "
+                  f"signature on the identification tests; a real delay this size would leave "
+                  f"{1e3 * expected_residual_delay(r):.3g} ms in the base residual")
 
 
 def select(s: SearchState, causes: list[str], best: dict, selection: list) -> dict:
@@ -275,6 +303,7 @@ def name_next(s: SearchState, rows: list[dict], fits: dict, current_row: dict) -
                        current_row["validation_mse"], new=ALL_EFFECTS[lead["added"]].identified)
         row["added"] = lead["added"]
         rows[rows.index(lead)] = row
+    delay_absorption(s, rows)
     cross_check(rows, s.evidence)
     for row in rows:
         if scores(row):
