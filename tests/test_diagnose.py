@@ -423,6 +423,26 @@ def test_a_named_delay_the_base_absorbs_is_said_to_trade_with_the_base():
     assert traded_delay_text({"delay_absorbed_share": CONFOUNDED_SHARE - 0.01}) == traded_delay_text({}) == ""
 
 
+def test_a_delay_the_base_absorbs_is_restarted_held_at_larger_values_then_released():
+    """Seed 1339: the delay's refit stopped at 1.95 ms of 3.35 ms (the series compliance took the rest) and restarts
+    with the delay free came back there; held at 1.5 and 2.25 x while the rest is refitted, then released, both
+    reached 3.35 ms. Those starts are tried only for a delay the base absorbs (CONFOUNDED_SHARE)."""
+    from types import SimpleNamespace
+
+    from tuner.diagnosis.rules import CONFOUNDED_SHARE
+    from tuner.diagnosis.search.selection import DELAY_RESTARTS, restart_points
+
+    s = SimpleNamespace(guess={"k_B": 1e8, "time_delay": 0.0}, coarser=None)
+    fit = SimpleNamespace(params=lambda: {"k_B": 3e7, "time_delay": 1.95e-3},
+                          ext=SimpleNamespace(extra=["time_delay"]))
+    points = restart_points(s, fit, {"delay_absorbed_share": 0.989})
+    held = [(start, h) for _, start, h in points if h]
+    assert [h["time_delay"] for _, h in held] == pytest.approx([f * 1.95e-3 for f in DELAY_RESTARTS])
+    assert all(start["time_delay"] == h["time_delay"] and start["k_B"] == 1e8 for start, h in held)
+    assert points[0][1] == {"k_B": 1e8, "time_delay": 1.95e-3} and points[0][2] is None   # the guess, as before
+    assert all(h is None for *_, h in restart_points(s, fit, {"delay_absorbed_share": CONFOUNDED_SHARE - 0.01}))
+
+
 def test_a_real_delay_leaves_its_unabsorbed_share_in_a_least_squares_residual():
     """The identity behind ``expected_residual_delay``: the base's residual after a least-squares refit of a
     delay's first-order signature d g (g = -dF/dt) is d (I - P) g, P the projection on the base Jacobian's

@@ -110,8 +110,7 @@ def traded_delay_text(best: dict) -> str:
     if share < CONFOUNDED_SHARE:
         return ""
     return (f"; {100 * share:.0f} % of the delay's signature is what the base model's own elements make (its series "
-            "compliance is a lag too): its size trades with theirs, and the interval does not hold that trade (the "
-            "fit may stop short of the whole delay)")
+            "compliance is a lag too): its size trades with theirs, and the interval does not hold that trade")
 
 
 def coulomb_text(form_step: dict | None) -> str:
