@@ -177,6 +177,7 @@ def select(s: SearchState, causes: list[str], best: dict, selection: list) -> di
     causes found is refitted from the data-driven guess before each step (``restarted``)."""
     while causes and len(causes) < s.settings.max_causes:
         best = restarted(s, "+".join(causes), best)
+        delay_absorption(s, [best])   # at the delay kept (a restart held at a larger delay can move it)
         step = next_cause(s, s.refits["+".join(causes)], best)
         selection.append(step)
         if step["cause"] == "none":
