@@ -12,7 +12,7 @@ from tuner.formatting import fmt_quantity
 
 __all__ = ["UNITS", "NOTES", "ACQUISITION_CAUSES", "unexplained_record", "effect_parameters", "interval_text",
            "limit_text", "verdict_text", "why_not", "map_text", "told_apart_text",
-           "absorbed_text", "untold_text", "traded_delay_text"]
+           "absorbed_phrase", "absorbed_text", "untold_text", "traded_delay_text"]
 
 UNITS = {p.name: p.unit for p in EFFECT_PARAMETERS}
 
@@ -77,22 +77,26 @@ def limit_text(row: dict) -> str:
     if not row["reachable"]:
         return "not detectable within its search range" + absorbed_text(row)
     unit = UNITS[row["parameter"]]
-    notes = [row["best_test"]]
+    notes = [str(row["best_test"])]
     if not row.get("within_plausible", True):
         notes.append(f"beyond the {fmt_quantity(row['plausible_top'], unit)} a damper this size plausibly has")
-    if absorbed_text(row):
-        notes.append(absorbed_text(row).strip()[1:-1])
-    return f"above {fmt_quantity(row['limit'], unit)} ({'; '.join(str(n) for n in notes)})"
+    notes += [absorbed_phrase(row)] if absorbed_phrase(row) else []
+    return f"above {fmt_quantity(row['limit'], unit)} ({'; '.join(notes)})"
 
 
-def absorbed_text(row: dict) -> str:
-    """' (99 % of its force absorbed by the elastic table)' of a detection limit whose effect the base absorbs to at
+def absorbed_phrase(row: dict) -> str:
+    """'99 % of its force absorbed by the elastic table' of a detection limit whose effect the base absorbs to at
     least CONFOUNDED_SHARE, else ''."""
     share = row.get("absorbed_share", 0.0)
     if share < CONFOUNDED_SHARE:
         return ""
     by = " and ".join(row.get("absorbed_by") or {}) or "the base parameters"
-    return f" ({100 * share:.0f} % of its force absorbed by {by})"
+    return f"{100 * share:.0f} % of its force absorbed by {by}"
+
+
+def absorbed_text(row: dict) -> str:
+    """' (99 % of its force absorbed by the elastic table)' (``absorbed_phrase`` in brackets), else ''."""
+    return f" ({absorbed_phrase(row)})" if absorbed_phrase(row) else ""
 
 
 def untold_text(limits: dict | None) -> str:
