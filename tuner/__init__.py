@@ -15,6 +15,7 @@ At the top:
 - ``job``: the whole job (prepare -> fit -> choose the base -> diagnose -> export FMUs -> vehicle -> report);
 - ``metrics``: the error metrics [N, N^2], in one place;
 - ``formatting``: number formatting for people, in one place;
+- ``time_budget``: where a run's minutes went (each stage's and section's seconds and share);
 - ``strict_json``: strict JSON for every file written (non-finite values as ``null``);
 - ``progress``: the one progress display over a whole job;
 - ``worker_processes``: how the worker pools start (a fork server with the simulation modules loaded);

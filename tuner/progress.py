@@ -22,6 +22,8 @@ from __future__ import annotations
 import sys
 import time
 
+from tuner.time_budget import section as _section
+
 __all__ = ["JobProgress", "SubStages", "Plan", "stage", "advance", "expect", "forecast"]
 
 
@@ -73,6 +75,10 @@ class SubStages:
         self.k = min(self.k + 1, self.n)
         advance(self.log, (self.k - 1) / self.n)
 
+    def section(self, name: str) -> None:
+        """A section of the job's current stage starts (``tuner.time_budget.section``)."""
+        _section(self.log, name)
+
     def advance(self, fraction: float) -> None:
         advance(self.log, (max(self.k, 1) - 1 + min(max(float(fraction), 0.0), 1.0)) / self.n)
 
@@ -102,6 +108,10 @@ class Plan:
 
     def __call__(self, msg: str) -> None:
         self.log(msg)
+
+    def section(self, name: str) -> None:
+        """A section of the job's current stage starts (``tuner.time_budget.section``)."""
+        _section(self.log, name)
 
     def part(self, name: str) -> "_PlanPart":
         if name not in self.weights:
@@ -158,6 +168,10 @@ class _PlanPart:
 
     def __call__(self, msg: str) -> None:
         self.plan.log(msg)
+
+    def section(self, name: str) -> None:
+        """A section of the job's current stage starts (``tuner.time_budget.section``)."""
+        _section(self.plan.log, name)
 
     def advance(self, fraction: float) -> None:
         self.plan.set(self.name, fraction)

@@ -41,7 +41,7 @@ from damper_fmu.parameters import MODEL_PARAMETERS
 from tuner.formatting import eng, unit_html
 from tuner.results.diagnosis_report import diagnosis_section_html
 from tuner.results.fit_figures import bound_position, bounds_of, is_log, polyfits
-from tuner.results.fit_folder import FitFolder
+from tuner.results.fit_folder import FitFolder, read_json
 from tuner.results.html import MODEL_LABEL, esc, figure_html, model_label, num, table, write_page
 from tuner.results.intervals_report import intervals_section_html
 from tuner.results.recommendation import railway_damper, recommend, recommendation_html
@@ -428,9 +428,27 @@ def _provenance_section(run: FitFolder) -> str:
            f"tuner.results.report (Python {platform.python_version()}, numpy {np.__version__}, "
            f"matplotlib {matplotlib.__version__}) from folder <code>{esc(run.out.resolve())}</code>.")
     return ("<section id='provenance'><h2>9. Provenance and run settings</h2><p>" + env + "</p>"
+            + _time_budget_html(run.out)
             + table(["Setting (metrics.json)", "Value"], rows, "settings")
             + "<h3>Files of the output folder</h3>" + table(["File", "Size", "SHA-256 (first 16)"], files)
             + "</section>")
+
+
+def _time_budget_html(out: Path) -> str:
+    """Where the run's minutes went (``time_budget.json``, ``tuner.time_budget``): each stage and its sections of
+    at least 1 % of the run, seconds and share; '' when the folder has no budget (a run before it was kept)."""
+    path = out / "time_budget.json"
+    if not path.exists():
+        return ""
+    rec = read_json(path, True)
+    rows = []
+    for st in rec.get("stages", []):
+        rows.append([f"<b>{esc(st['stage'])}</b>", "", f"{st['seconds']:.1f}", f"{100 * st['share']:.1f}"])
+        if len(st.get("sections", [])) > 1:
+            rows += [["", esc(sec["section"]), f"{sec['seconds']:.1f}", f"{100 * sec['share']:.1f}"]
+                     for sec in st["sections"] if sec["share"] >= 0.01]
+    return (f"<h3>Where the time went ({rec.get('total_s', 0.0):.0f} s up to this report)</h3>"
+            + table(["Stage", "Section", "Seconds", "Share of the run [%]"], rows, "budget"))
 
 
 def make_report(out_dir, *, dpi: int = 110, figures: bool = True, workers: int = 0) -> Path:
