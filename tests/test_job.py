@@ -74,6 +74,11 @@ def test_the_job_prepares_once_writes_each_stage_and_reports_last(tmp_path, monk
     assert diagnosis["figures"] and all((out / f).is_file() for f in diagnosis["figures"])
     assert "id='diagnosis'" in res.report.read_text(encoding="utf-8")
     assert res.report.stat().st_mtime >= (out / "diagnosis.json").stat().st_mtime
+    budget = json.loads((out / "time_budget.json").read_text())  # where the minutes went, up to the report
+    stages = [st["stage"] for st in budget["stages"]]
+    assert {"fit lumped", "fit maxwell", "diagnosis", "report"} <= set(stages) and stages[0] == "prepare"
+    assert sum(st["seconds"] for st in budget["stages"]) == pytest.approx(budget["total_s"])
+    assert "Where the time went" in res.report.read_text(encoding="utf-8")
     written = sorted(out.rglob("*.json"))
     assert {"metrics.json", "diagnosis.json", "parameters.json"} <= {p.name for p in written}
     for path in written:  # strict JSON, as jq or JavaScript read it: no Infinity, no NaN

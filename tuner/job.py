@@ -15,6 +15,10 @@ the full-rate check, which runs after the results are safe on disk):
                                                                             failed one: write_diagnosis_failure)
     vehicle/vehicle.json, vehicle/<scenario>.png                            the vehicle (``vehicle=True``)
     vehicle/intervals.json                                                  its 95 % intervals (``vehicle_draws``)
+    time_budget.json                                                        each stage's and section's seconds
+                                                                            and share of the run up to the
+                                                                            report (``tuner.time_budget``; the
+                                                                            log's last lines add the report's)
     report.html, figures/                                                   the report (last)
     checkpoints/                                                            what --resume continues from
 
@@ -35,6 +39,7 @@ from tuner import strict_json
 from tuner.diagnosis.bases import FittedBases, diagnosis_forecast
 from tuner.diagnosis.diagnose import Diagnosis, DiagnosisFailed, DiagnosisSettings, diagnose
 from tuner.executors import FleetExecutor
+from tuner.identification.best_point import continue_fit, lower_points
 from tuner.identification.fit import FitResult, FitSettings, fit, full_rate_checks
 from tuner.identification.intervals import ModelIntervals
 from tuner.identification.problem import Problem
@@ -43,6 +48,7 @@ from tuner.results.diagnosis_figures import diagnosis_figures
 from tuner.results.diagnosis_report import make_diagnosis_report
 from tuner.results.recommendation import recommend
 from tuner.results.report import make_report
+from tuner.time_budget import TimeBudget, section
 from tuner.vehicle.compare import SCENARIO_NAMES, VEHICLE_FOLDER, ScenarioOptions, compare_fmus
 from tuner.vehicle.propagation import INTERVALS_FOR, PropagationSettings, propagate
 
@@ -121,6 +127,7 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
     then what ``options`` asks (``JobOptions``: the diagnosis, the vehicle, the report's figures);
     log: a callable taking one line (or a ``tuner.progress.JobProgress``, whose stages it advances)."""
     out = Path(out)
+    log = log if isinstance(log, TimeBudget) else TimeBudget(log)
     diagnose_after, figures = options.diagnose_after, options.figures
     problem = Problem.build(identification, validation, settings.data)  # prepared once, for every stage
     if diagnose_after and wants_diagnosis(settings, validation) and hasattr(log, "forecast"):
@@ -132,9 +139,11 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
                  problem=problem, log=log)
     result.metrics["warnings"] = reading_warnings([*identification, *validation])  # for the summary and report
     result.write(out)
+    section(log, "export of the tuned FMUs")
     log("exporting tuned FMUs ...")
     export_fmus(result, out)
     # after the results are written: a failure here (an exception, never a number) loses nothing
+    section(log, "full-rate check")
     result.metrics["full_rate"] = full_rate_checks([*identification, *validation], result.params, settings, log)
     result.write_metrics(out)
     diagnosis = None
@@ -145,14 +154,32 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
         except DiagnosisFailed:
             make_report(out, figures=figures)  # the fit's report with the failure said: the fit and its FMUs are safe
             raise
+        _at_the_best_point(result, diagnosis, out, settings, log)
     if options.vehicle:
         vehicle_consequences(sorted((out / "fmu").glob("*_tuned.fmu")), out, settings.seed, log,
                              draws=options.vehicle_draws, scheduler=options.vehicle_scheduler,
                              intervals_for=options.vehicle_intervals)
-    stage(log, "report")
-    report = make_report(out, figures=figures, workers=settings.workers)
+    report = _report(out, log, figures=figures, workers=settings.workers)
     return JobResult(out=out, fit=result, diagnosis=diagnosis, fmus=sorted((out / "fmu").glob("*.fmu")),
                      report=report)
+
+
+def _at_the_best_point(result: FitResult, diagnosis: Diagnosis, out: Path, settings: FitSettings, log) -> None:
+    """Where the diagnosis's base refit ended more than one standard error below the fit of a model
+    (``tuner.identification.best_point``), that model's fit is continued from there and the fit's files, the tuned
+    FMUs and the full-rate check are written again at the final point (the log and ``history_<model>.json``'s
+    ``best_point`` say which stage found it); nothing when every fit was its minimum."""
+    lower = lower_points(diagnosis.get("base_refits") or {}, result.params)
+    if not lower:
+        return
+    for point in lower:
+        continue_fit(result, point, settings, log)
+    result.write(out)
+    section(log, "export of the tuned FMUs at the best point")
+    export_fmus(result, out)
+    result.metrics["full_rate"] = full_rate_checks([*result.problem.identification, *result.problem.validation],
+                                                   result.params, settings, log)
+    result.write_metrics(out)
 
 
 def run_diagnosis(identification: list[RigTest], validation: list[RigTest], out: Path,
@@ -162,16 +189,28 @@ def run_diagnosis(identification: list[RigTest], validation: list[RigTest], out:
     files by ``write_diagnosis``), then the report: the full one when ``out`` holds that fit's files (``figures``: False
     without the fit's figures), the diagnosis alone otherwise."""
     out = Path(out)
+    log = log if isinstance(log, TimeBudget) else TimeBudget(log)
     try:
         result = _diagnose(identification, validation, out, settings, from_fit, log)
     finally:  # a failed diagnosis gets its report too: what was finished, the failing stage, --resume
         if (out / "diagnosis.json").exists():
-            stage(log, "report")
             if (out / "parameters.json").exists():
-                make_report(out, figures=figures, workers=settings.workers)
+                _report(out, log, figures=figures, workers=settings.workers)
             else:
+                stage(log, "report")
                 make_diagnosis_report(out)
+                log(log.text())
     return result
+
+
+def _report(out: Path, log: TimeBudget, *, figures: bool, workers: int) -> Path:
+    """The report of the folder ``out`` (``make_report``), after ``time_budget.json`` (the run's stages up to the
+    report, which the report shows); the whole budget, the report's time too, is the log's last lines."""
+    stage(log, "report")
+    (out / "time_budget.json").write_text(strict_json.dumps(log.record(), indent=1))
+    report = make_report(out, figures=figures, workers=workers)
+    log(log.text())
+    return report
 
 
 def _diagnose(identification, validation, out, settings: DiagnosisSettings, from_fit: FittedBases | None,

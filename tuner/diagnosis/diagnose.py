@@ -233,6 +233,8 @@ def _diagnose_stages(problem: Problem, checkpoints: Path, settings: DiagnosisSet
                        "by": "held-out MSE of the final models (the first choice left a residual above the floor)"}
         log("diagnosis: final base form " + kind + " (held-out MSE of the final models " + ", ".join(
             f"{k} {math.sqrt(v):.1f} N rms" for k, v in final.items()) + ")")
+    # every base's refit on the fit's grid: a lower point than the fit's, on any base, is the job's to adopt
+    base_refits = {k: r.run["base_refit"] for k, r in runs.items()}
     runs[kind], grid = _on_a_fine_enough_grid(kind, bases[kind], problem, settings, checkpoints, runs[kind], record,
                                               plan)
     run = runs[kind].run
@@ -240,6 +242,7 @@ def _diagnose_stages(problem: Problem, checkpoints: Path, settings: DiagnosisSet
     if grid.get("refined"):
         result["verdict"] = f"{result['verdict']}. {grid['text']}"
     result["base_choice"] = base_choice
+    result["base_refits"] = base_refits
     result["grid"] = grid
     result["settings"] = _settings_record(settings, problem, time.perf_counter() - t_start)
     return Diagnosis(result, final_values=run["after_params"], stages=record,

@@ -14,5 +14,7 @@
 - ``validation``: the one definition of the validation figures (the FMU at its own steps, error metrics);
 - ``floor``: the residual floor (force noise and the stroke noise through the model) and when a fit is at it;
 - ``fit``: identification and validation (``fit`` returns a ``FitResult``);
+- ``best_point``: a fit continued from a lower point a later stage found (the diagnosis's base refit), so that
+  the files and FMUs are those of the best point;
 - ``full_rate``: the full-rate check of a decimated fit.
 """

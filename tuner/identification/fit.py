@@ -53,11 +53,12 @@ from tuner.identification.validation import validation_run
 from tuner.metrics import noise_std, rmse_of_fitness
 from tuner.progress import advance, expect, stage
 from tuner import strict_json
+from tuner.time_budget import section
 
 __all__ = ["FitSettings", "FitResult", "Identified", "IdentifyOptions", "fit", "initial_guess", "validation_run", "identify",
            "search_stop_now", "first_improvement", "search_iterations_left", "quality_gate", "QUALITY_AME_PCT",
            "RACE_RATIO", "RESTART_LADDER",
-           "refinement_starts", "fit_order"]
+           "refinement_starts", "fit_order", "Validated", "validated_metrics", "revalidate", "model_intervals"]
 
 #: Log-scaled parameters whose decade decides the basin a local refinement ends in: the data-driven
 #: start is refined again with each one a decade up and down (measured on random lumped dampers: one
@@ -221,6 +222,7 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
     recent = collections.deque([(t_start, evals_start)], maxlen=RATE_WINDOW + 1)  # (time [s], evaluations)
 
     search_stop = {}
+    section(log, "Firefly search")
     with Engine(model, signals, engine=settings.engine, workers=settings.workers, fmu_path=engine_path,
                 max_internal_step=settings.data.internal_step_s) as eng:
         def evaluate(Z):
@@ -259,7 +261,8 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         last_failure = eng.last_failure
         ref = _refine(eng, model, par, settings, result, guess_p, log, options)
         elapsed = time.perf_counter() - t_start
-        ivs = (_intervals(eng, model, signals, par, par.to_params(ref.z), log) if options.intervals and ref.g > 0.0
+        section(log, "intervals")
+        ivs = (model_intervals(eng, model, signals, par, par.to_params(ref.z), log) if options.intervals and ref.g > 0.0
                else None)
     if ref.g <= 0.0:
         raise ValueError(f"[{model}] no candidate could be simulated; the last failure: {last_failure or 'none'}. "
@@ -440,6 +443,7 @@ def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result
     ref = Refinement(result.x_best, result.fitness_best, 0, none, [], None)
     if settings.polish_jacobians <= 0:
         return ref
+    section(log, "local refinements")
     t0 = time.perf_counter()
     starts = [("Firefly best", result.x_best)]
     if not np.allclose(guess, result.x_best):
@@ -481,6 +485,7 @@ def _check_restarts(eng, model: str, par: Parametrization, settings: FitSettings
                     state: firefly.FireflyState, log) -> None:
     """The restart check (``tuner.identification.restart_check``) of the best refinement in ``ref``, from the
     Firefly's last generation (``state``); a lower point it finds becomes ``ref``'s, and ``ref.check`` records it."""
+    section(log, "restart check")
     log(f"[{model}] restart check: is {rmse_of_fitness(ref.g):.2f} N the fit's minimum or its basin's? (restarts "
         f"from the bounds' mid-ranges and the brightest firefly elsewhere; a restart that ends lower by more than one "
         f"standard error of the RMSE continues the fit)")
@@ -638,7 +643,7 @@ class FitResult:
         (Path(out) / "metrics.json").write_text(strict_json.dumps(self.metrics, indent=2, sort_keys=True))
 
 
-def _intervals(eng: Engine, model: str, signals: list[Signals], par: Parametrization, best: dict, log) -> dict:
+def model_intervals(eng: Engine, model: str, signals: list[Signals], par: Parametrization, best: dict, log) -> dict:
     """{"intervals": the ``tuner.identification.intervals.ModelIntervals`` of the fitted model as a dict}, or
     {"intervals": None, "intervals_note": why} when the fitted model cannot be simulated around its point
     (the fit itself is kept); through ``eng``, the identification engine of ``model`` on ``signals``. Logs the
@@ -692,10 +697,8 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
     # every result is checked through the FMU the user gets, whatever engine identified it
     stage(log, "validate and export")
     log(f"validating through the FMU (forces compared in the {settings.data.fit_rate_hz / 2:g} Hz fit band) ...")
-    tests_out, arrays = _validated(identification, validation, problem, params, settings.models)
-    table3 = _table3(tests_out, validation) if "lumped" in settings.models and "maxwell" in settings.models else {}
-    quality = quality_gate(tests_out, settings.models)
-    for model, q in quality.items():
+    checked = validated_metrics(problem, params, settings.models)
+    for model, q in checked.quality.items():
         log(f"[{model}] {q['text']}")
     settings_out = settings.to_dict()
     settings_out.update({
@@ -711,8 +714,37 @@ def fit(identification: list[RigTest], validation: list[RigTest], settings: FitS
         "validation_tests": [t.name for t in validation],
         **(provenance or {}),
     })
-    metrics = {"settings": settings_out, "tests": tests_out, "table3": table3, "quality": quality}
-    return FitResult(params=params, histories=histories, metrics=metrics, simulations=arrays, problem=problem)
+    metrics = {"settings": settings_out, "tests": checked.tests, "table3": checked.table3, "quality": checked.quality}
+    return FitResult(params=params, histories=histories, metrics=metrics, simulations=checked.arrays, problem=problem)
+
+
+@dataclass(frozen=True)
+class Validated:
+    """Every model checked through the FMU on every test (``validated_metrics``): ``tests`` (metrics.json's
+    "tests"), ``arrays`` (simulations.npz), ``table3`` (the paper's Table 3 when lumped and Maxwell were fitted,
+    else {}) and ``quality`` (``quality_gate``)."""
+
+    tests: dict
+    arrays: dict
+    table3: dict
+    quality: dict
+
+
+def validated_metrics(problem: Problem, params: dict, models) -> Validated:
+    """Every one of ``models`` at its values in ``params`` simulated through the FMU on every test of
+    ``problem`` (``validation_run``) and its figures: the one place ``fit`` and a continued fit
+    (``tuner.identification.best_point``) take them."""
+    tests_out, arrays = _validated(problem.identification, problem.validation, problem, params, models)
+    table3 = _table3(tests_out, problem.validation) if "lumped" in models and "maxwell" in models else {}
+    return Validated(tests_out, arrays, table3, quality_gate(tests_out, models))
+
+
+def revalidate(result: FitResult) -> None:
+    """``result``'s validation figures (metrics' tests, Table 3, quality gate; the simulations) taken again at its
+    current values, after a model's values changed (``tuner.identification.best_point.continue_fit``)."""
+    checked = validated_metrics(result.problem, result.params, list(result.params))
+    result.metrics.update({"tests": checked.tests, "table3": checked.table3, "quality": checked.quality})
+    result.simulations = checked.arrays
 
 
 @dataclass(frozen=True)

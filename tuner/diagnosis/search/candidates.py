@@ -12,6 +12,7 @@ from tuner.diagnosis.search.refits import refit_candidate, screen
 from tuner.diagnosis.search.rows import held_out, log_row
 from tuner.diagnosis.search.state import Fit, SearchState
 from tuner.progress import advance
+from tuner.time_budget import section
 
 __all__ = ["candidates"]
 
@@ -21,6 +22,7 @@ def candidates(s: SearchState) -> None:
     (or ``signalled_nonsmooth``) are refitted, the others ranked at their screened point (refitted after all if
     that scores)."""
     exts = {e: ExtendedParametrization(s.par, e, s.peak, s.stroke_range) for e in s.settings.candidates}
+    section(s.log, f"{s.kind} base: screen of the candidates")
     screened = screen(s, exts)
     signalled = signalled_nonsmooth(s)
     passed = [e for e in s.settings.candidates
@@ -40,8 +42,10 @@ def candidates(s: SearchState) -> None:
             s.refits[effect] = Fit(ext, ext.from_params(point), 1)
         refitted = row is None or scores(row)
         if refitted:
+            section(s.log, f"{s.kind} base: refit of {effect}")
             row = refit_candidate(s, effect, ext)
             if effect in signalled or (unearned_nonsmooth(effect, row) and shows_gain(s, row)):
+                section(s.log, f"{s.kind} base: {effect} profiled with the series element held")
                 row = series_ladder(s, effect, ext, row)
             s.cost.refits = max(0.0, s.cost.refits - refit_cost(s.par.dimension, 1, s.settings,
                                                                 ALL_EFFECTS[effect].nonsmooth))

@@ -152,13 +152,19 @@ def base_refit_record(s: SearchState) -> dict:
     """``diagnosis.json``'s ``base_refit``: the fitted base's identification RMSE [N] beside the base refitted
     alike at the end ('none', after any promotion), and one standard error of the RMSE [N]. ``fit_converged``:
     the refit ends no more than that below the fit (else the fit had stopped short of its minimum and the
-    diagnosis ran from a better base than the fit's report and FMUs carry; the log says so)."""
+    diagnosis ran from a better base; the job then continues the fit from the refit's point,
+    ``tuner.identification.best_point``, and rebuilds the FMUs and the report there). ``refit_values``: that point
+    (the base's identified parameters [SI]); ``found_by``: the stage that found it."""
     refit = s.none_row["identification_rmse_n"]
     converged = not (s.fit_base_rmse_n - refit > s.resolvable_n)
+    source = s.none_row.get("from_refit_of")
+    found_by = (f"the diagnosis on the {s.kind} base: the {source} refit with its effect off" if source else
+                f"the diagnosis on the {s.kind} base: the base refitted alike")
     if not converged:
         s.log(f"diagnosis: the base refitted alike ends at {refit:.2f} N, {s.fit_base_rmse_n - refit:.2f} N "
               f"below the fit's {s.fit_base_rmse_n:.2f} N (more than one standard error, "
-              f"{s.resolvable_n:.2g} N): the fit was not converged; its report and FMUs carry the higher point")
+              f"{s.resolvable_n:.2g} N): the fit was not converged (found by {found_by})")
     fit = s.fit_base_rmse_n if math.isfinite(s.fit_base_rmse_n) else None
     return {"fit_rmse_n": fit, "refit_rmse_n": refit, "standard_error_n": s.resolvable_n,
-            "fit_converged": converged if fit is not None else None}
+            "fit_converged": converged if fit is not None else None, "found_by": found_by,
+            "refit_values": {k: float(v) for k, v in s.par.to_params(s.z_none).items() if k in s.par.names}}

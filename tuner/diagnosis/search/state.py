@@ -24,6 +24,7 @@ from tuner.identification.parametrization import Parametrization
 from tuner.identification.polish import PolishResult, polish
 from tuner.identification.problem import Problem
 from tuner.progress import advance, expect
+from tuner.time_budget import section
 
 __all__ = ["PRIOR_EVALUATIONS", "Fit", "SearchState", "base_point"]
 
@@ -164,6 +165,7 @@ class SearchState:
     def at(self, stage: str, fraction: float | None = None) -> None:
         """Stage ``stage`` runs (``record['stage']``); the progress display at ``fraction`` of the diagnosis."""
         self.record["stage"] = f"{stage} on the {self.kind} base"
+        section(self.log, f"{self.kind} base: {stage}")
         if fraction is not None:
             advance(self.log, fraction)
 
