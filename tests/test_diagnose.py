@@ -799,3 +799,17 @@ def test_an_interval_whose_steps_cannot_be_simulated_is_not_significant_and_says
     attach_interval(row, ci, ext, ["inertia_mass"])
     assert row["significant"] is False and not earned(row)
     assert "could not be computed" in why_not(row, 20.0) and "Newton stalled" in why_not(row, 20.0)
+
+
+def test_the_causes_one_base_named_travel_to_the_repeat_on_the_other():
+    """``named_effects``: a repeat on another base form gets the catalogue causes the first named, each at the
+    first's final values (its identified parameters only), never a form beyond the catalogue nor a non-candidate."""
+    from tuner.diagnosis.diagnose import named_effects
+
+    run = {"causes": ["free_play", "preload", "hysteresis"],
+           "after_params": {"free_play": 3.4e-4, "preload_force": 295.0, "k_B": 1e8, "friction_force": 0.0}}
+    found = named_effects(run, DiagnosisSettings())
+    assert found == {"free_play": {"free_play": 3.4e-4}, "preload": {"preload_force": 295.0}}
+    assert named_effects({"causes": [], "after_params": {}}, DiagnosisSettings()) == {}
+    only_friction = DiagnosisSettings(candidates=("friction",))
+    assert named_effects(run, only_friction) == {}

@@ -192,3 +192,22 @@ def test_the_series_element_held_a_decade_up_lets_the_gap_profile_reach_what_a_r
     assert near.sse[k] < 1e-3 * from_base.sse[0]
     far = series_profiles(eng, ext, z0, 0, values, sse_off, [{"k_s": 6.0e6}])
     assert min(far.sse) > 0.1 * from_base.sse[0]
+
+
+def test_the_series_ladder_holds_decades_across_the_range_never_one_value():
+    """The series element's held values (``series_values``): a guess whose decades above are capped at the bound
+    still gets the bound and the decades below it, decades apart, none softer than a tenth of the stroke's
+    deflection at the peak force; a guess well inside the range gets the stiffer decades first."""
+    from types import SimpleNamespace
+
+    from tuner.diagnosis.search.nonsmooth import SOFTEST_SERIES, series_values
+
+    par = SimpleNamespace(bounds={"k_B": (1e2, 1e9)})
+    s = SimpleNamespace(par=par, guess={"k_B": 2.5e8}, peak=20e3, stroke_range=0.04)
+    held = series_values(s, "k_B")
+    assert held[0] == 1e9 and len(held) >= 3
+    assert all(a / b >= 2.0 or b / a >= 2.0 for a, b in zip(held, held[1:]))  # apart, not the same value again
+    assert min(held) <= 2.5e8 / 5 and min(held) >= SOFTEST_SERIES * 20e3 / 0.04
+    s = SimpleNamespace(par=par, guess={"k_B": 1e6}, peak=20e3, stroke_range=0.04)
+    held = series_values(s, "k_B")
+    assert held[:2] == [1e7, 1e8] and max(held) <= 1e9 and min(held) >= SOFTEST_SERIES * 20e3 / 0.04

@@ -80,12 +80,16 @@ class Base:
     """A base form to diagnose on: its parametrization (the 'improved' scheme), its values [SI], and what its
     identification on these tests says (``BaseRefinement``). A settled base is not refitted again as 'none'
     (the same refinement from the same point ends where it is). ``coarser``: what a diagnosis on a coarser grid
-    found (``CoarserGrid``; None: there was none)."""
+    found (``CoarserGrid``; None: there was none). ``found_elsewhere``: the causes the diagnosis on another base form
+    named, {effect: its parameters [SI]}: each is refitted on this base from those values too (a free play the
+    two-chamber base names is tried on the lumped base from its gap, ``search.refits.refit_candidate``), so that the
+    bases are compared with the fault on both."""
 
     par: Parametrization
     values: dict
     refinement: BaseRefinement = BaseRefinement()
     coarser: CoarserGrid | None = None
+    found_elsewhere: dict = field(default_factory=dict)
 
     @property
     def settled(self) -> str | None:

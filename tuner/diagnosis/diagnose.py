@@ -82,7 +82,7 @@ from pathlib import Path
 
 import numpy as np
 
-from damper_fmu.effect_catalogue import search_bounds  # noqa: F401
+from damper_fmu.effect_catalogue import ALL_EFFECTS, search_bounds  # noqa: F401
 
 from tuner import strict_json
 from tuner.data.reading import RigTest
@@ -203,25 +203,8 @@ def _diagnose_stages(problem: Problem, checkpoints: Path, settings: DiagnosisSet
     forecast_parts(plan, bases, problem, settings, kind)
     runs = {kind: _checkpointed_run(kind, bases[kind], problem, settings, checkpoints, "figures", record,
                                     plan.part(f"diagnosis on the {kind} base"))}
-    skipped = {}
-    for other in [k for k in bases if k != kind]:
-        left = runs[kind].run["unexplained"]
-        why = "" if left is None else why_not_repeated(kind, other, runs[kind].run, bases[other].values, problem,
-                                                      settings)
-        if why is not None:
-            plan.skip(f"diagnosis on the {other} base")
-        if left is None:
-            continue
-        if why:
-            skipped[other] = why
-            log(f"diagnosis: the {kind} base leaves {left['ratio']:.1f} x the residual floor; not repeated on the "
-                f"{other} base: {why}")
-            continue
-        log(f"diagnosis: the {kind} base leaves {left['ratio']:.1f} x the residual floor: "
-            f"repeated on the {other} base (the base is chosen again by the final models' held-out MSE)")
-        plan.maybe(f"diagnosis on the {other} base", None)
-        runs[other] = _checkpointed_run(other, bases[other], problem, settings, checkpoints, f"figures/base_{other}",
-                                        record, plan.part(f"diagnosis on the {other} base"))
+    skipped = _repeats(kind, bases, runs, problem, settings, checkpoints, record, plan)
+    _with_the_causes_of_the_others(kind, bases, runs, problem, settings, checkpoints, record, plan)
     if skipped:
         base_choice = {**(base_choice or {}), "not_repeated_on": skipped}
     if len(runs) > 1:
@@ -247,6 +230,80 @@ def _diagnose_stages(problem: Problem, checkpoints: Path, settings: DiagnosisSet
     result["settings"] = _settings_record(settings, problem, time.perf_counter() - t_start)
     return Diagnosis(result, final_values=run["after_params"], stages=record,
                      residuals={r.figures: r.residuals for r in runs.values()})
+
+
+def _repeats(kind: str, bases: dict, runs: dict, problem: Problem, settings: DiagnosisSettings, checkpoints: Path,
+             record: dict, plan) -> dict:
+    """The diagnosis repeated on the other base forms when the first (``kind``, ``runs[kind]``) leaves a residual
+    above the floor and the other can plausibly win (``why_not_repeated``), each with the causes the first named
+    (``named_effects``, ``Base.found_elsewhere``); their runs added to ``runs``, ``bases`` updated. Returns {base:
+    why it was not repeated there}."""
+    skipped = {}
+    for other in [k for k in bases if k != kind]:
+        left = runs[kind].run["unexplained"]
+        why = "" if left is None else why_not_repeated(kind, other, runs[kind].run, bases[other].values, problem,
+                                                      settings)
+        if why is not None:
+            plan.skip(f"diagnosis on the {other} base")
+        if left is None:
+            continue
+        if why:
+            skipped[other] = why
+            plan(f"diagnosis: the {kind} base leaves {left['ratio']:.1f} x the residual floor; not repeated on the "
+                 f"{other} base: {why}")
+            continue
+        plan(f"diagnosis: the {kind} base leaves {left['ratio']:.1f} x the residual floor: "
+             f"repeated on the {other} base (the base is chosen again by the final models' held-out MSE)")
+        plan.maybe(f"diagnosis on the {other} base", None)
+        found = named_effects(runs[kind].run, settings)
+        if found:
+            plan(f"diagnosis: the causes the {kind} base named ({', '.join(found)}) are refitted on the {other} base "
+                 f"from their values there too")
+        bases[other] = replace(bases[other], found_elsewhere=found)
+        runs[other] = _checkpointed_run(other, bases[other], problem, settings, checkpoints, f"figures/base_{other}",
+                                        record, plan.part(f"diagnosis on the {other} base"))
+    return skipped
+
+
+def _with_the_causes_of_the_others(kind: str, bases: dict, runs: dict, problem: Problem,
+                                   settings: DiagnosisSettings, checkpoints: Path, record: dict, plan) -> None:
+    """The reverse of a repeat's ``found_elsewhere``: when the first base (``kind``) would be kept (the lowest
+    held-out MSE of the final models) while a repeat named causes the first did not, the diagnosis on the first
+    base runs again with those causes refitted from the repeat's values too (checkpointed in
+    ``checkpoints/with_others_causes``), and replaces the first's run when its final model validates better: the
+    fault is tried on the base the data prefer before the verdict."""
+    if len(runs) < 2:
+        return
+    final = {k: r.run["final_validation_mse"] for k, r in runs.items()}
+    if min(final, key=final.get) != kind:
+        return
+    named_first = set(runs[kind].run["causes"])
+    found = {}
+    for other in (k for k in runs if k != kind):
+        found.update({e: v for e, v in named_effects(runs[other].run, settings).items() if e not in named_first})
+    if not found:
+        return
+    plan(f"diagnosis: the {kind} base validates best but named no {', '.join(found)}, which another base named: "
+         f"the diagnosis on the {kind} base runs again with them refitted from the values found there")
+    folder = checkpoints / "with_others_causes"
+    folder.mkdir(exist_ok=True)
+    again = _checkpointed_run(kind, replace(bases[kind], found_elsewhere=found), problem, settings, folder, "figures",
+                              record, plan.part(f"diagnosis on the {kind} base"))
+    if again.run["final_validation_mse"] < final[kind]:
+        bases[kind] = replace(bases[kind], found_elsewhere=found)
+        runs[kind] = again
+    plan(f"diagnosis: again on the {kind} base: causes {', '.join(again.run['causes']) or 'none'}, held-out "
+         f"{math.sqrt(again.run['final_validation_mse']):.1f} N rms against {math.sqrt(final[kind]):.1f} N rms "
+         + ("(kept)" if runs[kind] is again else "(the first run stands)"))
+
+
+def named_effects(run: dict, settings: DiagnosisSettings) -> dict:
+    """{effect: its parameters [SI]} of the catalogue causes a diagnosis on one base form named (its ``run``
+    record's causes, at its final model's values): what a repeat on another base form refits from them too
+    (``Base.found_elsewhere``)."""
+    values = run.get("after_params") or {}
+    return {c: {n: float(values[n]) for n in ALL_EFFECTS[c].identified if n in values}
+            for c in run.get("causes") or [] if c in settings.candidates and c in ALL_EFFECTS}
 
 
 def forecast_parts(plan, bases: dict, problem: Problem, settings: DiagnosisSettings, first: str) -> None:
@@ -294,7 +351,8 @@ def _on_a_fine_enough_grid(kind: str, base: Base, problem: Problem, settings: Di
     part.expect(check.cost_ratio * first.seconds)
     folder = checkpoints / f"grid_{1e6 * check.finer_step_s:.0f}us"
     folder.mkdir(exist_ok=True)
-    fine = _checkpointed_run(kind, Base(base.par, base.values, coarser=CoarserGrid.of(first.run)), finer,
+    fine = _checkpointed_run(kind, Base(base.par, base.values, coarser=CoarserGrid.of(first.run),
+                                                   found_elsewhere=base.found_elsewhere), finer,
                              fine_settings, folder, first.figures, record, part)
     after = grid_check(kind, fine.run["after_params"], finer, settings.engine)
     plan(f"diagnosis: grid check on the finer grid: {after.text()}")
@@ -326,7 +384,7 @@ def _checkpointed_run(kind: str, base: Base, problem: Problem, settings: Diagnos
     # that checkpoints written before the settings held a DataSettings still match
     key = _digest([problem.digest, kind, {k: v for k, v in settings.to_dict().items()
                                           if k not in ("workers", "parametrization")}])
-    base_key = _digest(base.values)
+    base_key = _digest([base.values, base.found_elsewhere] if base.found_elsewhere else base.values)
     if path.exists():
         saved = strict_json.loads(path.read_text())
         if saved.get("key") != key:

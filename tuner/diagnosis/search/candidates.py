@@ -26,7 +26,7 @@ def candidates(s: SearchState) -> None:
     screened = screen(s, exts)
     signalled = signalled_nonsmooth(s)
     passed = [e for e in s.settings.candidates
-              if screened.get(e) is None or screened[e].passes or e in signalled]
+              if screened.get(e) is None or screened[e].passes or e in signalled or e in s.found_elsewhere]
     s.cost.done("screen")
     s.cost.refits = sum(refit_cost(s.par.dimension, 1, s.settings, ALL_EFFECTS[e].nonsmooth) for e in passed)
     s.forecast()
@@ -35,7 +35,7 @@ def candidates(s: SearchState) -> None:
         advance(s.log, 0.2 + 0.5 * k / len(s.settings.candidates))
         ext, scr = exts[effect], screened.get(effect)
         row = None
-        if scr is not None and not scr.passes and effect not in signalled:
+        if scr is not None and not scr.passes and effect not in signalled and effect not in s.found_elsewhere:
             point = {**at_none, **scr.values}
             row = held_out(s, effect, point, ext.extra, s.eid.n_samples / scr.sse_n2, 1, s.mse_none)
             row["identification_rmse_effect_off_n"] = s.none_row["identification_rmse_n"]

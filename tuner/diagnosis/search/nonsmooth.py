@@ -23,15 +23,42 @@ __all__ = ["series_ladder", "unearned_nonsmooth", "shows_gain", "signalled_nonsm
            "refit_unseen"]
 
 
+#: the softest series stiffness the ladder holds, as a multiple of the damper's peak force over its stroke range (a
+#: series element that alone would deflect a tenth of the stroke range at the peak force); softer is no mount
+SOFTEST_SERIES = 10.0
+#: the decades [powers of ten of the data-driven guess's stiffness] the ladder holds, in the order it holds them
+#: (``series_values``): one, two and three above, then the guess's own and one below
+SERIES_DECADES = (1, 2, 3, 0, -1)
+
+
+def series_values(s: SearchState, k: str) -> list[float]:
+    """The series stiffness values [N/m] the ladder holds (``series_ladder``), in order: the data-driven guess's
+    stiffness ``SERIES_DECADES`` decades up and down, each capped at the element's upper bound (the bound itself
+    once) and none softer than ``SOFTEST_SERIES`` x peak force / stroke range (or the lower bound). Stiffer first: a
+    base absorbs a gap by softening the element, so the truth lies above the fit; the ladder stops at the first
+    value whose refit explains the residual. Decades apart across the element's plausible range, never one value:
+    a ladder that held only a decade and two above the guess, both capped at the bound (1e9 N/m), held one value
+    where the data's mounts were four times softer, and the gap was never released on the base that made the
+    data."""
+    lo, hi = s.par.bounds[k]
+    soft = max(lo, SOFTEST_SERIES * s.peak / max(s.stroke_range, 1e-12))
+    values = []
+    for j in SERIES_DECADES:
+        v = min(s.guess[k] * 10.0 ** j, hi)
+        if v >= soft and all(abs(math.log(v / w)) > 0.1 for w in values):
+            values.append(v)
+    return values or [hi]
+
+
 def series_ladder(s: SearchState, effect: str, ext: ExtendedParametrization, row: dict) -> dict:
     """A nonsmooth effect signalled above the noise (``signalled_nonsmooth``) or refitted without earning a
     score (``unearned_nonsmooth``) whose refit still leaves a residual above the floor is profiled again with
-    the element in series with it (``SERIES_ELEMENT``) held a decade and two above the data-driven guess's
-    stiffness, at the guess's damping (``tuner.diagnosis.held_profiles.series_profiles``; a mount fitted as a dashpot carries a gap's
-    lost motion; the second only when the first leaves the residual above the floor), then polished jointly;
-    the better refit of the effect is kept. Returns its ranking row (``series_element_held``: the values held
-    [SI]; ``series_element_released``: whether the ladder's refit was kept). Not run again in a diagnosis on a finer
-    grid when the coarser grid's ladder kept nothing (``CoarserGrid.idle_ladders``)."""
+    the element in series with it (``SERIES_ELEMENT``) held at each of ``series_values`` (decades apart across
+    its range), at the guess's damping (``tuner.diagnosis.held_profiles.series_profiles``; a mount fitted as a
+    dashpot carries a gap's lost motion; the next value only while the residual stays above the floor), then
+    polished jointly; the better refit of the effect is kept. Returns its ranking row (``series_element_held``: the
+    values held [SI]; ``series_element_released``: whether the ladder's refit was kept). Not run again in a
+    diagnosis on a finer grid when the coarser grid's ladder kept nothing (``CoarserGrid.idle_ladders``)."""
     names = SERIES_ELEMENT.get(s.kind)
     if names is None or not s.above_floor(row["identification_rmse_n"]):
         return row
@@ -40,11 +67,7 @@ def series_ladder(s: SearchState, effect: str, ext: ExtendedParametrization, row
               f"fitted no better on the coarser grid: not profiled again")
         return {**row, "series_element_released": False}
     k, c = names
-    held = []
-    for decades in (1, 2):
-        value = min(s.guess[k] * 10.0 ** decades, s.par.bounds[k][1])
-        if all(h[k] != value for h in held):
-            held.append({k: value, c: s.guess[c]})
+    held = [{k: value, c: s.guess[c]} for value in series_values(s, k)]
     i = ext.extra.index(ALL_EFFECTS[effect].magnitude)
     lo, hi = ext.extra_bounds[i]
     values = [(v - lo) / (hi - lo) for v in grid(lo, hi, s.settings.grid_points, ext.floors[i]) if v > lo]

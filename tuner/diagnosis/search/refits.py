@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -11,6 +12,8 @@ from tuner.diagnosis.refit import RefitProfile, refit
 from tuner.diagnosis.screen import SCREEN_SHARE, profile_screen
 from tuner.diagnosis.search.rows import held_out
 from tuner.diagnosis.search.state import Fit, SearchState
+from tuner.identification.polish import PolishResult
+from tuner.metrics import rmse_of_fitness
 
 __all__ = ["screen", "refit_candidate"]
 
@@ -47,5 +50,28 @@ def refit_candidate(s: SearchState, effect: str, ext: ExtendedParametrization) -
         evals += fit.evaluations
         if fit.fitness > g:
             best_z, g = fit.z, fit.fitness
+    elsewhere = s.found_elsewhere.get(effect)
+    if elsewhere:  # named on another base form: from its values too (held, the rest refitted; then released)
+        pol = _from_elsewhere(s, ext, elsewhere)
+        z, fitness = pol.z, pol.fitness
+        evals += pol.evaluations
+        s.log(f"  {effect:14s} refitted from the values the other base form named ("
+              + ", ".join(f"{k} = {v:.4g}" for k, v in elsewhere.items()) + f"): identification RMSE "
+              f"{rmse_of_fitness(fitness):.1f} N against {rmse_of_fitness(g):.1f} N from this base's own starts"
+              + ("; kept" if fitness > g else ""))
+        if fitness > g:
+            best_z, g = z, fitness
     s.refits[effect] = Fit(ext, best_z, evals)
     return held_out(s, effect, ext.to_params(best_z), ext.extra, g, evals, s.mse_none)
+
+
+def _from_elsewhere(s: SearchState, ext: ExtendedParametrization, values: dict) -> PolishResult:
+    """The refinement (its point in ``ext``'s coordinates, fitness N / SSE [1/N^2], the simulations of both stages)
+    of the effect refitted from ``values`` [SI] another base form named: the base refitted alike with the effect's parameters held there (what this base
+    absorbed of the effect given back), then every coordinate released, each to its rule
+    (``final_jacobians`` at most)."""
+    start = {**s.base, **s.par.to_params(s.z_none), **values}
+    held = ext.holding({k: v for k, v in values.items() if k in ext.extra})
+    first = s.polish_quietly(held, held.from_params(start), s.settings.final_jacobians)
+    pol = s.polish_quietly(ext, ext.from_params(held.to_params(first.z)), s.settings.final_jacobians)
+    return replace(pol, evaluations=first.evaluations + pol.evaluations)

@@ -74,6 +74,7 @@ class SearchState:
     figures_folder: str  # where the job draws the figures, relative to the output folder
     settled_by: str | None  # how the refinement of the base on these tests ended (``Base.settled``)
     coarser: CoarserGrid | None  # what a diagnosis on a coarser grid found (``Base.coarser``)
+    found_elsewhere: dict  # {effect: parameters [SI]} the diagnosis on another base form named (``Base.found_elsewhere``)
     rate_prior: float | None  # [s per simulation] the diagnosis's expected, from the fit's
     peak: float  # [N]
     stroke_range: float  # [m]
@@ -129,6 +130,7 @@ class SearchState:
             guess[p.name] = p.default
         return cls(kind=kind, par=base.par, data=data, settings=settings, log=log, record=record,
                    figures_folder=figures, settled_by=base.refinement.settled, coarser=base.coarser,
+                   found_elsewhere=dict(base.found_elsewhere),
                    rate_prior=None if rate is None else rate * EXTENDED_COST,
                    peak=data.peak_n, stroke_range=data.stroke_range_m, noise=data.noise_n,
                    size=DamperSize(data.peak_n, data.stroke_range_m),
