@@ -9,6 +9,7 @@ from pathlib import Path
 from campaign.cli import float_list  # the one argparse type for number lists
 from tuner.cli.log import log
 from tuner.data.read_options import COLUMN_OPTIONS, DEFAULT_DAMPER_CLASS, ReadOptions, read_column_mapping
+from tuner.data import units
 from tuner.data.reading import load_dataset, load_files
 from tuner.data.summary import filter_warning, summarize, summary_text
 from tuner.executors import parse_scheduler
@@ -35,11 +36,13 @@ def add_data_options(g) -> None:
     g.add_argument("--test-col", default=None, metavar="COL",
                    help="test-id column: a file holding several tests is split by its values")
     g.add_argument("--time-unit", default=None, choices=["s", "ms"])
-    g.add_argument("--stroke-unit", default=None, choices=["m", "cm", "mm", "um"],
-                   help="unit of the stroke (default: as the header or units row declares, else m)")
-    g.add_argument("--force-unit", default=None, choices=["N", "daN", "kN"],
-                   help="unit of the force (default: as the header or units row declares, else N)")
-    g.add_argument("--velocity-unit", default=None, choices=["m/s", "cm/s", "mm/s", "um/s"])
+    g.add_argument("--stroke-unit", default=None, choices=list(units.STROKE),
+                   help="unit of the stroke (default: as the header or units row declares, else m); in and ft "
+                        "exactly (0.0254 m/in)")
+    g.add_argument("--force-unit", default=None, choices=list(units.FORCE),
+                   help="unit of the force (default: as the header or units row declares, else N); lbf and kip "
+                        "exactly (4.4482216152605 N/lbf)")
+    g.add_argument("--velocity-unit", default=None, choices=list(units.VELOCITY))
     g.add_argument("--temperature-unit", default=None, choices=["degC", "K"])
     g.add_argument("--stroke-sign", type=int, default=None, choices=[1, -1],
                    help="-1 if the rig writes compression as positive stroke (ours: extension positive)")

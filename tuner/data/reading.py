@@ -18,9 +18,8 @@ import numpy as np
 import pandas as pd
 
 from tuner.data.differentiator import Differentiator
-from damper_dataset.format import (FORCE_UNITS, MANIFEST_TEST_KEYS, ROLES, STROKE_UNITS, TEMPERATURE_UNITS,
-                                   TIME_UNITS, VELOCITY_UNITS, DataError, check_finite, check_signals, read_manifest,
-                                   suggest_unit)
+from damper_dataset.format import (FORCE_UNITS, FORMAT_ID, MANIFEST_TEST_KEYS, ROLES, STROKE_UNITS, TIME_UNITS,
+                                   DataError, check_finite, check_signals, read_manifest, suggest_unit)
 from tuner.data.calibration import apply as calibrate, calibration, force_zero as tare_force
 from tuner.data.prefilter import parse_prefilter
 # the record of the reader's options and the mapping file, also reachable here (the reader's API in one module)
@@ -28,6 +27,7 @@ from tuner.data.read_options import (COLUMN_OPTIONS, DEFAULT_DAMPER_CLASS, READ_
                                      read_column_mapping)
 from tuner.data.rigfile import RawTable, read_raw, split_unit
 from tuner.data.stamps import check_date_order, is_stamp, stamp_seconds
+from tuner.data.units import FORCE, STROKE, TEMPERATURE as TEMPERATURE_UNITS, TIME, VELOCITY, family, us_conversions
 
 MAX_STROKE_RANGE_M = 2.0
 MIN_STROKE_RANGE_M = 5e-6
@@ -101,7 +101,7 @@ def class_warning(source, figures: dict, damper_class: str = DEFAULT_DAMPER_CLAS
     fu = (units or {}).get("force", "N")
     return (f"{source}: apparent damping {c_app:.3g} N s/m (rms force / rms stroke velocity) is "
             f"{'below' if c_app < lo else 'above'} the {damper_class} damper range {lo:.0e}-{hi:.0e} N s/m "
-            f"(force read in {fu!r})." + suggest_unit(FORCE_UNITS, fu, lambda r: lo <= c_app * r <= hi)
+            f"(force read in {fu!r})." + suggest_unit(family(FORCE, fu), fu, lambda r: lo <= c_app * r <= hi)
             + " Check --force-unit/--stroke-unit, or name the damper class with --damper-class "
             + "/".join(DAMPER_CLASSES))
 
@@ -138,26 +138,26 @@ def plausibility(source, time, stroke, force, velocity=None, rate=None, units=No
         raise DataError(
             f"{source}: implausible stroke: range {srange:.4g} m, peak velocity {vpeak:.4g} m/s (a damper rig "
             f"moves <= {MAX_STROKE_RANGE_M:g} m at <= {MAX_VELOCITY_M_S:g} m/s) with stroke in {su!r}."
-            + suggest_unit(STROKE_UNITS, su, lambda r: srange * r <= MAX_STROKE_RANGE_M and vpeak * r <= MAX_VELOCITY_M_S
+            + suggest_unit(family(STROKE, su), su, lambda r: srange * r <= MAX_STROKE_RANGE_M and vpeak * r <= MAX_VELOCITY_M_S
                        and srange * r >= MIN_STROKE_RANGE_M) + " Use --stroke-unit." + scaled + tail)
     if srange < MIN_STROKE_RANGE_M:
         raise DataError(
             f"{source}: implausible stroke: range {srange * 1e6:.3g} um (< {MIN_STROKE_RANGE_M * 1e6:g} um, under a "
             f"rig's displacement resolution) with stroke in {su!r}."
-            + suggest_unit(STROKE_UNITS, su, lambda r: MIN_STROKE_RANGE_M <= srange * r <= MAX_STROKE_RANGE_M)
+            + suggest_unit(family(STROKE, su), su, lambda r: MIN_STROKE_RANGE_M <= srange * r <= MAX_STROKE_RANGE_M)
             + " Use --stroke-unit, or the stroke signal is missing." + scaled + tail)
     if fpeak < MIN_FORCE_PEAK_N or fpeak > MAX_FORCE_PEAK_N:
         raise DataError(
             f"{source}: implausible force: peak |force| {fpeak:.4g} N (a damper on a rig: {MIN_FORCE_PEAK_N:g} N "
             f"to {MAX_FORCE_PEAK_N:.0e} N) with force in {fu!r}."
-            + suggest_unit(FORCE_UNITS, fu, lambda r: MIN_FORCE_PEAK_N <= fpeak * r <= MAX_FORCE_PEAK_N)
+            + suggest_unit(family(FORCE, fu), fu, lambda r: MIN_FORCE_PEAK_N <= fpeak * r <= MAX_FORCE_PEAK_N)
             + " Use --force-unit, or the load signal is missing." + scaled + tail)
     if c_app is not None and c_app < MIN_DAMPING_N_S_PER_M:
         raise DataError(
             f"{source}: implausible force for its stroke: rms force {np.std(force):.4g} N at rms velocity "
             f"{vrms:.4g} m/s is an apparent damping of {c_app:.3g} N s/m, under the {MIN_DAMPING_N_S_PER_M:g} N s/m "
             f"of the lightest vehicle damper, with force in {fu!r} and stroke in {su!r}."
-            + suggest_unit(FORCE_UNITS, fu, lambda r: c_app * r >= MIN_DAMPING_N_S_PER_M and fpeak * r <= MAX_FORCE_PEAK_N)
+            + suggest_unit(family(FORCE, fu), fu, lambda r: c_app * r >= MIN_DAMPING_N_S_PER_M and fpeak * r <= MAX_FORCE_PEAK_N)
             + " Use --force-unit/--stroke-unit." + scaled + tail)
     if power is not None and power < MIN_FORCE_VELOCITY_CORRELATION:
         raise DataError(
@@ -169,7 +169,7 @@ def plausibility(source, time, stroke, force, velocity=None, rate=None, units=No
             f"{source}: implausible stroke for its force: rms force {np.std(force):.4g} N at rms velocity "
             f"{vrms:.4g} m/s is an apparent damping of {c_app:.3g} N s/m, over {MAX_DAMPING_N_S_PER_M:.0e} N s/m "
             f"(100 x a yaw damper's), with stroke in {su!r} and force in {fu!r}."
-            + suggest_unit(STROKE_UNITS, su, lambda r: c_app / r <= MAX_DAMPING_N_S_PER_M and srange * r <= MAX_STROKE_RANGE_M)
+            + suggest_unit(family(STROKE, su), su, lambda r: c_app / r <= MAX_DAMPING_N_S_PER_M and srange * r <= MAX_STROKE_RANGE_M)
             + " Use --stroke-unit/--force-unit." + scaled + tail)
     return fig
 
@@ -200,7 +200,7 @@ def _time_seconds(raw: RawTable, col: str, unit: str, source: str, date_order=No
     ``'dmy'`` or None (from the data)."""
     s = raw.frame[col]
     if s.dtype.kind in "fiu" or pd.to_numeric(s.iloc[:20], errors="coerce").notna().any():
-        return _numeric(raw, col, source) * _unit_factor(TIME_UNITS, unit, "time", source), "seconds", {}
+        return _numeric(raw, col, source) * _unit_factor(TIME, unit, "time", source), "seconds", {}
     if s.dtype.kind != "M" and is_stamp(s.iloc[0]):  # a date and a clock time, as loggers write them
         t, how = stamp_seconds(s, date_order, source, col, raw.lines)
         return t, "timestamp", how
@@ -304,13 +304,28 @@ def _temperature_column(raw: RawTable, use: dict, source: str, warn: list) -> st
     return in_temperature[0] if in_temperature else None  # 'Temperature (V)' beside it is a channel
 
 
+#: the column options' defaults (``ReadOptions``): role -> column name
+_DEFAULT_COLUMNS = ReadOptions().columns
+
+
+def _format_names(raw: RawTable, names: dict) -> dict:
+    """Role -> the column option, where one left at its default (``force``) names no column of the file but
+    the format names one for that role (an MTS export's ``Load``: ``RawTable.defaults``) taken as that."""
+    low = {c.lower() for c in raw.frame.columns} | {raw.names[c].lower() for c in raw.frame.columns}
+    out = dict(names)
+    for role, col in raw.defaults.items():
+        if names.get(role) == _DEFAULT_COLUMNS[role] and str(names[role]).lower() not in low:
+            out[role] = col
+    return out
+
+
 def _pick_columns(raw: RawTable, source: str, opts: ReadOptions) -> tuple:
     """Which column is which (``opts.columns``: role -> the ``*_col`` option; ``opts.rate_hz``,
     ``opts.extra_cols``). Returns (use: role -> column, no_time, extra columns to read, whether they were
     asked for, unused columns, warnings). Raises DataError naming the option for a missing column."""
     found = list(raw.frame.columns)
-    warn = []
-    names, rate_hz, extra_cols = opts.columns, opts.rate_hz, opts.extra_cols
+    warn = list(raw.info.get("warnings", []))
+    names, rate_hz, extra_cols = _format_names(raw, opts.columns), opts.rate_hz, opts.extra_cols
     time_col = names["time"]
     no_time = time_col is None or (rate_hz is not None and time_col == "time" and "time" not in found
                                    and not any(raw.names[c].lower() == "time" for c in found))
@@ -357,8 +372,8 @@ def _signals(raw: RawTable, use: dict, source: str, opts: ReadOptions, cal: dict
     as ``'raw:NAME'``; units read)."""
     cols, units, raws = {}, {}, {}
     given, signs, channel_units = opts.units, opts.signs, opts.channel_units
-    for what, table, default in (("stroke", STROKE_UNITS, "m"), ("force", FORCE_UNITS, "N"),
-                                 ("velocity", VELOCITY_UNITS, None)):
+    for what, table, default in (("stroke", STROKE, "m"), ("force", FORCE, "N"),
+                                 ("velocity", VELOCITY, None)):
         if what not in use:
             continue
         c = cal.get(what)
@@ -570,7 +585,11 @@ def _test_checks(label: str, t, cols: dict, channels: dict, lines, units: dict, 
 
 
 def _groups(raw: RawTable, use: dict) -> list:
-    """(test id or None, row indices) of each test in the file (one per value of the test-id column)."""
+    """(test id or None, row indices) of each test in the file: one per value of the test-id column, else one
+    per continuous piece when the file's time base breaks (``RawTable.pieces``: ids ``part1``, ``part2`` ...)."""
+    if "test" not in use and raw.pieces:  # a time base broken in the file (an MTS export missing a block)
+        ends = [*raw.pieces[1:], len(raw.frame)]
+        return [(f"part{k + 1}", np.arange(a, b)) for k, (a, b) in enumerate(zip(raw.pieces, ends))]
     if "test" not in use:
         return [(None, np.arange(len(raw.frame)))]
     ids = raw.frame[use["test"]].astype(str).to_numpy()
@@ -614,13 +633,14 @@ def load_tests(path, options: ReadOptions | None = None, **changes) -> list[RigT
                                                           warn)
     cols.update(extra)
     ch_units = {"temperature": "degC", **ch_units} if "temperature" in use else ch_units
-    stem = re.sub(r"\.(csv|tsv|txt|dat)(\.gz)?$|\.(parquet|pq)$", "", path.name, flags=re.IGNORECASE)
-    file_read = {"columns": dict(use), "ignored": [c for c in rest if c not in extra_cols or c in dropped],
+    stem = re.sub(r"\.(csv|tsv|txt|dat)(\.gz)?$|\.(parquet|pq|mat)$", "", path.name, flags=re.IGNORECASE)
+    file_read = {"format": raw.kind, "format_info": {k: v for k, v in raw.info.items() if k != "warnings"} or None,
+                 "converted": us_conversions(units) or None, "columns": dict(use), "ignored": [c for c in rest if c not in extra_cols or c in dropped],
                  "header_line": raw.header_line, "preamble": dict(raw.preamble), "date_order": stamps.get("date_order"),
                  "stamps": stamps.get("stamps"), "text_columns": text_cols}
     out = []
     for gid, rows in _groups(raw, use):
-        label = source if gid is None else f"{source} [test {gid}]"
+        label = source if gid is None else f"{source} [{gid}]" if "test" not in use else f"{source} [test {gid}]"
         tg, cg, lines, note, zero = _one_test_signals(label, t, cols, rows, raw.lines, opts)
         channels = {k[3:]: v for k, v in cg.items() if k.startswith("ch:")}
         rate, checks, notes = _test_checks(label, tg, cg, channels, lines, units, raw.preamble, opts)
@@ -675,6 +695,15 @@ def load_files(paths, role, options: ReadOptions | None = None, **changes) -> li
     return [t for p in paths for t in load_tests(p, opts)]
 
 
+def _dataset_units(source, units: dict) -> None:
+    """DataError naming the test file unless the manifest's units are the dataset format's own
+    (``damper_dataset.format``: metric; the reader's US customary units are for rig files, not datasets)."""
+    for what, table in (("time", TIME_UNITS), ("stroke", STROKE_UNITS), ("force", FORCE_UNITS)):
+        if what in units and units[what] not in table:
+            raise DataError(f"{source}: unknown {what} unit {units[what]!r} in the dataset's manifest.json; the "
+                            f"format {FORMAT_ID} takes {', '.join(table)}")
+
+
 def load_dataset(folder, *, dt_tol=0.01, check_plausible=True, damper_class=DEFAULT_DAMPER_CLASS) -> list[RigTest]:
     """Read every test of a dataset folder (manifest order) in SI units; ``check_plausible`` and
     ``damper_class`` as in :func:`load_tests`. Raises DataError."""
@@ -687,6 +716,7 @@ def load_dataset(folder, *, dt_tol=0.01, check_plausible=True, damper_class=DEFA
                        channel_units={k: v for k, v in units.items() if k not in known}, dt_tol=dt_tol, check_plausible=check_plausible, damper_class=damper_class)
     out = []
     for e in man["tests"]:
+        _dataset_units(folder / e["file"], units)
         out.append(load_test(folder / e["file"], read.merged(
             name=e["name"], role=e["role"], scenario=e["scenario"], sample_rate_hz=e["sample_rate_hz"],
             metadata={k: v for k, v in e.items() if k not in MANIFEST_TEST_KEYS})))
