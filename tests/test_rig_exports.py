@@ -152,3 +152,110 @@ def test_fit_and_diagnose_take_mts_exports(tmp_path, bundled, capsys):
     captured = capsys.readouterr()
     err = captured.out + captured.err
     assert code == 2 and "format: MTS 793 export" in err and "no parameters.json" in err, err[-2000:]
+
+
+# --------------------------------------------------------------------------- MATLAB files
+
+def write_mat73(path, variables: dict):
+    """A MATLAB v7.3 file as MATLAB writes one: HDF5 behind a 512-byte text header, each array stored
+    transposed (MATLAB is column-major) with its ``MATLAB_class``, a struct as a group of class 'struct'."""
+    import h5py
+
+    def put(group, name, value):
+        if isinstance(value, dict):
+            sub = group.create_group(name)
+            sub.attrs["MATLAB_class"] = np.bytes_("struct")
+            for k, v in value.items():
+                put(sub, k, v)
+            return
+        ds = group.create_dataset(name, data=np.atleast_2d(np.asarray(value, dtype=float)).T
+                                  if np.ndim(value) < 2 else np.asarray(value, dtype=float).T)
+        ds.attrs["MATLAB_class"] = np.bytes_("double")
+
+    with h5py.File(path, "w", userblock_size=512) as f:
+        for name, value in variables.items():
+            put(f, name, value)
+    header = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Mon Oct  4 07:48:04 2021 HDF5 schema 1.00 ."
+    with open(path, "r+b") as fh:
+        fh.write(header.ljust(116) + b"\x00" * 8 + b"\x00\x02IM")
+    return path
+
+
+@pytest.fixture(scope="module")
+def signals(bundled):
+    """The first bundled test's time [s], stroke [mm] and force [kN], and the test as read from its CSV."""
+    ref = bundled["id1_straight_250"]
+    return ref.time, 1e3 * ref.stroke, 1e-3 * ref.force, ref
+
+
+def _matrix(signals):
+    t, x, f, _ = signals
+    return np.column_stack([t, x, f])
+
+
+MM_KN = {"stroke_unit": "mm", "force_unit": "kN"}
+
+
+def test_mat_v5_column_vectors_by_name(tmp_path, signals):
+    import scipy.io
+
+    t, x, f, ref = signals
+    path = tmp_path / "vectors.mat"
+    scipy.io.savemat(path, {"t": t[:, None], "x": x[:, None], "F": f[:, None], "fs": 1000.0})
+    got = load_test(path, time_col="t", stroke_col="x", force_col="F", **MM_KN)
+    _same_samples(got, ref)
+    read = got.metadata["read"]
+    assert read["format"] == "MATLAB v5" and read["columns"] == {"time": "t", "stroke": "x", "force": "F"}
+    assert read["format_info"]["scalars"] == {"fs": 1000.0}
+
+
+def test_mat_v5_matrix_columns_and_struct_fields(tmp_path, signals):
+    import scipy.io
+
+    t, x, f, ref = signals
+    path = tmp_path / "matrix.mat"
+    scipy.io.savemat(path, {"data": _matrix(signals), "rig": {"time": t[None, :], "stroke": x[None, :],
+                                                               "load": {"cell": f[None, :]}}})
+    _same_samples(load_test(path, time_col="data:1", stroke_col="data:2", force_col="data(:,3)", **MM_KN), ref)
+    _same_samples(load_test(path, time_col="rig.time", stroke_col="rig.stroke", force_col="rig.load.cell", **MM_KN),
+                  ref)
+    # channels in rows (3 x N) are read by their rows under the same names
+    scipy.io.savemat(path, {"data": _matrix(signals).T})
+    _same_samples(load_test(path, time_col="data:1", stroke_col="data:2", force_col="data:3", **MM_KN), ref)
+
+
+@pytest.mark.parametrize("layout", ["matrix", "struct"])
+def test_mat_v73_reads_the_same(tmp_path, signals, layout):
+    t, x, f, ref = signals
+    if layout == "matrix":
+        path = write_mat73(tmp_path / "v73.mat", {"data": _matrix(signals)})
+        cols = {"time_col": "data:1", "stroke_col": "data:2", "force_col": "data:3"}
+    else:
+        path = write_mat73(tmp_path / "v73.mat", {"rig": {"t": t[None, :], "x": x[:, None], "F": f[None, :]}})
+        cols = {"time_col": "rig.t", "stroke_col": "rig.x", "force_col": "rig.F"}
+    got = load_test(path, **cols, **MM_KN)
+    _same_samples(got, ref)
+    assert got.metadata["read"]["format"] == "MATLAB v7.3"
+
+
+def test_mat_missing_name_lists_the_variables_found(tmp_path, signals):
+    import scipy.io
+
+    path = tmp_path / "vectors.mat"
+    t, x, f, _ = signals
+    scipy.io.savemat(path, {"t": t[:, None], "x": x[:, None], "F": f[:, None], "data": _matrix(signals)})
+    n = len(t)
+    with pytest.raises(DataError, match=rf"missing column 'force' \(force\); variables found: t \({n}x1\), "
+                                        rf"x \({n}x1\), F \({n}x1\), data \({n}x3: columns data:1 \.\. data:3\)"):
+        load_test(path, time_col="t", stroke_col="x", **MM_KN)
+
+
+def test_mat_through_the_command_line_and_a_columns_file(tmp_path, signals, capsys):
+    path = write_mat73(tmp_path / "lab.mat", {"data": _matrix(signals)})
+    mapping = tmp_path / "columns.toml"
+    mapping.write_text('[columns]\ntime_col = "data:1"\nstroke_col = "data(:,2)"\nforce_col = "data:3"\n'
+                       'stroke_unit = "mm"\nforce_unit = "kN"\n')
+    assert main(["inspect", str(path), "--columns", str(mapping)]) == 0
+    out = capsys.readouterr().out
+    assert "columns: time <- 'data:1', stroke <- 'data:2', force <- 'data:3'" in out
+    assert "format: MATLAB v7.3; variables: data (10001x3: columns data:1 .. data:3)" in out

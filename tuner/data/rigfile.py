@@ -20,6 +20,7 @@ from pathlib import Path
 
 from damper_dataset.format import DataError
 from tuner.data.delimited import TEXT_SUFFIXES, read_text
+from tuner.data.matlab_file import MAT_SUFFIXES, read_mat
 from tuner.data.mts793 import is_mts793, read_mts793
 from tuner.data.parquet_file import PARQUET_SUFFIXES, read_parquet
 from tuner.data.raw_table import RawTable, normalise_unit, split_unit
@@ -42,6 +43,8 @@ def read_raw(path, source: str | None = None, header_line: int | None = None) ->
     name = path.name.lower()
     if name.endswith(PARQUET_SUFFIXES):
         return read_parquet(path, source)
+    if name.endswith(MAT_SUFFIXES):
+        return read_mat(path, source)
     text = name.endswith(TEXT_SUFFIXES) or name.endswith(tuple(s + ".gz" for s in TEXT_SUFFIXES))
     if is_mts793(path):
         return read_mts793(path, source)

@@ -126,7 +126,7 @@ def _format_lines(s: dict) -> list[str]:
                    f"rows" + (f", {info['blocks_left_out']} left out (see the warnings)" if info["blocks_left_out"]
                               else "") + f"; first {_block_text(blocks[0])}; last {_block_text(blocks[-1])}")
     elif info.get("variables"):
-        out.append(f"  format: {s['format']}; variables: {info['variables']}"
+        out.append(f"  format: {s['format']}; variables: {', '.join(info['variables'])}"
                    + (f" ({info['note']})" if info.get("note") else ""))
     if s.get("step"):
         st = s["step"]
