@@ -259,3 +259,84 @@ def test_mat_through_the_command_line_and_a_columns_file(tmp_path, signals, caps
     out = capsys.readouterr().out
     assert "columns: time <- 'data:1', stroke <- 'data:2', force <- 'data:3'" in out
     assert "format: MATLAB v7.3; variables: data (10001x3: columns data:1 .. data:3)" in out
+
+
+# --------------------------------------------------------------------------- a test programme in one file
+
+#: the programme the virtual rig runs: four frequencies, then an amplitude step at 2 Hz
+PROGRAMME = [(0.5, 0.020, 6), (1.0, 0.015, 8), (2.0, 0.008, 10), (4.0, 0.004, 12), (2.0, 0.004, 10)]
+
+
+@pytest.fixture(scope="module")
+def stepped(tmp_path_factory):
+    """A stepped sine run on the virtual rig (``campaign.programme``), written as one CSV; its truth spans."""
+    from campaign.programme import programme_test
+
+    df, spans = programme_test(PROGRAMME, seed=5)
+    path = tmp_path_factory.mktemp("programme") / "stepped.csv"
+    df.to_csv(path, index=False, float_format="%.9g")
+    return path, spans
+
+
+def test_a_stepped_sine_is_cut_into_its_steps(stepped):
+    from tuner.data.programme import SETTLING_CYCLES
+
+    path, spans = stepped
+    tests = load_tests(path, programme=True)
+    assert len(tests) == len(spans)
+    for test, truth in zip(tests, spans):
+        step = test.metadata["read"]["step"]
+        assert step["frequency_hz"] == pytest.approx(truth["frequency_hz"], rel=0.01), test.name
+        assert step["amplitude_m"] == pytest.approx(truth["amplitude_m"], rel=0.02), test.name
+        assert test.name == f"stepped-{truth['frequency_hz']:.3g}Hz-{truth['amplitude_m'] * 1e3:.3g}mm"
+        # the fade-in and the settling cycles are left out, the fade-out too: the test lies within the held
+        # cycles, after the settling ones, and spans whole cycles
+        period = 1.0 / truth["frequency_hz"]
+        assert step["t_start_s"] >= truth["t_start_s"] + SETTLING_CYCLES * period - 0.01 * period
+        assert step["t_end_s"] <= truth["t_end_s"] + 0.01 * period
+        assert step["cycles"] >= truth["cycles"] - SETTLING_CYCLES - 1
+        assert test.duration == pytest.approx(step["cycles"] * period, abs=2e-3)
+        assert np.ptp(test.stroke) / 2 == pytest.approx(truth["amplitude_m"], rel=0.02)
+
+
+def test_steps_are_picked_by_number_frequency_and_amplitude(stepped):
+    path, _ = stepped
+    names = lambda sel: [t.name.removeprefix("stepped-") for t in load_tests(path, steps=sel)]  # noqa: E731
+    assert names("2") == ["1Hz-15mm"]
+    assert names("1,4") == ["0.5Hz-20mm", "4Hz-4mm"]
+    assert names("2Hz") == ["2Hz-8mm", "2Hz-4mm"]
+    assert names("2Hz:4mm") == ["2Hz-4mm"]
+    assert names("4mm") == ["4Hz-4mm", "2Hz-4mm"]
+    assert names("0.5906in") == ["1Hz-15mm"]
+    with pytest.raises(DataError, match=r"no step at '3Hz' .*steps: 1: 0.5 Hz 20 mm, 2: 1 Hz 15 mm"):
+        load_tests(path, steps="3Hz")
+    with pytest.raises(DataError, match=r"step 9 asked for, but the programme has 5 steps"):
+        load_tests(path, steps="9")
+    with pytest.raises(DataError, match=r"cannot read the step selection 'fast'"):
+        load_tests(path, steps="fast")
+
+
+def test_a_file_without_a_programme_is_refused_with_the_fix(tmp_path, bundled):
+    ref = bundled["id1_straight_250"]
+    path = tmp_path / "track.csv"
+    path.write_text("time,stroke,force\n" + "\n".join(f"{t:.3f},{x:.9g},{f:.6g}" for t, x, f in
+                                                      zip(ref.time, ref.stroke, ref.force)))
+    with pytest.raises(DataError, match="no test programme found.*read it without --programme|no run of 5 or more"):
+        load_tests(path, programme=True)
+
+
+def test_fit_takes_steps_as_identification_and_validation(stepped, tmp_path, capsys):
+    path, _ = stepped
+    out = tmp_path / "fit"
+    code = main(["fit", "--identification", f"{path}@1", f"{path}@3", "--validation", f"{path}@2,4Hz,5",
+                 "--out", str(out), "--models", "lumped", "--population", "4", "--iterations", "1", "--polish", "1",
+                 "--no-diagnose", "--no-figures", "--workers", "0", "--engine",
+                 "inprocess" if native_reason() else "native"])
+    log = capsys.readouterr().out
+    assert code == 0, log[-2000:]
+    for name, role in (("stepped-0.5Hz-20mm", "identification"), ("stepped-2Hz-8mm", "identification"),
+                       ("stepped-1Hz-15mm", "validation"), ("stepped-4Hz-4mm", "validation"),
+                       ("stepped-2Hz-4mm", "validation")):
+        assert f"{name} ({role}): {path}" in log, name
+    metrics = (out / "metrics.json").read_text()
+    assert all(n in metrics for n in ("stepped-1Hz-15mm", "stepped-4Hz-4mm", "stepped-2Hz-4mm"))

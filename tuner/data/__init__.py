@@ -6,6 +6,7 @@
 - ``mts793``: the MTS 793 data-acquisition export reader (its blocks, their stamps and checks);
 - ``matlab_file``: the MATLAB ``.mat`` reader, version 5 and 7.3 (HDF5): variables, matrix columns, struct fields;
 - ``parquet_file``: the Parquet reader;
+- ``programme``: a test programme in one file: a stepped sine cut into its steps, and ``FILE@SEL`` picking some;
 - ``units``: the units read and their exact factors to SI (metric and US customary);
 - ``reading``: reading to SI units, signs, plausibility and datasets (``load_tests``, ``load_dataset``);
 - ``read_options``: the reader's options as one record (``ReadOptions``) and the column mapping file;

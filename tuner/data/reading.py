@@ -22,6 +22,7 @@ from damper_dataset.format import (FORCE_UNITS, FORMAT_ID, MANIFEST_TEST_KEYS, R
                                    DataError, check_finite, check_signals, read_manifest, suggest_unit)
 from tuner.data.calibration import apply as calibrate, calibration, force_zero as tare_force
 from tuner.data.prefilter import parse_prefilter
+from tuner.data.programme import cut_programme, select_steps
 # the record of the reader's options and the mapping file, also reachable here (the reader's API in one module)
 from tuner.data.read_options import (COLUMN_OPTIONS, DEFAULT_DAMPER_CLASS, READ_OPTIONS, ReadOptions,  # noqa: F401
                                      read_column_mapping)
@@ -596,6 +597,20 @@ def _groups(raw: RawTable, use: dict) -> list:
     return [(g, np.flatnonzero(ids == g)) for g in dict.fromkeys(ids)]
 
 
+def _programme_groups(groups: list, t: np.ndarray, stroke: np.ndarray, source: str, selection) -> tuple[list, dict]:
+    """Each group's (:func:`_groups`) steps of a test programme (:func:`tuner.data.programme.cut_programme` on
+    its time [s] and stroke [m]) that ``selection`` picks (``select_steps``; None: all): (test id, rows) per
+    step and test id -> ``ProgrammeStep``."""
+    out, steps = [], {}
+    for gid, rows in groups:
+        label = source if gid is None else f"{source} [{gid}]"
+        for step in select_steps(cut_programme(t[rows], stroke[rows], label), selection, label):
+            sid = step.label if gid is None else f"{gid}-{step.label}"
+            out.append((sid, rows[step.rows[0]:step.rows[1]]))
+            steps[sid] = step
+    return out, steps
+
+
 def load_tests(path, options: ReadOptions | None = None, **changes) -> list[RigTest]:
     """Read one rig file with ``options`` (``ReadOptions``; None: the defaults) and return its test(s) in SI
     units, one per value of ``options.test_col``. ``changes``: single options by keyword, over ``options``
@@ -639,8 +654,11 @@ def load_tests(path, options: ReadOptions | None = None, **changes) -> list[RigT
                  "header_line": raw.header_line, "preamble": dict(raw.preamble), "date_order": stamps.get("date_order"),
                  "stamps": stamps.get("stamps"), "text_columns": text_cols}
     out = []
-    for gid, rows in _groups(raw, use):
-        label = source if gid is None else f"{source} [{gid}]" if "test" not in use else f"{source} [test {gid}]"
+    groups, steps = _groups(raw, use), {}
+    if opts.programme or opts.steps is not None:
+        groups, steps = _programme_groups(groups, t, cols["stroke"], source, opts.steps)
+    for gid, rows in groups:
+        label = source if gid is None else f"{source} [test {gid}]" if "test" in use and not steps else f"{source} [{gid}]"
         tg, cg, lines, note, zero = _one_test_signals(label, t, cols, rows, raw.lines, opts)
         channels = {k[3:]: v for k, v in cg.items() if k.startswith("ch:")}
         rate, checks, notes = _test_checks(label, tg, cg, channels, lines, units, raw.preamble, opts)
@@ -649,7 +667,7 @@ def load_tests(path, options: ReadOptions | None = None, **changes) -> list[RigT
                 "segment_s": [opts.t_start, opts.t_end] if (opts.t_start is not None or opts.t_end is not None)
                 else None, **checks, **file_read, "calibration": _calibration_read(cal, use, raw, units, cg),
                 "force_zero": zero, "prefilter": lab_filter.to_dict() if lab_filter else None,
-                "damper_class": opts.damper_class}
+                "damper_class": opts.damper_class, "step": steps[gid].to_dict() if gid in steps else None}
         warns = list(warn) + ([f"{label}: {note}"] if note else []) + notes
         out.append(RigTest(
             name=(opts.name or stem) + ("" if gid is None else f"-{gid}"), role=opts.role,
