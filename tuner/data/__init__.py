@@ -8,7 +8,9 @@
 - ``parquet_file``: the Parquet reader;
 - ``programme``: a test programme in one file: a stepped sine cut into its steps, and ``FILE@SEL`` picking some;
 - ``units``: the units read and their exact factors to SI (metric and US customary);
-- ``reading``: reading to SI units, signs, plausibility and datasets (``load_tests``, ``load_dataset``);
+- ``reading``: reading to SI units, signs, one test or several, and datasets (``load_tests``, ``load_dataset``);
+- ``plausibility``: is it physically a damper on a rig (both directions), and the damper class's range;
+- ``time_base``: stamps repaired to a regular clock, and a logger's declared sample rate checked;
 - ``read_options``: the reader's options as one record (``ReadOptions``) and the column mapping file;
 - ``stamps``: date-time stamps and their day-month order;
 - ``calibration``: a logger's channel calibration (scale, offset) and the force tare;

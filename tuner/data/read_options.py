@@ -19,7 +19,7 @@ from damper_dataset.format import DataError
 
 __all__ = ["ReadOptions", "READ_OPTIONS", "COLUMN_OPTIONS", "DEFAULT_DAMPER_CLASS", "read_column_mapping"]
 
-#: the damper class read by default (``tuner.data.reading.DAMPER_CLASSES``)
+#: the damper class read by default (``tuner.data.plausibility.DAMPER_CLASSES``)
 DEFAULT_DAMPER_CLASS = "yaw"
 
 
