@@ -321,7 +321,7 @@ def test_a_file_without_a_programme_is_refused_with_the_fix(tmp_path, bundled):
     path = tmp_path / "track.csv"
     path.write_text("time,stroke,force\n" + "\n".join(f"{t:.3f},{x:.9g},{f:.6g}" for t, x, f in
                                                       zip(ref.time, ref.stroke, ref.force)))
-    with pytest.raises(DataError, match="no test programme found.*read it without --programme|no run of 5 or more"):
+    with pytest.raises(DataError, match="no test programme found.*read it without --programme|no run of 3 or more"):
         load_tests(path, programme=True)
 
 
@@ -340,3 +340,38 @@ def test_fit_takes_steps_as_identification_and_validation(stepped, tmp_path, cap
         assert f"{name} ({role}): {path}" in log, name
     metrics = (out / "metrics.json").read_text()
     assert all(n in metrics for n in ("stepped-1Hz-15mm", "stepped-4Hz-4mm", "stepped-2Hz-4mm"))
+
+
+def test_short_low_frequency_steps_keep_two_cycles(tmp_path):
+    """A supplier's programme holds few cycles at its low frequencies: a step of 3 cycles leaves out one
+    settling cycle and keeps two; the fade-in and fade-out never count."""
+    from campaign.programme import programme_test
+
+    df, spans = programme_test([(0.2, 0.0127, 3), (0.5, 0.0127, 4), (2.0, 0.0127, 10)], seed=2, pause_s=0.0)
+    path = tmp_path / "short.csv"
+    df.to_csv(path, index=False, float_format="%.9g")
+    steps = [t.metadata["read"]["step"] for t in load_tests(path, programme=True)]
+    assert [(s["cycles"], s["settling_cycles"]) for s in steps] == [(2, 1), (2, 2), (8, 2)]
+    for s, truth in zip(steps, spans):
+        assert s["frequency_hz"] == pytest.approx(truth["frequency_hz"], rel=0.01)
+        assert s["amplitude_m"] == pytest.approx(truth["amplitude_m"], rel=0.02)
+
+
+def test_an_mts_export_of_a_stepped_sine_in_inches_is_cut_into_its_steps(tmp_path):
+    """The rig of the issue: an MTS 793 controller's stepped sine, 0.2 to 2 Hz at 0.5 in, 1024 Hz, in in and
+    lbf, read with --programme alone and picked by frequency and amplitude in inches."""
+    from campaign.programme import programme_test
+
+    plan = [(0.2, 0.5 * INCH_M, 3), (0.5, 0.5 * INCH_M, 4), (1.0, 0.5 * INCH_M, 5), (2.0, 0.5 * INCH_M, 8)]
+    df, spans = programme_test(plan, seed=4, sample_rate=1024.0, pause_s=1.0)
+    path = write_mts(tmp_path / "race_damper.dat", df["time"].to_numpy(), df["stroke"].to_numpy(),
+                     df["force"].to_numpy())
+    tests = load_tests(path, programme=True)
+    assert [t.name for t in tests] == ["race_damper-0.2Hz-12.7mm", "race_damper-0.5Hz-12.7mm",
+                                       "race_damper-1Hz-12.7mm", "race_damper-2Hz-12.7mm"]
+    for test, truth in zip(tests, spans):
+        step = test.metadata["read"]["step"]
+        assert step["frequency_hz"] == pytest.approx(truth["frequency_hz"], rel=0.01)
+        assert step["amplitude_m"] == pytest.approx(truth["amplitude_m"], rel=0.02)
+        assert test.sample_rate == pytest.approx(1024.0, rel=1e-6)
+    assert [t.name for t in load_tests(path, steps="1Hz:0.5in")] == ["race_damper-1Hz-12.7mm"]

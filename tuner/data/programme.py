@@ -7,8 +7,8 @@ each cycle has its frequency (1 / its period, crossings interpolated between sam
 its peak-to-peak). Consecutive cycles within ``FREQUENCY_TOL`` in frequency and ``AMPLITUDE_TOL`` in
 amplitude of the run they join form a steady step; the others (fade-ins, fade-outs, transitions, rest) are
 left out. Of each step the first ``SETTLING_CYCLES`` cycles are left out too (the damper settles after
-the change: its oil column, valves and temperature), and a step keeps at least ``MIN_CYCLES`` whole
-cycles, else it is dropped. A step's test spans its kept whole cycles; its frequency is their number over
+the change: its oil column, valves and temperature), fewer on a short step so that it keeps
+``MIN_CYCLES`` whole cycles, but always one; a run of fewer than ``MIN_CYCLES + 1`` cycles is no step. A step's test spans its kept whole cycles; its frequency is their number over
 their duration, its amplitude their median amplitude.
 
 Picking (:func:`select_steps`): ``SEL`` after the file's name and ``@``, items separated by commas: a
@@ -30,10 +30,10 @@ __all__ = ["ProgrammeStep", "cut_programme", "select_steps", "split_selection", 
 
 #: relative spread of frequency and amplitude among a step's cycles
 FREQUENCY_TOL, AMPLITUDE_TOL = 0.02, 0.03
-#: cycles left out at the start of each step (the damper settles after the change)
+#: cycles left out at the start of each step (the damper settles after the change); at least one
 SETTLING_CYCLES = 2
-#: whole cycles a step keeps at least (else it is no step)
-MIN_CYCLES = 3
+#: whole cycles a step keeps at least (a supplier's low-frequency steps hold few cycles)
+MIN_CYCLES = 2
 #: how close a selection's frequency and amplitude must be to a step's [relative]
 _PICK_FREQUENCY, _PICK_AMPLITUDE = 0.02, 0.03
 
@@ -113,14 +113,15 @@ def cut_programme(t: np.ndarray, stroke: np.ndarray, source: str) -> list[Progra
     freq = 1.0 / np.diff(tc)
     found = []
     for run in _runs(freq, amp):
-        keep = run[SETTLING_CYCLES:]
+        settle = max(min(SETTLING_CYCLES, len(run) - MIN_CYCLES), 1)
+        keep = run[settle:]
         if len(keep) < MIN_CYCLES:
             continue
         a, b = keep[0], keep[-1] + 1  # cycles a .. b-1: crossings a .. b
         found.append((len(keep) / (tc[b] - tc[a]), float(np.median(amp[keep])), (int(idx[a]), int(idx[b])),
-                      len(keep), float(tc[a] - t[0]), float(tc[b] - t[0]), min(len(run), SETTLING_CYCLES)))
+                      len(keep), float(tc[a] - t[0]), float(tc[b] - t[0]), settle))
     if not found:
-        raise DataError(f"{source}: no test programme found: no run of {SETTLING_CYCLES + MIN_CYCLES} or more cycles "
+        raise DataError(f"{source}: no test programme found: no run of {MIN_CYCLES + 1} or more cycles "
                         f"of one frequency (within {FREQUENCY_TOL:.0%}) and amplitude (within {AMPLITUDE_TOL:.0%}) "
                         f"among {len(freq)} cycles")
     return [ProgrammeStep(k + 1, len(found), *step) for k, step in enumerate(found)]
