@@ -23,10 +23,12 @@ STROKE_FACTORS = {"mm": 1e-3, "in": INCH_M}
 FORCE_FACTORS = {"kN": 1e3, "lbf": LBF_N, "kip": 1e3 * LBF_N}
 
 
-def write_mts(path, time, stroke, force, stroke_unit="in", force_unit="lbf", block=1024, skip=(), repeat=()):
+def write_mts(path, time, stroke, force, stroke_unit="in", force_unit="lbf", block=1024, skip=(), repeat=(),
+              time_column=True):
     """An MTS 793 data-acquisition export as the controller writes it (tab-separated, CRLF, a blank line
     between blocks, each block opened by its own line, channel names and units row), from SI signals;
-    block numbers (0-based) in ``skip`` are left out, those in ``repeat`` written twice."""
+    block numbers (0-based) in ``skip`` are left out, those in ``repeat`` written twice; ``time_column``
+    False: without the Time channel (the blocks' stamps alone tell the time)."""
     lines = ["MTS793|MPT|ENU|1|2|.|/|:|1|0|0|A", ""]
     ks, kf = STROKE_FACTORS[stroke_unit], FORCE_FACTORS[force_unit]
     for b, start in enumerate(range(0, len(time), block)):
@@ -38,6 +40,8 @@ def write_mts(path, time, stroke, force, stroke_unit="in", force_unit="lbf", blo
         text = [f"Data Acquisition\t1: Data Acquisition\tTime:\t{time[rows][-1] + 0.0196941:.7f}\tSec\t{stamp}",
                 "Stroke\tLoad\tTime", f"{stroke_unit}\t{force_unit}\tSec"]
         text += [f"{x / ks:.10g}\t{f / kf:.10g}\t{t:.10g}" for x, f, t in zip(stroke[rows], force[rows], time[rows])]
+        if not time_column:
+            text = text[:1] + [row.rsplit("\t", 1)[0] for row in text[1:]]
         lines += (text + [""]) * (2 if b in repeat else 1)
     path.write_bytes(("\r\n".join(lines) + "\r\n").encode("utf-8"))
     return path
@@ -96,6 +100,19 @@ def test_mts_missing_and_repeated_blocks_are_warnings_naming_them(tmp_path, bund
     assert any("block 3 (line" in w and "repeats block 2 (line" in w and "left out" in w for w in warns), warns
     # blocks are numbered as they stand in the file (the repeated one counts): the 6th follows a gap of one
     assert any("1 block(s) missing between block 5 (line" in w and "and block 6 (line" in w for w in warns), warns
+
+
+def test_mts_without_a_time_channel_checks_the_blocks_by_their_stamps(tmp_path, bundled):
+    ref = bundled["id1_straight_250"]
+    path = write_mts(tmp_path / "stamps.txt", ref.time, ref.stroke, ref.force, skip=(6,), repeat=(2,),
+                     time_column=False)
+    tests = load_tests(path, rate_hz=1000.0)
+    assert [len(t.time) for t in tests] == [6 * 1024, len(ref.time) - 7 * 1024]
+    np.testing.assert_allclose(tests[1].stroke, ref.stroke[7 * 1024:], atol=1e-12)
+    warns = tests[0].metadata["warnings"]
+    assert any("block 4 (line" in w and "repeats block 3 (line" in w for w in warns), warns
+    assert any("1 block(s) missing between block 7 (line" in w and "Time: stamps: due at" in w for w in warns), warns
+    assert len(warns) == 2  # the short last block is no warning
 
 
 def test_mts_block_with_other_channels_is_refused_naming_its_line(tmp_path, bundled):

@@ -156,10 +156,24 @@ def _time_column(names: list, units: list | None) -> int | None:
     return None
 
 
-def _positions(blocks: list[_Block], tcol: int | None, decimal: str) -> tuple[list, list, float, str] | None:
-    """Per block (start, expected start of the next block), the tolerance of a match and what they come
-    from: the time column (a sample step's half), else the ``Time:`` stamps (half a block); None when
-    neither is there."""
+@dataclass
+class _Positions:
+    """Where each block lies on the time base: its start and the start the next block should have [the time
+    column's or the stamps' unit], how far back a block may start before it goes back over the one before
+    (``back_tol``) and how far forward before one is missing (``forward_tol``), and what they come from."""
+
+    starts: list
+    ends: list
+    back_tol: float
+    forward_tol: float
+    what: str
+
+
+def _positions(blocks: list[_Block], tcol: int | None, decimal: str) -> _Positions | None:
+    """The blocks' positions from the time column (tolerances: half a sample step), else from the blocks'
+    ``Time:`` stamps (whether a stamp marks a block's start or end: the next stamp is due one median
+    increment later, a block is missing beyond 1.5 increments and written twice when its stamp does not
+    increase); None when neither is there."""
     if tcol is not None:
         conv = (lambda c: float(c.replace(",", "."))) if decimal == "," else float
         times = [np.array([conv(r[tcol]) for r in b.rows]) if b.rows else np.zeros(0) for b in blocks]
@@ -167,13 +181,15 @@ def _positions(blocks: list[_Block], tcol: int | None, decimal: str) -> tuple[li
         if steps.size and np.median(steps) > 0:
             dt = float(np.median(steps))
             spans = [(t[0], t[-1] + dt) if len(t) else (np.nan, np.nan) for t in times]
-            return [s for s, _ in spans], [e for _, e in spans], 0.5 * dt, "the time column"
+            return _Positions([a for a, _ in spans], [e for _, e in spans], 0.5 * dt, 0.5 * dt, "the time column")
     stamps = [b.time for b in blocks]
     if len(blocks) < 2 or any(s is None for s in stamps):
         return None
-    n_full = Counter(len(b.rows) for b in blocks[:-1]).most_common(1)[0][0] or 1
     inc = float(np.median(np.diff(stamps)))
-    return stamps, [s + inc * len(b.rows) / n_full for s, b in zip(stamps, blocks)], 0.5 * inc, "the blocks' Time: stamps"
+    if not inc > 0:
+        return None
+    # back: a stamp that does not increase (by more than a billionth of an increment: rounding)
+    return _Positions(stamps, [s + inc for s in stamps], inc * (1 - 1e-9), 0.5 * inc, "the blocks' Time: stamps")
 
 
 def _check_blocks(blocks: list[_Block], decimal: str, source: str) -> tuple[list, list, list]:
@@ -187,23 +203,21 @@ def _check_blocks(blocks: list[_Block], decimal: str, source: str) -> tuple[list
     pos = _positions(blocks, _time_column(blocks[0].names, blocks[0].units), decimal)
     if pos is None:
         return blocks, [0], warn
-    starts, ends, tol, what = pos
     kept, pieces, last = [0], [0], 0
     for k in range(1, len(blocks)):
-        gap = starts[k] - ends[last]
+        gap = pos.starts[k] - pos.ends[last]
         if not np.isfinite(gap):  # a block without rows
             continue
-        if gap < -tol:
+        where = f"{pos.what}: due at {pos.ends[last]:.7g}, found at {pos.starts[k]:.7g}"
+        if gap < -pos.back_tol:
             again = blocks[k].rows == blocks[last].rows
-            warn.append(f"{source}: MTS 793 {_say(k, blocks[k])} " + (f"repeats {_say(last, blocks[last])}"
-                        if again else f"goes back over the blocks before it ({what} {starts[k]:.7g} after "
-                                      f"{ends[last]:.7g})") + ": left out")
+            warn.append(f"{source}: MTS 793 {_say(k, blocks[k])} " + (f"repeats {_say(last, blocks[last])}" if again
+                        else f"goes back over the blocks before it ({where})") + ": left out")
             continue
-        if gap > tol:
-            missing = max(int(round(gap / max(ends[last] - starts[last], 1e-12))), 1)
+        if gap > pos.forward_tol:
+            missing = max(int(round(gap / max(pos.ends[last] - pos.starts[last], 1e-12))), 1)
             warn.append(f"{source}: MTS 793 export: {missing} block(s) missing between {_say(last, blocks[last])} "
-                        f"and {_say(k, blocks[k])} ({what} jumps from {ends[last]:.7g} to {starts[k]:.7g}): the "
-                        f"file is read as separate pieces from there")
+                        f"and {_say(k, blocks[k])} ({where}): the file is read as separate pieces from there")
             pieces.append(len(kept))
         kept.append(k)
         last = k
