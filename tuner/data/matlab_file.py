@@ -19,7 +19,6 @@ from __future__ import annotations
 from collections import Counter
 from pathlib import Path
 
-import h5py
 import numpy as np
 import pandas as pd
 import scipy.io
@@ -55,15 +54,15 @@ def _load_v5(path: Path, source: str) -> dict:
     return {k: v for k, v in data.items() if not k.startswith("__")}
 
 
-def _h5_value(obj):
-    """A v7.3 variable: a numeric array in MATLAB's orientation (HDF5 stores it transposed), a struct as a
-    dict, anything else (text, cells, references) as a short description."""
+def _h5_value(obj, h5py):
+    """A v7.3 variable (``h5py``: the module): a numeric array in MATLAB's orientation (HDF5 stores it
+    transposed), a struct as a dict, anything else (text, cells, references) as a short description."""
     cls = obj.attrs.get("MATLAB_class", b"")
     cls = cls.decode() if isinstance(cls, bytes) else str(cls)
     if isinstance(obj, h5py.Group):
         if cls not in ("struct", ""):
             return f"<{cls}>"
-        return {k: _h5_value(v) for k, v in obj.items()}
+        return {k: _h5_value(v, h5py) for k, v in obj.items()}
     if cls not in _NUMERIC_CLASSES and not (cls == "" and obj.dtype.kind in "fiu"):
         return f"<{cls or obj.dtype}>"
     if obj.attrs.get("MATLAB_empty", 0):
@@ -73,9 +72,14 @@ def _h5_value(obj):
 
 def _load_v73(path: Path, source: str) -> dict:
     """The variables of a version 7.3 (HDF5) .mat file, as :func:`_load_v5` gives them."""
+    try:  # imported here: an environment installed before h5py became a dependency still reads the rest
+        import h5py
+    except ImportError as exc:
+        raise DataError(f"{source}: a MATLAB v7.3 (HDF5) file needs h5py, a dependency of the project: "
+                        f"pip install h5py (or reinstall the project)") from exc
     try:
         with h5py.File(path, "r") as f:
-            return {k: _h5_value(v) for k, v in f.items() if not k.startswith("#")}
+            return {k: _h5_value(v, h5py) for k, v in f.items() if not k.startswith("#")}
     except OSError as exc:
         raise DataError(f"{source}: cannot read the MATLAB v7.3 (HDF5) file: {exc}") from exc
 
