@@ -125,8 +125,8 @@ def add_fit_options(ap: argparse.ArgumentParser) -> None:
     g = ap.add_argument_group("data")
     g.add_argument("--dataset", type=Path, help="dataset folder with manifest.json (roles from the manifest)")
     g.add_argument("--identification", nargs="+", type=Path, default=[], metavar="FILE",
-                   help="identification test files (delimited text, MTS 793 export, .mat, Parquet; FILE@SEL: steps of a "
-                        "test programme, see --programme)")
+                   help="identification test files (delimited text, MTS 793 export, .mat, Parquet; FILE@SEL: "
+                        "steps of a test programme, see --programme)")
     g.add_argument("--validation", nargs="+", type=Path, default=[], metavar="FILE",
                    help="validation test files (held out; FILE@SEL as for --identification)")
     add_data_options(g)

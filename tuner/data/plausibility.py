@@ -85,8 +85,9 @@ def plausibility(source, time, stroke, force, velocity=None, rate=None, units=No
         raise DataError(
             f"{source}: implausible stroke: range {srange:.4g} m, peak velocity {vpeak:.4g} m/s (a damper rig "
             f"moves <= {MAX_STROKE_RANGE_M:g} m at <= {MAX_VELOCITY_M_S:g} m/s) with stroke in {su!r}."
-            + suggest_unit(family(STROKE, su), su, lambda r: srange * r <= MAX_STROKE_RANGE_M and vpeak * r <= MAX_VELOCITY_M_S
-                       and srange * r >= MIN_STROKE_RANGE_M) + " Use --stroke-unit." + scaled + tail)
+            + suggest_unit(family(STROKE, su), su, lambda r: srange * r <= MAX_STROKE_RANGE_M
+                           and vpeak * r <= MAX_VELOCITY_M_S and srange * r >= MIN_STROKE_RANGE_M)
+            + " Use --stroke-unit." + scaled + tail)
     if srange < MIN_STROKE_RANGE_M:
         raise DataError(
             f"{source}: implausible stroke: range {srange * 1e6:.3g} um (< {MIN_STROKE_RANGE_M * 1e6:g} um, under a "
@@ -104,7 +105,8 @@ def plausibility(source, time, stroke, force, velocity=None, rate=None, units=No
             f"{source}: implausible force for its stroke: rms force {np.std(force):.4g} N at rms velocity "
             f"{vrms:.4g} m/s is an apparent damping of {c_app:.3g} N s/m, under the {MIN_DAMPING_N_S_PER_M:g} N s/m "
             f"of the lightest vehicle damper, with force in {fu!r} and stroke in {su!r}."
-            + suggest_unit(family(FORCE, fu), fu, lambda r: c_app * r >= MIN_DAMPING_N_S_PER_M and fpeak * r <= MAX_FORCE_PEAK_N)
+            + suggest_unit(family(FORCE, fu), fu,
+                           lambda r: c_app * r >= MIN_DAMPING_N_S_PER_M and fpeak * r <= MAX_FORCE_PEAK_N)
             + " Use --force-unit/--stroke-unit." + scaled + tail)
     if power is not None and power < MIN_FORCE_VELOCITY_CORRELATION:
         raise DataError(
@@ -116,6 +118,7 @@ def plausibility(source, time, stroke, force, velocity=None, rate=None, units=No
             f"{source}: implausible stroke for its force: rms force {np.std(force):.4g} N at rms velocity "
             f"{vrms:.4g} m/s is an apparent damping of {c_app:.3g} N s/m, over {MAX_DAMPING_N_S_PER_M:.0e} N s/m "
             f"(100 x a yaw damper's), with stroke in {su!r} and force in {fu!r}."
-            + suggest_unit(family(STROKE, su), su, lambda r: c_app / r <= MAX_DAMPING_N_S_PER_M and srange * r <= MAX_STROKE_RANGE_M)
+            + suggest_unit(family(STROKE, su), su,
+                           lambda r: c_app / r <= MAX_DAMPING_N_S_PER_M and srange * r <= MAX_STROKE_RANGE_M)
             + " Use --stroke-unit/--force-unit." + scaled + tail)
     return fig

@@ -8,8 +8,9 @@ its peak-to-peak). Consecutive cycles within ``FREQUENCY_TOL`` in frequency and 
 amplitude of the run they join form a steady step; the others (fade-ins, fade-outs, transitions, rest) are
 left out. Of each step the first ``SETTLING_CYCLES`` cycles are left out too (the damper settles after
 the change: its oil column, valves and temperature), fewer on a short step so that it keeps
-``MIN_CYCLES`` whole cycles, but always one; a run of fewer than ``MIN_CYCLES + 1`` cycles is no step. A step's test spans its kept whole cycles; its frequency is their number over
-their duration, its amplitude their median amplitude.
+``MIN_CYCLES`` whole cycles, but always one; a run of fewer than ``MIN_CYCLES + 1`` cycles is no step.
+A step's test spans its kept whole cycles; its frequency is their number over their duration, its
+amplitude their median amplitude.
 
 Picking (:func:`select_steps`): ``SEL`` after the file's name and ``@``, items separated by commas: a
 step's 1-based number (``FILE@2``, ``FILE@1,3``), a frequency (``FILE@1Hz``, ``FILE@0.5Hz``: within 2 %),

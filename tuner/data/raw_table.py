@@ -57,12 +57,13 @@ class RawTable:
     (header or units row); ``names``: column -> name without the unit; ``delimiter``: as detected
     (None for Parquet and MATLAB); ``decimal``: decimal mark; ``header_line``: the file line of the column
     names (None: no header, Parquet or MATLAB); ``preamble``: the ``key: value`` pairs of the metadata lines
-    before the header, as written; ``kind``: the format read (``FORMATS``); ``defaults``: role -> the column
-    the format itself names so (an MTS export's ``Load`` is the force), used when the option is left at its
-    default; ``info``: what else the format holds (an MTS export's blocks, a MATLAB file's variables);
-    ``pieces``: the first row of each continuous piece when the file's time base breaks (an MTS export
-    missing a block), else None; ``found``: the file's contents as a missing column's message lists them
-    (None: the columns)."""
+    before the header, as written; ``kind``: the format read (``'delimited text'``, ``'MTS 793 export'``,
+    ``'MATLAB v5'``, ``'MATLAB v7.3'``, ``'Parquet'``); ``defaults``: role -> the column the format itself
+    names so (an MTS export's ``Load`` is the force), used when the option is left at its default;
+    ``info``: what else the format holds (an MTS export's blocks, a MATLAB file's variables); ``pieces``:
+    the first row of each continuous piece when the file's time base breaks (an MTS export missing a
+    block), else None; ``found``: the file's contents as a missing column's message lists them (None:
+    the columns)."""
 
     frame: pd.DataFrame
     lines: list[int] | None

@@ -330,8 +330,8 @@ def _segment(tg: np.ndarray, cg: dict, lines, t_start, t_end, regularised: bool)
 def _one_test_signals(label: str, t: np.ndarray, cols: dict, rows: np.ndarray, lines, opts: ReadOptions) -> tuple:
     """One test's ``rows`` of the file's time [s] and columns (``lines``: the file line of each row, or
     None): NaN/inf refused (named before any resampling), the time base regularised from 0
-    (:func:`tuner.data.time_base.regularise`, within ``opts.dt_tol``), the force tared over its first ``opts.force_zero``
-    seconds (None: not; :func:`tuner.data.calibration.force_zero`), the segment ``opts.t_start`` to
+    (:func:`tuner.data.time_base.regularise`, within ``opts.dt_tol``), the force tared over its first
+    ``opts.force_zero`` seconds (None: not; :func:`tuner.data.calibration.force_zero`), the segment ``opts.t_start`` to
     ``opts.t_end`` [s] selected. Returns (time [s], columns, file lines, regularisation note, tare)."""
     lines = None if lines is None else [lines[i] for i in rows]
     t, cols = t[rows] - t[rows][0], {k: v[rows] for k, v in cols.items()}
@@ -438,9 +438,12 @@ def load_tests(path, options: ReadOptions | None = None, **changes) -> list[RigT
     over its first ``force_zero`` [s] (:mod:`tuner.data.calibration`); ``prefilter`` (the lab's filter,
     :mod:`tuner.data.prefilter`) is recorded in ``metadata['read']['prefilter']``: the simulated force passes
     it before every comparison. Duplicated or irregular stamps are regularised with a warning (see
-    :func:`tuner.data.time_base.regularise`); ``t_start``/``t_end`` [s from the first sample] select a segment. ``check_plausible``:
-    refuse physically implausible strokes/forces (:func:`plausibility`); ``damper_class``: warn when the
-    apparent damping is outside that class's range (:func:`class_warning`). What was understood goes to
+    :func:`tuner.data.time_base.regularise`); ``t_start``/``t_end`` [s from the first sample] select a
+    segment. ``check_plausible``: refuse physically implausible strokes/forces (:func:`plausibility`);
+    ``damper_class``: warn when the apparent damping is outside that class's range (:func:`class_warning`).
+    The format's reader is picked by :func:`tuner.data.rigfile.read_raw` (an MTS 793 export's ``Load`` is
+    the force; a missing block splits it into tests ``NAME-part1`` ...); ``programme``/``steps``: one test
+    per step of a stepped sine (:mod:`tuner.data.programme`), named ``NAME-1Hz-15mm``. What was understood goes to
     ``metadata['read']`` (with the damper class declared, checked or not), warnings to
     ``metadata['warnings']``. Raises DataError on any problem."""
     opts = ReadOptions.of(options, **changes)
@@ -460,7 +463,8 @@ def load_tests(path, options: ReadOptions | None = None, **changes) -> list[RigT
     ch_units = {"temperature": "degC", **ch_units} if "temperature" in use else ch_units
     stem = re.sub(r"\.(csv|tsv|txt|dat)(\.gz)?$|\.(parquet|pq|mat)$", "", path.name, flags=re.IGNORECASE)
     file_read = {"format": raw.kind, "format_info": {k: v for k, v in raw.info.items() if k != "warnings"} or None,
-                 "converted": us_conversions(units) or None, "columns": dict(use), "ignored": [c for c in rest if c not in extra_cols or c in dropped],
+                 "converted": us_conversions(units) or None, "columns": dict(use),
+                 "ignored": [c for c in rest if c not in extra_cols or c in dropped],
                  "header_line": raw.header_line, "preamble": dict(raw.preamble), "date_order": stamps.get("date_order"),
                  "stamps": stamps.get("stamps"), "text_columns": text_cols}
     out = []
@@ -468,7 +472,8 @@ def load_tests(path, options: ReadOptions | None = None, **changes) -> list[RigT
     if opts.programme or opts.steps is not None:
         groups, steps = _programme_groups(groups, t, cols["stroke"], source, opts.steps)
     for gid, rows in groups:
-        label = source if gid is None else f"{source} [test {gid}]" if "test" in use and not steps else f"{source} [{gid}]"
+        tagged = "test" in use and not steps  # a test-id column's value, else a piece or a step
+        label = source if gid is None else f"{source} [test {gid}]" if tagged else f"{source} [{gid}]"
         tg, cg, lines, note, zero = _one_test_signals(label, t, cols, rows, raw.lines, opts)
         channels = {k[3:]: v for k, v in cg.items() if k.startswith("ch:")}
         rate, checks, notes = _test_checks(label, tg, cg, channels, lines, units, raw.preamble, opts)

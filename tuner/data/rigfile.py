@@ -4,7 +4,8 @@ Each format has its reader, which turns a file into a table of raw columns with 
 declares (``tuner.data.raw_table.RawTable``); what the columns mean (time, stroke, force ...), unit
 conversion, signs and checks are in :mod:`tuner.data.reading`.
 
-Accepted files (``FORMATS``), recognised by their content where it says so, else by their ending:
+Accepted files (``RawTable.kind`` names the format read), recognised by their content where it says
+so, else by their ending:
 
 * an MTS 793 data-acquisition export (first line ``MTS793|...``, any ending, also ``.gz``):
   :mod:`tuner.data.mts793`;
@@ -25,10 +26,7 @@ from tuner.data.mts793 import is_mts793, read_mts793
 from tuner.data.parquet_file import PARQUET_SUFFIXES, read_parquet
 from tuner.data.raw_table import RawTable, normalise_unit, split_unit
 
-__all__ = ["DataError", "RawTable", "read_raw", "normalise_unit", "split_unit", "TEXT_SUFFIXES", "FORMATS"]
-
-#: the formats read, as ``inspect`` names them
-FORMATS = ("MTS 793 export", "MATLAB v5", "MATLAB v7.3", "delimited text", "Parquet")
+__all__ = ["DataError", "RawTable", "read_raw", "normalise_unit", "split_unit", "TEXT_SUFFIXES"]
 
 
 def read_raw(path, source: str | None = None, header_line: int | None = None) -> RawTable:
