@@ -115,6 +115,20 @@ def test_mts_without_a_time_channel_checks_the_blocks_by_their_stamps(tmp_path, 
     assert len(warns) == 2  # the short last block is no warning
 
 
+def test_mts_export_with_a_decimal_comma(tmp_path, bundled):
+    """An export whose first line declares ',' as the decimal mark (its sixth field): every number, the
+    blocks' Time: stamps too, written with a comma."""
+    ref = bundled["id1_straight_250"]
+    path = write_mts(tmp_path / "deu.txt", ref.time[:3000], ref.stroke[:3000], ref.force[:3000], "mm", "kN")
+    path.write_bytes(path.read_bytes().replace(b".", b","))
+    got = load_test(path)
+    np.testing.assert_allclose(got.stroke, ref.stroke[:3000], atol=1e-12)
+    np.testing.assert_allclose(got.force, ref.force[:3000], atol=1e-6)
+    assert got.metadata["read"]["decimal"] == ","
+    # the second block's stamp, as written: its last sample's time + 0.0196941 s
+    assert got.metadata["read"]["format_info"]["blocks"][1]["time"] == pytest.approx(ref.time[2047] + 0.0196941, abs=1e-7)
+
+
 def test_mts_block_with_other_channels_is_refused_naming_its_line(tmp_path, bundled):
     ref = bundled["id1_straight_250"]
     path = write_mts(tmp_path / "mixed.txt", ref.time[:3000], ref.stroke[:3000], ref.force[:3000])
@@ -317,8 +331,13 @@ def test_a_stepped_sine_is_cut_into_its_steps(stepped):
 
 
 def test_steps_are_picked_by_number_frequency_and_amplitude(stepped):
+    from tuner.data.programme import cut_programme, select_steps
+
     path, _ = stepped
-    names = lambda sel: [t.name.removeprefix("stepped-") for t in load_tests(path, steps=sel)]  # noqa: E731
+    assert [t.name for t in load_tests(path, steps="2Hz:4mm")] == ["stepped-2Hz-4mm"]
+    whole = load_test(path)
+    steps = cut_programme(whole.time, whole.stroke, str(path))
+    names = lambda sel: [s.label for s in select_steps(steps, sel, str(path))]  # noqa: E731
     assert names("2") == ["1Hz-15mm"]
     assert names("1,4") == ["0.5Hz-20mm", "4Hz-4mm"]
     assert names("2Hz") == ["2Hz-8mm", "2Hz-4mm"]

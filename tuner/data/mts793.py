@@ -80,18 +80,19 @@ def is_mts793(path: Path) -> bool:
     return False
 
 
-def _block_line(s: str) -> tuple[float | None, str | None, str | None] | None:
-    """(``Time:`` value, its unit, the date-time stamp) of a block's opening line; None for another line."""
+def _block_line(s: str, decimal: str) -> tuple[float | None, str | None, str | None] | None:
+    """(``Time:`` value, its unit, the date-time stamp) of a block's opening line; None for another line.
+    ``decimal``: the export's decimal mark."""
     cells = [c.strip() for c in s.split("\t")]
-    has_time = "Time:" in cells and cells.index("Time:") + 1 < len(cells) \
-        and is_number(cells[cells.index("Time:") + 1], ".")
+    k = cells.index("Time:") if "Time:" in cells else None
+    has_time = k is not None and k + 1 < len(cells) and is_number(cells[k + 1], decimal)
     if not (cells[0].startswith("Data Acquisition") or has_time):
         return None
     if not has_time:
         return None, None, None
-    k = cells.index("Time:")
     rest = cells[k + 2:]
-    return float(cells[k + 1]), (rest[0] if rest else None), (" ".join(c for c in rest[1:] if c) or None)
+    value = float(cells[k + 1].replace(",", ".") if decimal == "," else cells[k + 1])
+    return value, (rest[0] if rest else None), (" ".join(c for c in rest[1:] if c) or None)
 
 
 def _fields(s: str, n: int, k: int, names: list, source: str) -> list:
@@ -109,7 +110,7 @@ def _blocks(kept: list, lines: list, decimal: str, source: str) -> list[_Block]:
     """The data-acquisition blocks of the lines after the export's first line (module docstring)."""
     out, i = [], 0
     while i < len(kept):
-        opened = _block_line(kept[i])
+        opened = _block_line(kept[i], decimal)
         head = i + (opened is not None)
         if head >= len(kept):
             break
@@ -121,11 +122,11 @@ def _blocks(kept: list, lines: list, decimal: str, source: str) -> list[_Block]:
                             f"(e.g. 'Stroke<TAB>Load<TAB>Time'), got {kept[head][:60]!r}")
         units = None
         start = head + 1
-        if start < len(kept) and _block_line(kept[start]) is None \
+        if start < len(kept) and _block_line(kept[start], decimal) is None \
                 and not any(is_number(c, decimal) for c in kept[start].split("\t") if c.strip()):
             units, start = [c.strip() for c in kept[start].split("\t")], start + 1
         end = start
-        while end < len(kept) and _block_line(kept[end]) is None:
+        while end < len(kept) and _block_line(kept[end], decimal) is None:
             end += 1
         if out and names != out[0].names:
             raise DataError(f"{source}: line {lines[head]}: the block's channel names {names} differ from the first "
