@@ -18,6 +18,7 @@ It never imports the tuner; the tuner uses its vehicle (``tuner.vehicle``) and i
 - ``rig_damper``: the rig's physically based twin-tube damper (the "real" damper);
 - ``effects``: the switchable hidden effects and forms of the rig damper;
 - ``sensors``: the sensor chain (noise, anti-alias filter, decimation, ADC);
+- ``programme``: a damper test programme in one run (a stepped sine of several frequencies and amplitudes);
 - ``synthetic``: datasets written by one of the damper models itself, with known parameters;
 - ``damper_class``: random dampers of each model's class, for the convergence benchmark;
 - ``plots``: the overview figure of a dataset folder;

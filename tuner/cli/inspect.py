@@ -14,7 +14,9 @@ __all__ = ["add_parser", "cmd_inspect"]
 def add_parser(sub) -> None:
     """Register ``inspect`` on an argparse subparsers object."""
     p = sub.add_parser("inspect", help="what the reader understands of rig files (columns, units, ranges)")
-    p.add_argument("files", nargs="*", type=Path, metavar="FILE", help="rig test files (CSV/TSV/Parquet)")
+    p.add_argument("files", nargs="*", type=Path, metavar="FILE",
+                   help="rig test files (delimited text, MTS 793 export, .mat, Parquet; FILE@SEL: steps of a test "
+                        "programme)")
     p.add_argument("--dataset", type=Path, help="a dataset folder with manifest.json instead of files")
     p.add_argument("--json", action="store_true", help="also print the figures as JSON (SI units)")
     add_data_options(p.add_argument_group("data"))

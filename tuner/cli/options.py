@@ -9,6 +9,8 @@ from pathlib import Path
 from campaign.cli import float_list  # the one argparse type for number lists
 from tuner.cli.log import log
 from tuner.data.read_options import COLUMN_OPTIONS, DEFAULT_DAMPER_CLASS, ReadOptions, read_column_mapping
+from tuner.data import units
+from tuner.data.programme import split_selection
 from tuner.data.reading import load_dataset, load_files
 from tuner.data.summary import filter_warning, summarize, summary_text
 from tuner.executors import parse_scheduler
@@ -35,11 +37,13 @@ def add_data_options(g) -> None:
     g.add_argument("--test-col", default=None, metavar="COL",
                    help="test-id column: a file holding several tests is split by its values")
     g.add_argument("--time-unit", default=None, choices=["s", "ms"])
-    g.add_argument("--stroke-unit", default=None, choices=["m", "cm", "mm", "um"],
-                   help="unit of the stroke (default: as the header or units row declares, else m)")
-    g.add_argument("--force-unit", default=None, choices=["N", "daN", "kN"],
-                   help="unit of the force (default: as the header or units row declares, else N)")
-    g.add_argument("--velocity-unit", default=None, choices=["m/s", "cm/s", "mm/s", "um/s"])
+    g.add_argument("--stroke-unit", default=None, choices=list(units.STROKE),
+                   help="unit of the stroke (default: as the header or units row declares, else m); in and ft "
+                        "exactly (0.0254 m/in)")
+    g.add_argument("--force-unit", default=None, choices=list(units.FORCE),
+                   help="unit of the force (default: as the header or units row declares, else N); lbf and kip "
+                        "exactly (4.4482216152605 N/lbf)")
+    g.add_argument("--velocity-unit", default=None, choices=list(units.VELOCITY))
     g.add_argument("--temperature-unit", default=None, choices=["degC", "K"])
     g.add_argument("--stroke-sign", type=int, default=None, choices=[1, -1],
                    help="-1 if the rig writes compression as positive stroke (ours: extension positive)")
@@ -77,6 +81,11 @@ def add_data_options(g) -> None:
                         "simulated force before every comparison: 'moving-average:T' (T in s, causal), "
                         "'butterworth:N:FC' (order, cut-off in Hz, causal), either with ':zero-phase', or 'none' "
                         "(default); per file in a --columns file (key prefilter)")
+    g.add_argument("--programme", action="store_true",
+                   help="a test programme in one file (a stepped sine): cut each file into one test per step of "
+                        "frequency or amplitude (transitions and settling cycles left out); FILE@SEL reads some "
+                        "steps of one file: FILE@2, FILE@1,3, FILE@1Hz, FILE@10mm, FILE@1Hz:10mm (--columns key "
+                        "programme = true)")
     g.add_argument("--columns", type=Path, default=None, metavar="FILE",
                    help="column mapping file (TOML or JSON) for campaigns with many files: the options above "
                         "as keys (time_col, stroke_unit, force_sign, header_line, force_scale ...), for every file "
@@ -90,7 +99,7 @@ def add_data_options(g) -> None:
 
 #: the reader's options (``ReadOptions`` fields) that have an option of the same name (``--time-col`` ...):
 #: those of a mapping file but ``rate_hz`` (``--rate``) and ``check_plausible`` (``--accept-implausible``)
-DATA_OPTIONS = tuple(k for k in COLUMN_OPTIONS if k not in ("rate_hz", "check_plausible"))
+DATA_OPTIONS = tuple(k for k in COLUMN_OPTIONS if k not in ("rate_hz", "check_plausible", "programme"))
 
 
 def column_options(args) -> tuple[ReadOptions, dict[str, ReadOptions]]:
@@ -105,6 +114,8 @@ def column_options(args) -> tuple[ReadOptions, dict[str, ReadOptions]]:
         given["rate_hz"] = args.rate
     if args.accept_implausible:
         given["check_plausible"] = False
+    if getattr(args, "programme", False):
+        given["programme"] = True
     every = ReadOptions().merged(common)
     return every.merged(given), {name: every.merged(opts).merged(given) for name, opts in per_file.items()}
 
@@ -114,9 +125,10 @@ def add_fit_options(ap: argparse.ArgumentParser) -> None:
     g = ap.add_argument_group("data")
     g.add_argument("--dataset", type=Path, help="dataset folder with manifest.json (roles from the manifest)")
     g.add_argument("--identification", nargs="+", type=Path, default=[], metavar="FILE",
-                   help="identification test files (CSV/Parquet)")
+                   help="identification test files (delimited text, MTS 793 export, .mat, Parquet; FILE@SEL: "
+                        "steps of a test programme, see --programme)")
     g.add_argument("--validation", nargs="+", type=Path, default=[], metavar="FILE",
-                   help="validation test files (held out)")
+                   help="validation test files (held out; FILE@SEL as for --identification)")
     add_data_options(g)
     g = ap.add_argument_group("identification")
     g.add_argument("--models", default=",".join(d.models),
@@ -233,7 +245,12 @@ def load_tests(args, file_role: str | None = "identification"):
     common, per_file = column_options(args)
 
     def read(paths, role):
-        return [t for p in paths for t in load_files([p], role, per_file.get(Path(p).name, common))]
+        out = []
+        for p in paths:
+            file, steps = (str(p), None) if Path(p).exists() else split_selection(str(p))
+            opts = per_file.get(Path(file).name, common)
+            out += load_files([Path(file)], role, opts if steps is None else opts.merged(steps=steps))
+        return out
 
     if args.dataset and (args.identification or args.validation):
         raise ValueError("give either --dataset or --identification/--validation files, not both")

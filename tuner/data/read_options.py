@@ -19,7 +19,7 @@ from damper_dataset.format import DataError
 
 __all__ = ["ReadOptions", "READ_OPTIONS", "COLUMN_OPTIONS", "DEFAULT_DAMPER_CLASS", "read_column_mapping"]
 
-#: the damper class read by default (``tuner.data.reading.DAMPER_CLASSES``)
+#: the damper class read by default (``tuner.data.plausibility.DAMPER_CLASSES``)
 DEFAULT_DAMPER_CLASS = "yaw"
 
 
@@ -66,6 +66,9 @@ class ReadOptions:
     velocity_offset: float | None = None  # [velocity unit]
     force_zero: float | None = None  # [s] tare: the force's mean over the first seconds of each test removed
     prefilter: str | None = None  # the lab's filter on the channels, e.g. 'moving-average:0.02' (tuner.data.prefilter)
+    # -- a test programme in one file (tuner.data.programme)
+    programme: bool = False  # cut the file into the steps of a stepped sine, one test each
+    steps: str | None = None  # the steps to read ('2', '1Hz', '1Hz:10mm', '1,3'; None: all); implies programme
     # -- checks
     check_plausible: bool = True  # refuse physically implausible strokes and forces (units)
     damper_class: str = DEFAULT_DAMPER_CLASS  # 'yaw', 'primary', 'secondary', 'any': the apparent damping's range
@@ -131,7 +134,7 @@ COLUMN_OPTIONS = ("time_col", "stroke_col", "force_col", "velocity_col", "temper
                   "time_unit", "stroke_unit", "force_unit", "velocity_unit", "temperature_unit", "stroke_sign",
                   "force_sign", "rate_hz", "t_start", "t_end", "check_plausible", "damper_class", "header_line",
                   "date_order", "stroke_scale", "stroke_offset", "force_scale", "force_offset", "velocity_scale",
-                  "velocity_offset", "force_zero", "prefilter")
+                  "velocity_offset", "force_zero", "prefilter", "programme")
 
 
 def read_column_mapping(path) -> tuple[dict, dict]:

@@ -1,8 +1,9 @@
-"""Measured damper-rig data: the reader, units and plausibility checks.
+"""Measured damper-rig data: the reader (which column is which, units to SI, signs, one test or several).
 
-Reads files as rigs write them (``tuner.data.rigfile``) and datasets in the format of
-``damper_dataset.format`` (the one definition, shared with the campaign's writer), converts to SI
-and checks that the data is physically a damper on a rig.
+Reads files as rigs write them (``tuner.data.rigfile`` picks the format's reader) and datasets in the
+format of ``damper_dataset.format`` (the one definition, shared with the campaign's writer), converts to
+SI and checks that the data is physically a damper on a rig (``tuner.data.plausibility``); the time base
+is repaired and checked in ``tuner.data.time_base``, a test programme cut in ``tuner.data.programme``.
 
 The options of a read travel in one record, ``ReadOptions`` (``tuner.data.read_options``, with the column
 mapping file). Preprocessing (resampling, ``prepare``): ``tuner.data.preprocess``; the stroke differentiator:
@@ -17,37 +18,21 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from tuner.data.differentiator import Differentiator
-from damper_dataset.format import (FORCE_UNITS, MANIFEST_TEST_KEYS, ROLES, STROKE_UNITS, TEMPERATURE_UNITS,
-                                   TIME_UNITS, VELOCITY_UNITS, DataError, check_finite, check_signals, read_manifest,
-                                   suggest_unit)
+from damper_dataset.format import (FORCE_UNITS, FORMAT_ID, MANIFEST_TEST_KEYS, ROLES, STROKE_UNITS, TIME_UNITS,
+                                   DataError, check_finite, check_signals, read_manifest)
 from tuner.data.calibration import apply as calibrate, calibration, force_zero as tare_force
 from tuner.data.prefilter import parse_prefilter
+from tuner.data.programme import cut_programme, select_steps
 # the record of the reader's options and the mapping file, also reachable here (the reader's API in one module)
 from tuner.data.read_options import (COLUMN_OPTIONS, DEFAULT_DAMPER_CLASS, READ_OPTIONS, ReadOptions,  # noqa: F401
                                      read_column_mapping)
-from tuner.data.rigfile import RawTable, read_raw, split_unit
+from tuner.data.rigfile import RawTable, read_raw
+# the plausibility checks, also reachable here (the reader's API in one module)
+from tuner.data.plausibility import (DAMPER_CLASSES, RAILWAY_DAMPER_CLASSES, class_warning,  # noqa: F401
+                                     plausibility)
 from tuner.data.stamps import check_date_order, is_stamp, stamp_seconds
-
-MAX_STROKE_RANGE_M = 2.0
-MIN_STROKE_RANGE_M = 5e-6
-MAX_VELOCITY_M_S = 5.0
-MIN_FORCE_PEAK_N = 1.0
-MAX_FORCE_PEAK_N = 2e6
-MIN_DAMPING_N_S_PER_M = 200.0
-MAX_DAMPING_N_S_PER_M = 1e8
-#: Apparent damping rms(F) / rms(v) [N s/m] of railway dampers by class: outside its class's range a
-#: test is read with a warning (a force in kN read as N gives 1000x too little). Yaw dampers: 1.0e5 to
-#: 1.1e6 on the bundled campaign and on the random dampers of ``campaign.damper_class`` (stiff low-speed
-#: slopes, blow-off above a few cm/s), widened 3x each way; primary and secondary (vertical and lateral)
-#: dampers are an order of magnitude softer. 'any' checks only the hard limits above.
-DAMPER_CLASSES = {"yaw": (3e4, 3e6), "primary": (3e3, 3e5), "secondary": (3e3, 3e5),
-                  "any": (MIN_DAMPING_N_S_PER_M, MAX_DAMPING_N_S_PER_M)}
-#: the railway damper classes: data declared as another class ('any') is not read as a railway damper's
-#: (the report then leaves out the railway wording: curving, stability)
-RAILWAY_DAMPER_CLASSES = ("yaw", "primary", "secondary")
-MIN_FORCE_VELOCITY_CORRELATION = -0.05
-
+from tuner.data.time_base import declared_rates, rate_check, regularise
+from tuner.data.units import FORCE, STROKE, TEMPERATURE as TEMPERATURE_UNITS, TIME, VELOCITY, us_conversions
 
 
 @dataclass
@@ -88,91 +73,6 @@ def _unit_factor(table: dict, unit: str, what: str, source) -> float:
     return table[unit]
 
 
-def class_warning(source, figures: dict, damper_class: str = DEFAULT_DAMPER_CLASS, units=None) -> str | None:
-    """A warning when the apparent damping of :func:`plausibility`'s ``figures`` lies outside the
-    range of ``damper_class`` (``DAMPER_CLASSES``), with the force unit that would bring it inside;
-    None inside. ValueError for an unknown class."""
-    if damper_class not in DAMPER_CLASSES:
-        raise ValueError(f"unknown damper class {damper_class!r}; choose from {', '.join(DAMPER_CLASSES)}")
-    c_app = figures.get("apparent_damping_n_s_per_m")
-    lo, hi = DAMPER_CLASSES[damper_class]
-    if c_app is None or lo <= c_app <= hi:
-        return None
-    fu = (units or {}).get("force", "N")
-    return (f"{source}: apparent damping {c_app:.3g} N s/m (rms force / rms stroke velocity) is "
-            f"{'below' if c_app < lo else 'above'} the {damper_class} damper range {lo:.0e}-{hi:.0e} N s/m "
-            f"(force read in {fu!r})." + suggest_unit(FORCE_UNITS, fu, lambda r: lo <= c_app * r <= hi)
-            + " Check --force-unit/--stroke-unit, or name the damper class with --damper-class "
-            + "/".join(DAMPER_CLASSES))
-
-
-def plausibility(source, time, stroke, force, velocity=None, rate=None, units=None) -> dict:
-    """Refuse a test that is not physically a damper on a rig, in either direction.
-
-    SI inputs: time [s], stroke [m], force [N], velocity [m/s] (None: the stroke differentiated
-    over 20 Hz). Limits: stroke range 5 um .. 2 m; peak stroke velocity <= 5 m/s (a rig
-    actuator's limit; a stroke in mm read as m gives tens of m/s); peak force 1 N .. 2 MN;
-    apparent damping rms(F)/rms(v) from 200 N s/m (lighter than any vehicle damper: a force in kN
-    read as N) to 1e8 N s/m (100 x a yaw damper's low-speed 1e6: a stroke in m read as mm); a
-    passive damper absorbs power, so force and velocity must not be anti-correlated (correlation
-    below -0.05: one of the two signs is flipped).
-    ``units``: the units the file was read in, for the suggested fix. Returns the
-    figures checked (SI); raises DataError naming the file, the figure and the likely fix.
-    """
-    units = units or {}
-    su, fu = units.get("stroke", "m"), units.get("force", "N")
-    rate = rate or (len(time) - 1) / (time[-1] - time[0])
-    v = velocity if velocity is not None else Differentiator.design(rate, 20.0, max_window=len(stroke)).apply(stroke)
-    srange = float(np.ptp(stroke))
-    vpeak = float(np.max(np.abs(v)))
-    fpeak = float(np.max(np.abs(force)))
-    vrms = float(np.std(v))
-    c_app = float(np.std(force) / vrms) if vrms > 1e-6 else None
-    fv = np.asarray(force, dtype=float) - np.mean(force)
-    power = float(np.mean(fv * v) / (np.std(fv) * vrms)) if vrms > 1e-6 and np.std(fv) > 0 else None
-    fig = {"stroke_range_m": srange, "velocity_peak_m_s": vpeak, "force_peak_n": fpeak,
-           "apparent_damping_n_s_per_m": c_app, "force_velocity_correlation": power}
-    tail = " If the values are right, run with --accept-implausible."
-    scaled = " A transducer's raw output (volts) needs its calibration: --stroke-scale, --force-scale."
-    if srange > MAX_STROKE_RANGE_M or vpeak > MAX_VELOCITY_M_S:
-        raise DataError(
-            f"{source}: implausible stroke: range {srange:.4g} m, peak velocity {vpeak:.4g} m/s (a damper rig "
-            f"moves <= {MAX_STROKE_RANGE_M:g} m at <= {MAX_VELOCITY_M_S:g} m/s) with stroke in {su!r}."
-            + suggest_unit(STROKE_UNITS, su, lambda r: srange * r <= MAX_STROKE_RANGE_M and vpeak * r <= MAX_VELOCITY_M_S
-                       and srange * r >= MIN_STROKE_RANGE_M) + " Use --stroke-unit." + scaled + tail)
-    if srange < MIN_STROKE_RANGE_M:
-        raise DataError(
-            f"{source}: implausible stroke: range {srange * 1e6:.3g} um (< {MIN_STROKE_RANGE_M * 1e6:g} um, under a "
-            f"rig's displacement resolution) with stroke in {su!r}."
-            + suggest_unit(STROKE_UNITS, su, lambda r: MIN_STROKE_RANGE_M <= srange * r <= MAX_STROKE_RANGE_M)
-            + " Use --stroke-unit, or the stroke signal is missing." + scaled + tail)
-    if fpeak < MIN_FORCE_PEAK_N or fpeak > MAX_FORCE_PEAK_N:
-        raise DataError(
-            f"{source}: implausible force: peak |force| {fpeak:.4g} N (a damper on a rig: {MIN_FORCE_PEAK_N:g} N "
-            f"to {MAX_FORCE_PEAK_N:.0e} N) with force in {fu!r}."
-            + suggest_unit(FORCE_UNITS, fu, lambda r: MIN_FORCE_PEAK_N <= fpeak * r <= MAX_FORCE_PEAK_N)
-            + " Use --force-unit, or the load signal is missing." + scaled + tail)
-    if c_app is not None and c_app < MIN_DAMPING_N_S_PER_M:
-        raise DataError(
-            f"{source}: implausible force for its stroke: rms force {np.std(force):.4g} N at rms velocity "
-            f"{vrms:.4g} m/s is an apparent damping of {c_app:.3g} N s/m, under the {MIN_DAMPING_N_S_PER_M:g} N s/m "
-            f"of the lightest vehicle damper, with force in {fu!r} and stroke in {su!r}."
-            + suggest_unit(FORCE_UNITS, fu, lambda r: c_app * r >= MIN_DAMPING_N_S_PER_M and fpeak * r <= MAX_FORCE_PEAK_N)
-            + " Use --force-unit/--stroke-unit." + scaled + tail)
-    if power is not None and power < MIN_FORCE_VELOCITY_CORRELATION:
-        raise DataError(
-            f"{source}: force and stroke velocity are anti-correlated (correlation {power:+.2f}): the damper would "
-            f"deliver power instead of absorbing it, so one sign convention differs from ours (stroke positive in "
-            f"extension, force positive in tension). Use --force-sign -1 (or --stroke-sign -1)." + tail)
-    if c_app is not None and c_app > MAX_DAMPING_N_S_PER_M:
-        raise DataError(
-            f"{source}: implausible stroke for its force: rms force {np.std(force):.4g} N at rms velocity "
-            f"{vrms:.4g} m/s is an apparent damping of {c_app:.3g} N s/m, over {MAX_DAMPING_N_S_PER_M:.0e} N s/m "
-            f"(100 x a yaw damper's), with stroke in {su!r} and force in {fu!r}."
-            + suggest_unit(STROKE_UNITS, su, lambda r: c_app / r <= MAX_DAMPING_N_S_PER_M and srange * r <= MAX_STROKE_RANGE_M)
-            + " Use --stroke-unit/--force-unit." + scaled + tail)
-    return fig
-
 
 # --------------------------------------------------------------------------- reading
 
@@ -200,7 +100,7 @@ def _time_seconds(raw: RawTable, col: str, unit: str, source: str, date_order=No
     ``'dmy'`` or None (from the data)."""
     s = raw.frame[col]
     if s.dtype.kind in "fiu" or pd.to_numeric(s.iloc[:20], errors="coerce").notna().any():
-        return _numeric(raw, col, source) * _unit_factor(TIME_UNITS, unit, "time", source), "seconds", {}
+        return _numeric(raw, col, source) * _unit_factor(TIME, unit, "time", source), "seconds", {}
     if s.dtype.kind != "M" and is_stamp(s.iloc[0]):  # a date and a clock time, as loggers write them
         t, how = stamp_seconds(s, date_order, source, col, raw.lines)
         return t, "timestamp", how
@@ -223,59 +123,6 @@ def _time_seconds(raw: RawTable, col: str, unit: str, source: str, date_order=No
     return (ns - ns[0]) * 1e-9, "timestamp", {}
 
 
-def _regularise(source, t: np.ndarray, cols: dict, dt_tol: float, lines, gap_limit: float = 5.0):
-    """Uniform time base for samples written with duplicated or irregular stamps.
-
-    Returns (t, cols, note). Duplicated stamps: the later rows are dropped. Stamps within half a
-    step of a regular clock (e.g. a 300 Hz clock stamped to the millisecond) are taken as that
-    clock. Otherwise (missing samples, jitter) every column is interpolated linearly to the
-    median step; a gap over ``gap_limit`` steps is refused (it would be invented data), as is
-    time going backwards. ``note`` says what was done (None: nothing)."""
-    def where(i):
-        return f"data row {i + 1}" + (f" (line {lines[i]})" if lines is not None and i < len(lines) else "")
-
-    dt = np.diff(t)
-    back = dt < 0
-    if back.any():
-        i = int(np.argmax(back)) + 1
-        raise DataError(f"{source}: time is not increasing: {t[i]:.9g} s at {where(i)} after {t[i - 1]:.9g} s; "
-                        f"the file mixes records or its clock was reset: split it or use --t-start/--t-end")
-    notes = []
-    dup = np.concatenate([[False], dt == 0])
-    if dup.any():
-        keep = ~dup
-        notes.append(f"{int(dup.sum())} duplicated time stamp(s) dropped (first at {where(int(np.argmax(dup)))})")
-        t = t[keep]
-        cols = {k: v[keep] for k, v in cols.items()}
-        if lines is not None:
-            lines = [ln for ln, k in zip(lines, keep) if k]
-        dt = np.diff(t)
-    if len(t) < 2:
-        return t, cols, "; ".join(notes) or None
-    n = len(t)
-    dt_mean = (t[-1] - t[0]) / (n - 1)
-    dev = np.abs(dt / dt_mean - 1.0)
-    if dev.max() <= dt_tol:
-        return t, cols, "; ".join(notes) or None
-    k = np.arange(n)
-    slope, intercept = np.polyfit(k, t - t[0], 1)  # the clock, least squares (rounded stamps)
-    grid = intercept + slope * k
-    if np.max(np.abs(t - t[0] - grid)) <= 0.5 * slope:
-        notes.append(f"time stamps jitter up to {np.max(np.abs(t - t[0] - grid)) * 1e3:.3g} ms around a regular "
-                     f"{1 / slope:.6g} Hz clock (stamp resolution): taken as that clock")
-        return grid - grid[0] + t[0], cols, "; ".join(notes)
-    step = float(np.median(dt))
-    if dt.max() > gap_limit * step:
-        i = int(np.argmax(dt)) + 1
-        raise DataError(f"{source}: gap of {dt[i - 1]:.6g} s ({dt[i - 1] / step:.0f} samples) in the time "
-                        f"column before {where(i)}: interpolating it would invent data; split the file "
-                        f"or select a segment with --t-start/--t-end")
-    m = int(np.floor((t[-1] - t[0]) / step + 1e-9)) + 1
-    new_t = t[0] + step * np.arange(m)
-    irregular = int(np.sum(np.abs(dt / step - 1.0) > dt_tol))
-    notes.append(f"{irregular} irregular time step(s) (largest {dt.max() * 1e3:.4g} ms against "
-                 f"{step * 1e3:.4g} ms): {n} samples interpolated linearly to {m} at {1 / step:.6g} Hz")
-    return new_t, {k: np.interp(new_t, t, v) for k, v in cols.items()}, "; ".join(notes)
 
 
 def _unit(given, declared, default: str, what: str, column: str, source: str, option: str) -> str:
@@ -304,13 +151,28 @@ def _temperature_column(raw: RawTable, use: dict, source: str, warn: list) -> st
     return in_temperature[0] if in_temperature else None  # 'Temperature (V)' beside it is a channel
 
 
+#: the column options' defaults (``ReadOptions``): role -> column name
+_DEFAULT_COLUMNS = ReadOptions().columns
+
+
+def _format_names(raw: RawTable, names: dict) -> dict:
+    """Role -> the column option, where one left at its default (``force``) names no column of the file but
+    the format names one for that role (an MTS export's ``Load``: ``RawTable.defaults``) taken as that."""
+    low = {c.lower() for c in raw.frame.columns} | {raw.names[c].lower() for c in raw.frame.columns}
+    out = dict(names)
+    for role, col in raw.defaults.items():
+        if names.get(role) == _DEFAULT_COLUMNS[role] and str(names[role]).lower() not in low:
+            out[role] = col
+    return out
+
+
 def _pick_columns(raw: RawTable, source: str, opts: ReadOptions) -> tuple:
     """Which column is which (``opts.columns``: role -> the ``*_col`` option; ``opts.rate_hz``,
     ``opts.extra_cols``). Returns (use: role -> column, no_time, extra columns to read, whether they were
     asked for, unused columns, warnings). Raises DataError naming the option for a missing column."""
     found = list(raw.frame.columns)
-    warn = []
-    names, rate_hz, extra_cols = opts.columns, opts.rate_hz, opts.extra_cols
+    warn = list(raw.info.get("warnings", []))
+    names, rate_hz, extra_cols = _format_names(raw, opts.columns), opts.rate_hz, opts.extra_cols
     time_col = names["time"]
     no_time = time_col is None or (rate_hz is not None and time_col == "time" and "time" not in found
                                    and not any(raw.names[c].lower() == "time" for c in found))
@@ -357,8 +219,8 @@ def _signals(raw: RawTable, use: dict, source: str, opts: ReadOptions, cal: dict
     as ``'raw:NAME'``; units read)."""
     cols, units, raws = {}, {}, {}
     given, signs, channel_units = opts.units, opts.signs, opts.channel_units
-    for what, table, default in (("stroke", STROKE_UNITS, "m"), ("force", FORCE_UNITS, "N"),
-                                 ("velocity", VELOCITY_UNITS, None)):
+    for what, table, default in (("stroke", STROKE, "m"), ("force", FORCE, "N"),
+                                 ("velocity", VELOCITY, None)):
         if what not in use:
             continue
         c = cal.get(what)
@@ -380,42 +242,6 @@ def _signals(raw: RawTable, use: dict, source: str, opts: ReadOptions, cal: dict
     return {**cols, **raws}, units
 
 
-_RATE_KEYS = {"sampling rate": "Hz", "sample rate": "Hz", "sampling frequency": "Hz", "sample frequency": "Hz",
-              "sampling interval": "s", "sample interval": "s", "sampling period": "s", "sample period": "s"}
-
-
-def _declared_rates(preamble: dict) -> list[tuple[str, float]]:
-    """(key, rate [Hz]) of each sample rate or interval a logger's preamble declares: ``Sampling Rate:
-    1000`` [Hz, or kHz when so written], ``Sampling Interval:  0.001`` [s, or ms/us when so written]."""
-    out = []
-    for key, value in preamble.items():
-        name, key_unit = split_unit(key)
-        kind = _RATE_KEYS.get(name.strip().lower())
-        m = re.match(r"\s*(\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)\s*([a-zA-Zµ]*)", value)
-        if kind is None or not m or not float(m.group(1)) > 0:
-            continue
-        x, unit = float(m.group(1)), (m.group(2) or key_unit or kind).lower()
-        if kind == "Hz":
-            out.append((key, x * (1e3 if unit == "khz" else 1.0)))
-        else:
-            out.append((key, 1.0 / (x * {"ms": 1e-3, "us": 1e-6, "µs": 1e-6}.get(unit, 1.0))))
-    return out
-
-
-def _rate_check(label: str, preamble: dict, rate: float, dt_tol: float) -> tuple[dict | None, str | None]:
-    """The time column's sample rate [Hz] against the rates the preamble declares: ({key: declared Hz,
-    'time_column_hz', 'agrees'} or None when none is declared, a warning when one differs by more than
-    ``dt_tol``)."""
-    declared = _declared_rates(preamble)
-    if not declared:
-        return None, None
-    off = [(key, hz) for key, hz in declared if abs(rate / hz - 1.0) > dt_tol]
-    check = {"declared_hz": dict(declared), "time_column_hz": rate, "agrees": not off}
-    if not off:
-        return check, None
-    key, hz = off[0]
-    return check, (f"{label}: the preamble declares '{key}: {preamble[key]}' ({hz:.6g} Hz) but the time column "
-                   f"gives {rate:.6g} Hz; check --time-col/--time-unit, or the logger's settings")
 
 
 def _time_base(raw: RawTable, use: dict, no_time: bool, opts: ReadOptions, source: str) -> tuple:
@@ -424,7 +250,7 @@ def _time_base(raw: RawTable, use: dict, no_time: bool, opts: ReadOptions, sourc
     ``opts.time_unit`` (or as declared) or date-time stamps in ``opts.date_order``."""
     rate_hz = opts.rate_hz
     if no_time:
-        declared = _declared_rates(raw.preamble)
+        declared = declared_rates(raw.preamble)
         if rate_hz is None and declared:
             key, hz = declared[0]
             return (np.arange(len(raw.frame)) / hz, f"none: samples at {hz:g} Hz, as the preamble declares "
@@ -504,14 +330,14 @@ def _segment(tg: np.ndarray, cg: dict, lines, t_start, t_end, regularised: bool)
 def _one_test_signals(label: str, t: np.ndarray, cols: dict, rows: np.ndarray, lines, opts: ReadOptions) -> tuple:
     """One test's ``rows`` of the file's time [s] and columns (``lines``: the file line of each row, or
     None): NaN/inf refused (named before any resampling), the time base regularised from 0
-    (:func:`_regularise`, within ``opts.dt_tol``), the force tared over its first ``opts.force_zero``
-    seconds (None: not; :func:`tuner.data.calibration.force_zero`), the segment ``opts.t_start`` to
+    (:func:`tuner.data.time_base.regularise`, within ``opts.dt_tol``), the force tared over its first
+    ``opts.force_zero`` seconds (None: not; :func:`tuner.data.calibration.force_zero`), the segment ``opts.t_start`` to
     ``opts.t_end`` [s] selected. Returns (time [s], columns, file lines, regularisation note, tare)."""
     lines = None if lines is None else [lines[i] for i in rows]
     t, cols = t[rows] - t[rows][0], {k: v[rows] for k, v in cols.items()}
     for k, v in cols.items():
         check_finite(label, k.removeprefix("ch:"), v, lines)
-    t, cols, note = _regularise(label, t, cols, opts.dt_tol, lines)
+    t, cols, note = regularise(label, t, cols, opts.dt_tol, lines)
     zero = None
     if opts.force_zero is not None:
         cols["force"], zero = tare_force(label, t, cols["force"], cols["stroke"], opts.force_zero)
@@ -560,7 +386,7 @@ def _test_checks(label: str, t, cols: dict, channels: dict, lines, units: dict, 
     if sample_rate_hz is not None and abs(rate / float(sample_rate_hz) - 1.0) > dt_tol:
         raise DataError(f"{label}: time column gives {rate:.6g} Hz but the manifest "
                         f"says sample_rate_hz = {sample_rate_hz}")
-    declared, rate_note = _rate_check(label, preamble, rate, dt_tol)
+    declared, rate_note = rate_check(label, preamble, rate, dt_tol)
     read_checks, class_note = None, None
     damper_class = opts.damper_class if opts.check_plausible else None
     if damper_class is not None:
@@ -570,11 +396,29 @@ def _test_checks(label: str, t, cols: dict, channels: dict, lines, units: dict, 
 
 
 def _groups(raw: RawTable, use: dict) -> list:
-    """(test id or None, row indices) of each test in the file (one per value of the test-id column)."""
+    """(test id or None, row indices) of each test in the file: one per value of the test-id column, else one
+    per continuous piece when the file's time base breaks (``RawTable.pieces``: ids ``part1``, ``part2`` ...)."""
+    if "test" not in use and raw.pieces:  # a time base broken in the file (an MTS export missing a block)
+        ends = [*raw.pieces[1:], len(raw.frame)]
+        return [(f"part{k + 1}", np.arange(a, b)) for k, (a, b) in enumerate(zip(raw.pieces, ends))]
     if "test" not in use:
         return [(None, np.arange(len(raw.frame)))]
     ids = raw.frame[use["test"]].astype(str).to_numpy()
     return [(g, np.flatnonzero(ids == g)) for g in dict.fromkeys(ids)]
+
+
+def _programme_groups(groups: list, t: np.ndarray, stroke: np.ndarray, source: str, selection) -> tuple[list, dict]:
+    """Each group's (:func:`_groups`) steps of a test programme (:func:`tuner.data.programme.cut_programme` on
+    its time [s] and stroke [m]) that ``selection`` picks (``select_steps``; None: all): (test id, rows) per
+    step and test id -> ``ProgrammeStep``."""
+    out, steps = [], {}
+    for gid, rows in groups:
+        label = source if gid is None else f"{source} [{gid}]"
+        for step in select_steps(cut_programme(t[rows], stroke[rows], label), selection, label):
+            sid = step.label if gid is None else f"{gid}-{step.label}"
+            out.append((sid, rows[step.rows[0]:step.rows[1]]))
+            steps[sid] = step
+    return out, steps
 
 
 def load_tests(path, options: ReadOptions | None = None, **changes) -> list[RigTest]:
@@ -594,9 +438,12 @@ def load_tests(path, options: ReadOptions | None = None, **changes) -> list[RigT
     over its first ``force_zero`` [s] (:mod:`tuner.data.calibration`); ``prefilter`` (the lab's filter,
     :mod:`tuner.data.prefilter`) is recorded in ``metadata['read']['prefilter']``: the simulated force passes
     it before every comparison. Duplicated or irregular stamps are regularised with a warning (see
-    :func:`_regularise`); ``t_start``/``t_end`` [s from the first sample] select a segment. ``check_plausible``:
-    refuse physically implausible strokes/forces (:func:`plausibility`); ``damper_class``: warn when the
-    apparent damping is outside that class's range (:func:`class_warning`). What was understood goes to
+    :func:`tuner.data.time_base.regularise`); ``t_start``/``t_end`` [s from the first sample] select a
+    segment. ``check_plausible``: refuse physically implausible strokes/forces (:func:`plausibility`);
+    ``damper_class``: warn when the apparent damping is outside that class's range (:func:`class_warning`).
+    The format's reader is picked by :func:`tuner.data.rigfile.read_raw` (an MTS 793 export's ``Load`` is
+    the force; a missing block splits it into tests ``NAME-part1`` ...); ``programme``/``steps``: one test
+    per step of a stepped sine (:mod:`tuner.data.programme`), named ``NAME-1Hz-15mm``. What was understood goes to
     ``metadata['read']`` (with the damper class declared, checked or not), warnings to
     ``metadata['warnings']``. Raises DataError on any problem."""
     opts = ReadOptions.of(options, **changes)
@@ -614,13 +461,19 @@ def load_tests(path, options: ReadOptions | None = None, **changes) -> list[RigT
                                                           warn)
     cols.update(extra)
     ch_units = {"temperature": "degC", **ch_units} if "temperature" in use else ch_units
-    stem = re.sub(r"\.(csv|tsv|txt|dat)(\.gz)?$|\.(parquet|pq)$", "", path.name, flags=re.IGNORECASE)
-    file_read = {"columns": dict(use), "ignored": [c for c in rest if c not in extra_cols or c in dropped],
+    stem = re.sub(r"\.(csv|tsv|txt|dat)(\.gz)?$|\.(parquet|pq|mat)$", "", path.name, flags=re.IGNORECASE)
+    file_read = {"format": raw.kind, "format_info": {k: v for k, v in raw.info.items() if k != "warnings"} or None,
+                 "converted": us_conversions(units) or None, "columns": dict(use),
+                 "ignored": [c for c in rest if c not in extra_cols or c in dropped],
                  "header_line": raw.header_line, "preamble": dict(raw.preamble), "date_order": stamps.get("date_order"),
                  "stamps": stamps.get("stamps"), "text_columns": text_cols}
     out = []
-    for gid, rows in _groups(raw, use):
-        label = source if gid is None else f"{source} [test {gid}]"
+    groups, steps = _groups(raw, use), {}
+    if opts.programme or opts.steps is not None:
+        groups, steps = _programme_groups(groups, t, cols["stroke"], source, opts.steps)
+    for gid, rows in groups:
+        tagged = "test" in use and not steps  # a test-id column's value, else a piece or a step
+        label = source if gid is None else f"{source} [test {gid}]" if tagged else f"{source} [{gid}]"
         tg, cg, lines, note, zero = _one_test_signals(label, t, cols, rows, raw.lines, opts)
         channels = {k[3:]: v for k, v in cg.items() if k.startswith("ch:")}
         rate, checks, notes = _test_checks(label, tg, cg, channels, lines, units, raw.preamble, opts)
@@ -629,7 +482,7 @@ def load_tests(path, options: ReadOptions | None = None, **changes) -> list[RigT
                 "segment_s": [opts.t_start, opts.t_end] if (opts.t_start is not None or opts.t_end is not None)
                 else None, **checks, **file_read, "calibration": _calibration_read(cal, use, raw, units, cg),
                 "force_zero": zero, "prefilter": lab_filter.to_dict() if lab_filter else None,
-                "damper_class": opts.damper_class}
+                "damper_class": opts.damper_class, "step": steps[gid].to_dict() if gid in steps else None}
         warns = list(warn) + ([f"{label}: {note}"] if note else []) + notes
         out.append(RigTest(
             name=(opts.name or stem) + ("" if gid is None else f"-{gid}"), role=opts.role,
@@ -675,6 +528,15 @@ def load_files(paths, role, options: ReadOptions | None = None, **changes) -> li
     return [t for p in paths for t in load_tests(p, opts)]
 
 
+def _dataset_units(source, units: dict) -> None:
+    """DataError naming the test file unless the manifest's units are the dataset format's own
+    (``damper_dataset.format``: metric; the reader's US customary units are for rig files, not datasets)."""
+    for what, table in (("time", TIME_UNITS), ("stroke", STROKE_UNITS), ("force", FORCE_UNITS)):
+        if what in units and units[what] not in table:
+            raise DataError(f"{source}: unknown {what} unit {units[what]!r} in the dataset's manifest.json; the "
+                            f"format {FORMAT_ID} takes {', '.join(table)}")
+
+
 def load_dataset(folder, *, dt_tol=0.01, check_plausible=True, damper_class=DEFAULT_DAMPER_CLASS) -> list[RigTest]:
     """Read every test of a dataset folder (manifest order) in SI units; ``check_plausible`` and
     ``damper_class`` as in :func:`load_tests`. Raises DataError."""
@@ -687,6 +549,7 @@ def load_dataset(folder, *, dt_tol=0.01, check_plausible=True, damper_class=DEFA
                        channel_units={k: v for k, v in units.items() if k not in known}, dt_tol=dt_tol, check_plausible=check_plausible, damper_class=damper_class)
     out = []
     for e in man["tests"]:
+        _dataset_units(folder / e["file"], units)
         out.append(load_test(folder / e["file"], read.merged(
             name=e["name"], role=e["role"], scenario=e["scenario"], sample_rate_hz=e["sample_rate_hz"],
             metadata={k: v for k, v in e.items() if k not in MANIFEST_TEST_KEYS})))

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from damper_fmu.parameters import FC_ABSCISSAE
 
+from tuner.data import units
 from tuner.data.reading import RigTest
 from tuner.data.differentiator import Differentiator
 from tuner.data.noise import FLATNESS, force_noise
@@ -44,6 +45,9 @@ def summarize(test: RigTest, fit_rate_hz: float, diff_band_hz: float | None = No
         "date_order": read.get("date_order"), "stamps": read.get("stamps"), "declared_rate": read.get("declared_rate"),
         "calibration": read.get("calibration"), "force_zero": read.get("force_zero"),
         "text_columns": read.get("text_columns", {}), "prefilter": read.get("prefilter"),
+        "format": read.get("format"), "format_info": read.get("format_info"), "converted": read.get("converted"),
+        "step": read.get("step"),
+        "apparent_damping_n_s_per_m": (read.get("plausibility") or {}).get("apparent_damping_n_s_per_m"),
         "looks_filtered": _looks_filtered(noise),
         "sample_rate_hz": float(test.sample_rate), "duration_s": test.duration, "samples": int(len(test.time)),
         "stroke_m": [float(test.stroke.min()), float(test.stroke.max())],
@@ -101,6 +105,42 @@ def _noise_text(n: dict) -> str:
 
 def _range(lo: float, hi: float, scale: float, unit: str, digits: int = 4) -> str:
     return f"{lo * scale:.{digits}g} .. {hi * scale:.{digits}g} {unit}"
+
+
+def _block_text(b: dict) -> str:
+    """'line 3, Time: 1.0196941 Sec, 10/4/2021 7:48:04 AM, 1024 rows' of one MTS block stamp."""
+    parts = [f"block {b['block']}"] + ([f"line {b['line']}"] if b.get("line") else [])
+    if b.get("time") is not None:
+        parts.append(f"Time: {b['time']:.8g} {b.get('time_unit') or ''}".rstrip())
+    return ", ".join(parts + ([b["stamp"]] if b.get("stamp") else []) + [f"{b['rows']} rows"])
+
+
+def _format_lines(s: dict) -> list[str]:
+    """The summary's lines on the file's format (an MTS export's blocks, a MATLAB file's variables, a
+    programme's step) and on US customary units converted; none for a plain metric table."""
+    out = []
+    info = s.get("format_info") or {}
+    if info.get("blocks"):
+        blocks = info["blocks"]
+        out.append(f"  format: {s['format']} ({info['export']}): {len(blocks)} blocks of {info['rows_per_block']} "
+                   f"rows" + (f", {info['blocks_left_out']} left out (see the warnings)" if info["blocks_left_out"]
+                              else "") + f"; first {_block_text(blocks[0])}; last {_block_text(blocks[-1])}")
+    elif info.get("variables"):
+        out.append(f"  format: {s['format']}; variables: {', '.join(info['variables'])}"
+                   + (f" ({info['note']})" if info.get("note") else ""))
+    if s.get("step"):
+        st = s["step"]
+        out.append(f"  programme step {st['index']} of {st['of']}: {st['frequency_hz']:.4g} Hz, amplitude "
+                   f"{st['amplitude_m'] * 1e3:.4g} mm, {st['cycles']} cycles from {st['t_start_s']:.4g} s to "
+                   f"{st['t_end_s']:.4g} s of the file ({st['settling_cycles']} settling cycles left out)")
+    conv = s.get("converted") or {}
+    if conv:
+        pairs = "; ".join(f"{role} {c['unit']} -> {c['si']} x {c['factor']:.15g}" for role, c in conv.items())
+        c_app = s.get("apparent_damping_n_s_per_m")
+        extra = (f"; apparent damping {c_app:.4g} N s/m = {c_app / units.DAMPING['lbf*s/in']:.4g} lbf*s/in"
+                 if c_app else "")
+        out.append(f"  US customary units read and converted exactly to SI: {pairs}{extra}")
+    return out
 
 
 def _logger_lines(s: dict) -> list[str]:
@@ -169,7 +209,7 @@ def summary_text(s: dict) -> str:
              f"  {s['samples']} samples at {s['sample_rate_hz']:.6g} Hz, {s['duration_s']:.4g} s",
              f"  stroke {_range(*s['stroke_m'], 1e3, 'mm')}; velocity {_range(*s['velocity_m_s'], 1e3, 'mm/s')} "
              f"({s['velocity_source']}); force {_range(*s['force_n'], 1e-3, 'kN')}"
-             + _noise_text(s["force_noise"])] + _logger_lines(s)
+             + _noise_text(s["force_noise"])] + _format_lines(s) + _logger_lines(s)
     for k, (lo, hi, u) in s["channels"].items():
         lines.append(f"  channel {k}: {lo:.4g} .. {hi:.4g} {u}".rstrip())
     c = s["coverage"]
