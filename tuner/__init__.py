@@ -6,6 +6,7 @@ One sub-package per stage:
 - ``identification``: the Firefly search and the local refinement, validation through the FMU;
 - ``diagnosis``: what the fitted model gets wrong, and why;
 - ``vehicle``: the tuned FMUs as the yaw dampers of the campaign's vehicle;
+- ``datasheet``: the damper's datasheet (force-velocity and dynamic characteristics) from an FMU and from sine tests;
 - ``fleet``: a batch of dampers from a manifest, on a local pool or Dask;
 - ``results``: the reports and the one recommendation of which model to use;
 - ``cli``: the command line, one module per sub-command.

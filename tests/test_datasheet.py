@@ -1,0 +1,107 @@
+"""The datasheet's computation against physics, not against its own output: a Maxwell FMU against the closed form
+K*(w) = k i w c / (k + i w c), the lumped FMU's quasi-static force-velocity points against its own damping table,
+the first harmonic against a direct least-squares fit of a sine (scipy's ``curve_fit``)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import curve_fit
+
+from damper_fmu.fmu import build
+from damper_fmu.parameters import defaults
+from damper_fmu.tables import PwlTable
+from tuner.datasheet.characteristic import DatasheetSettings, fmu_characteristic
+from tuner.datasheet.loop import harmonics, loop_quantities, maxwell_equivalent
+from tuner.datasheet.sine_runs import SineDriver
+
+K_S, C = 8e6, 3e5  # [N/m], [N s/m]
+
+
+def closed_form(f_hz: float) -> complex:
+    """K*(w) of a spring K_S in series with a dashpot C [N/m]."""
+    w = 2 * np.pi * f_hz
+    return K_S * 1j * w * C / (K_S + 1j * w * C)
+
+
+@pytest.fixture(scope="module")
+def maxwell_fmu(tmp_path_factory):
+    return build("maxwell", tmp_path_factory.mktemp("fmu"), start_values={"k_s": K_S, "c": C},
+                 filename="MaxwellDatasheet.fmu")
+
+
+def test_a_maxwell_fmu_gives_the_closed_form_dynamic_stiffness_and_force_velocity(maxwell_fmu):
+    ch = fmu_characteristic(maxwell_fmu, DatasheetSettings(amplitudes_m=(1e-3, 5e-3)), log=lambda line: None)
+    listed = sorted({p.frequency_hz for p in ch.dynamic})
+    assert sum(0.5 <= f <= 15.0 for f in listed) >= 5
+    for p in ch.dynamic:
+        k_star, q = closed_form(p.frequency_hz), p.quantities
+        assert p.settled
+        assert q.storage_n_m == pytest.approx(k_star.real, rel=0.01), p
+        assert q.loss_n_m == pytest.approx(k_star.imag, rel=0.01), p
+        assert q.loss_angle_deg == pytest.approx(math.degrees(math.atan2(k_star.imag, k_star.real)), abs=0.5)
+        # a Maxwell element's equivalent Maxwell element is itself, and it is linear
+        assert q.maxwell_k_n_m == pytest.approx(K_S, rel=0.01) and q.maxwell_c_n_s_m == pytest.approx(C, rel=0.01)
+        assert q.distortion < 1e-3
+    assert ch.series_stiffness_n_m == pytest.approx(K_S, rel=0.01)
+    for direction, sign in (("extension", 1.0), ("compression", -1.0)):
+        points = [p for p in ch.force_velocity if p.direction == direction]
+        assert len(points) >= 5 and all(np.sign(p.velocity_m_s) == sign for p in points)
+        for p in points:  # x = A sin(w t): at the peak velocity the force is A K'' of the closed form, signed
+            expected = sign * p.amplitude_m * closed_form(p.frequency_hz).imag
+            assert p.force_n == pytest.approx(expected, rel=0.01), p
+
+
+def test_the_lumped_fmus_quasi_static_force_velocity_points_lie_on_its_damping_table(fmu_paths):
+    """At the force-velocity sines (25 mm stroke, 0.03-1.9 Hz) the lumped chain's elasticity (Fk,O, 1.5e7 N/m;
+    silent blocks) lags the damping table by (w c / k)^2 < 0.3 % at the peak velocity, where the acceleration is
+    zero: the points are the table's."""
+    p = defaults("lumped")
+    table = PwlTable([p[f"Fc_v{i:02d}"] for i in range(1, 15)], [p[f"Fc_{i:02d}"] for i in range(1, 15)])
+    ch = fmu_characteristic(fmu_paths["lumped"], DatasheetSettings(frequencies_hz=(1.0,), amplitudes_m=(1e-3,)),
+                            log=lambda line: None)
+    assert len(ch.force_velocity) == 2 * 10
+    for point in ch.force_velocity:
+        assert point.settled
+        assert point.force_n == pytest.approx(table(point.velocity_m_s), rel=0.01), point
+
+
+def _sine(t, offset, a, b, f):
+    return offset + a * np.sin(2 * np.pi * f * t) + b * np.cos(2 * np.pi * f * t)
+
+
+def test_the_first_harmonic_is_a_direct_least_squares_sine_fit(fmu_paths):
+    """The lumped FMU's force at 5 Hz, 5 mm (strongly nonlinear: its harmonics are large) on four whole periods
+    after two (the discrete Fourier transform), and at 3 Hz on three periods resampled at 200 Hz, as a rig samples
+    (66.7 samples per period: the series fitted by its normal equations)."""
+    with SineDriver(fmu_paths["lumped"]) as driver:
+        n = driver.settings.samples_per_period(5.0)
+        t5, _, f5 = driver.stroke_run(5.0, 5e-3, 6)
+        t3, _, f3 = driver.stroke_run(3.0, 5e-3, 5)
+    window = np.arange(1 / 3.0, 4 / 3.0, 1 / 200.0)
+    cases = [(t5[2 * n:6 * n], f5[2 * n:6 * n], 5.0), (window, np.interp(window, t3, f3), 3.0)]
+    for tt, y, freq in cases:
+        h = harmonics(tt, y, freq)
+        assert h.distortion() > 0.05  # a test that a linear force would not make
+        # the three-parameter sine fit (IEEE 1057) at the known frequency, by scipy's nonlinear least squares
+        (offset, a, b), _ = curve_fit(lambda t, o, a, b: _sine(t, o, a, b, freq), tt, y,
+                                      p0=[0.0, float(np.std(y)), 0.0])
+        # y ~ a sin + b cos: Y_1 = b - i a (y = Re(Y_1 exp(i w t)))
+        assert abs(h.first - complex(b, -a)) <= 1e-6 * abs(h.first), (h.first, a, b)
+
+
+def test_loop_quantities_of_a_known_signal():
+    """x = A sin(w t), F = F1 sin(w t + d) + 0.1 F1 sin(3 w t): K* = (F1 / A) exp(i d), THD 0.1; the force at the
+    peak velocities is F1 sin(d) (the third harmonic is zero there)."""
+    f, a, f1, d = 2.0, 1e-3, 1e3, 0.7
+    t = np.arange(400) / 200.0  # four whole periods
+    w = 2 * np.pi * f
+    q = loop_quantities(t, a * np.sin(w * t), f1 * np.sin(w * t + d) + 0.1 * f1 * np.sin(3 * w * t), f)
+    assert complex(q.storage_n_m, q.loss_n_m) == pytest.approx(f1 / a * np.exp(1j * d), rel=1e-9)
+    assert q.distortion == pytest.approx(0.1, rel=1e-9) and q.periods == 4
+    assert q.force_extension_n == pytest.approx(f1 * np.sin(d), rel=1e-9)
+    assert q.force_compression_n == pytest.approx(-f1 * np.sin(d), rel=1e-9)
+    k, c = maxwell_equivalent(complex(q.storage_n_m, q.loss_n_m), w)
+    assert 1 / complex(q.storage_n_m, q.loss_n_m) == pytest.approx(1 / k + 1 / (1j * w * c), rel=1e-9)
+    assert maxwell_equivalent(complex(-1.0, 1.0), w)[0] == math.inf  # no spring for a negative storage stiffness
