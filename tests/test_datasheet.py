@@ -3,6 +3,8 @@ K*(w) = k i w c / (k + i w c), the lumped FMU's quasi-static force-velocity poin
 the first harmonic against a direct least-squares fit of a sine (scipy's ``curve_fit``)."""
 from __future__ import annotations
 
+import csv
+import json
 import math
 
 import numpy as np
@@ -15,6 +17,8 @@ from damper_fmu.tables import PwlTable
 from tuner.datasheet.characteristic import DatasheetSettings, fmu_characteristic
 from tuner.datasheet.loop import harmonics, loop_quantities, maxwell_equivalent
 from tuner.datasheet.sine_runs import SineDriver
+from tuner.__main__ import main
+from tuner.results.datasheet_figures import FIGURES
 
 K_S, C = 8e6, 3e5  # [N/m], [N s/m]
 
@@ -105,3 +109,46 @@ def test_loop_quantities_of_a_known_signal():
     k, c = maxwell_equivalent(complex(q.storage_n_m, q.loss_n_m), w)
     assert 1 / complex(q.storage_n_m, q.loss_n_m) == pytest.approx(1 / k + 1 / (1j * w * c), rel=1e-9)
     assert maxwell_equivalent(complex(-1.0, 1.0), w)[0] == math.inf  # no spring for a negative storage stiffness
+
+
+def _strict(path):
+    return json.loads(path.read_text(), parse_constant=lambda c: pytest.fail(f"{path.name}: {c}"))
+
+
+def test_the_datasheet_command_on_a_maxwell_fmu_gives_the_closed_form(maxwell_fmu, tmp_path, capsys):
+    out = tmp_path / "sheet"
+    assert main(["datasheet", "--fmus", str(maxwell_fmu), "--out", str(out), "--quiet"]) == 0
+    sheet = _strict(out / "datasheet.json")
+    entry = sheet["fmus"]["MaxwellDatasheet"]
+    listed = sorted({p["frequency_hz"] for p in entry["dynamic"]})
+    assert sum(0.5 <= f <= 15.0 for f in listed) >= 5
+    for p in entry["dynamic"]:
+        assert p["source"] == "simulated"
+        k_star = closed_form(p["frequency_hz"])
+        assert p["storage_n_m"] == pytest.approx(k_star.real, rel=0.01)
+        assert p["loss_n_m"] == pytest.approx(k_star.imag, rel=0.01)
+    for direction in ("extension", "compression"):
+        assert sum(p["direction"] == direction for p in entry["force_velocity"]) >= 5
+    with (out / "MaxwellDatasheet_force_velocity.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert [float(r["velocity_m_s"]) for r in rows] == sorted(float(r["velocity_m_s"]) for r in rows)
+    assert all(float(r["series_stiffness_n_m"]) == pytest.approx(K_S, rel=0.01) for r in rows)
+    with (out / "MaxwellDatasheet_maxwell.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == len(entry["dynamic"])
+    assert all(float(r["maxwell_c_n_s_m"]) == pytest.approx(C, rel=0.01) for r in rows)
+    assert all((out / name).stat().st_size > 0 for name in FIGURES.values())
+    assert "MaxwellDatasheet: series stiffness 8 MN/m" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("args, said", [
+    (["--fmus", "missing.fmu"], "missing.fmu"),
+    (["--amplitudes", "1,-2"], "--amplitudes"),
+    (["--fv-amplitude", "0"], "--fv-amplitude"),
+])
+def test_bad_datasheet_input_is_refused_by_name(maxwell_fmu, tmp_path, capsys, args, said):
+    base = {"--fmus": [str(maxwell_fmu)], "--out": [str(tmp_path / "o")]}
+    base.update({args[0]: args[1:]})
+    argv = ["datasheet", *[x for k, v in base.items() for x in (k, *v)], "--quiet"]
+    assert main(argv) == 2
+    assert said in capsys.readouterr().err
