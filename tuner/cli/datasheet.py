@@ -79,10 +79,12 @@ def cmd_datasheet(args) -> int:
     log = (lambda line: None) if args.quiet else (lambda line: print(line, flush=True))
     sheet = make_datasheet(args.fmus, settings, log=log)
     write_datasheet(sheet, out)
-    draw_datasheet_figures(sheet.to_dict(), out)
+    rebuild = run is not None and not args.no_report
+    if not rebuild:  # a fit folder's report draws them
+        draw_datasheet_figures(sheet.to_dict(), out)
     print(format_datasheet_table(sheet.to_dict()), flush=True)
     print(f"written: {out / DATASHEET_FILE}, the CSV tables and figures in {out} ({sheet.seconds:.1f} s of sines)",
           flush=True)
-    if run is not None and not args.no_report:
+    if rebuild:
         print(f"report with the datasheet section: {make_report(run)}", flush=True)
     return 0
