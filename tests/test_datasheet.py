@@ -6,15 +6,21 @@ from __future__ import annotations
 import csv
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.optimize import curve_fit
+from scipy.signal import lsim
 
 from damper_fmu.fmu import build
 from damper_fmu.parameters import defaults
 from damper_fmu.tables import PwlTable
+from tuner.data.prefilter import Prefilter
+from tuner.data.reading import RigTest
 from tuner.datasheet.characteristic import DatasheetSettings, fmu_characteristic
+from tuner.datasheet.measured import NotSine, SineTest, sine_test
+from tuner.datasheet.sheet import compare_point
 from tuner.datasheet.loop import harmonics, loop_quantities, maxwell_equivalent
 from tuner.datasheet.sine_runs import SineDriver
 from tuner.__main__ import main
@@ -152,3 +158,70 @@ def test_bad_datasheet_input_is_refused_by_name(maxwell_fmu, tmp_path, capsys, a
     argv = ["datasheet", *[x for k, v in base.items() for x in (k, *v)], "--quiet"]
     assert main(argv) == 2
     assert said in capsys.readouterr().err
+
+
+def _maxwell_rig_test(f_hz: float, amplitude: float, lab: Prefilter | None, rate: float = 1000.0) -> RigTest:
+    """A rig's sine test of the Maxwell damper (K_S, C): a stroke faded in over two periods and out over the last,
+    the force its exact response (scipy's lsim of F/X = K_S C s / (C s + K_S), independent of the FMU), 0.5 % force
+    noise (seed 7), both channels through the lab's filter ``lab`` as a lab exports them."""
+    t = np.arange(0.0, 8.0 / f_hz, 1.0 / rate)
+    ramp = np.clip(np.minimum(t * f_hz / 2.0, (t[-1] - t) * f_hz), 0.0, 1.0)
+    x = amplitude * ramp * np.sin(2 * np.pi * f_hz * t)
+    force = lsim(([K_S * C, 0.0], [C, K_S]), x, t)[1]
+    force = force + 0.005 * np.max(np.abs(force)) * np.random.default_rng(7).standard_normal(t.size)
+    if lab is not None:
+        x, force = lab.apply(x, rate), lab.apply(force, rate)
+    read = {"prefilter": lab.to_dict() if lab else None}
+    return RigTest(name=f"maxwell_{f_hz:g}Hz", role="validation", scenario="", time=t, stroke=x, force=force,
+                   sample_rate=rate, metadata={"read": read})
+
+
+@pytest.mark.parametrize("lab", [None, Prefilter("moving-average", window_s=0.04)], ids=["unfiltered", "filtered"])
+def test_a_measured_sine_gives_the_closed_form_and_the_true_model_matches_it(maxwell_fmu, lab):
+    """The measured points of a Maxwell damper's rig sine at 2.5 Hz, 3 mm (a lab's moving average over a tenth of
+    the period or none): K* within 1 % of the closed form, the forces at peak velocity of the steady sine under the
+    same filter; the FMU of the same damper is the measured point within 1 % (its filtered twin)."""
+    test = _maxwell_rig_test(2.5, 3e-3, lab)
+    sine = sine_test(test)
+    assert isinstance(sine, SineTest), sine
+    q, k_star = sine.quantities, closed_form(2.5)
+    assert q.frequency_hz == pytest.approx(2.5, rel=1e-4) and q.periods >= 4
+    assert complex(q.storage_n_m, q.loss_n_m) == pytest.approx(k_star, rel=0.01)
+    gain = abs(lab.response(np.array([2.5]), 1000.0)[0]) if lab else 1.0
+    assert q.amplitude_m == pytest.approx(3e-3 * gain, rel=0.005)
+    # the filter delays force and stroke alike: at the peak velocity the force is A K'' of the filtered sine
+    assert q.force_extension_n == pytest.approx(q.amplitude_m * k_star.imag, rel=0.01)
+    with SineDriver(maxwell_fmu) as driver:
+        row = compare_point(driver, sine)
+    assert row["model"]["source"] == "simulated" and row["model"]["settled"]
+    for key in ("storage_n_m_pct", "loss_n_m_pct", "force_extension_n_pct", "force_compression_n_pct"):
+        assert abs(row["error"][key]) < 1.0, (key, row["error"])
+
+
+def test_a_stroke_that_is_not_a_sine_gives_no_measured_point():
+    t = np.arange(0.0, 10.0, 1e-3)
+    x = 3e-3 * np.sin(2 * np.pi * 1.0 * t) + 2e-3 * np.sin(2 * np.pi * 2.7 * t)
+    read = sine_test(RigTest(name="two_sines", role=None, scenario="", time=t, stroke=x, force=1e5 * x))
+    assert isinstance(read, NotSine) and "departs from a sine" in read.reason
+
+
+def test_the_real_mr_sine_test_is_read_as_one_and_its_points_stand_beside_the_fmus(maxwell_fmu, tmp_path):
+    """The MR damper's 2 mm, 5 Hz sine at 0.5 A (tests/data/mr-damper-0.5A, MIT, its LICENSE beside it), read as
+    the lab exported it with its smoothing declared: a sine test near 5 Hz whose points stand in the datasheet as
+    measured, beside the FMU's simulated ones with their errors."""
+    data = Path(__file__).resolve().parent / "data" / "mr-damper-0.5A" / "2mm5Hz0x5A.txt.gz"
+    columns = tmp_path / "columns.toml"
+    columns.write_text('[columns]\ntime_col = 1\nstroke_col = 2\nforce_col = 4\nstroke_unit = "mm"\n'
+                       'force_unit = "N"\ndamper_class = "any"\nprefilter = "moving-average:20@1000"\n')
+    out = tmp_path / "sheet"
+    assert main(["datasheet", "--fmus", str(maxwell_fmu), "--out", str(out), "--quiet", "--frequencies", "1,5",
+                 "--amplitudes", "2", "--tests", str(data), "--columns", str(columns)]) == 0
+    sheet = _strict(out / "datasheet.json")
+    (point,) = sheet["measured"]["points"]
+    assert point["source"] == "measured" and point["prefilter"] == "moving-average:20@1000.0"
+    assert point["frequency_hz"] == pytest.approx(5.0, rel=0.03) and point["loss_n_m"] > 0
+    assert point["force_extension_n"] > 0 > point["force_compression_n"]
+    (row,) = sheet["fmus"]["MaxwellDatasheet"]["measured_comparison"]
+    assert row["test"] == point["test"] and row["model"]["source"] == "simulated"
+    assert row["error"]["loss_n_m_pct"] == pytest.approx(100 * (row["model"]["loss_n_m"] - point["loss_n_m"])
+                                                          / point["loss_n_m"])

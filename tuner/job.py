@@ -305,7 +305,7 @@ def job_datasheet(fmus: list[Path], tests: list[RigTest], out: Path, log=print) 
     stage(log, "datasheet")
     log(f"datasheet: {len(fmus)} tuned FMUs driven by sine strokes ...")
     try:
-        sheet = make_datasheet(fmus, DatasheetSettings(), log=log)
+        sheet = make_datasheet(fmus, DatasheetSettings(), tests=tests, log=log)
         write_datasheet(sheet, Path(out) / DATASHEET_FOLDER)
     except (SimulationError, ValueError, OSError) as err:
         log(f"datasheet not written: {err}")

@@ -6,6 +6,9 @@ the dynamic characteristic (K', K'', |K*|, loss angle, equivalent Maxwell k and 
 frequency and amplitude). Written into ``--out`` (default ``results/datasheet[-N]``): ``datasheet.json``, per FMU
 ``<FMU>_force_velocity.csv`` (with the series stiffness) and ``<FMU>_maxwell.csv``, and the figures. ``--out`` a fit
 output folder: into its ``datasheet/`` sub-folder, and its report is rebuilt with the section "Datasheet".
+
+``--tests FILE...``: rig tests; those that are sine tests give measured points (the same quantities from the
+measured force at each test's frequency and amplitude), each beside every FMU's point there with its error.
 """
 from __future__ import annotations
 
@@ -14,16 +17,18 @@ from pathlib import Path
 
 from campaign.cli import float_list
 from tuner.cli.folders import DEFAULT_RESULTS, free_folder
+from tuner.cli.options import add_data_options, column_options
 from tuner.cli.vehicle import is_fit_folder
 from tuner.datasheet.characteristic import (DEFAULT_AMPLITUDES, DEFAULT_FREQUENCIES, DEFAULT_FV_AMPLITUDE,
                                             DEFAULT_PEAK_VELOCITIES, DatasheetSettings)
 from tuner.datasheet.sheet import (DATASHEET_FILE, DATASHEET_FOLDER, format_datasheet_table, make_datasheet,
                                    write_datasheet)
 from tuner.datasheet.sine_runs import SineSettings
+from tuner.data.reading import load_files
 from tuner.results.datasheet_figures import draw_datasheet_figures
 from tuner.results.report import make_report
 
-__all__ = ["add_parser", "cmd_datasheet", "datasheet_settings"]
+__all__ = ["add_parser", "cmd_datasheet", "datasheet_settings", "read_tests"]
 
 
 def _numbers(values) -> str:
@@ -52,8 +57,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         f"(default {_numbers(a * 1e3 for a in DEFAULT_AMPLITUDES)})")
     p.add_argument("--max-step", type=float, default=SineSettings().max_step_s * 1e3, metavar="MS",
                    help="largest communication step [ms] (default 1; at least 200 steps per period)")
+    p.add_argument("--tests", nargs="+", type=Path, default=[], metavar="FILE",
+                   help="rig test files: the sine tests among them give measured points beside the FMUs' (read with "
+                        "the data options below, e.g. --columns docs/real-data/mr-sine.toml)")
     p.add_argument("--no-report", action="store_true", help="--out a fit output folder: do not rebuild its report")
     p.add_argument("--quiet", action="store_true", help="print only the table")
+    add_data_options(p.add_argument_group("data (how --tests are read)"))
     p.set_defaults(func=cmd_datasheet)
     return p
 
@@ -70,14 +79,21 @@ def datasheet_settings(args) -> DatasheetSettings:
     return settings
 
 
+def read_tests(args) -> list:
+    """The rig tests of ``--tests``, each read with its options (``--columns`` and the data options)."""
+    common, per_file = column_options(args)
+    return [t for p in args.tests for t in load_files([p], "identification", per_file.get(Path(p).name, common))]
+
+
 def cmd_datasheet(args) -> int:
     settings = datasheet_settings(args)
+    tests = read_tests(args)
     out = args.out if args.out is not None else free_folder(DEFAULT_RESULTS / "datasheet")
     run = out if is_fit_folder(out) else None
     if run is not None:
         out = run / DATASHEET_FOLDER
     log = (lambda line: None) if args.quiet else (lambda line: print(line, flush=True))
-    sheet = make_datasheet(args.fmus, settings, log=log)
+    sheet = make_datasheet(args.fmus, settings, tests=tests, log=log)
     write_datasheet(sheet, out)
     rebuild = run is not None and not args.no_report
     if not rebuild:  # a fit folder's report draws them

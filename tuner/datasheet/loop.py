@@ -63,12 +63,13 @@ def _whole_periods(t: np.ndarray, frequency_hz: float) -> int:
 
 def harmonics(t: np.ndarray, y: np.ndarray, frequency_hz: float, count: int = HARMONICS) -> Harmonics:
     """The Fourier series of ``y`` sampled at times ``t`` [s] at the fundamental ``frequency_hz`` [Hz], harmonics
-    1..``count`` but none at or above the Nyquist frequency of the mean sample interval, fitted in least squares
+    1..``count`` but none at or above the Nyquist frequency of the mean sample interval (nor more than the samples
+    carry), fitted in least squares
     (module docstring): by the discrete Fourier transform where ``t`` samples whole periods evenly (the least-squares
     fit there, exactly), else by solving the normal equations. ValueError with fewer samples than unknowns."""
     t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
     dt = float((t[-1] - t[0]) / (t.size - 1))
-    count = max(1, min(count, math.ceil(0.5 / (dt * frequency_hz)) - 1))
+    count = max(1, min(count, math.ceil(0.5 / (dt * frequency_hz)) - 1, (t.size - 2) // 2))
     if t.size < 2 * count + 2:
         raise ValueError(f"harmonics: {t.size} samples cannot carry {count} harmonics and an offset")
     n = np.arange(1, count + 1)

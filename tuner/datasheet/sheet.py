@@ -20,11 +20,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from tuner import strict_json
+from tuner.data.reading import RigTest
 from tuner.datasheet.characteristic import DatasheetSettings, FmuCharacteristic, fmu_characteristic
+from tuner.datasheet.measured import SineTest, model_point, point_errors, sine_test
 from tuner.datasheet.sine_runs import SineDriver
 
 __all__ = ["SCHEMA", "DATASHEET_FILE", "DATASHEET_FOLDER", "Datasheet", "make_datasheet", "write_datasheet",
-           "fmu_label", "format_datasheet_table"]
+           "fmu_label", "format_datasheet_table", "compare_point"]
 
 SCHEMA = "damper-datasheet/1"
 DATASHEET_FILE = "datasheet.json"
@@ -42,22 +44,40 @@ def fmu_label(fmu: Path) -> str:
 
 @dataclass
 class Datasheet:
-    """The datasheet: its ``settings``, the simulated ``characteristics`` by FMU label, and ``seconds`` [s] wall."""
+    """The datasheet: its ``settings``, the simulated ``characteristics`` by FMU label, the rig's ``sine_tests``
+    (measured points) and the tests that are not (``not_sine``), the model's point at each measured one by FMU label
+    (``comparisons``: dicts of ``compare_point``), and ``seconds`` [s] wall."""
 
     settings: DatasheetSettings
     characteristics: dict = field(default_factory=dict)
+    sine_tests: list = field(default_factory=list)
+    not_sine: list = field(default_factory=list)
+    comparisons: dict = field(default_factory=dict)
     seconds: float = 0.0
 
     def to_dict(self) -> dict:
         """The record ``datasheet.json`` holds (docs/results.md, "The datasheet")."""
-        return {"schema": SCHEMA, "units": UNITS, "settings": self.settings.to_dict(),
-                "fmus": {label: ch.to_dict() for label, ch in self.characteristics.items()},
+        fmus = {label: {**ch.to_dict(), "measured_comparison": self.comparisons.get(label, [])}
+                for label, ch in self.characteristics.items()}
+        return {"schema": SCHEMA, "units": UNITS, "settings": self.settings.to_dict(), "fmus": fmus,
+                "measured": {"points": [s.to_dict() for s in self.sine_tests],
+                             "not_sine": [n.to_dict() for n in self.not_sine]},
                 "seconds": self.seconds}
 
 
-def make_datasheet(fmus: list, settings: DatasheetSettings = DatasheetSettings(), log=print) -> Datasheet:
+def compare_point(driver: SineDriver, sine: SineTest) -> dict:
+    """The model's point at the measured one ``sine`` (``tuner.datasheet.measured.model_point``) and its error."""
+    model, settled = model_point(driver, sine)
+    return {"test": sine.name, "frequency_hz": sine.quantities.frequency_hz, "amplitude_m": sine.quantities.amplitude_m,
+            "model": {**model.to_dict(), "settled": settled, "source": "simulated"},
+            "error": point_errors(model, sine.quantities)}
+
+
+def make_datasheet(fmus: list, settings: DatasheetSettings = DatasheetSettings(), tests: list[RigTest] = (),
+                   log=print) -> Datasheet:
     """The datasheet of the damper FMUs ``fmus`` (paths; FileNotFoundError naming a missing one, ValueError for two
-    of one name). Each FMU is opened once (one fmpy instance, reset between its sines)."""
+    of one name), with the measured points of the sine tests among the rig ``tests`` beside each FMU's
+    (``tuner.datasheet.measured``). Each FMU is opened once (one fmpy instance, reset between its sines)."""
     settings.check()
     paths = [Path(f) for f in fmus]
     for p in paths:
@@ -68,9 +88,16 @@ def make_datasheet(fmus: list, settings: DatasheetSettings = DatasheetSettings()
         raise ValueError(f"datasheet: two FMUs of one name among {labels}: give FMUs of different file names")
     t0 = time.perf_counter()
     sheet = Datasheet(settings)
+    for test in tests:
+        read = sine_test(test)
+        (sheet.sine_tests if isinstance(read, SineTest) else sheet.not_sine).append(read)
+    if tests:
+        log(f"datasheet: {len(sheet.sine_tests)} of {len(tests)} rig tests are sine tests (measured points)"
+            + "".join(f"; {n.name}: {n.reason}" for n in sheet.not_sine[:3]))
     for path, label in zip(paths, labels):
         with SineDriver(path, settings.sine) as driver:
             sheet.characteristics[label] = fmu_characteristic(path, settings, driver=driver, log=log)
+            sheet.comparisons[label] = [compare_point(driver, sine) for sine in sheet.sine_tests]
     sheet.seconds = time.perf_counter() - t0
     return sheet
 

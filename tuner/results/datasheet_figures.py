@@ -58,6 +58,13 @@ def _force_velocity(sheet: dict, path: Path, dpi: int) -> Path:
         pts = ch["force_velocity"]
         ax.plot([p["velocity_m_s"] for p in pts], [p["force_n"] / 1e3 for p in pts], marker="o", ms=3, lw=1.3,
                 color=_color(label, i), label=f"{label} (simulated)")
+        twins = ch.get("measured_comparison", [])
+        if twins:
+            m = [c["model"] for c in twins]
+            ax.plot([q["peak_velocity_m_s"] for q in m] + [-q["peak_velocity_m_s"] for q in m],
+                    [q["force_extension_n"] / 1e3 for q in m] + [q["force_compression_n"] / 1e3 for q in m],
+                    ls="none", marker="x", ms=7, mew=1.5, color=_color(label, i),
+                    label=f"{label} at the measured points (simulated)")
     meas = _measured(sheet)
     if meas:
         v = [p["peak_velocity_m_s"] for p in meas] + [-p["peak_velocity_m_s"] for p in meas]
@@ -94,6 +101,9 @@ def _per_amplitude(sheet: dict, path: Path, dpi: int, keys: tuple, ylabels: tupl
             if meas:
                 ax.plot([p["frequency_hz"] for p in meas], [p[key] * scale for p in meas], ls="none", marker="D",
                         ms=6, mfc="none", mec="k", mew=1.3, label="measured")
+                twins = [c["model"] for c in ch.get("measured_comparison", [])]
+                ax.plot([q["frequency_hz"] for q in twins], [q[key] * scale for q in twins], ls="none", marker="x",
+                        ms=6, mew=1.3, color="k", label="model at the measured points")
             ax.set_xscale("log")
             ax.set_title(f"{label}", fontsize=9)
             ax.set_ylabel(ylabels[c])

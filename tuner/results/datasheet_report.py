@@ -9,6 +9,7 @@ import math
 from pathlib import Path
 
 from tuner import strict_json
+from tuner.formatting import eng
 from tuner.datasheet.sheet import DATASHEET_FILE, DATASHEET_FOLDER
 from tuner.results.datasheet_figures import FIGURES, draw_datasheet_figures
 from tuner.results.html import NOT_DRAWN, esc, figure_html, table
@@ -38,6 +39,59 @@ def _force_velocity_table(sheet: dict) -> str:
         if sheet["fmus"][label]["series_stiffness_n_m"] is not None else "inf", "")])
     header = ["peak velocity [m/s]"] + [f"{label}: {d} [kN]" for label in labels for d in ("extension", "compression")]
     return table(header, rows)
+
+
+#: the compared quantities: (key, label, unit for eng, error key, error unit)
+COMPARED = (("dynamic_stiffness_n_m", "|K*|", "N/m", "dynamic_stiffness_n_m_pct", "%"),
+            ("loss_angle_deg", "loss angle", "deg", "loss_angle_deg", "deg"),
+            ("maxwell_c_n_s_m", "Maxwell c", "N s/m", "maxwell_c_n_s_m_pct", "%"),
+            ("force_extension_n", "F at +v̂", "N", "force_extension_n_pct", "%"),
+            ("force_compression_n", "F at -v̂", "N", "force_compression_n_pct", "%"),
+            ("distortion", "distortion", "%", "distortion_pct_points", "pct points"))
+
+
+def _value(v, unit: str) -> str:
+    if unit == "deg":
+        return "n/a" if v is None else f"{v:.1f}°"
+    if unit == "%":
+        return "n/a" if v is None else f"{100 * v:.1f} %"
+    return eng(v, unit)
+
+
+def _error(v, unit: str) -> str:
+    if v is None or not math.isfinite(v):
+        return "n/a"
+    return f"{v:+.1f}°" if unit == "deg" else f"{v:+.1f} {'%' if unit == '%' else 'pt'}"
+
+
+def _measured_html(sheet: dict) -> str:
+    """The measured points of the rig's sine tests beside each FMU's, with the FMU's error ('' without)."""
+    meas = (sheet.get("measured") or {})
+    points, skipped = meas.get("points", []), meas.get("not_sine", [])
+    if not points and not skipped:
+        return ""
+    parts = ["<h3>Measured (rig sine tests) beside simulated</h3>"]
+    said = esc("; ".join(f"{n['test']}: {n['reason']}" for n in skipped))
+    if not points:
+        return parts[0] + f"<p>No rig test is a sine test, so every point of this datasheet is simulated ({said}).</p>"
+    by_test = {p["test"]: p for p in points}
+    parts.append("<p>Measured: the quantities of each rig sine test over its steady whole periods (the same reading "
+                 "as the simulated ones). Model: the FMU at that test's frequency and amplitude, settled, through the "
+                 "lab's filter where the test declares one. Each cell: measured / model (the model's error: "
+                 "model - measured, in % of the measured value, in degrees or percentage points).</p>")
+    for label, ch in sheet["fmus"].items():
+        rows = []
+        for c in ch.get("measured_comparison", []):
+            m = by_test[c["test"]]
+            rows.append([esc(c["test"]), f"{c['frequency_hz']:.3g}", f"{1e3 * c['amplitude_m']:.3g}",
+                         f"{m['peak_velocity_m_s']:.3g}"]
+                        + [f"{_value(m[k], u)} / {_value(c['model'][k], u)} ({_error(c['error'][e], eu)})"
+                           for k, _, u, e, eu in COMPARED])
+        parts.append(f"<p><b>{esc(label)}</b></p>" + table(
+            ["test", "frequency [Hz]", "amplitude [mm]", "peak velocity [m/s]", *[c[1] for c in COMPARED]], rows))
+    if skipped:
+        parts.append(f"<p>Not sine tests (no measured point): {said}.</p>")
+    return "".join(parts)
 
 
 def _figures(sheet: dict, folder: Path, figures: bool) -> str:
@@ -76,4 +130,4 @@ def datasheet_section_html(out_dir, figures: bool = True) -> str:
              f"</p>")
     return ("<section id='datasheet'><h2>Datasheet: force-velocity and dynamic characteristics</h2>" + intro
             + "<h3>Force-velocity characteristic (simulated)</h3>" + _force_velocity_table(sheet)
-            + _figures(sheet, folder, figures) + "</section>")
+            + _measured_html(sheet) + _figures(sheet, folder, figures) + "</section>")
