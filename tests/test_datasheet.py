@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,7 @@ from tuner.data.prefilter import Prefilter
 from tuner.data.reading import RigTest
 from tuner.datasheet.characteristic import DatasheetSettings, fmu_characteristic
 from tuner.datasheet.measured import NotSine, SineTest, sine_test
+from tuner.datasheet.nominal import read_nominal
 from tuner.datasheet.sheet import compare_point
 from tuner.datasheet.loop import harmonics, loop_quantities, maxwell_equivalent
 from tuner.datasheet.sine_runs import SineDriver
@@ -225,3 +227,53 @@ def test_the_real_mr_sine_test_is_read_as_one_and_its_points_stand_beside_the_fm
     assert row["test"] == point["test"] and row["model"]["source"] == "simulated"
     assert row["error"]["loss_n_m_pct"] == pytest.approx(100 * (row["model"]["loss_n_m"] - point["loss_n_m"])
                                                           / point["loss_n_m"])
+
+
+def _table_csv(path: Path, scale: float = 1.0) -> Path:
+    """The preset lumped damping table, scaled, as a supplier's nominal sheet in mm/s and kN."""
+    p = defaults("lumped")
+    rows = [(p[f"Fc_v{i:02d}"] * 1e3, p[f"Fc_{i:02d}"] * scale / 1e3) for i in range(1, 15)]
+    path.write_text("velocity [mm/s],force [kN]\n" + "".join(f"{v!r},{f!r}\n" for v, f in rows))
+    return path
+
+
+@pytest.mark.parametrize("scale, inside", [(1.0, True), (1.1, False)])
+def test_the_lumped_fmus_points_lie_in_a_band_around_its_own_table_and_outside_one_10_pct_off(
+        fmu_paths, tmp_path, scale, inside):
+    """The nominal characteristic is the lumped FMU's own damping table (or 10 % above it), +- 2 %: each simulated
+    force-velocity point within the table's velocities is inside (outside), the rest not judged."""
+    out = tmp_path / "sheet"
+    assert main(["datasheet", "--fmus", str(fmu_paths["lumped"]), "--out", str(out), "--quiet", "--frequencies", "2",
+                 "--amplitudes", "1", "--velocities", "0.005,0.03,0.09,0.15",
+                 "--nominal", str(_table_csv(tmp_path / "nominal.csv", scale)), "--nominal-tolerance", "2"]) == 0
+    nominal = _strict(out / "datasheet.json")["nominal"]
+    judged = nominal["judged"]["DamperLumped"]
+    assert [p["inside"] for p in judged] == [None if abs(p["velocity_m_s"]) > 0.1 else inside for p in judged]
+    assert nominal["counts"]["DamperLumped"] == {"inside": 6 if inside else 0, "outside": 0 if inside else 6,
+                                                 "not_judged": 2}
+    assert nominal["points"][0] == {"velocity_m_s": -0.1, "force_n": pytest.approx(-26e3 * scale),
+                                    "tolerance_pct": 2.0}
+
+
+def test_a_nominal_point_is_judged_against_its_interpolated_band(tmp_path):
+    csv_path = tmp_path / "n.csv"
+    csv_path.write_text("v_m_s,F_n,tolerance\n-0.2,-20000,10\n-0.1,-10000,5\n0.1,10000,5\n0.2,20000,10\n")
+    nominal = read_nominal(csv_path)
+    # at 0.15 m/s the nominal is 15 kN and the band +- 7.5 %
+    assert nominal.judge(0.15, 15e3 * 1.07)["inside"] is True
+    assert nominal.judge(0.15, 15e3 * 1.08)["inside"] is False
+    assert nominal.judge(-0.15, -15e3 * 0.93)["inside"] is True
+    assert nominal.judge(0.05, 5e3)["inside"] is None  # beyond the nominal's velocities in extension
+
+
+@pytest.mark.parametrize("text, said", [
+    ("velocity [m/s],force [kN]\n0.1,2\n0.2,x\n", "line 3, column 2: force 'x' is not a number"),
+    ("velocity [m/s],force [kN]\n0.1,2\n-0.2,3\n", "line 3"),
+    ("velocity [in/s],force [kN]\n0.1,2\n0.2,3\n", "unknown velocity unit 'in/s'"),
+    ("speed,force\n0.1,2\n0.2,3\n", "no velocity column"),
+])
+def test_a_bad_nominal_file_is_refused_naming_where(tmp_path, text, said):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=re.escape(said)):
+        read_nominal(path, 5.0)

@@ -9,6 +9,8 @@ output folder: into its ``datasheet/`` sub-folder, and its report is rebuilt wit
 
 ``--tests FILE...``: rig tests; those that are sine tests give measured points (the same quantities from the
 measured force at each test's frequency and amplitude), each beside every FMU's point there with its error.
+``--nominal CSV --nominal-tolerance PCT``: a supplier's nominal characteristic; every force-velocity point, simulated
+and measured, is marked inside or outside its band.
 """
 from __future__ import annotations
 
@@ -23,6 +25,7 @@ from tuner.datasheet.characteristic import (DEFAULT_AMPLITUDES, DEFAULT_FREQUENC
                                             DEFAULT_PEAK_VELOCITIES, DatasheetSettings)
 from tuner.datasheet.sheet import (DATASHEET_FILE, DATASHEET_FOLDER, format_datasheet_table, make_datasheet,
                                    write_datasheet)
+from tuner.datasheet.nominal import read_nominal
 from tuner.datasheet.sine_runs import SineSettings
 from tuner.data.reading import load_files
 from tuner.results.datasheet_figures import draw_datasheet_figures
@@ -60,6 +63,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--tests", nargs="+", type=Path, default=[], metavar="FILE",
                    help="rig test files: the sine tests among them give measured points beside the FMUs' (read with "
                         "the data options below, e.g. --columns docs/real-data/mr-sine.toml)")
+    p.add_argument("--nominal", type=Path, default=None, metavar="CSV",
+                   help="a nominal force-velocity characteristic (header row; velocity and force columns with their "
+                        "units, e.g. 'velocity [m/s],force [kN]'; compression negative): every simulated and measured "
+                        "point is marked inside or outside its band")
+    p.add_argument("--nominal-tolerance", type=float, default=None, metavar="PCT",
+                   help="--nominal: the band's half width [%% of the nominal force] (or a 'tolerance' column in the CSV)")
     p.add_argument("--no-report", action="store_true", help="--out a fit output folder: do not rebuild its report")
     p.add_argument("--quiet", action="store_true", help="print only the table")
     add_data_options(p.add_argument_group("data (how --tests are read)"))
@@ -87,13 +96,16 @@ def read_tests(args) -> list:
 
 def cmd_datasheet(args) -> int:
     settings = datasheet_settings(args)
+    if args.nominal_tolerance is not None and args.nominal is None:
+        raise ValueError("--nominal-tolerance needs --nominal CSV")
+    nominal = read_nominal(args.nominal, args.nominal_tolerance) if args.nominal is not None else None
     tests = read_tests(args)
     out = args.out if args.out is not None else free_folder(DEFAULT_RESULTS / "datasheet")
     run = out if is_fit_folder(out) else None
     if run is not None:
         out = run / DATASHEET_FOLDER
     log = (lambda line: None) if args.quiet else (lambda line: print(line, flush=True))
-    sheet = make_datasheet(args.fmus, settings, tests=tests, log=log)
+    sheet = make_datasheet(args.fmus, settings, tests=tests, nominal=nominal, log=log)
     write_datasheet(sheet, out)
     rebuild = run is not None and not args.no_report
     if not rebuild:  # a fit folder's report draws them

@@ -23,6 +23,7 @@ from tuner import strict_json
 from tuner.data.reading import RigTest
 from tuner.datasheet.characteristic import DatasheetSettings, FmuCharacteristic, fmu_characteristic
 from tuner.datasheet.measured import SineTest, model_point, point_errors, sine_test
+from tuner.datasheet.nominal import NominalCharacteristic
 from tuner.datasheet.sine_runs import SineDriver
 
 __all__ = ["SCHEMA", "DATASHEET_FILE", "DATASHEET_FOLDER", "Datasheet", "make_datasheet", "write_datasheet",
@@ -46,14 +47,32 @@ def fmu_label(fmu: Path) -> str:
 class Datasheet:
     """The datasheet: its ``settings``, the simulated ``characteristics`` by FMU label, the rig's ``sine_tests``
     (measured points) and the tests that are not (``not_sine``), the model's point at each measured one by FMU label
-    (``comparisons``: dicts of ``compare_point``), and ``seconds`` [s] wall."""
+    (``comparisons``: dicts of ``compare_point``), the ``nominal`` characteristic every force-velocity point is
+    judged against (None: none given), and ``seconds`` [s] wall."""
 
     settings: DatasheetSettings
     characteristics: dict = field(default_factory=dict)
     sine_tests: list = field(default_factory=list)
     not_sine: list = field(default_factory=list)
     comparisons: dict = field(default_factory=dict)
+    nominal: NominalCharacteristic | None = None
     seconds: float = 0.0
+
+    def nominal_record(self) -> dict | None:
+        """The nominal characteristic and every force-velocity point judged against its band: ``judged`` by FMU
+        label and ``measured`` (each point's ``source``), ``counts`` of inside / outside / not judged (beyond the
+        nominal's velocities) for each; None without a nominal characteristic."""
+        if self.nominal is None:
+            return None
+        judged = {label: [{**self.nominal.judge(p.velocity_m_s, p.force_n), "source": "simulated"}
+                          for p in ch.force_velocity] for label, ch in self.characteristics.items()}
+        judged["measured"] = [{**self.nominal.judge(sign * s.quantities.peak_velocity_m_s, force), "test": s.name,
+                               "source": "measured"}
+                              for s in self.sine_tests for sign, force in ((1.0, s.quantities.force_extension_n),
+                                                                           (-1.0, s.quantities.force_compression_n))]
+        counts = {k: {"inside": sum(p["inside"] is True for p in v), "outside": sum(p["inside"] is False for p in v),
+                      "not_judged": sum(p["inside"] is None for p in v)} for k, v in judged.items()}
+        return {**self.nominal.to_dict(), "judged": judged, "counts": counts}
 
     def to_dict(self) -> dict:
         """The record ``datasheet.json`` holds (docs/results.md, "The datasheet")."""
@@ -62,7 +81,7 @@ class Datasheet:
         return {"schema": SCHEMA, "units": UNITS, "settings": self.settings.to_dict(), "fmus": fmus,
                 "measured": {"points": [s.to_dict() for s in self.sine_tests],
                              "not_sine": [n.to_dict() for n in self.not_sine]},
-                "seconds": self.seconds}
+                "nominal": self.nominal_record(), "seconds": self.seconds}
 
 
 def compare_point(driver: SineDriver, sine: SineTest) -> dict:
@@ -74,10 +93,11 @@ def compare_point(driver: SineDriver, sine: SineTest) -> dict:
 
 
 def make_datasheet(fmus: list, settings: DatasheetSettings = DatasheetSettings(), tests: list[RigTest] = (),
-                   log=print) -> Datasheet:
+                   nominal: NominalCharacteristic | None = None, log=print) -> Datasheet:
     """The datasheet of the damper FMUs ``fmus`` (paths; FileNotFoundError naming a missing one, ValueError for two
     of one name), with the measured points of the sine tests among the rig ``tests`` beside each FMU's
-    (``tuner.datasheet.measured``). Each FMU is opened once (one fmpy instance, reset between its sines)."""
+    (``tuner.datasheet.measured``) and every force-velocity point judged against the band of ``nominal``
+    (``tuner.datasheet.nominal``). Each FMU is opened once (one fmpy instance, reset between its sines)."""
     settings.check()
     paths = [Path(f) for f in fmus]
     for p in paths:
@@ -87,7 +107,7 @@ def make_datasheet(fmus: list, settings: DatasheetSettings = DatasheetSettings()
     if len(set(labels)) != len(labels):
         raise ValueError(f"datasheet: two FMUs of one name among {labels}: give FMUs of different file names")
     t0 = time.perf_counter()
-    sheet = Datasheet(settings)
+    sheet = Datasheet(settings, nominal=nominal)
     for test in tests:
         read = sine_test(test)
         (sheet.sine_tests if isinstance(read, SineTest) else sheet.not_sine).append(read)

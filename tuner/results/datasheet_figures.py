@@ -42,18 +42,30 @@ def _measured(sheet: dict) -> list[dict]:
     return [p for p in (sheet.get("measured") or {}).get("points", [])]
 
 
+def _outside(ax, sheet: dict) -> None:
+    """Ring the points the nominal band judged outside (red circles)."""
+    judged = [p for pts in ((sheet.get("nominal") or {}).get("judged") or {}).values() for p in pts
+              if p["inside"] is False]
+    if judged:
+        ax.plot([p["velocity_m_s"] for p in judged], [p["force_n"] / 1e3 for p in judged], ls="none", marker="o",
+                ms=11, mfc="none", mec="red", mew=1.2, label="outside the nominal band")
+
+
 def _force_velocity(sheet: dict, path: Path, dpi: int) -> Path:
     fig = Figure(figsize=(8, 5))
     ax = fig.subplots()
     fixed_margins(fig)
     nominal = sheet.get("nominal")
     if nominal:
-        v = np.array([p["velocity_m_s"] for p in nominal["points"]])
-        f = np.array([p["force_n"] for p in nominal["points"]]) / 1e3
-        tol = nominal["tolerance_pct"] / 100
-        ax.fill_between(v, f - tol * np.abs(f), f + tol * np.abs(f), color="0.85", lw=0,
-                        label=f"nominal ± {nominal['tolerance_pct']:g} %")
-        ax.plot(v, f, color="0.5", lw=1, ls="--")
+        for side in (-1.0, 1.0):  # each direction's band alone (none drawn across the origin)
+            pts = [p for p in nominal["points"] if p["velocity_m_s"] * side > 0]
+            v = np.array([p["velocity_m_s"] for p in pts])
+            f = np.array([p["force_n"] for p in pts]) / 1e3
+            tol = np.array([p["tolerance_pct"] for p in pts]) / 100
+            tols = sorted({f"{p['tolerance_pct']:g}" for p in nominal["points"]})
+            ax.fill_between(v, f - tol * np.abs(f), f + tol * np.abs(f), color="0.85", lw=0,
+                            label=f"nominal ± {'/'.join(tols)} %" if side > 0 else None)
+            ax.plot(v, f, color="0.5", lw=1, ls="--")
     for i, (label, ch) in enumerate(sheet["fmus"].items()):
         pts = ch["force_velocity"]
         ax.plot([p["velocity_m_s"] for p in pts], [p["force_n"] / 1e3 for p in pts], marker="o", ms=3, lw=1.3,
@@ -70,6 +82,7 @@ def _force_velocity(sheet: dict, path: Path, dpi: int) -> Path:
         v = [p["peak_velocity_m_s"] for p in meas] + [-p["peak_velocity_m_s"] for p in meas]
         f = [p["force_extension_n"] / 1e3 for p in meas] + [p["force_compression_n"] / 1e3 for p in meas]
         ax.plot(v, f, ls="none", marker="D", ms=7, mfc="none", mec="k", mew=1.5, label="measured (rig sine tests)")
+    _outside(ax, sheet)
     ax.axhline(0, color="0.6", lw=0.6)
     ax.axvline(0, color="0.6", lw=0.6)
     ax.set_xlabel("peak velocity [m/s] (extension +)")

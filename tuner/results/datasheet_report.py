@@ -94,6 +94,26 @@ def _measured_html(sheet: dict) -> str:
     return "".join(parts)
 
 
+def _nominal_html(sheet: dict) -> str:
+    """Every force-velocity point against the nominal band: counts per FMU and for the measurement, the points
+    outside listed ('' without a nominal characteristic)."""
+    nominal = sheet.get("nominal")
+    if not nominal:
+        return ""
+    rows = []
+    for key, pts in nominal["judged"].items():
+        c = nominal["counts"][key]
+        out = [p for p in pts if p["inside"] is False]
+        listed = "; ".join(f"{p['velocity_m_s']:+.3g} m/s: {p['force_n'] / 1e3:.4g} kN against "
+                           f"{p['nominal_force_n'] / 1e3:.4g} kN ({p['deviation_pct']:+.1f} %)" for p in out)
+        what = "measured (rig sine tests)" if key == "measured" else f"{key} (simulated)"
+        rows.append([esc(what), str(c["inside"]), str(c["outside"]), str(c["not_judged"]), esc(listed)])
+    tols = sorted({f"{p['tolerance_pct']:g}" for p in nominal["points"]})
+    return (f"<h3>Against the nominal characteristic</h3><p>Nominal: <code>{esc(nominal['file'])}</code>, "
+            f"± {'/'.join(tols)} % of the nominal force; a point beyond the nominal's velocities is not judged.</p>"
+            + table(["points", "inside", "outside", "not judged", "outside: velocity, force against nominal"], rows))
+
+
 def _figures(sheet: dict, folder: Path, figures: bool) -> str:
     """The three figures (drawn here from the record when ``figures``; else the note that they were not)."""
     if figures:
@@ -130,4 +150,4 @@ def datasheet_section_html(out_dir, figures: bool = True) -> str:
              f"</p>")
     return ("<section id='datasheet'><h2>Datasheet: force-velocity and dynamic characteristics</h2>" + intro
             + "<h3>Force-velocity characteristic (simulated)</h3>" + _force_velocity_table(sheet)
-            + _measured_html(sheet) + _figures(sheet, folder, figures) + "</section>")
+            + _measured_html(sheet) + _nominal_html(sheet) + _figures(sheet, folder, figures) + "</section>")
