@@ -13,7 +13,8 @@ One sub-package per stage:
 
 At the top:
 
-- ``job``: the whole job (prepare -> fit -> choose the base -> diagnose -> export FMUs -> vehicle -> report);
+- ``job``: the whole job (prepare -> fit -> choose the base -> diagnose -> export FMUs -> vehicle -> datasheet ->
+  report);
 - ``metrics``: the error metrics [N, N^2], in one place;
 - ``formatting``: number formatting for people, in one place;
 - ``strict_json``: strict JSON for every file written (non-finite values as ``null``);

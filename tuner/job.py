@@ -1,4 +1,5 @@
-"""The tuner's job, in one place: prepare -> fit -> export -> choose the base -> diagnose -> vehicle -> report.
+"""The tuner's job, in one place: prepare -> fit -> export -> choose the base -> diagnose -> vehicle -> datasheet
+-> report.
 
 ``run`` is what ``python -m tuner fit`` and every row of ``python -m tuner batch`` do; ``run_diagnosis``
 what ``python -m tuner diagnose`` does. The stages hand their results on in memory (the prepared

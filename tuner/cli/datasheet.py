@@ -68,7 +68,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "units, e.g. 'velocity [m/s],force [kN]'; compression negative): every simulated and measured "
                         "point is marked inside or outside its band")
     p.add_argument("--nominal-tolerance", type=float, default=None, metavar="PCT",
-                   help="--nominal: the band's half width [%% of the nominal force] (or a 'tolerance' column in the CSV)")
+                   help="--nominal: the band's half width [%% of the nominal force] (or a 'tolerance' column in "
+                        "the CSV)")
     p.add_argument("--no-report", action="store_true", help="--out a fit output folder: do not rebuild its report")
     p.add_argument("--quiet", action="store_true", help="print only the table")
     add_data_options(p.add_argument_group("data (how --tests are read)"))

@@ -82,9 +82,10 @@ def harmonics(t: np.ndarray, y: np.ndarray, frequency_hz: float, count: int = HA
         return Harmonics(float(frequency_hz), offset, amps, math.sqrt(max(rest, 0.0)))
     phase = 2 * np.pi * frequency_hz * (t - t[0])
     basis = np.column_stack([np.ones_like(t), np.cos(np.outer(phase, n)), np.sin(np.outer(phase, n))])
-    coef = np.linalg.solve(basis.T @ basis, basis.T @ y)
+    # einsum, not BLAS: OpenBLAS's threads made this product 1.2 s instead of 0.03 s on a busy 2-core machine
+    coef = np.linalg.solve(np.einsum("ij,ik->jk", basis, basis), np.einsum("ij,i->j", basis, y))
     amps = (coef[1:count + 1] - 1j * coef[count + 1:]) * shift
-    res = y - basis @ coef
+    res = y - np.einsum("ij,j->i", basis, coef)
     return Harmonics(float(frequency_hz), float(coef[0]), amps, float(np.sqrt(np.mean(res ** 2))))
 
 

@@ -56,7 +56,8 @@ class SineTest:
     rate_hz: float
 
     def to_dict(self) -> dict:
-        return {"test": self.name, "file": self.source, **self.quantities.to_dict(), "window_s": [self.start_s, self.end_s],
+        return {"test": self.name, "file": self.source, **self.quantities.to_dict(),
+                "window_s": [self.start_s, self.end_s],
                 "prefilter": self.prefilter.spec if self.prefilter else None, "source": "measured"}
 
 

@@ -8,8 +8,9 @@
     <FMU>_maxwell.csv                   amplitude_m, frequency_hz, maxwell_k_n_m, maxwell_c_n_s_m, storage_n_m,
                                         loss_n_m, loss_angle_deg, distortion: per-frequency Maxwell parameters
 
-and the figures beside them (``tuner.results.datasheet_figures``) into one folder (``<FMU>`` the FMU's file name without ``.fmu``). SI units everywhere, stated in every key and
-column name; force positive in tension, velocity positive in extension.
+and the figures beside them (``tuner.results.datasheet_figures``) into one folder (``<FMU>`` the FMU's file name
+without ``.fmu``). SI units everywhere, stated in every key and column name; force positive in tension, velocity
+positive in extension.
 """
 from __future__ import annotations
 

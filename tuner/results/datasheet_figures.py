@@ -113,7 +113,10 @@ def _per_amplitude(sheet: dict, path: Path, dpi: int, keys: tuple, ylabels: tupl
                         color=color, label=f"{a * 1e3:g} mm")
             if meas:
                 ax.plot([p["frequency_hz"] for p in meas], [p[key] * scale for p in meas], ls="none", marker="D",
-                        ms=6, mfc="none", mec="k", mew=1.3, label="measured")
+                        ms=6, mfc="none", mec="k", mew=1.3, label="measured (its amplitude in mm beside)")
+                for p in meas:
+                    ax.annotate(f"{p['amplitude_m'] * 1e3:.2g}", (p["frequency_hz"], p[key] * scale), fontsize=6,
+                                xytext=(4, 3), textcoords="offset points")
                 twins = [c["model"] for c in ch.get("measured_comparison", [])]
                 ax.plot([q["frequency_hz"] for q in twins], [q[key] * scale for q in twins], ls="none", marker="x",
                         ms=6, mew=1.3, color="k", label="model at the measured points")

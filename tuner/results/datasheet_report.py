@@ -140,7 +140,8 @@ def datasheet_section_html(out_dir, figures: bool = True) -> str:
                       f"<code>{DATASHEET_FOLDER}/{esc(label)}_maxwell.csv</code>" for label in sheet["fmus"])
     intro = (f"<p>Each FMU driven through fmpy by sine strokes as a co-simulation master drives it (inputs at the "
              f"start of each step of at most {1e3 * s['max_step_s']:g} ms), each run until its loop has settled "
-             f"(the last period within {100 * s['settle_tolerance']:g} % of the one before). Simulated: the force at the "
+             f"(the last period within {100 * s['settle_tolerance']:g} % of the one before). Simulated: the force at "
+             f"the "
              f"peak velocities of sines of {1e3 * s['fv_amplitude_m']:g} mm "
              f"({', '.join(f'{v:g}' for v in s['peak_velocities_m_s'])} m/s), and the first-harmonic dynamic "
              f"stiffness at {', '.join(f'{f:g}' for f in s['frequencies_hz'])} Hz and "
