@@ -26,6 +26,7 @@ from tuner.datasheet.characteristic import DatasheetSettings, FmuCharacteristic,
 from tuner.datasheet.measured import SineTest, model_point, point_errors, sine_test
 from tuner.datasheet.nominal import NominalCharacteristic
 from tuner.datasheet.sine_runs import SineDriver
+from tuner.vehicle.cosim import check_damper_fmu
 
 __all__ = ["SCHEMA", "DATASHEET_FILE", "DATASHEET_FOLDER", "Datasheet", "make_datasheet", "write_datasheet",
            "fmu_label", "format_datasheet_table", "compare_point"]
@@ -95,15 +96,14 @@ def compare_point(driver: SineDriver, sine: SineTest) -> dict:
 
 def make_datasheet(fmus: list, settings: DatasheetSettings = DatasheetSettings(), tests: list[RigTest] = (),
                    nominal: NominalCharacteristic | None = None, log=print) -> Datasheet:
-    """The datasheet of the damper FMUs ``fmus`` (paths; FileNotFoundError naming a missing one, ValueError for two
-    of one name), with the measured points of the sine tests among the rig ``tests`` beside each FMU's
+    """The datasheet of the damper FMUs ``fmus`` (paths; FileNotFoundError naming a missing one, ValueError naming
+    one that is not an FMI 2.0 co-simulation damper FMU, and for two of one name), with the measured points of the sine tests among the rig ``tests`` beside each FMU's
     (``tuner.datasheet.measured``) and every force-velocity point judged against the band of ``nominal``
     (``tuner.datasheet.nominal``). Each FMU is opened once (one fmpy instance, reset between its sines)."""
     settings.check()
     paths = [Path(f) for f in fmus]
-    for p in paths:
-        if not p.is_file():
-            raise FileNotFoundError(f"datasheet: FMU not found: {p}")
+    for p in paths:  # an FMI 2.0 co-simulation FMU with a damper's inputs and output, or an error naming it
+        check_damper_fmu(p)
     labels = [fmu_label(p) for p in paths]
     if len(set(labels)) != len(labels):
         raise ValueError(f"datasheet: two FMUs of one name among {labels}: give FMUs of different file names")
