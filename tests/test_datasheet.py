@@ -18,7 +18,7 @@ from damper_fmu.fmu import build
 from damper_fmu.parameters import defaults
 from damper_fmu.tables import PwlTable
 from tuner.data.prefilter import Prefilter
-from tuner.data.reading import RigTest
+from tuner.data.reading import RigTest, load_dataset
 from tuner.datasheet.characteristic import DatasheetSettings, fmu_characteristic
 from tuner.datasheet.measured import NotSine, SineTest, sine_test
 from tuner.datasheet.nominal import read_nominal
@@ -280,3 +280,11 @@ def test_a_bad_nominal_file_is_refused_naming_where(tmp_path, text, said):
     path.write_text(text)
     with pytest.raises(ValueError, match=re.escape(said)):
         read_nominal(path, 5.0)
+
+
+def test_the_bundled_multibody_strokes_are_not_sine_tests():
+    """The bundled dataset's rig tests replay simulated vehicle strokes: none is read as a sine test, each says why."""
+    tests = load_dataset(Path(__file__).resolve().parents[1] / "data" / "default")
+    reads = [sine_test(t) for t in tests]
+    assert reads and all(isinstance(r, NotSine) for r in reads)
+    assert all("no steady sine" in r.reason or "departs from a sine" in r.reason for r in reads)

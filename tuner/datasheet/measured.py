@@ -136,8 +136,9 @@ def sine_test(test: RigTest) -> SineTest | NotSine:
     if periods > MIN_PERIODS:  # the damper settles after the fade-in: the steady stroke's first period left out
         start, periods = start + 1.0 / f, periods - 1
     if periods < MIN_PERIODS:
-        return NotSine(test.name, f"{periods} whole period(s) of a steady sine of {f:.4g} Hz after the first "
-                                  f"(and the filter's settling): a sine test needs {MIN_PERIODS}")
+        return NotSine(test.name, f"no steady sine: the best-fitting sine ({f:.4g} Hz) holds its amplitude for "
+                                  f"{periods} whole period(s) after the first (and the filter's settling); a sine "
+                                  f"test needs {MIN_PERIODS}")
     end = start + periods / f
     keep = (t >= start) & (t < end)
     h = harmonics(t[keep], x[keep], f, count=1)
