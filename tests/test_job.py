@@ -73,6 +73,9 @@ def test_the_job_prepares_once_writes_each_stage_and_reports_last(tmp_path, monk
     assert json.loads(strict_json.dumps(res.diagnosis.to_dict())) == diagnosis  # the job wrote its record, figures
     assert diagnosis["figures"] and all((out / f).is_file() for f in diagnosis["figures"])
     assert "id='diagnosis'" in res.report.read_text(encoding="utf-8")
+    sheet = json.loads((out / "datasheet" / "datasheet.json").read_text())  # every tuned FMU's datasheet
+    assert set(sheet["fmus"]) == {p.name.removesuffix(".fmu") for p in res.fmus if p.name.endswith("_tuned.fmu")}
+    assert "id='datasheet'" in res.report.read_text(encoding="utf-8")
     assert res.report.stat().st_mtime >= (out / "diagnosis.json").stat().st_mtime
     budget = json.loads((out / "time_budget.json").read_text())  # where the minutes went, up to the report
     stages = [st["stage"] for st in budget["stages"]]

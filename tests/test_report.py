@@ -7,6 +7,7 @@ import json
 import math
 import re
 import struct
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -437,3 +438,32 @@ def test_the_diagnosis_map_has_a_caption_and_a_missing_map_is_said_not_shown(tmp
     text = diagnosis_section_html(tmp_path)
     assert not any("diag_residual_map" in img for img in re.findall(r"<img [^>]*>", text))
     assert "Figure skipped: figures/diag_residual_map.png is not in the output folder" in text
+
+
+def test_the_datasheet_command_into_a_fit_folder_rebuilds_its_report(tmp_path, capsys):
+    """``python -m tuner datasheet --fmus ... --out RUN`` with RUN a fit output folder: the datasheet goes to
+    RUN/datasheet/ and RUN/report.html is rebuilt with its section (the force-velocity table, the three figures)."""
+    from damper_fmu.fmu import ensure_fmu
+    from tuner.__main__ import main
+
+    run = tmp_path / "run"
+    _write_folder(run, models=("lumped", "maxwell"), histories=False, npz=False)
+    mr = Path(__file__).resolve().parent / "data" / "mr-damper-0.5A" / "2mm5Hz0x5A.txt.gz"  # MIT, LICENSE beside
+    (tmp_path / "nominal.csv").write_text("velocity [m/s],force [kN]\n-0.1,-26\n-0.01,-12\n0.01,12\n0.1,25\n")
+    code = main(["datasheet", "--fmus", str(ensure_fmu("lumped")), "--out", str(run), "--quiet",
+                 "--velocities", "0.01,0.1", "--frequencies", "1,5", "--amplitudes", "1", "--tests", str(mr),
+                 "--time-col", "1", "--stroke-col", "2", "--force-col", "4", "--stroke-unit", "mm",
+                 "--damper-class", "any", "--nominal", str(tmp_path / "nominal.csv"), "--nominal-tolerance", "3"])
+    assert code == 0 and "report with the datasheet section" in capsys.readouterr().out
+    assert (run / "datasheet" / "datasheet.json").is_file() and not (run / "datasheet.json").exists()
+    text = (run / "report.html").read_text(encoding="utf-8")
+    section = text[text.index("id='datasheet'"):]
+    section = section[:section.index("</section>")]
+    assert "<a href='#datasheet'>Datasheet</a>" in text
+    assert "DamperLumped: extension [kN]" in section and "series stiffness [MN/m]" in section
+    assert "Measured (rig sine tests) beside simulated" in section and "<td>2mm5Hz0x5A</td>" in section
+    assert "Against the nominal characteristic" in section and "measured (rig sine tests)" in section
+    assert _images(section, run) == ["datasheet/datasheet_force_velocity.png", "datasheet/datasheet_dynamic_stiffness.png",
+                                     "datasheet/datasheet_loss_angle.png"]
+    text = make_report(run, figures=False).read_text(encoding="utf-8")  # without figures: the captions, said undrawn
+    assert text.count("Figure not drawn") >= 3 and "id='datasheet'" in text

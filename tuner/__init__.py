@@ -6,13 +6,15 @@ One sub-package per stage:
 - ``identification``: the Firefly search and the local refinement, validation through the FMU;
 - ``diagnosis``: what the fitted model gets wrong, and why;
 - ``vehicle``: the tuned FMUs as the yaw dampers of the campaign's vehicle;
+- ``datasheet``: the damper's datasheet (force-velocity and dynamic characteristics) from an FMU and from sine tests;
 - ``fleet``: a batch of dampers from a manifest, on a local pool or Dask;
 - ``results``: the reports and the one recommendation of which model to use;
 - ``cli``: the command line, one module per sub-command.
 
 At the top:
 
-- ``job``: the whole job (prepare -> fit -> choose the base -> diagnose -> export FMUs -> vehicle -> report);
+- ``job``: the whole job (prepare -> fit -> choose the base -> diagnose -> export FMUs -> vehicle -> datasheet ->
+  report);
 - ``metrics``: the error metrics [N, N^2], in one place;
 - ``formatting``: number formatting for people, in one place;
 - ``time_budget``: where a run's minutes went (each stage's and section's seconds and share);

@@ -11,6 +11,7 @@
     python -m tuner report DIR           rebuild the report of a fit output folder
     python -m tuner vehicle --fmus F...  the damper FMUs in a vehicle: critical speed, curve, ride (see --help)
     python -m tuner design --from RUN    the rig tests that would pin down the parameters not determined
+    python -m tuner datasheet --fmus F... the damper's datasheet: force-velocity and dynamic stiffness (see --help)
 
 Exit status: 0 success, 2 bad input or arguments (message on stderr), 130 interrupted.
 """
@@ -22,7 +23,7 @@ from pathlib import Path
 
 from campaign.cli import add_generate_arguments, cmd_generate as generate_command
 from tuner.cli import batch as batch_command, fit as fit_commands, inspect as inspect_command
-from tuner.cli import design as design_command, vehicle as vehicle_command
+from tuner.cli import datasheet as datasheet_command, design as design_command, vehicle as vehicle_command
 from tuner.cli.folders import DEFAULT_DATASET
 from tuner.cli.log import log
 from tuner.cli.run import run_handler
@@ -57,6 +58,7 @@ def parser() -> argparse.ArgumentParser:
     batch_command.add_parser(sub)
     vehicle_command.add_parser(sub)
     design_command.add_parser(sub)
+    datasheet_command.add_parser(sub)
     return ap
 
 

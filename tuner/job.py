@@ -1,4 +1,5 @@
-"""The tuner's job, in one place: prepare -> fit -> export -> choose the base -> diagnose -> vehicle -> report.
+"""The tuner's job, in one place: prepare -> fit -> export -> choose the base -> diagnose -> vehicle -> datasheet
+-> report.
 
 ``run`` is what ``python -m tuner fit`` and every row of ``python -m tuner batch`` do; ``run_diagnosis``
 what ``python -m tuner diagnose`` does. The stages hand their results on in memory (the prepared
@@ -15,6 +16,7 @@ the full-rate check, which runs after the results are safe on disk):
                                                                             failed one: write_diagnosis_failure)
     vehicle/vehicle.json, vehicle/<scenario>.png                            the vehicle (``vehicle=True``)
     vehicle/intervals.json                                                  its 95 % intervals (``vehicle_draws``)
+    datasheet/datasheet.json, datasheet/*.csv                               every tuned FMU's datasheet (``datasheet``)
     time_budget.json                                                        each stage's and section's seconds
                                                                             and share of the run up to the
                                                                             report (``tuner.time_budget``; the
@@ -37,12 +39,15 @@ from damper_fmu.parameters import EFFECT_MODELS, MODEL_PARAMETERS
 from tuner.data.reading import RigTest, reading_warnings
 from tuner import strict_json
 from tuner.diagnosis.bases import FittedBases, diagnosis_forecast
+from tuner.datasheet.characteristic import DatasheetSettings
+from tuner.datasheet.sheet import DATASHEET_FOLDER, Datasheet, make_datasheet, write_datasheet
 from tuner.diagnosis.diagnose import Diagnosis, DiagnosisFailed, DiagnosisSettings, diagnose
 from tuner.executors import FleetExecutor
 from tuner.identification.best_point import continue_fit, lower_points
 from tuner.identification.fit import FitResult, FitSettings, fit, full_rate_checks
 from tuner.identification.intervals import ModelIntervals
 from tuner.identification.problem import Problem
+from tuner.identification.runner import SimulationError
 from tuner.progress import SubStages, forecast, stage
 from tuner.results.diagnosis_figures import diagnosis_figures
 from tuner.results.diagnosis_report import make_diagnosis_report
@@ -53,7 +58,7 @@ from tuner.vehicle.compare import SCENARIO_NAMES, VEHICLE_FOLDER, ScenarioOption
 from tuner.vehicle.propagation import INTERVALS_FOR, PropagationSettings, propagate
 
 __all__ = ["JobOptions", "JobResult", "run", "run_diagnosis", "diagnosis_settings", "export_fmus", "wants_diagnosis",
-           "write_diagnosis", "write_diagnosis_failure", "export_extended_fmu", "vehicle_consequences"]
+           "write_diagnosis", "write_diagnosis_failure", "export_extended_fmu", "vehicle_consequences", "job_datasheet"]
 
 #: the diagnosis's stage that the job runs: the extended model's export (a failure is recorded as the diagnosis's)
 EXPORT_STAGE = "export of the extended FMU"
@@ -67,7 +72,7 @@ class JobOptions:
     parameter sets per FMU (0: none) run on ``vehicle_scheduler`` (None: in this process), for the recommended
     model's FMU or ``vehicle_intervals`` 'all'; ``provenance``: what the fit records of where its data came from
     (``metrics.json``); ``figures``: False writes the fit's report without its figures (``make_report``; the
-    diagnosis's residual figures are drawn still)."""
+    diagnosis's residual figures are drawn still); ``datasheet``: every tuned FMU's datasheet (``job_datasheet``)."""
 
     diagnose_after: bool = True
     vehicle: bool = False
@@ -76,6 +81,7 @@ class JobOptions:
     vehicle_intervals: str = "recommended"
     provenance: dict | None = None
     figures: bool = True
+    datasheet: bool = True
 
 
 @dataclass
@@ -159,6 +165,8 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
         vehicle_consequences(sorted((out / "fmu").glob("*_tuned.fmu")), out, settings.seed, log,
                              draws=options.vehicle_draws, scheduler=options.vehicle_scheduler,
                              intervals_for=options.vehicle_intervals)
+    if options.datasheet:
+        job_datasheet(sorted((out / "fmu").glob("*_tuned.fmu")), [*identification, *validation], out, log)
     report = _report(out, log, figures=figures, workers=settings.workers)
     return JobResult(out=out, fit=result, diagnosis=diagnosis, fmus=sorted((out / "fmu").glob("*.fmu")),
                      report=report)
@@ -328,3 +336,19 @@ def vehicle_consequences(fmus: list[Path], out: Path, seed: int = 0, log=print, 
             except (ValueError, OSError, RuntimeError) as err:  # e.g. the Dask cluster went away: the rest stands
                 log(f"vehicle intervals not computed: {err}")
     return data
+
+
+def job_datasheet(fmus: list[Path], tests: list[RigTest], out: Path, log=print) -> Datasheet | None:
+    """The datasheet of the tuned FMUs ``fmus`` (``tuner.datasheet``, default settings) into ``out / DATASHEET_FOLDER``
+    (its figures are the report's). ``tests``: the rig tests, whose sine tests give the measured points. A failure
+    (an FMU that refuses a sine) is logged and leaves the datasheet out: the fit, its FMUs and the rest stand."""
+    stage(log, "datasheet")
+    log(f"datasheet: {len(fmus)} tuned FMUs driven by sine strokes ...")
+    try:
+        sheet = make_datasheet(fmus, DatasheetSettings(), tests=tests, log=log)
+        write_datasheet(sheet, Path(out) / DATASHEET_FOLDER)
+    except (SimulationError, ValueError, OSError) as err:
+        log(f"datasheet not written: {err}")
+        return None
+    log(f"datasheet: {sheet.seconds:.1f} s of sines, written to {Path(out) / DATASHEET_FOLDER}")
+    return sheet

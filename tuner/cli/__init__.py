@@ -6,6 +6,7 @@
 - ``batch``: ``batch``, a fleet from a manifest;
 - ``vehicle``: ``vehicle``, damper FMUs in the campaign's vehicle;
 - ``design``: ``design``, the rig tests that would pin down the parameters not determined;
+- ``datasheet``: ``datasheet``, the damper's datasheet from its FMUs (and the rig's sine tests);
 - ``options``: the shared options and their one mapping to settings;
 - ``log``: the log and the progress display;
 - ``folders``: output folders (``results/default-N``, ``--force``, ``--resume``);

@@ -53,6 +53,7 @@ FIT_S = {"lumped": 6.0, "twochamber": 6.0, "maxwell": 3.0, "maxwell_table": 8.0}
 FIRST_BASE_EXTRA_S = 22.0
 STAGE_S = {"validate and export": 3.0, "diagnosis": 26.0, "report": 5.5, "report without figures": 0.5}
 VEHICLE_S_PER_FMU = 2.0
+DATASHEET_S_PER_FMU = 1.0
 DRAW_S, FIRST_ROUND_DRAWS = 1.25, 8
 
 
@@ -78,6 +79,8 @@ def planned_seconds(args, models: tuple[str, ...]) -> dict[str, float]:
             weights["vehicle intervals"] = DRAW_S * min(args.vehicle_draws, FIRST_ROUND_DRAWS) * drawn
     if not args.no_diagnose and any(m in EFFECT_MODELS for m in models):
         weights["diagnosis"] = STAGE_S["diagnosis"]
+    if not getattr(args, "no_datasheet", False):
+        weights["datasheet"] = DATASHEET_S_PER_FMU * len(models)
     return weights
 
 
@@ -139,7 +142,7 @@ def _fit_job(args, models) -> Path:
         progress().weights.pop("diagnosis", None)
     options = job.JobOptions(diagnose_after=diagnosis, vehicle=args.vehicle, vehicle_draws=args.vehicle_draws,
                              vehicle_scheduler=vehicle_scheduler(args), vehicle_intervals=args.vehicle_intervals,
-                             provenance=provenance, figures=not args.no_figures)
+                             provenance=provenance, figures=not args.no_figures, datasheet=not args.no_datasheet)
     result = job.run(ident, valid, out, settings, options=options, log=job_log())  # the display when a job runs
     print_table3(result.fit.metrics)
     return out

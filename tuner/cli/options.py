@@ -171,6 +171,9 @@ def add_fit_options(ap: argparse.ArgumentParser) -> None:
                         "speed, curve entry, straight track; about 25 s; with --vehicle-draws their 95 %% intervals, about a "
                         "minute more) and add the section to the report "
                         "(on in the default run)")
+    g.add_argument("--no-datasheet", action="store_true",
+                   help="skip the datasheet of the tuned FMUs (force-velocity and dynamic stiffness from sine strokes, "
+                        "about 1 s per FMU)")
     g.add_argument("--vehicle-draws", type=int, default=PropagationSettings().draws, metavar="N",
                    help="with --vehicle: 95 %% intervals of the critical speed and the curve's peak damper force "
                         "from up to N parameter sets per tuned FMU drawn from the fitted covariance, fewer once "

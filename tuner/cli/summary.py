@@ -4,6 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from tuner.cli.log import log
+from tuner.datasheet.sheet import DATASHEET_FILE, DATASHEET_FOLDER
 from tuner.identification.intervals import ModelIntervals
 from tuner.results.recommendation import MODEL_NAME, recommend
 from tuner.vehicle.compare import VEHICLE_FOLDER
@@ -90,7 +91,7 @@ def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
     recommendation (``tuner.results.recommendation``: the model and FMU to use and why, the same as the
     report's box), the warnings of reading the data (metrics.json's ``warnings``: each once, naming its
     file), verdict, causes, validation AME per test and model, quality gate, how well the tests determine
-    each model's parameters (``interval_summary``), where the report and FMUs are. ``seconds``: the run's
+    each model's parameters (``interval_summary``), where the report, the datasheet and FMUs are. ``seconds``: the run's
     time [s]."""
     metrics = strict_json.loads((out / "metrics.json").read_text()) if (out / "metrics.json").exists() else {}
     diag = strict_json.loads((out / "diagnosis.json").read_text()) if (out / "diagnosis.json").exists() else {}
@@ -118,6 +119,7 @@ def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
         "cooperrider": cooperrider_summary(out),
         "warnings": [str(w) for w in metrics.get("warnings") or []],
         "report": str(out / "report.html") if (out / "report.html").exists() else None,
+        "datasheet": str(sheet) if (sheet := out / DATASHEET_FOLDER / DATASHEET_FILE).exists() else None,
         "fmus": sorted(str(f) for f in out.rglob("*.fmu")),
         "total_time_s": seconds, "output_folder": str(out),
     }
@@ -149,6 +151,8 @@ def end_summary(out: Path, seconds: float, quiet: bool = False) -> dict:
         lines.append(f"  vehicle: {v['text']}")
     if summary["report"]:
         lines.append(f"  report: {summary['report']}")
+    if summary["datasheet"]:
+        lines.append(f"  datasheet (force-velocity and Maxwell tables per FMU beside it): {summary['datasheet']}")
     for f in summary["fmus"]:
         lines.append(f"  FMU: {f}")
     lines.append(f"  summary for scripts: {out / 'summary.json'}")

@@ -10,6 +10,8 @@
 - ``diagnosis_figures``: the diagnosis's figures (the base model's residual), drawn from a ``Diagnosis``;
 - ``vehicle_report``: the vehicle section (the tuned FMUs in the vehicle, side by side, and their intervals);
 - ``design_report``: the test design section (the rig tests that would pin down the rest);
+- ``datasheet_report``: the datasheet section (force-velocity table, figures, measured points, nominal band);
+- ``datasheet_figures``: the datasheet's figures (force-velocity, K' and K'' per amplitude, loss angle);
 - ``html``: HTML building blocks (tables, figures, numbers, the page);
 - ``figure_layout``: the figures' margins, fixed in inches (in place of matplotlib's constrained layout);
 - ``fleet_summary``: the fleet summary of a batch (table, outliers, characteristics).

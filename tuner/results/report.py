@@ -23,8 +23,8 @@ Errors (difference plots, metrics) are measured minus simulated force [N]. Sampl
 ``settings["warmup_s"]`` are drawn shaded; the metrics in metrics.json exclude them.
 
 The report's parts live beside it: what is read (``fit_folder``), the figures (``fit_figures``), the
-parameter intervals (``intervals_report``), the diagnosis and vehicle sections (``diagnosis_report``,
-``vehicle_report``), the HTML building blocks
+parameter intervals (``intervals_report``), the diagnosis, vehicle and datasheet sections (``diagnosis_report``,
+``vehicle_report``, ``datasheet_report``), the HTML building blocks
 (``html``); this module writes the fit report's own sections and assembles the page.
 """
 from __future__ import annotations
@@ -48,6 +48,7 @@ from tuner.results.recommendation import railway_damper, recommend, recommendati
 from tuner.results.report_figures import draw_report_figures, undrawn_figures
 from tuner.results.vehicle_report import vehicle_section_html
 from tuner.results.design_report import design_section_html
+from tuner.results.datasheet_report import datasheet_section_html
 
 
 __all__ = ["make_report", "main"]
@@ -470,9 +471,10 @@ def make_report(out_dir, *, dpi: int = 110, figures: bool = True, workers: int =
     ds = run.settings.get("dataset")
     diagnosis, vehicle = diagnosis_section_html(out), vehicle_section_html(out)  # '' when that stage did not run
     design = design_section_html(out)  # '' before python -m tuner design
+    datasheet = datasheet_section_html(out, figures=figures)  # '' without datasheet/datasheet.json
     toc = "".join(f"<li><a href='#{a}'>{t}</a></li>" for a, t, shown in (
         ("summary", "Summary", True), ("data", "The data as read", True), ("diagnosis", "Diagnosis", diagnosis),
-        ("vehicle", "In the vehicle", vehicle),
+        ("vehicle", "In the vehicle", vehicle), ("datasheet", "Datasheet", datasheet),
         ("metrics", "Accuracy tables", True), ("time", "Force time histories and loops", True),
         ("fitness", "Fitness evolution", True), ("constants", "Constant parameters", True),
         ("tables", "Oil characteristics", True), ("poly", "Polynomial fits", True),
@@ -486,7 +488,7 @@ def make_report(out_dir, *, dpi: int = 110, figures: bool = True, workers: int =
              "force positive in tension. SI units with engineering prefixes.</p>")
 
     body = [f"<h1>{title}</h1>", intro, f"<ol class='toc'>{toc}</ol>", _summary(run), _data_section(run),
-            diagnosis, vehicle, _metrics_section(run),
+            diagnosis, vehicle, datasheet, _metrics_section(run),
             _timeseries_section(run, drawn), _fitness_section(run, drawn),
             _population_sections(run, drawn), _poly_section(run, drawn), _params_section(run),
             intervals_section_html(run, drawn["intervals",]), design,
