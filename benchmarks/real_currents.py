@@ -4,8 +4,8 @@
 
 Each current (``<data>/mr-damper-<current>/sine/``, read with its mapping file ``docs/real-data/mr-sine*.toml``)
 runs the command of docs/real-data.md in a process of its own (identification on the 0.1, 0.5 and 3 Hz tests,
-validation on the 0.25, 1 and 5 Hz ones, the default models, the diagnosis after the fit, no figures), alone on
-the machine; printed per current: the wall time, the stages' seconds (``time_budget.json``, ``tuner.time_budget``),
+validation on the 0.25, 1 and 5 Hz ones, the default models, the diagnosis after the fit, no figures; its log in
+``OUT/<current>.log``), alone on the machine; printed per current: the wall time, the stages' seconds (``time_budget.json``, ``tuner.time_budget``),
 the two-chamber and lumped identification RMSE [N] of the FMUs shipped, whether a later stage found a lower point
 (``history_<model>.json``'s ``best_point``), and the verdict. Then one table of the stages' seconds per current,
 as docs/measurements.md shows it. Rows go to ``OUT/real_currents.json`` (``--out``, default results/real_currents).
@@ -32,7 +32,7 @@ def command(data: Path, current: str, out: Path) -> list[str]:
     files = lambda names: [str(folder / f"{n}{tag}.txt") for n in names]  # noqa: E731
     return [sys.executable, "-m", "tuner", "fit", "--identification", *files(IDENTIFICATION),
             "--validation", *files(VALIDATION), "--columns", str(ROOT / "docs" / "real-data" / MAPPING[current]),
-            "--no-figures", "--quiet", "--out", str(out)]
+            "--no-figures", "--out", str(out)]
 
 
 def row(current: str, out: Path, wall: float) -> dict:
@@ -68,7 +68,8 @@ def main(argv=None) -> int:
         if out.exists():
             raise SystemExit(f"{out} exists: remove it or give another --out (nothing is overwritten)")
         t0 = time.perf_counter()
-        done = subprocess.run(command(a.data, current, out), cwd=ROOT)
+        with open(a.out / f"{current}.log", "w") as log:  # the job's log, for where a figure came from
+            done = subprocess.run(command(a.data, current, out), cwd=ROOT, stdout=log, stderr=subprocess.STDOUT)
         if done.returncode != 0:
             raise SystemExit(f"{current}: the job exited with {done.returncode}")
         rows.append(row(current, out, time.perf_counter() - t0))
