@@ -200,7 +200,8 @@ def test_the_series_ladder_holds_decades_across_the_range_never_one_value():
     deflection at the peak force; a guess well inside the range gets the stiffer decades first."""
     from types import SimpleNamespace
 
-    from tuner.diagnosis.search.nonsmooth import SOFTEST_SERIES, series_values
+    from tuner.diagnosis.search.nonsmooth import series_values
+    from tuner.identification.restart_check import SOFTEST_SERIES
 
     par = SimpleNamespace(bounds={"k_B": (1e2, 1e9)})
     s = SimpleNamespace(par=par, guess={"k_B": 2.5e8}, peak=20e3, stroke_range=0.04)

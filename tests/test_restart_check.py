@@ -4,6 +4,7 @@ import math
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from tuner.identification.polish import polish
 from tuner.identification.restart_check import restart_check
@@ -135,3 +136,25 @@ def test_a_fit_is_converged_by_its_rule_or_by_a_restart_check_that_a_stall_survi
     assert refinement("stalled", False, False).converged_by is None
     assert refinement("budget", False, True).converged_by is None
     assert not refinement("budget", False, True).converged
+
+
+def test_the_series_element_on_a_bound_is_held_at_the_decades_the_diagnosis_holds():
+    """A two-chamber fit whose mount stiffness ended on its lower bound: the check holds it at the data-driven
+    guess's stiffness one and two decades up (the diagnosis's ladder's first values, ``series_decades``), not at the
+    middle of its range, and every other coordinate on a bound still at its middle."""
+    from tuner.identification.parametrization import Parametrization
+    from tuner.identification.restart_check import SeriesHold, restart_starts, series_decades
+
+    par = Parametrization("twochamber", "improved")
+    z = np.full(par.dimension, 0.4)
+    k = par.names.index("k_M")
+    z[k] = 0.0  # on its lower bound
+    other = next(i for i, n in enumerate(par.names) if n != "k_M" and not n.startswith(("Fc_", "Fk_")))
+    z[other] = 1.0
+    held = series_decades(par.bounds["k_M"], 3e7, softest=1e5)
+    assert held[:2] == pytest.approx([3e8, 3e9])
+    starts = restart_starts(par, z, None, SeriesHold("k_M", tuple(held[:2])))
+    mounts = [s for s in starts if s[2] == "k_M"]
+    assert [par.to_params(s[1])["k_M"] for s in mounts] == pytest.approx([3e8, 3e9])
+    (mid,) = [s for s in starts if s[2] == par.names[other]]
+    assert mid[1][other] == 0.5

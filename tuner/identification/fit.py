@@ -36,7 +36,7 @@ import numpy as np
 
 from damper_fmu.fmu import ensure_fmu
 from damper_fmu.models import ConvergenceError
-from damper_fmu.parameters import EFFECT_MODELS, defaults
+from damper_fmu.parameters import EFFECT_MODELS, SERIES_ELEMENT, defaults
 
 from tuner.data.reading import RigTest
 from tuner.identification import firefly
@@ -47,7 +47,8 @@ from tuner.identification.intervals import parameter_intervals, reached_ranges
 from tuner.identification.parametrization import Parametrization
 from tuner.identification.polish import FTOL, TYPICAL_JACOBIANS, PolishResult, polish, resolution_stop, small_progress
 from tuner.identification.problem import DataSettings, Problem, prepared_signals, split_data_settings
-from tuner.identification.restart_check import ROUNDS, TYPICAL_RESTARTS, RestartCheck, restart_check
+from tuner.identification.restart_check import (ROUNDS, SOFTEST_SERIES, TYPICAL_RESTARTS, RestartCheck, SeriesHold,
+                                               restart_check, series_decades)
 from tuner.identification.runner import SimulationError
 from tuner.identification.validation import validation_run
 from tuner.metrics import noise_std, rmse_of_fitness
@@ -476,21 +477,36 @@ def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result
             ref.z, ref.g, ref.polished = pol.z, g, pol
     if ref.g > 0.0 and ref.race is None and ref.floor_stop is None and not (  # (g = 0: nothing could be simulated)
             floor is not None and _at_floor(ref, model, par, floor, ["the restart check"], log)):
-        _check_restarts(eng, model, par, settings, ref, result.state, log)
+        _check_restarts(eng, model, par, settings, ref, result.state, log, series_hold(model, par, guess_p, eng.tests))
     ref.elapsed_s = time.perf_counter() - t0
     return ref
 
 
+def series_hold(model: str, par: Parametrization, guess_p: dict, signals: list[Signals]) -> SeriesHold | None:
+    """The values [N/m] the restart check holds ``model``'s series stiffness at when it ended on a bound: the first
+    two of ``series_decades`` of the data-driven guess ``guess_p``, none softer than ``SOFTEST_SERIES`` x the
+    identification ``signals``' peak force / stroke range; None for a model without a series element (or one the
+    parametrization holds fixed)."""
+    names = SERIES_ELEMENT.get(model)
+    if names is None or names[0] not in par.names:
+        return None
+    peak = max(float(np.abs(s.force[s.mask]).max()) for s in signals)
+    stroke = max(float(np.ptp(s.stroke[s.mask])) for s in signals)
+    values = series_decades(par.bounds[names[0]], guess_p[names[0]], SOFTEST_SERIES * peak / max(stroke, 1e-12))
+    return SeriesHold(names[0], tuple(values[:2]))
+
+
 def _check_restarts(eng, model: str, par: Parametrization, settings: FitSettings, ref: Refinement,
-                    state: firefly.FireflyState, log) -> None:
+                    state: firefly.FireflyState, log, series: SeriesHold | None = None) -> None:
     """The restart check (``tuner.identification.restart_check``) of the best refinement in ``ref``, from the
-    Firefly's last generation (``state``); a lower point it finds becomes ``ref``'s, and ``ref.check`` records it."""
+    Firefly's last generation (``state``), the series element held at ``series``'s values when it ended on a bound;
+    a lower point it finds becomes ``ref``'s, and ``ref.check`` records it."""
     section(log, "restart check")
     log(f"[{model}] restart check: is {rmse_of_fitness(ref.g):.2f} N the fit's minimum or its basin's? (restarts "
         f"from the bounds' mid-ranges and the brightest firefly elsewhere; a restart that ends lower by more than one "
         f"standard error of the RMSE continues the fit)")
     population = state.population[np.argsort(-state.fitness)]
-    check = restart_check(eng, par, ref.z, ref.g, population, settings.polish_jacobians, log)
+    check = restart_check(eng, par, ref.z, ref.g, population, settings.polish_jacobians, log, series)
     ref.evaluations += check.evaluations
     ref.check = check
     if check.polished is not None:

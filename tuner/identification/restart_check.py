@@ -13,6 +13,12 @@ So the check restarts the refinement from (``restart_starts``):
 * the best point with each scalar coordinate that sits on a bound held at the middle of its search range
   (the geometric middle of a log-scaled one), refined with it held, then released and refined again: held,
   the other coordinates settle around the new decade instead of pulling it straight back;
+* the series element's stiffness (``damper_fmu.parameters.SERIES_ELEMENT``: the lumped silent blocks, the
+  two-chamber mount) on a bound is held not at the middle but at the two stiffer decades of ``series_decades``
+  (the data-driven guess's stiffness one and two decades up), the values the diagnosis's free-play ladder holds
+  first (``tuner.diagnosis.search.nonsmooth.series_ladder``): one rule for the element, in the fit and the
+  diagnosis. On an MR current held back from development the mount held at the middle (1e8 N/m) came back to
+  14.80 N, while the diagnosis's ladder, holding it at 3e8 and 3e9 N/m, found 14.16 N (issue 74);
 * the brightest firefly of the last generation that lies elsewhere (scaled distance above ``DISTINCT``).
 
 A restart that ends lower by more than one standard error of the RMSE (``tuner.metrics.rmse_standard_error``:
@@ -22,6 +28,7 @@ a difference the data can show) replaces the fit's point and the check runs agai
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,7 +37,8 @@ from tuner.identification.parametrization import Parametrization
 from tuner.identification.polish import PolishResult, polish
 from tuner.metrics import rmse_of_fitness, rmse_standard_error
 
-__all__ = ["RestartCheck", "restart_check", "restart_starts", "DISTINCT", "ROUNDS", "AT_BOUND", "TYPICAL_RESTARTS"]
+__all__ = ["RestartCheck", "restart_check", "restart_starts", "series_decades", "SeriesHold", "DISTINCT", "ROUNDS",
+           "AT_BOUND", "TYPICAL_RESTARTS", "SERIES_DECADES", "SOFTEST_SERIES"]
 
 #: a firefly this far (Euclidean, scaled coordinates in [0, 1]) from the best lies in another region
 DISTINCT = 0.25
@@ -41,6 +49,40 @@ AT_BOUND = 1e-6
 #: refinements a check typically runs, for the progress display's forecast: one coordinate on a bound (held, then
 #: released: two) and the firefly elsewhere (measured on the real MR damper: 1-3 coordinates on a bound)
 TYPICAL_RESTARTS = 3
+
+
+#: the softest series stiffness held, as a multiple of the damper's peak force over its stroke range (a series element
+#: that alone would deflect a tenth of the stroke range at the peak force); softer is no mount
+SOFTEST_SERIES = 10.0
+#: the decades [powers of ten of the data-driven guess's series stiffness] held, in order (``series_decades``): one,
+#: two and three above, then the guess's own and one below
+SERIES_DECADES = (1, 2, 3, 0, -1)
+
+
+def series_decades(bounds: tuple[float, float], guess: float, softest: float) -> list[float]:
+    """The series stiffness values [N/m] to hold, in order: ``guess`` [N/m] ``SERIES_DECADES`` decades up and down,
+    each capped at the upper of ``bounds`` (the bound itself once, values closer than 10 % in the logarithm are one)
+    and none softer than ``softest`` [N/m] (``SOFTEST_SERIES`` x peak force / stroke range) or the lower bound.
+    Stiffer first: a base absorbs a gap, or settles in the wrong basin, by softening the element. Decades apart
+    across the element's plausible range, never one value where the range allows more (a ladder of one and two
+    decades up, both capped at the 1e9 N/m bound, held one value where the data's mounts were four times softer)."""
+    lo, hi = bounds
+    soft = max(lo, softest)
+    values: list[float] = []
+    for j in SERIES_DECADES:
+        v = min(guess * 10.0 ** j, hi)
+        if v >= soft and all(abs(math.log(v / w)) > 0.1 for w in values):
+            values.append(v)
+    return values or [hi]
+
+
+@dataclass(frozen=True)
+class SeriesHold:
+    """The series element's stiffness ``name`` and the ``values`` [N/m] the check holds it at when it ended on a bound
+    (the first two of ``series_decades``)."""
+
+    name: str
+    values: tuple
 
 
 @dataclass
@@ -66,13 +108,21 @@ class RestartCheck:
 
 
 
-def restart_starts(par: Parametrization, z: np.ndarray, population: np.ndarray | None) -> list[tuple]:
+def restart_starts(par: Parametrization, z: np.ndarray, population: np.ndarray | None,
+                   series: SeriesHold | None = None) -> list[tuple]:
     """The check's starts from the fit's point ``z`` (scaled): (label, scaled start, name of the coordinate held
-    first or None) per scalar coordinate on a bound (moved to the middle of its range), then the brightest firefly
-    of ``population`` ((P, d) scaled, brightest first; None: none) farther than DISTINCT from ``z``."""
+    first or None) per scalar coordinate on a bound (moved to the middle of its range; the series element's
+    stiffness ``series`` to each of its values instead), then the brightest firefly of ``population`` ((P, d)
+    scaled, brightest first; None: none) farther than DISTINCT from ``z``."""
     starts = []
     for i, name in enumerate(par.names):
         if name.startswith(("Fc_", "Fk_")) or AT_BOUND < z[i] < 1.0 - AT_BOUND:
+            continue
+        if series is not None and name == series.name:
+            for value in series.values:
+                moved = par.from_params({**par.to_params(z), name: value})
+                starts.append((f"{name} held at {value:.3g} (a decade above the data-driven guess's or more; it "
+                               f"ended on its bound), then released", moved, name))
             continue
         moved = np.array(z, dtype=float)
         moved[i] = 0.5
@@ -100,16 +150,17 @@ def _run(eng, par: Parametrization, start: tuple, jacobians: int) -> tuple[Polis
 
 
 def restart_check(eng, par: Parametrization, z: np.ndarray, g: float, population: np.ndarray | None,
-                  jacobians: int, log) -> RestartCheck:
+                  jacobians: int, log, series: SeriesHold | None = None) -> RestartCheck:
     """The restart check (module docstring) of the fit at scaled ``z`` (fitness ``g``) of ``par`` on the engine
     ``eng``; ``population``: the Firefly's last generation (scaled, brightest first) or None; ``jacobians``: each
-    refinement's cap. Logs each restart."""
+    refinement's cap; ``series``: the series element's values (``SeriesHold``; None: held at mid-range like the
+    others). Logs each restart."""
     r = eng.residuals_batch([par.to_params(z)])[0]
     se = rmse_standard_error(r) if r is not None else 0.0
     check = RestartCheck(np.asarray(z, dtype=float), g, se)
     for round_ in range(1, ROUNDS + 1):
         check.rounds = round_
-        starts = restart_starts(par, check.z, population if round_ == 1 else None)
+        starts = restart_starts(par, check.z, population if round_ == 1 else None, series)
         best = None
         for start in starts:
             pol, evaluations = _run(eng, par, start, jacobians)

@@ -18,36 +18,17 @@ from tuner.diagnosis.rules import UNEXPLAINED_RATIO, scores
 from tuner.diagnosis.search.refits import refit_candidate
 from tuner.diagnosis.search.rows import held_out, log_row
 from tuner.diagnosis.search.state import Fit, SearchState
+from tuner.identification.restart_check import SOFTEST_SERIES, series_decades
 
 __all__ = ["series_ladder", "unearned_nonsmooth", "shows_gain", "signalled_nonsmooth", "refit_unseen_nonsmooth",
            "refit_unseen"]
 
 
-#: the softest series stiffness the ladder holds, as a multiple of the damper's peak force over its stroke range (a
-#: series element that alone would deflect a tenth of the stroke range at the peak force); softer is no mount
-SOFTEST_SERIES = 10.0
-#: the decades [powers of ten of the data-driven guess's stiffness] the ladder holds, in the order it holds them
-#: (``series_values``): one, two and three above, then the guess's own and one below
-SERIES_DECADES = (1, 2, 3, 0, -1)
-
-
 def series_values(s: SearchState, k: str) -> list[float]:
-    """The series stiffness values [N/m] the ladder holds (``series_ladder``), in order: the data-driven guess's
-    stiffness ``SERIES_DECADES`` decades up and down, each capped at the element's upper bound (the bound itself
-    once) and none softer than ``SOFTEST_SERIES`` x peak force / stroke range (or the lower bound). Stiffer first: a
-    base absorbs a gap by softening the element, so the truth lies above the fit; the ladder stops at the first
-    value whose refit explains the residual. Decades apart across the element's plausible range, never one value:
-    a ladder that held only a decade and two above the guess, both capped at the bound (1e9 N/m), held one value
-    where the data's mounts were four times softer, and the gap was never released on the base that made the
-    data."""
-    lo, hi = s.par.bounds[k]
-    soft = max(lo, SOFTEST_SERIES * s.peak / max(s.stroke_range, 1e-12))
-    values = []
-    for j in SERIES_DECADES:
-        v = min(s.guess[k] * 10.0 ** j, hi)
-        if v >= soft and all(abs(math.log(v / w)) > 0.1 for w in values):
-            values.append(v)
-    return values or [hi]
+    """The series stiffness values [N/m] the ladder holds (``series_ladder``), in order: ``series_decades`` of the
+    data-driven guess's stiffness (the rule the fit's restart check holds the element by), none softer than
+    ``SOFTEST_SERIES`` x peak force / stroke range."""
+    return series_decades(s.par.bounds[k], s.guess[k], SOFTEST_SERIES * s.peak / max(s.stroke_range, 1e-12))
 
 
 def series_ladder(s: SearchState, effect: str, ext: ExtendedParametrization, row: dict) -> dict:
