@@ -25,7 +25,9 @@ The faults (``RigFaults``, each 0 when off), named by the catalogue magnitude th
 (``damper_fmu.effect_catalogue``), so that a fitted value compares with the one hidden:
 
 * ``free_play`` [m]: a dead band in the actuator-side mount (``DamperConfig.free_play``); its contact is that
-  mount's own stiffness and damping;
+  mount's own stiffness and damping. The reservoir gas pushes the rod out, so at rest the rod bears on one side
+  of the gap and the rig tares the gas force there: in the gap the tared force reads minus the static gas force
+  (``DamperParams.static_gas_force``, a few hundred N in tension), the catalogue's free play beside a preload;
 * ``friction_force`` [N]: rod-seal Coulomb friction between rod and cylinder (``DamperConfig.friction_force``);
 * ``valve_tau`` [s]: first-order lag of the blow-off valves' openings (``DamperConfig.valve_tau``);
 * ``preload_force`` [N, tension +]: the rig's zero is off by it, the force channel reads ``preload_force`` more
@@ -116,12 +118,14 @@ def random_rig_damper(seed: int) -> DamperParams:
 
 def damper_summary(params: DamperParams) -> dict:
     """The drawn damper in a few numbers (SI, for a benchmark's rows): diameters, chamber lengths, air, gas, mounts,
-    the valves' blow-off crack pressures [Pa]."""
+    the valves' blow-off crack pressures [Pa], the static gas force [N, tension +] the rig tares (a free play's
+    dead band shows at minus it in the tared force: the catalogue's un-tared gas force, a preload)."""
     return {"piston_diameter": params.piston_diameter, "rod_diameter": params.rod_diameter,
             "rebound_length": params.rebound_length, "compression_length": params.compression_length,
             "air_fraction": params.air_fraction, "gas_pressure": params.gas_pressure,
             "mount_stiffness": params.mount_stiffness, "mount_damping": params.mount_damping,
-            "piston_crack": params.piston_valve.blowoff_crack, "foot_crack": params.foot.blowoff_crack}
+            "piston_crack": params.piston_valve.blowoff_crack, "foot_crack": params.foot.blowoff_crack,
+            "static_gas_force": params.static_gas_force}
 
 
 @dataclass(frozen=True)

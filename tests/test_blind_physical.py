@@ -39,23 +39,28 @@ def forces(faults: RigFaults, speed: float, amplitude: float = 4e-3):
     return t, x, with_fault.stroke_velocity, with_fault.force, clean.force
 
 
-def dead_band(x, v, f, threshold: float) -> float:
-    """Median stroke [m] travelled after each reversal (after the first) before the force exceeds ``threshold`` [N]
-    in the new direction of motion."""
+def dead_band(x, v, f, threshold: float) -> tuple[float, float]:
+    """(median stroke [m] travelled after each reversal (after the first) before the force exceeds ``threshold`` [N]
+    in the new direction of motion, median force [N] half way there)."""
     rev = np.flatnonzero(np.diff(np.sign(v)) != 0)[1:]
-    widths = []
+    widths, middle = [], []
     for i in rev:
         j = i + int(np.argmax(f[i:] * np.sign(v[i + 1]) > threshold))
         widths.append(abs(x[j] - x[i]))
-    return float(np.median(widths))
+        middle.append(f[(i + j) // 2])
+    return float(np.median(widths)), float(np.median(middle))
 
 
-def test_a_free_play_shows_a_dead_band_of_its_gap_after_each_reversal():
+def test_a_free_play_shows_a_dead_band_of_its_gap_after_each_reversal_at_the_tared_gas_force():
+    """The gap's width, and in it the rod free of the mount: the load cell reads nothing, the tared force minus the
+    static gas force the rig tared with the rod bearing on one side of the gap."""
     gap = 0.5e-3
     t, x, v, f, clean = forces(RigFaults(free_play=gap), speed=0.02)
     threshold = 0.2 * np.percentile(np.abs(clean), 90)
-    extra = dead_band(x, v, f, threshold) - dead_band(x, v, clean, threshold)
-    assert extra == pytest.approx(gap, rel=0.15)
+    (width, in_gap), (clean_width, _) = dead_band(x, v, f, threshold), dead_band(x, v, clean, threshold)
+    assert width - clean_width == pytest.approx(gap, rel=0.15)
+    gas = random_rig_damper(SEED).static_gas_force
+    assert gas < -100.0 and in_gap == pytest.approx(-gas, rel=0.05)
 
 
 def test_a_friction_adds_its_force_against_the_motion_at_constant_speed():
