@@ -116,7 +116,8 @@ def run_case(case: dict) -> dict:
 
 def run_key(row: dict) -> tuple:
     """What makes a run the same run again (resume): case, seed, test length [s] (None: drawn), simulation grid [s]."""
-    return row["case"], row["seed"], row.get("durations"), row.get("sim_step_s", DEFAULT_STEP)
+    durations = row.get("durations")
+    return row["case"], row["seed"], tuple(durations) if durations else None, row.get("sim_step_s", DEFAULT_STEP)
 
 
 def _case(name: str, k: int, a: argparse.Namespace) -> dict:

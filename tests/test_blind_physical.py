@@ -173,3 +173,7 @@ def test_the_table_counts_the_preferred_base_and_the_benchmark_resumes(tmp_path,
     assert bp.main(argv) == 0 and len(calls) == 3  # resumed: nothing ran again
     assert bp.main([*argv[:2], "--seeds", "2", *argv[4:]]) == 0
     assert calls[3:] == [bp.case_seed(c, 1) for c in ("free_play_soft", "friction", "none")]
+    assert bp.main([*argv, "--test-length", "3"]) == 0 and len(calls) == 9  # other tests: other runs
+    assert bp.main([*argv, "--test-length", "3"]) == 0 and len(calls) == 9
+    with pytest.raises(SystemExit):
+        bp.main([*argv, "--cases", "free_play"])
