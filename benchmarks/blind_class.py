@@ -53,42 +53,21 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from benchmarks.blind_common import (BROAD_NOISE_N, BROAD_RATES_HZ, MAGNITUDE_OF, PAIRS, blind_diagnosis,  # noqa: E402
+                                     case_counts, confounded, done_rows, expected, failed_row, row_line, run_rows,
+                                     typical_draw)
 from campaign.damper_class import class_tests, random_damper, write_class_dataset  # noqa: E402
-from tuner.data.reading import load_dataset  # noqa: E402
-from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose  # noqa: E402
-from tuner.diagnosis.effect_sizes import DamperSize, typical_range  # noqa: E402
-from tuner.diagnosis.rules import untold  # noqa: E402
+from tuner.diagnosis.effect_sizes import DamperSize  # noqa: E402
 from tuner.executors import FleetExecutor  # noqa: E402
-from tuner.identification.engine import IDENTIFICATION_STEP as DEFAULT_STEP, fastest_engine  # noqa: E402
+from tuner.identification.engine import IDENTIFICATION_STEP as DEFAULT_STEP  # noqa: E402
 from tuner.identification.problem import DataSettings  # noqa: E402
 from tuner.results.fleet_summary import write_atomic  # noqa: E402
 
+__all__ = ["SINGLES", "PAIRS", "CASES", "MAGNITUDE_OF", "expected", "case_seed", "broad_data", "hidden_parameters",
+           "run_case", "confounded", "failed_row", "done_rows", "run_key", "main"]
+
 SINGLES = ("free_play_soft", "free_play_stiff", "bypass", "none")
-PAIRS = ("free_play+friction", "free_play+preload", "free_play+valve_lag", "friction+time_delay", "valve_lag+preload")
 CASES = SINGLES + PAIRS
-#: the magnitude parameter of each catalogue effect a case can hide
-MAGNITUDE_OF = {"free_play": "free_play", "friction": "friction_force", "preload": "preload_force",
-                "valve_lag": "valve_tau", "time_delay": "time_delay", "bypass": "bypass_ratio"}
-
-
-def expected(case: str) -> tuple[str, ...]:
-    """The effects the diagnosis should name for ``case`` (empty: nothing)."""
-    if case == "none":
-        return ()
-    if case.startswith("free_play_"):
-        return ("free_play",)
-    return tuple(case.split("+"))
-
-
-def _typical_draw(rng, effect: str, size: DamperSize) -> float:
-    """One magnitude [SI] of ``effect`` in its typical range on a damper of ``size`` (the catalogue's range scaled
-    as the diagnosis scales it, ``tuner.diagnosis.effect_sizes.typical_range``): a free play log-uniform, the
-    others uniform, a preload of either sign."""
-    lo, hi = typical_range(MAGNITUDE_OF[effect], size)
-    if effect == "free_play":
-        return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
-    sign = float(rng.choice([-1.0, 1.0])) if effect == "preload" else 1.0
-    return sign * float(rng.uniform(lo, hi))
 
 
 def damper_size(model: str, seed: int, hidden: dict, sample_rate: float) -> DamperSize:
@@ -111,8 +90,6 @@ def case_seed(case: str, k: int) -> int:
 #: log-uniform over decades within the models' bounds (critical damping of the contact is ~1e5 N s/m)
 BROAD_SERIES = {"lumped": {"k_B": (3e7, 1e9), "c_B": (1e3, 1e7)},
                 "twochamber": {"k_M": (3e6, 3e9), "c_M": (1e2, 1e6)}}
-BROAD_RATES_HZ = (500.0, 1000.0, 2000.0)
-BROAD_NOISE_N = (10.0, 50.0)
 
 
 def broad_data(model: str, seed: int) -> dict:
@@ -147,7 +124,7 @@ def pair_magnitudes(case: dict) -> dict:
     case's series element), on the seed's own random stream."""
     size = damper_size(case["model"], case["seed"], case["hidden"], case["sample_rate"])
     rng = np.random.default_rng([case["seed"], CASES.index(case["case"]), 4242])
-    return {MAGNITUDE_OF[e]: _typical_draw(rng, e, size) for e in expected(case["case"])}
+    return {MAGNITUDE_OF[e]: typical_draw(rng, e, size) for e in expected(case["case"])}
 
 
 def _case(name: str, k: int, a: argparse.Namespace) -> dict:
@@ -172,40 +149,8 @@ def run_case(case: dict) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         data = write_class_dataset(Path(tmp) / "data", case["model"], case["seed"], noise_n=case["noise_n"],
                                    sample_rate=case["sample_rate"], hidden=case["hidden"])
-        # the generator's sign and unit conventions are ours: the reader's plausibility check (there for a user's
-        # sign or unit mistakes) is not asked; it refused one passive damper of the class (seed 1128: a 7 ms valve
-        # lag with 1e9 N/m blocks damped at 2.3e4 N s/m, force and velocity correlated -0.14 on one test)
-        tests = load_dataset(data, check_plausible=False)
-        log_file = Path(case["log_dir"]) / f"{case['case']}-{case['seed']}.log" if case.get("log_dir") else None
-        with open(log_file or "/dev/null", "w") as out:
-            res = diagnose([t for t in tests if t.role == "identification"],
-                           [t for t in tests if t.role == "validation"],
-                           DiagnosisSettings(engine=fastest_engine(), workers=case["workers"],
-                                             base_model=case.get("base_setting", "auto"),
-                                             data=DataSettings(sim_step_s=case.get("sim_step_s", DEFAULT_STEP))),
-                           log=lambda m: print(m, file=out, flush=True))
-    names = [MAGNITUDE_OF[e] for e in expected(case["case"])]
-    fitted = {n: (res["effect_parameters"].get(n) or {}).get("value") for n in names}
-    return {**case, "causes": res["causes"], "named": res["cause"], "base": res["base_model"],
-            "fitted": fitted, "truth": {n: case["hidden"][n] for n in names}, "confounded": confounded(res),
-            "grid_refined": bool((res.get("grid") or {}).get("refined")),
-            "elapsed_s": time.perf_counter() - t0}
-
-
-def confounded(res: dict) -> dict:
-    """{effect: share of its force the base absorbs} of the effects the verdict says these tests cannot tell from
-    the base's own elements: ``tuner.diagnosis.rules.untold`` of their detection limits, and the candidates an
-    unexplained residual lists as explaining the same residual as the base (``unexplained.indistinguishable``)."""
-    said = {e: lim["absorbed_share"] for e, lim in (res.get("detection_limits") or {}).items() if untold(lim)}
-    for r in (res.get("unexplained") or {}).get("indistinguishable") or []:
-        said.setdefault(r["effect"], r["absorbed_share"])
-    return said
-
-
-def failed_row(case: dict, err: BaseException) -> dict:
-    """The row of a run that raised: kept in the table as a failure, never dropped."""
-    return {**case, "causes": [], "named": "failed", "base": None, "fitted": {}, "confounded": {},
-            "error": f"{type(err).__name__}: {err}"[:500], "elapsed_s": None}
+        found = blind_diagnosis(data, case)
+    return {**case, **found, "elapsed_s": time.perf_counter() - t0}
 
 
 def run_key(row: dict) -> tuple:
@@ -213,20 +158,6 @@ def run_key(row: dict) -> tuple:
     ``base`` is the base form the diagnosis kept), simulation grid [s]."""
     return (row["case"], row["model"], row["seed"], bool(row.get("broad")), row.get("base_setting", "auto"),
             row.get("sim_step_s", DEFAULT_STEP))
-
-
-def done_rows(path: Path) -> list[dict]:
-    """The rows of ``path`` (one JSON object a line, as ``main`` appends them); [] without the file."""
-    if not path.exists():
-        return []
-    rows = []
-    for i, line in enumerate(path.read_text().splitlines(), 1):
-        try:
-            rows.append(json.loads(line))
-        except json.JSONDecodeError as exc:
-            raise SystemExit(f"{path}, line {i}: not a JSON row ({exc}); remove the line or the file to start "
-                             "over") from exc
-    return rows
 
 
 def _arguments(argv) -> argparse.Namespace:
@@ -249,16 +180,6 @@ def _arguments(argv) -> argparse.Namespace:
     return a
 
 
-def _row_line(row: dict) -> str:
-    hid = ", ".join(f"{k} {v:.3g}" for k, v in row["hidden"].items()) or "nothing"
-    fit = ", ".join(f"{k} {v:.3g}" for k, v in row["fitted"].items() if v is not None)
-    return (f"{row['case']:20s} seed {row['seed']:4d} {row['sample_rate']:5.0f} Hz {row['noise_n']:3.0f} N  "
-            f"hidden {hid:60s}"
-            f" -> {'+'.join(row['causes']) or row['named']:22s} base {row['base']:10s}"
-            + (f" fitted {fit}" if fit else "") + (" (again on a finer grid)" if row.get("grid_refined") else "")
-            + f"  [{row['elapsed_s']:.0f} s]")
-
-
 def _table(rows: list[dict], names: list[str], model: str) -> None:
     """Per case: runs, every hidden effect named, some named, on the base that made the data, every hidden effect
     named or said to be absorbed by the base (``confounded``), unexplained, a false cause (an effect named that was
@@ -266,18 +187,11 @@ def _table(rows: list[dict], names: list[str], model: str) -> None:
     print(f"\n{'case':20s} {'runs':>5s} {'all named':>10s} {'some named':>11s} {'on its base':>12s} "
           f"{'named/said':>11s} {'unexplained':>12s} {'false cause':>12s} {'failed':>7s} {'median s':>9s}")
     for c in names:
-        sub = [r for r in rows if r["case"] == c]
-        if not sub:
+        n = case_counts(rows, c, lambda r: r["base"] == model)
+        if n is None:
             continue
-        want = set(expected(c))
-        right = [r for r in sub if want <= set(r["causes"]) and (want or not r["causes"])]
-        said = [r for r in sub if want <= set(r["causes"]) | set(r.get("confounded") or {})]
-        some = [r for r in sub if want & set(r["causes"])]
-        false = [r for r in sub if set(r["causes"]) - want]
-        times = [r["elapsed_s"] for r in sub if "error" not in r]
-        print(f"{c:20s} {len(sub):5d} {len(right):10d} {len(some):11d} {sum(r['base'] == model for r in right):12d} "
-              f"{len(said):11d} {sum(r['named'] == 'unexplained' for r in sub):12d} {len(false):12d} "
-              f"{sum('error' in r for r in sub):7d} {float(np.median(times)) if times else math.nan:9.0f}")
+        print(f"{c:20s} {n.runs:5d} {n.all_named:10d} {n.some_named:11d} {n.on_base:12d} {n.named_or_said:11d} "
+              f"{n.unexplained:12d} {n.false_cause:12d} {n.failed:7d} {n.median_s:9.0f}")
 
 
 def main(argv=None) -> int:
@@ -293,15 +207,7 @@ def main(argv=None) -> int:
         print(f"{len(todo)} blind diagnoses of random {a.model} dampers on a {ex.description}"
               + (f" ({len(cases) - len(todo)} done before, in {rows_file})" if len(todo) < len(cases) else ""),
               flush=True)
-        for i, row, err in ex.run(run_case, todo):
-            if err is not None:  # kept as a failure: the other runs go on, and the table counts it
-                row = failed_row(todo[i], err)
-                print(f"run {i} ({todo[i]['case']}, seed {todo[i]['seed']}) failed: {row['error']}", flush=True)
-            rows.append(row)
-            with open(rows_file, "a") as f:  # one strict-JSON row a line, so that a stopped run resumes
-                f.write(json.dumps(row, allow_nan=False) + "\n")
-            if err is None:
-                print(_row_line(row), flush=True)
+        run_rows(ex, run_case, todo, rows, rows_file, row_line)
     write_atomic(a.out / "blind_class.json", json.dumps({"rows": rows}, indent=1, allow_nan=False))
     keys = {run_key(c) for c in cases}
     _table([r for r in rows if run_key(r) in keys], a.case_names, a.model)

@@ -21,6 +21,8 @@ It never imports the tuner; the tuner uses its vehicle (``tuner.vehicle``) and i
 - ``programme``: a damper test programme in one run (a stepped sine of several frequencies and amplitudes);
 - ``synthetic``: datasets written by one of the damper models itself, with known parameters;
 - ``damper_class``: random dampers of each model's class, for the convergence benchmark;
+- ``rig_class``: random physical twin-tube dampers and their rig tests with faults hidden in the damper or the rig
+  chain, for the blind benchmark on the physical damper;
 - ``plots``: the overview figure of a dataset folder;
 - ``generate``: the campaign end to end, scenarios -> strokes -> rig -> dataset folder;
 - ``cli``: its command line (``python -m campaign generate``, also ``python -m tuner generate``);

@@ -43,7 +43,7 @@ from campaign.scenarios import SCENARIOS, damper_stroke
 from campaign.sensors import SensorChain
 
 __all__ = ["random_damper", "random_stroke", "class_tests", "write_class_dataset", "STROKE_KINDS", "CLASS_MODELS",
-           "NOISE_RANGE_N", "SAMPLE_RATE_HZ"]
+           "NOISE_RANGE_N", "SAMPLE_RATE_HZ", "capped", "MAX_VELOCITY", "OVERSAMPLING"]
 
 CLASS_MODELS = ("lumped", "twochamber")
 STROKE_KINDS = ("campaign", "multisine", "sweep", "hunting")
@@ -186,7 +186,7 @@ def random_stroke(kind: str, seed: int, duration: float, fs: float) -> tuple[np.
     return t, x * r, v * r + x * dr
 
 
-def _capped(x, v, vmax: float):
+def capped(x, v, vmax: float):
     """Stroke and velocity scaled down so that |velocity| <= vmax [m/s] (unchanged when it is)."""
     peak = float(np.max(np.abs(v)))
     k = min(1.0, vmax / peak) if peak > 0 else 1.0
@@ -225,7 +225,7 @@ def class_tests(model: str, seed: int, *, durations=None, noise_n: float | None 
     tests = []
     for i, (dur, kind) in enumerate(zip(durations, kinds)):
         t, x, v = random_stroke(kind, seed * 100 + i, dur, fs_int)
-        x, v = _capped(x, v, MAX_VELOCITY)
+        x, v = capped(x, v, MAX_VELOCITY)
         n = (t.size - 1) // OVERSAMPLING * OVERSAMPLING + 1
         t, x, v = t[:n], x[:n], v[:n]
         f = simulate(model, t, x, v, params=params,
