@@ -77,7 +77,9 @@ def blind_diagnosis(data: Path, case: dict) -> dict:
     fitted = {n: (res["effect_parameters"].get(n) or {}).get("value") for n in names}
     return {"causes": res["causes"], "named": res["cause"], "base": res["base_model"], "fitted": fitted,
             "truth": {n: case["hidden"][n] for n in names}, "confounded": confounded(res),
-            "grid_refined": bool((res.get("grid") or {}).get("refined")), "held_out": held_out(res)}
+            "grid_refined": bool((res.get("grid") or {}).get("refined")), "held_out": held_out(res),
+            # every named effect's magnitudes [SI], hidden or not (a physical damper's implied causes are judged by them)
+            "effect_values": {n: p.get("value") for n, p in (res.get("effect_parameters") or {}).items()}}
 
 
 def confounded(res: dict) -> dict:
@@ -174,18 +176,21 @@ class CaseCounts:
     median_s: float
 
 
-def case_counts(rows: list[dict], case: str, on_base) -> CaseCounts | None:
-    """The counts of ``case``'s rows (None without one); ``on_base(row)``: the row's base is the one asked for."""
+def case_counts(rows: list[dict], case: str, on_base, implied=None) -> CaseCounts | None:
+    """The counts of ``case``'s rows (None without one); ``on_base(row)``: the row's base is the one asked for;
+    ``implied(row)``: the causes the data of that row hold beside the hidden faults by physics (a set; not required
+    to be named, not false when named; None: none)."""
     sub = [r for r in rows if r["case"] == case]
     if not sub:
         return None
     want = set(expected(case))
-    right = [r for r in sub if want <= set(r["causes"]) and (want or not r["causes"])]
+    allowed = {id(r): want | (implied(r) if implied else set()) for r in sub}
+    right = [r for r in sub if want <= set(r["causes"]) and (want or not set(r["causes"]) - allowed[id(r)])]
     times = [r["elapsed_s"] for r in sub if "error" not in r]
     return CaseCounts(
         runs=len(sub), all_named=len(right), some_named=sum(bool(want & set(r["causes"])) for r in sub),
         on_base=sum(bool(on_base(r)) for r in right),
         named_or_said=sum(want <= set(r["causes"]) | set(r.get("confounded") or {}) for r in sub),
         unexplained=sum(r["named"] == "unexplained" for r in sub),
-        false_cause=sum(bool(set(r["causes"]) - want) for r in sub), failed=sum("error" in r for r in sub),
+        false_cause=sum(bool(set(r["causes"]) - allowed[id(r)]) for r in sub), failed=sum("error" in r for r in sub),
         median_s=float(np.median(times)) if times else math.nan)

@@ -169,13 +169,29 @@ def _cells(n: CaseCounts | None) -> list[str]:
         "-" if math.isnan(n.median_s) else f"{n.median_s:.0f}"]
 
 
+#: a preload named beside a free play within this factor of the damper's static gas force is the gas force the rig
+#: tared with the rod on one side of the gap (``campaign.rig_class``): in the data by physics, not a false cause
+GAS_TARE_FACTOR = 2.0
+
+
+def gas_tare(row: dict) -> set:
+    """{'preload'} when ``row`` hid a free play in a gas-charged damper and the diagnosis's preload [N] lies within
+    ``GAS_TARE_FACTOR`` of the static gas force |F_gas| [N] (``damper_summary``): inside the gap the tared force reads
+    minus the gas force (seed 3000: 354 N named for 402 N); else the empty set."""
+    gas = abs((row.get("damper") or {}).get("static_gas_force") or 0.0)
+    preload = (row.get("effect_values") or {}).get("preload_force")
+    if "free_play" not in expected(row["case"]) or not gas or preload is None:
+        return set()
+    return {"preload"} if gas / GAS_TARE_FACTOR <= abs(preload) <= gas * GAS_TARE_FACTOR else set()
+
+
 def table_lines(rows: list[dict], names: list[str], class_rows: list[dict] | None = None) -> list[str]:
     """The table (one line a case; ``class_rows``: the model-class benchmark's beside, its "on its base" the base
     that made its data), as a Markdown table."""
     heads = [f"physical: {h}" for h in HEADS] + ([f"class: {h}" for h in HEADS] if class_rows is not None else [])
     out = ["| case | " + " | ".join(heads) + " |", "|---" * (len(heads) + 1) + "|"]
     for c in names:
-        cells = _cells(case_counts(rows, c, lambda r: r["base"] == preferred_base(r)))
+        cells = _cells(case_counts(rows, c, lambda r: r["base"] == preferred_base(r), implied=gas_tare))
         if class_rows is not None:
             cells += _cells(case_counts(class_rows, c, lambda r: r["base"] == r.get("model")))
         out.append(f"| {c} | " + " | ".join(cells) + " |")

@@ -177,3 +177,23 @@ def test_the_table_counts_the_preferred_base_and_the_benchmark_resumes(tmp_path,
     assert bp.main([*argv, "--test-length", "3"]) == 0 and len(calls) == 9
     with pytest.raises(SystemExit):
         bp.main([*argv, "--cases", "free_play"])
+
+
+def test_a_preload_at_the_gas_force_beside_a_free_play_is_the_tare_not_a_false_cause():
+    """``gas_tare``: in a gas-charged damper with a free play the rig tares the gas force with the rod on one side of
+    the gap, so a preload near the static gas force is in the data; one far from it, or beside no free play, is a
+    false cause in the table's count."""
+    from benchmarks.blind_common import case_counts
+    from benchmarks.blind_physical import gas_tare
+
+    def row(case, preload, causes):
+        return {"case": case, "causes": causes, "named": causes[0] if causes else "none", "base": "twochamber",
+                "damper": {"static_gas_force": -402.0}, "effect_values": {"preload_force": preload},
+                "elapsed_s": 1.0}
+
+    tare = row("free_play_soft", -354.0, ["free_play", "preload"])
+    far = row("free_play_soft", 2000.0, ["free_play", "preload"])
+    alone = row("friction", -380.0, ["friction", "preload"])
+    assert gas_tare(tare) == {"preload"} and gas_tare(far) == set() and gas_tare(alone) == set()
+    n = case_counts([tare, far], "free_play_soft", lambda r: True, implied=gas_tare)
+    assert (n.all_named, n.false_cause) == (2, 1)
