@@ -189,6 +189,10 @@ DK_API int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg
             snprintf(msg, msglen, "parameter %s = %g %s must be positive", sp[i].name, v, sp[i].unit);
             return DK_ERROR;
         }
+        if (sp[i].check == DK_CHECK_NONNEGATIVE && !(v >= 0.0)) {
+            snprintf(msg, msglen, "parameter %s = %g %s must not be negative", sp[i].name, v, sp[i].unit);
+            return DK_ERROR;
+        }
         m->p[i] = v;
     }
     m->kind = kind;
