@@ -1,10 +1,12 @@
 """Every bound and fixed constant of the identification follows the damper's scale (issue 74, item 5).
 
 The bundled damper scaled consistently by s (its force times s, ``force_scale_cases.scaled_tests``) is the same
-identification problem up to the unit of force: each bound and fixed constant of a force-carrying unit (N, kg,
-N/m, N s/m) is s times the full-scale one, the others equal, and the design space maps any point to s times the
-full-scale parameters (an identity of consistent scaling, independent of the values the bounds have). At full
-scale the bounds still hold the preset (the paper's and the twin-tube fit's values, set on this damper's size)."""
+identification problem up to the unit of force: each fixed constant and start value of a force-carrying unit
+(N, kg, N/m, N s/m, J/K, W/K) is s times the full-scale one, the others equal (an identity of consistent
+scaling, independent of the values the constants have). Its bounds hold s times the full-scale damper's own
+range (the reference yaw damper's mapped to it), so that every full-scale point within it, scaled, is a point of
+its design space, and the reference's bounds (never narrower: ``damper_scale``). At full scale the bounds still
+hold the preset (the paper's and the twin-tube fit's values, set on this damper's size)."""
 import numpy as np
 import pytest
 
@@ -12,6 +14,7 @@ from damper_fmu import defaults, make_model
 from damper_fmu.parameters import MODEL_PARAMETERS, UNIT_DEFINITIONS
 from tuner.data.reading import load_dataset
 from tuner.identification.damper_scale import REFERENCE_SCALE, DamperScale, scaled_preset
+from tuner.identification.parametrization import Parametrization
 from tuner.identification.problem import Problem
 
 from force_scale_cases import scaled, scaled_tests
@@ -32,15 +35,24 @@ def _carries_force(model: str, name: str) -> bool:
     return UNIT_DEFINITIONS[unit].get("kg") == 1
 
 
+def _holds(outer: tuple, inner: tuple) -> bool:
+    """[outer] holds [inner], to rounding."""
+    return outer[0] <= inner[0] + 1e-12 * abs(inner[0]) and inner[1] <= outer[1] + 1e-12 * abs(outer[1])
+
+
+def _own_range(model: str, problem: Problem) -> dict[str, tuple[float, float]]:
+    """The reference's bounds of the scalar parameters of ``model`` mapped to the damper of ``problem`` by the factor
+    of their unit, not widened."""
+    return {p.name: (p.low * problem.scale.factor(p.unit), p.high * problem.scale.factor(p.unit))
+            for p in MODEL_PARAMETERS[model] if p.tunable and not p.name.startswith(("Fc_", "Fk_"))}
+
+
 @pytest.mark.parametrize("model", MODELS)
 @pytest.mark.parametrize("s", FACTORS)
-def test_the_bounds_and_fixed_constants_of_a_scaled_damper_are_s_times_the_full_scale_ones(problems, model, s):
+def test_the_fixed_constants_of_a_scaled_damper_are_s_times_the_full_scale_ones(problems, model, s):
     full, small = problems[1.0].parametrization(model), problems[s].parametrization(model)
     assert small.names == full.names
-    for n in full.names:
-        k = s if _carries_force(model, n) else 1.0
-        assert small.bounds[n] == pytest.approx(tuple(k * b for b in full.bounds[n]), rel=1e-12, abs=0.0), n
-    for n, v in full.fixed.items():  # the fixed constants (check valves' slope), the abscissae, the preset
+    for n, v in full.fixed.items():  # the fixed constants (check valves' slope), the abscissae, the start (preset)
         k = s if _carries_force(model, n) else 1.0
         assert small.fixed[n] == pytest.approx(k * v, rel=1e-12, abs=0.0), n
     assert small.force_limit == pytest.approx(s * full.force_limit, rel=1e-12)
@@ -49,21 +61,64 @@ def test_the_bounds_and_fixed_constants_of_a_scaled_damper_are_s_times_the_full_
 
 @pytest.mark.parametrize("model", MODELS)
 @pytest.mark.parametrize("s", FACTORS)
-def test_every_point_of_the_design_space_is_the_scaled_damper(problems, model, s):
-    """The same scaled coordinates give s times the full-scale parameters (``scaled``: every parameter whose
-    unit carries a kilogram), in the search's space and the local solver's, so a fit of the scaled data walks
-    the same path as the full-scale one."""
+def test_the_bounds_of_a_scaled_damper_hold_s_times_the_full_scale_ones_and_the_reference_s(problems, model, s):
+    """The bounds at scale s hold s times the full-scale damper's own range, and the reference yaw damper's
+    bounds (``Parametrization`` at the reference scale on the same abscissae), a range from zero is s times the
+    full-scale one; the damping table's limits are s times the full-scale ones (the force limit)."""
+    full, small = problems[1.0].parametrization(model), problems[s].parametrization(model)
+    reference = Parametrization(model, force_limit=full.force_limit, spring_reference=1.5e7,
+                                fixed={k: v for k, v in full.fixed.items() if k.startswith(("Fc_v", "Fk_x"))})
+    own = _own_range(model, problems[1.0])
+    for n in full.names:
+        if n.startswith("Fc_"):
+            assert small.bounds[n] == pytest.approx(tuple(s * b for b in full.bounds[n]), rel=1e-12), n
+            continue
+        if n.startswith("Fk_"):
+            x = full.fixed[n.replace("Fk_", "Fk_x")]
+            inner = tuple(sorted((0.2 * s * full.spring_reference * x, 3.0 * s * full.spring_reference * x)))
+        else:
+            inner = tuple(s * b for b in own[n]) if _carries_force(model, n) else own[n]
+        if reference.bounds[n][0] == 0.0:  # a range from zero (the gas spring) is mapped alone: s times
+            assert small.bounds[n] == pytest.approx(inner, rel=1e-12), n
+            continue
+        assert _holds(small.bounds[n], inner), (n, small.bounds[n], inner)
+        assert _holds(small.bounds[n], reference.bounds[n]), (n, small.bounds[n], reference.bounds[n])
+
+
+def _elastic_table(rng, point: dict, spring: float) -> dict:
+    """Fk,O ordinates [N] at the abscissae of ``point`` (none when it has no elastic table) whose pieces, outward
+    from zero, have stiffnesses drawn in 0.2-3 x ``spring`` [N/m]: the full-scale damper's own range."""
+    out = {}
+    for sign in (-1.0, 1.0):
+        xs = sorted((abs(v), k.replace("Fk_x", "Fk_")) for k, v in point.items() if k.startswith("Fk_x") and v * sign > 0)
+        f, x0 = 0.0, 0.0
+        for x, name in xs:
+            f += rng.uniform(0.2, 3.0) * spring * (x - x0)
+            out[name], x0 = sign * f, x
+    return out
+
+
+@pytest.mark.parametrize("model", MODELS)
+@pytest.mark.parametrize("s", FACTORS)
+def test_every_full_scale_point_scaled_is_a_point_of_the_scaled_damper_s_space(problems, model, s):
+    """A point drawn in the full-scale design space (its scalars within the damper's own range), scaled
+    (``scaled``: every parameter whose unit carries a kilogram times s), maps to coordinates of the scaled space and
+    back to itself, in the search's space and the local solver's: nothing the full-scale damper has is cut off the
+    scaled one (before, masses of 1-20 kg held a 25 N damper's 16 g far above)."""
     rng = np.random.default_rng(7)
+    own = _own_range(model, problems[1.0])
     for space in ("search", "local"):
         full, small = problems[1.0].parametrization(model), problems[s].parametrization(model)
         if space == "local":
             full, small = full.local_space(), small.local_space()
         for z in rng.uniform(0.0, 1.0, (5, full.dimension)):
-            expected = scaled(model, full.to_params(z), s)
-            got = small.to_params(z)
-            for n in expected:
-                assert got[n] == pytest.approx(expected[n], rel=1e-9, abs=0.0), (space, n)
-            assert small.from_params(got) == pytest.approx(full.from_params(full.to_params(z)), abs=1e-9)
+            point = full.to_params(z)
+            point.update({n: min(max(point[n], lo), hi) for n, (lo, hi) in own.items()})
+            point.update(_elastic_table(rng, point, 1.0 * problems[1.0].spring_reference_n_per_m))
+            point = scaled(model, point, s)
+            back = small.to_params(small.from_params(point))
+            for n in point:
+                assert back[n] == pytest.approx(point[n], rel=1e-9, abs=1e-12 * s), (space, n)
 
 
 @pytest.mark.parametrize("model", MODELS)

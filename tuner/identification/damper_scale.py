@@ -18,10 +18,18 @@ identification maps them to the damper its data show (``DamperScale.of``, one pl
 * stiffnesses [N/m] by force / length, dampings and slopes [N s/m] by force / velocity; ratios [1] unchanged;
   the thermal balance's heat capacity [J/K] and loss [W/K] by force, as masses (the damper's body and oil).
 
-A damper scaled consistently (every parameter whose unit carries a kilogram times s, the data's force times s,
-strokes and times unchanged) then has every bound and fixed constant s times its own: the identification
-problem is the same up to the unit of force. The FMU's own defaults do not change; the fixed constants the fit
-uses go into the tuned FMU as its parameter values (``check_damping``). The table ordinates' bounds follow the
+A fixed constant is the reference's times that factor (``scaled_preset``: the check valves' slope, the thermal
+balance's capacity and loss, and the preset the search starts from). A bound is the reference's range mapped to
+the damper and widened to hold the reference's own (``scaled_bounds``: low x min(1, factor), high x max(1,
+factor); a range from zero is mapped alone): bounds follow a damper beyond the reference yaw damper, never
+narrower than its. The peak force of a
+test program is no exact measure of a damper's parts: yaw dampers whose tests peak at 8 to 38 kN have masses of
+3-20 kg and blocks up to 1e9 N/m alike (the random dampers of the class, ``campaign.damper_class``), and bounds
+narrowed to 0.6 x the reference's (masses up to 12 kg, blocks up to 6e8 N/m, a 12.1 kN class damper)
+left one of them at 6.8 x its truth's RMSE. A damper scaled consistently (every parameter whose unit carries a
+kilogram times s, the data's force times s, strokes and times unchanged) then has every fixed constant and
+start s times its own, and bounds that hold s times every full-scale point. The FMU's own defaults do not
+change; the fixed constants the fit uses go into the tuned FMU as its parameter values (``check_damping``). The table ordinates' bounds follow the
 force limit (``default_force_limit``) and the elastic table's spring reference (``spring_reference``), the
 effect elements' search bounds their own rules (``damper_fmu.effect_catalogue.search_bounds``).
 """
@@ -31,7 +39,8 @@ from dataclasses import dataclass
 
 from damper_fmu.parameters import FC_ABSCISSAE, FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS
 
-__all__ = ["DamperScale", "REFERENCE_SCALE", "UNIT_FACTORS", "scaled_bounds", "scaled_preset", "spring_reference"]
+__all__ = ["DamperScale", "REFERENCE_SCALE", "UNIT_FACTORS", "widened", "scaled_bounds", "scaled_preset",
+           "spring_reference"]
 
 #: how each unit of a base parameter scales: the product of the factors' powers (force, length, velocity)
 UNIT_FACTORS: dict[str, tuple[int, int, int]] = {
@@ -101,9 +110,10 @@ class DamperScale:
 
     def describe(self) -> str:
         return (f"damper scale: peak force {self.peak_force_n:.4g} N, stroke range {1e3 * self.stroke_range_m:.4g} mm, "
-                f"rates up to {1e3 * self.rate_span_m_s:.4g} mm/s: bounds and fixed constants x {self.force:.3g} "
+                f"rates up to {1e3 * self.rate_span_m_s:.4g} mm/s: fixed constants and bounds x {self.force:.3g} "
                 f"(forces, masses), x {self.factor('N/m'):.3g} (stiffnesses), x {self.factor('N.s/m'):.3g} "
-                f"(dampings), x {self.length:.3g} (lengths) of the reference yaw damper's")
+                f"(dampings), x {self.length:.3g} (lengths) of the reference yaw damper's, the bounds widened to "
+                "hold its own")
 
 
 #: the damper the bounds and fixed constants of ``damper_fmu.parameters`` are set for: the paper's yaw damper
@@ -116,10 +126,22 @@ def _is_table(name: str) -> bool:
     return name.startswith(("Fc_", "Fk_"))
 
 
+def widened(low: float, high: float, factor: float) -> tuple[float, float]:
+    """The reference's bounds (``low``, ``high``) mapped by ``factor`` and widened to hold the reference's own:
+    (low x min(1, factor), high x max(1, factor)), for bounds of one sign (0 <= low <= high). A range from zero
+    (the gas spring's 0-2e4 N/m) is mapped alone, (0, high x factor): it is searched linearly from zero, and
+    widened to the reference's top a 25 N damper's gas spring (1.7 N/m) would lie within 0.01 % of it, on its
+    bound for the search and the intervals."""
+    if low == 0.0:
+        return 0.0, high * factor
+    return low * min(1.0, factor), high * max(1.0, factor)
+
+
 def scaled_bounds(model: str, scale: DamperScale) -> dict[str, tuple[float, float]]:
     """Bounds (SI) of the identified parameters of ``model`` that are no table ordinate, for a damper of
-    ``scale``: the reference's times the factor of the parameter's unit (module docstring)."""
-    return {p.name: (p.low * scale.factor(p.unit), p.high * scale.factor(p.unit))
+    ``scale``: the reference's mapped by the factor of the parameter's unit, never narrower than the reference's
+    (``widened``; module docstring)."""
+    return {p.name: widened(p.low, p.high, scale.factor(p.unit))
             for p in MODEL_PARAMETERS[model] if p.tunable and not _is_table(p.name)}
 
 
@@ -142,5 +164,6 @@ def scaled_preset(model: str, scale: DamperScale) -> dict[str, float]:
 
 def spring_reference(scale: DamperScale) -> float:
     """The elastic table's reference spring [N/m] for a damper of ``scale``: the paper's 1.5e7 N/m times the
-    stiffness factor (the Fk,O ordinates' bounds are 0.2-3 times its force)."""
+    stiffness factor (the Fk,O pieces' stiffness bounds are 0.2-3 times it, widened to the reference damper's
+    as every bound: ``Parametrization``)."""
     return FK_REFERENCE_STIFFNESS * scale.factor("N/m")
