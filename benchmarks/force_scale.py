@@ -124,8 +124,8 @@ def fit_table(factors, population: int, iterations: int, polish: int) -> None:
             ame = result.metrics["quality"][model]["worst_ame_pct_of_peak"]
             bound = on_bounds(model, result.params[model])
             base_ame, base_bound = first.setdefault(model, (ame, bound))
-            print(f"| {model} | {s:g} | {ame:.4g} | {ame / base_ame:.3f} | {', '.join(sorted(bound - base_bound)) or '-'} "
-                  f"| {', '.join(sorted(bound & base_bound)) or '-'} | {elapsed:.0f} |", flush=True)
+            new, kept = (", ".join(sorted(b)) or "-" for b in (bound - base_bound, bound & base_bound))
+            print(f"| {model} | {s:g} | {ame:.4g} | {ame / base_ame:.3f} | {new} | {kept} | {elapsed:.0f} |", flush=True)
 
 
 def main() -> int:

@@ -21,8 +21,8 @@ Two-chamber model (``models.TwoChamberModel``, a twin-tube form): 38 tunable par
     L_R, L_C [m] chamber lengths, air [1], f_res [N], k_gas [N/m],
     Fc_01..Fc_28 [N]  ordinates of the damping table at Fc_v01..Fc_v28 [m/s] (Table 2's abscissae
     with the midpoints added: the valves' knees need the finer layout),
-the fixed check-valve slope check_damping [N s/m] (1e3 on the reference damper; the tuner sets it to the damper
-tested, ``tuner.identification.damper_scale``) and the effect elements (seal friction inside the
+the fixed check-valve slope check_damping [N s/m] (0, the default: 0.4 % of the damping table's mean slope to its
+last rate, 1.01e3 N s/m on the preset, so that it follows the damper's table) and the effect elements (seal friction inside the
 mounts, at the piston velocity). Its preset is a fit to the virtual rig's
 twin-tube damper (docs/twin-tube-form-study.md), a plausible railway yaw damper, not a paper value.
 """
@@ -174,8 +174,9 @@ TWOCHAMBER_PARAMETERS: tuple[Parameter, ...] = (
     Parameter("k_gas", "N/m", "Reservoir gas spring on the rod, zero at the start stroke", 1727.0, 0.0, 2e4,
               check="nonnegative"),
     *[p for p in _FC_TC if p.tunable],
-    Parameter("check_damping", "N.s/m", "Slope of the piston and intake check valves (fixed)", 1e3, 1e0, 1e6,
-              tunable=False),
+    Parameter("check_damping", "N.s/m", "Slope of the piston and intake check valves (fixed); 0: 0.4 % of the damping "
+              "table's mean slope to its last rate (models.CHECK_SHARE)", 0.0, 0.0, 1e6, tunable=False,
+              check="nonnegative"),
     *[p for p in _FC_TC if not p.tunable],
     *EFFECT_PARAMETERS,
 )

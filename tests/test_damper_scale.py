@@ -90,7 +90,8 @@ def _elastic_table(rng, point: dict, spring: float) -> dict:
     from zero, have stiffnesses drawn in 0.2-3 x ``spring`` [N/m]: the full-scale damper's own range."""
     out = {}
     for sign in (-1.0, 1.0):
-        xs = sorted((abs(v), k.replace("Fk_x", "Fk_")) for k, v in point.items() if k.startswith("Fk_x") and v * sign > 0)
+        xs = sorted((abs(v), k.replace("Fk_x", "Fk_")) for k, v in point.items()
+                    if k.startswith("Fk_x") and v * sign > 0)
         f, x0 = 0.0, 0.0
         for x, name in xs:
             f += rng.uniform(0.2, 3.0) * spring * (x - x0)
@@ -142,8 +143,8 @@ def test_the_full_scale_bounds_hold_the_preset(problems, model):
 
 def test_the_scale_maps_units_as_force_over_length_and_over_velocity():
     """A damper twice as strong, on half the reference's stroke, with its damping table stretched to twice the
-    reference's rates: forces and masses x2, stiffnesses x4, dampings x1, lengths x1/2, ratios x1; longer strokes
-    than the reference's leave lengths as they are."""
+    reference's rates: forces, masses and heat capacities x2, stiffnesses x4, dampings x1, lengths x1/2, ratios
+    x1; longer strokes than the reference's leave lengths as they are."""
     ref = REFERENCE_SCALE
     scale = DamperScale(2 * ref.peak_force_n, 0.5 * ref.stroke_range_m, 2 * ref.rate_span_m_s)
     assert [scale.factor(u) for u in ("N", "kg", "N/m", "N.s/m", "m", "1")] == pytest.approx([2, 2, 4, 1, 0.5, 1])
@@ -151,7 +152,9 @@ def test_the_scale_maps_units_as_force_over_length_and_over_velocity():
     assert long.factor("m") == 1.0 and long.factor("N/m") == 1.0
     with pytest.raises(ValueError, match="peak_force_n"):
         DamperScale(0.0, 0.04, 0.1)
-    assert scaled_preset("twochamber", ref)["check_damping"] == defaults("twochamber")["check_damping"]
+    preset = scaled_preset("twochamber", scale)  # the thermal balance's capacity as a mass, a length as one
+    assert preset["thermal_capacity"] == pytest.approx(2 * defaults("twochamber")["thermal_capacity"])
+    assert preset["L_R"] == pytest.approx(0.5 * defaults("twochamber")["L_R"])
 
 
 def test_a_gas_spring_of_a_strong_damper_is_accepted_and_a_negative_one_refused():

@@ -11,6 +11,7 @@ import pytest
 from damper_fmu import defaults, make_model
 from damper_fmu.fmu import ensure_fmu, native_reason
 
+from test_twochamber import check_slope
 from force_scale_cases import (KINDS, PEAKS_N, SMALL_STIFF_MOUNT, base_parameters, factor_for_peak, run_fmu, scaled,
                                sine_signals)
 
@@ -42,9 +43,10 @@ def test_every_fmu_gives_the_scaled_force_from_1_n_to_1_mn(kind, flavour, versio
 
 def _steady_force(p: dict, v: float, travel: float) -> float:
     """The two-chamber model's force [N] at constant velocity v [m/s] after a travel [m] (its docstring):
-    Fc,O(v) plus the check valve's c_chk (1 - a)^2 v in rebound, c_chk v in compression, plus the gas spring."""
+    Fc,O(v) plus the check valve's c_chk (1 - a)^2 v in rebound, c_chk v in compression (``check_slope``), plus the
+    gas spring."""
     m = make_model("twochamber", p)
-    check = p["check_damping"] * ((1.0 - p["area_ratio"]) ** 2 if v > 0 else 1.0) * v
+    check = check_slope(p) * ((1.0 - p["area_ratio"]) ** 2 if v > 0 else 1.0) * v
     return m.fc(v) + check + p["k_gas"] * travel
 
 

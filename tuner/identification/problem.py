@@ -5,8 +5,8 @@ test (``prepared_signals``, over ``tuner.data.preprocess.prepare``), turns them 
 derives what the fit, the diagnosis, the batch runner and the benchmarks all need from the data: the peak
 force [N], the stroke range [m], the damper's scale (``tuner.identification.damper_scale``: every bound and fixed
 constant of the models follows it), the force noise in the fit band [N rms], the table abscissae, the Fc,O force
-limit [N], the Fk,O reference spring [N/m] and a digest for resuming. ``problem.parametrization(kind)`` gives the design space of a
-model on it. One place, so that the stages cannot disagree about the data (before: the fit and the
+limit [N], the Fk,O reference spring [N/m] and a digest for resuming. ``problem.parametrization(kind)`` gives the
+design space of a model on it. One place, so that the stages cannot disagree about the data (before: the fit and the
 diagnosis each prepared the tests, and the diagnosis ignored ``--force-limit``).
 """
 from __future__ import annotations
