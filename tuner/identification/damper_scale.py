@@ -5,8 +5,8 @@ The bounds and fixed constants of ``damper_fmu.parameters`` (masses 1-20 kg, k_B
 ``REFERENCE_SCALE``: about 20 kN peak force (the paper's 3e4 N force limit is 1.5 x that), strokes of tens of
 millimetres, Table 2's damping table up to 100 mm/s. On a damper 1000 times weaker the same numbers hold its
 mounts, reservoir force and masses far above what it has (the bundled damper scaled by 1e-3 fitted the two-chamber
-form to 14.5 % of peak against 0.132 %, k_M, c_M and f_res on their lower bounds, the check valves 50 N at
-0.05 m/s on a 25 N damper); 10 times stronger, its silent blocks and gas spring lie above them. So the
+form to 14.5 % of peak against 0.132 %, k_M, c_M and f_res on their lower bounds, the check valves' fixed 1e3
+N s/m 50 N at 0.05 m/s on a 25 N damper); 10 times stronger, its silent blocks and gas spring lie above them. So the
 identification maps them to the damper its data show (``DamperScale.of``, one place), by the unit of each:
 
 * the force factor ``force`` = peak force / the reference's: forces [N] and masses [kg] (a mass's force
@@ -19,20 +19,20 @@ identification maps them to the damper its data show (``DamperScale.of``, one pl
   the thermal balance's heat capacity [J/K] and loss [W/K] by force, as masses (the damper's body and oil).
 
 A fixed constant is the reference's times that factor (``scaled_preset``: the thermal balance's capacity and loss,
-a check valves' slope given, and the preset the search starts from; the check valves' slope by default follows
-the model's own damping table, ``damper_fmu.models.CHECK_SHARE``, the same rule inside the model). A bound is the reference's range mapped to
-the damper and widened to hold the reference's own (``scaled_bounds``: low x min(1, factor), high x max(1,
-factor); a range from zero is mapped alone): bounds follow a damper beyond the reference yaw damper, never
-narrower than its. The peak force of a test program is no exact measure of a damper's parts: yaw dampers whose
-tests peak at 8 to 38 kN have masses of 3-20 kg and blocks up to 1e9 N/m alike (the random dampers of the class,
-``campaign.damper_class``), and bounds narrowed to 0.6 x the reference's (masses up to 12 kg, blocks up to 6e8
-N/m, a 12.1 kN class damper) left one of them at 6.8 x its truth's RMSE. A damper scaled consistently (every parameter whose unit carries a kilogram
-times s, the data's force times s, strokes and times unchanged) then has every fixed constant and start s times
-its own, and bounds that hold s times the full-scale damper's own range. The FMU's own defaults do not change;
-the fixed constants the fit uses go into the tuned FMU as its parameter values. The table
-ordinates' bounds follow the force limit (``default_force_limit``) and the elastic table's spring reference
-(``spring_reference``), the effect elements' search bounds their own rules
-(``damper_fmu.effect_catalogue.search_bounds``).
+a check valves' slope given, and the preset the search starts from; by default the check valves' slope follows the
+model's own damping table, ``damper_fmu.models.CHECK_SHARE``, the same rule inside the model). A bound is the
+reference's range mapped to the damper and widened to hold the reference's own (``scaled_bounds``: low x min(1,
+factor), high x max(1, factor); a range from zero is mapped alone): bounds follow a damper beyond the reference
+yaw damper, never narrower than its. The peak force of a test program is no exact measure of a damper's parts: yaw
+dampers whose tests peak at 8 to 38 kN have masses of 3-20 kg and blocks up to 1e9 N/m alike (the random dampers
+of the class, ``campaign.damper_class``), and bounds narrowed to 0.6 x the reference's (masses up to 12 kg, blocks
+up to 6e8 N/m, a 12.1 kN class damper) left one of them at 6.8 x its truth's RMSE. A damper scaled consistently
+(every parameter whose unit carries a kilogram times s, the data's force times s, strokes and times unchanged)
+then has every fixed constant and start s times its own, and bounds that hold s times the full-scale damper's
+own range. The FMU's own defaults do not change (but the check valves', 0: derived); the fixed constants the fit
+uses go into the tuned FMU as its parameter values. The table ordinates' bounds follow the force limit
+(``default_force_limit``) and the elastic table's spring reference (``spring_reference``), the effect elements'
+search bounds their own rules (``damper_fmu.effect_catalogue.search_bounds``).
 """
 from __future__ import annotations
 
@@ -150,8 +150,8 @@ def scaled_preset(model: str, scale: DamperScale) -> dict[str, float]:
     """The preset of ``model`` mapped to a damper of ``scale`` (SI): every base parameter but the tables' abscissae
     times the factor of its unit (the damping ordinates as forces, the elastic ones as a spring's forces at their
     elongations: by the stiffness factor), the fixed constants (the thermal balance's capacity and loss, a
-    ``check_damping`` given; its default 0 derives it from the table in the model) included; the effect elements otherwise at their defaults (off). The start of the fit's search and
-    its fixed constants."""
+    ``check_damping`` given; its default 0 derives it from the table in the model) included; the effect elements
+    otherwise at their defaults (off). The start of the fit's search and its fixed constants."""
     out = {}
     for p in MODEL_PARAMETERS[model]:
         if (p.effect is not None and p.unit not in SCALED_EFFECT_UNITS) or (not p.tunable and _is_table(p.name)):
