@@ -92,7 +92,8 @@ def variables(kind: str, start_values: dict, settings: dict, notes: dict | None 
         tunable = p.tunable or p.effect
         span = (f"range [{p.low:g}, {p.high:g}]" if check_rule(p) == "range" else
                 f"typically [{p.low:g}, {p.high:g}], any positive value")
-        text = (f"{p.description} [{p.unit}]; identification bounds [{p.low:g}, {p.high:g}]" if p.tunable else
+        text = (f"{p.description} [{p.unit}]; identification bounds [{p.low:g}, {p.high:g}] on a 20 kN yaw damper "
+                "(the tuner scales them to the damper tested)" if p.tunable else
                 f"Effect '{p.effect}' (off at 0): {p.description} [{p.unit}], {span}"
                 if p.effect else f"{p.description} [{p.unit}]")
         if notes and notes.get(p.name):

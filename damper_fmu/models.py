@@ -24,7 +24,7 @@ massless, the oil's compressibility is the series stiffness):
     fR' = kR(y, fR) (y' - up)           fR = Aa pR, gauge force of R (Aa: annulus area)
     gC' = kC(y, gC) (-y' + a up - uf)   gC = Ap pC, gauge force of C (Ap: piston area), a = Aa / Ap
     fR - a gC = Fp(up)    piston valve, up = its flow / Aa: up > 0 the rebound half of Fc,O, up < 0
-                          the check valve (slope check_damping)
+                          the check valve (slope check_damping; 0: CHECK_SHARE of Fc,O's mean slope)
     gC = Ff(uf)           foot valve, uf = its flow / Ap: uf > 0 Ff(u) = -Fc,O(-u / (1 - a)) / (1 - a),
                           so that the steady compression force is Fc,O(v); uf < 0 the intake check
     fR - gC + Ff tanh(y' / v_eps) = kM (x1 - y) + cM (x1' - y')   (Ff: seal friction, effect 'friction')
@@ -399,6 +399,11 @@ _TC_DISENGAGED = 1e-6
 #: smoothing width [m] of the two-chamber mount's dead band (free play); the gap's edges are kinks
 #: smoothed over this width (the limit gap -> 0 is the mount without play)
 PLAY_SMOOTHING = 1e-5
+#: the check valves' slope when ``check_damping`` is 0 (its default): this share of the damping table's mean slope
+#: to its last rate, force_scale / the largest |rate abscissa| (the preset's: 25.3 kN at 0.1 m/s, 1.01e3 N s/m;
+#: a fixed 1e3 N s/m was 50 N at 0.05 m/s on a 25 N damper, 4 times its table there: issue 74). It follows the
+#: damper's table, so a damper scaled consistently keeps its check valves in proportion
+CHECK_SHARE = 4e-3
 
 
 def _sigmoid(z: float) -> float:
@@ -484,7 +489,9 @@ class TwoChamberModel:
         self.gap = p["free_play"]
         #: factor on the valve characteristics (thermal drift effect; 1 = base model)
         self.damping_scale = 1.0
-        cchk, r = p["check_damping"], 1.0 - self.a
+        #: the check valves' slope [N s/m]: ``check_damping``, or 0 for CHECK_SHARE of the table's mean slope
+        self.check_damping = p["check_damping"] or CHECK_SHARE * self.fc.peak / max(abs(x) for x in self.fc.xs)
+        cchk, r = self.check_damping, 1.0 - self.a
         pos = [(x, f) for x, f in zip(self.fc.xs, self.fc.fs) if x > 0.0]
         neg = [(x, f) for x, f in zip(self.fc.xs, self.fc.fs) if x < 0.0][::-1]
         self.fp = PwlTable([-1.0] + [x for x, _ in pos], [-cchk] + [f for _, f in pos])

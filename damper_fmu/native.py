@@ -36,7 +36,7 @@ KINDS = {"lumped": 0, "maxwell": 1, "maxwell_table": 2, "twochamber": 3}
 #: -ffp-contract=off: no fused multiply-add, so the C results equal the Python reference's
 CFLAGS = ("-O2", "-ffp-contract=off", "-fPIC", "-std=c99", "-Wall")
 
-_CHECK = {"none": 0, "positive": 1, "range": 2}
+_CHECK = {"none": 0, "positive": 1, "range": 2, "nonnegative": 3}
 _state: dict = {}
 
 
@@ -48,7 +48,8 @@ def parameter_header(start_values: dict[str, dict[str, float]] | None = None) ->
              "#ifndef DAMPER_PARAMS_H", "#define DAMPER_PARAMS_H",
              "typedef struct { const char *name; const char *unit; double start, low, high; int check, fixed, effect; }"
              " DkParamSpec;",
-             "#define DK_CHECK_NONE 0", "#define DK_CHECK_POSITIVE 1", "#define DK_CHECK_RANGE 2"]
+             "#define DK_CHECK_NONE 0", "#define DK_CHECK_POSITIVE 1", "#define DK_CHECK_RANGE 2",
+             "#define DK_CHECK_NONNEGATIVE 3"]
     for kind, params in MODEL_PARAMETERS.items():
         tag = kind.upper()
         sv = start_values.get(kind, {})

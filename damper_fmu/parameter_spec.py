@@ -18,7 +18,7 @@ class Parameter:
     ``tunable``: identified by the base fit (else a fixed setting such as a table abscissa).
     ``log_scale``: the bounds span decades; a tuner should search this parameter in log space.
     ``effect``: name of the optional effect element the parameter belongs to (off at its default).
-    ``check``: 'positive' or 'range' (within [low, high]) whatever the unit; None: the rule of
+    ``check``: 'positive', 'nonnegative' or 'range' (within [low, high]) whatever the unit; None: the rule of
     ``check_rule`` (effects in range, masses/stiffnesses/dampings and log-scaled values positive).
     """
 
@@ -35,8 +35,8 @@ class Parameter:
 
 
 def check_rule(p: Parameter) -> str:
-    """How a value of ``p`` is checked before any run: 'range' (within [low, high]), 'positive' or
-    'none'. One rule for ``damper_fmu.parameters.check_values`` and the C kernel (``native.parameter_header``)."""
+    """How a value of ``p`` is checked before any run: 'range' (within [low, high]), 'positive', 'nonnegative'
+    or 'none'. One rule for ``damper_fmu.parameters.check_values`` and the C kernel (``native.parameter_header``)."""
     if p.check is not None:
         return p.check
     if p.effect is not None:

@@ -12,14 +12,17 @@ Lumped model (Isacchi, Ripamonti, Corsi 2023, section 2.1): 29 tunable parameter
     Fc_01..Fc_14 [N]  ordinates of the damping table Fc,O at the fixed rates Fc_v01..Fc_v14 [m/s];
 both tables pass through F(0) = 0, so the zero abscissa carries no parameter. The abscissae are
 ``fixed`` parameters (set before a run, not identified): the paper chooses them per damper.
-The reference preset is the paper's Table 2; the bounds are the paper's section 2.3 values.
+The reference preset is the paper's Table 2; the bounds are the paper's section 2.3 values, those of its
+20 kN yaw damper: the tuner maps every bound and fixed constant to the damper tested
+(``tuner.identification.damper_scale``).
 
 Two-chamber model (``models.TwoChamberModel``, a twin-tube form): 38 tunable parameters
     k_M [N/m], c_M [N s/m] mounts, k_R, k_C [N/m] chamber stiffnesses, area_ratio [1],
     L_R, L_C [m] chamber lengths, air [1], f_res [N], k_gas [N/m],
     Fc_01..Fc_28 [N]  ordinates of the damping table at Fc_v01..Fc_v28 [m/s] (Table 2's abscissae
     with the midpoints added: the valves' knees need the finer layout),
-the fixed check-valve slope check_damping [N s/m] and the effect elements (seal friction inside the
+the fixed check-valve slope check_damping [N s/m] (0, the default: 0.4 % of the damping table's mean slope to its
+last rate, 1.01e3 N s/m on the preset, so that it follows the damper's table) and the effect elements (seal friction inside the
 mounts, at the piston velocity). Its preset is a fit to the virtual rig's
 twin-tube damper (docs/twin-tube-form-study.md), a plausible railway yaw damper, not a paper value.
 """
@@ -166,11 +169,14 @@ TWOCHAMBER_PARAMETERS: tuple[Parameter, ...] = (
               check="range"),
     Parameter("f_res", "N", "Reservoir pressure times piston area Ap p_res (scale of the air's stiffening)",
               878.0, 10.0, 1e5, log_scale=True),
+    # any non-negative value: the bounds are the reference damper's, a consistently scaled damper 20 times
+    # stronger has 20 times its gas spring (tuner.identification.damper_scale)
     Parameter("k_gas", "N/m", "Reservoir gas spring on the rod, zero at the start stroke", 1727.0, 0.0, 2e4,
-              check="range"),
+              check="nonnegative"),
     *[p for p in _FC_TC if p.tunable],
-    Parameter("check_damping", "N.s/m", "Slope of the piston and intake check valves (fixed)", 1e3, 1e0, 1e6,
-              tunable=False),
+    Parameter("check_damping", "N.s/m", "Slope of the piston and intake check valves (fixed); 0: 0.4 % of the damping "
+              "table's mean slope to its last rate (models.CHECK_SHARE)", 0.0, 0.0, 1e6, tunable=False,
+              check="nonnegative"),
     *[p for p in _FC_TC if not p.tunable],
     *EFFECT_PARAMETERS,
 )
@@ -230,7 +236,7 @@ def check_values(model: str, values: dict[str, float], *, bounds: bool = False) 
     """Complete ``values`` with the preset and check them.
 
     Raises ValueError naming the parameter for unknown names, non-finite values, non-positive
-    masses/stiffness/damping, abscissae that are not strictly increasing or do not straddle zero,
+    masses/stiffness/damping, a negative gas spring, abscissae that are not strictly increasing or do not straddle zero,
     tables whose force falls anywhere (a passive element is non-decreasing),
     and (with ``bounds=True``) values outside the identification bounds.
     """
@@ -252,6 +258,8 @@ def check_values(model: str, values: dict[str, float], *, bounds: bool = False) 
             raise ValueError(f"{what} {name} = {v:g} {p.unit} outside [{p.low:g}, {p.high:g}]")
         if rule == "positive" and v <= 0.0:
             raise ValueError(f"parameter {name} = {v} {p.unit} must be positive")
+        if rule == "nonnegative" and v < 0.0:
+            raise ValueError(f"parameter {name} = {v} {p.unit} must not be negative")
         if bounds and p.tunable and not (p.low <= v <= p.high):
             raise ValueError(f"parameter {name} = {v:g} {p.unit} outside its bounds [{p.low:g}, {p.high:g}]")
     for prefix, axis in (("Fk", "x"), ("Fc", "v")):

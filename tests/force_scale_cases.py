@@ -3,9 +3,12 @@
 Scaling every parameter whose SI unit carries a kilogram by s (forces, stiffnesses, dampings, masses, heat
 capacity and conductance) and nothing else (lengths, times, ratios, table abscissae) gives the same damper s
 times stronger: every equation of the models is then s times the original's, with the same time scales, so
-under the same stroke the force is s times the original's (a physics identity, whatever the model).
+under the same stroke the force is s times the original's (a physics identity, whatever the model). Its rig
+tests are the original's with the force times s (``scaled_tests``: the bundled data's damper scaled, issue 74).
 """
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -13,8 +16,9 @@ from damper_fmu import defaults, make_model
 from damper_fmu.parameters import EFFECT_MODELS, MODEL_PARAMETERS, UNIT_DEFINITIONS
 
 KINDS = ("lumped", "maxwell", "maxwell_table", "twochamber")
-#: peak forces [N] (the model's force scale: the largest damping-table ordinate, c x 0.1 m/s for Maxwell)
-PEAKS_N = (1.0, 1e3, 1e5)
+#: peak forces [N] (the model's force scale: the largest damping-table ordinate, c x 0.1 m/s for Maxwell); 1 MN: the
+#: two-chamber gas spring 40 times the preset's (its range ended at 2e4 N/m, about 290 kN, until issue 74)
+PEAKS_N = (1.0, 1e3, 1e5, 1e6)
 #: the effect elements every effect model runs with here: a seal friction of 1 % of the preset's force scale
 #: (the two-chamber stage's steepest solve, at each reversal) and the thermal drift on its internal balance
 #: (the heat capacity and conductance scale with the damper), a small heat capacity so that the damping falls
@@ -36,6 +40,12 @@ def scaled(kind: str, params: dict[str, float], factor: float) -> dict[str, floa
     units = {p.name: p.unit for p in MODEL_PARAMETERS[kind]}
     return {name: value * factor if UNIT_DEFINITIONS[units[name]].get("kg") == 1 else value
             for name, value in params.items()}
+
+
+def scaled_tests(tests: list, factor: float) -> list:
+    """The rig tests ``tests`` (``tuner.data.reading.RigTest``) of a damper scaled consistently by ``factor``: the same
+    strokes, the force [N] times ``factor`` (the measured force and its noise alike)."""
+    return [replace(t, force=np.asarray(t.force, dtype=float) * factor) for t in tests]
 
 
 def factor_for_peak(kind: str, params: dict[str, float], peak_n: float) -> float:

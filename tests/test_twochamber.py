@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from damper_fmu import SolverOptions, defaults, make_model, models, native, simulate
+from damper_fmu.models import CHECK_SHARE
 
 needs_c = pytest.mark.skipif(not native.available(), reason=f"C kernel not available: {native.reason()}")
 
@@ -29,9 +30,32 @@ def test_steady_force_is_the_damping_table_plus_the_check_valve_and_gas_spring(b
     p = m.params
     t = np.arange(0.0, 2.0, 1e-3)  # the valves' transients decay with time constants of ~0.1 s
     f = simulate(m, t, v * t, np.full(t.size, v), backend=backend)
-    a, chk = p["area_ratio"], p["check_damping"]
+    a, chk = p["area_ratio"], check_slope(p)
     expected = m.fc(v) + chk * ((1 - a) ** 2 * v if v > 0 else v) + p["k_gas"] * v * t[-1]
     assert abs(f[-1] - expected) <= 1e-6 * abs(expected)
+
+
+def check_slope(p: dict) -> float:
+    """The check valves' slope [N s/m] of the two-chamber parameters ``p``: ``check_damping``, or when it is 0
+    CHECK_SHARE of the damping table's largest |ordinate| over its largest |rate abscissa| (its definition)."""
+    if p["check_damping"]:
+        return p["check_damping"]
+    fs = [abs(v) for k, v in p.items() if k.startswith("Fc_") and k[3:].isdigit()]
+    xs = [abs(v) for k, v in p.items() if k.startswith("Fc_v")]
+    return CHECK_SHARE * max(fs) / max(xs)
+
+
+def test_the_check_valves_follow_the_table_unless_set():
+    """check_damping 0 (the default): the check valves' slope is CHECK_SHARE of the table's mean slope to its last
+    rate (1.01e3 N s/m on the preset), s times larger on a table s times stronger; a value given is used as it is,
+    and a negative one refused."""
+    p = defaults("twochamber")
+    assert make_model("twochamber").check_damping == pytest.approx(CHECK_SHARE * 25.29e3 / 0.1)
+    strong = {k: 7.0 * v if k.startswith("Fc_") and k[3:].isdigit() else v for k, v in p.items()}
+    assert make_model("twochamber", strong).check_damping == pytest.approx(7.0 * CHECK_SHARE * 25.29e3 / 0.1)
+    assert make_model("twochamber", {"check_damping": 1e3}).check_damping == 1e3
+    with pytest.raises(ValueError, match="check_damping .* must not be negative"):
+        make_model("twochamber", {"check_damping": -1.0})
 
 
 def _euler_reference(t_fine, x_fine, p):
@@ -47,7 +71,7 @@ def _euler_reference(t_fine, x_fine, p):
                                 *[ctypes.c_double] * 11, d, ctypes.POINTER(ctypes.c_int)]
     xs = np.array([p[f"Fc_v{i:02d}"] for i in range(1, 29)])
     fs = np.array([p[f"Fc_{i:02d}"] for i in range(1, 29)])
-    a, chk = p["area_ratio"], p["check_damping"]
+    a, chk = p["area_ratio"], check_slope(p)
     # the valve tables as the prototype (docs/twin-tube-form-study.md) built them
     fpx = np.ascontiguousarray(np.concatenate([[-1.0, 0.0], xs[xs > 0]]))
     fpf = np.ascontiguousarray(np.concatenate([[-chk, 0.0], fs[xs > 0]]))
@@ -178,7 +202,8 @@ def test_a_steep_seal_friction_at_fixed_steps_is_solved_the_same_in_c_and_python
     n = 60
     s = replace(s, time=s.time[:n], stroke=s.stroke[:n], stroke_velocity=s.stroke_velocity[:n], force=s.force[:n],
                 mask=s.mask[:n], temperature=None)
-    p = {**defaults("twochamber"), "friction_force": 300.0}
+    # the check valves at 1e3 N s/m, the preset's until it followed the table (1.01e3): the case that stalls
+    p = {**defaults("twochamber"), "friction_force": 300.0, "check_damping": 1e3}
     py = simulate_signals("twochamber", p, s, engine="inprocess")
     assert calls, "the case no longer exercises the nested solve"
     c = simulate_signals("twochamber", p, s, engine="native")

@@ -168,6 +168,8 @@ static void effects_init(DkModel *m, const double *e) {
                         m->tau != 0.0 || m->delay != 0.0 || m->m_eq != 0.0 || m->fh != 0.0 || m->bp_r != 0.0;
 }
 
+#define TC_CHECK_SHARE 4e-3  /* models.py: CHECK_SHARE */
+
 DK_API int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg, size_t msglen) {
     int np, i;
     const DkParamSpec *sp = specs(kind, &np);
@@ -187,6 +189,10 @@ DK_API int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg
         }
         if (sp[i].check == DK_CHECK_POSITIVE && !(v > 0.0)) {
             snprintf(msg, msglen, "parameter %s = %g %s must be positive", sp[i].name, v, sp[i].unit);
+            return DK_ERROR;
+        }
+        if (sp[i].check == DK_CHECK_NONNEGATIVE && !(v >= 0.0)) {
+            snprintf(msg, msglen, "parameter %s = %g %s must not be negative", sp[i].name, v, sp[i].unit);
             return DK_ERROR;
         }
         m->p[i] = v;
@@ -214,6 +220,14 @@ DK_API int dk_model_init(DkModel *m, int kind, const double *p, int n, char *msg
                        msglen))
             return DK_ERROR;
         r = 1.0 - m->ar;
+        if (cchk == 0.0) {  /* TC_CHECK_SHARE of the table's mean slope to its last rate (models.py: CHECK_SHARE) */
+            double peak = 0.0, span = 0.0;
+            for (k = 0; k < m->fc.n; k++) {
+                if (fabs(m->fc.fs[k]) > peak) peak = fabs(m->fc.fs[k]);
+                if (fabs(m->fc.xs[k]) > span) span = fabs(m->fc.xs[k]);
+            }
+            cchk = TC_CHECK_SHARE * peak / span;
+        }
         /* piston valve: the check (slope cchk) below zero, the table's rebound half above */
         xs[0] = -1.0; fs[0] = -cchk; np_ = 1;
         for (k = 0; k < m->fc.n; k++)

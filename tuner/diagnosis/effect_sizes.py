@@ -29,6 +29,8 @@ from dataclasses import dataclass
 
 from damper_fmu.effect_catalogue import SCALES_WITH_FORCE, SCALES_WITH_STROKE, effect_of
 
+from tuner.identification.damper_scale import REFERENCE_SCALE
+
 __all__ = ["DamperSize", "REFERENCE", "MEANINGFUL_FRACTION", "size_factor", "typical_range", "plausible_range",
            "meaningful_floor"]
 
@@ -47,8 +49,9 @@ class DamperSize:
 
 
 #: the railway yaw damper the catalogue's typical magnitudes describe (the paper's, and the bundled
-#: campaign's: peaks of 15-25 kN, quasi-static curve strokes of tens of mm)
-REFERENCE = DamperSize(peak_force_n=20e3, stroke_range_m=0.04)
+#: campaign's: peaks of 15-25 kN, quasi-static curve strokes of tens of mm): the one the models' bounds and fixed
+#: constants are set for too (``tuner.identification.damper_scale.REFERENCE_SCALE``)
+REFERENCE = DamperSize(peak_force_n=REFERENCE_SCALE.peak_force_n, stroke_range_m=REFERENCE_SCALE.stroke_range_m)
 
 
 def size_factor(name: str, size: DamperSize | None) -> float:

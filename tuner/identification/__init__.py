@@ -1,6 +1,8 @@
 """The identification: from the prepared tests to the identified parameters (SI units).
 
 - ``problem``: the tests prepared once for every stage (``Problem``, ``DataSettings``);
+- ``damper_scale``: the damper's force, stroke and velocity scale from its data, and every bound and fixed
+  constant of the models mapped to it;
 - ``parametrization``: the design variables of each model;
 - ``runner``: the FMU through fmpy, with its C stepping loop (``c/fmi2_stepper.c``);
 - ``engine``: simulation engines (FMU, C kernel, Python) and the worker pool;

@@ -135,7 +135,7 @@ def initial_guess(model: str, tests: list[Signals], par: Parametrization) -> dic
     within +-15 % of each abscissa (monotone envelope; abscissae without samples extrapolated
     with the outermost slope). Quasi-static: the series spring's deflection rate |dF/dt| / k_ref
     is below 20 % of |v|, so the dashpot moves with the stroke. Maxwell: least-squares dashpot c
-    from F ~ c v. Other parameters: preset.
+    from F ~ c v. Other parameters: the preset mapped to the damper's scale (``par.fixed``).
     """
     v = np.concatenate([s.stroke_velocity[s.mask] for s in tests])
     f = np.concatenate([s.force[s.mask] for s in tests])
@@ -215,7 +215,7 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
     guess_p = initial_guess(model, signals, par)  # seeds the first population and restarts the refinement
     guess = par.from_params(guess_p)
     seeded = settings.init == "seeded" and state is None
-    initial = np.array([guess, par.from_params(defaults(model))]) if seeded else None
+    initial = np.array([guess, par.from_params(par.preset)]) if seeded else None
     engine_path = ensure_fmu(model) if settings.engine == "fmu" else None
     t_start = time.perf_counter()
     evals_start = state.evaluations if state else 0
@@ -804,6 +804,7 @@ def _log_problem(problem: Problem, log) -> None:
     log(f"identification: {len(signals)} tests, {sum(int(s.mask.sum()) for s in signals)} samples at "
         f"{problem.settings.fit_rate_hz:g} Hz; peak force {problem.peak_n:.0f} N -> Fc,O limit "
         f"{problem.force_limit_n:.3g} N")
+    log(problem.scale.describe())
     log(f"table abscissae: Fc,O rates up to {1e3 * axes['Fc_v14']:.4g} mm/s, Fk,O elongations up to "
         f"{1e3 * axes['Fk_x10']:.4g} mm (identification data: peak stroke velocity "
         f"{1e3 * max(float(np.max(np.abs(s.stroke_velocity[s.mask]))) for s in signals):.4g} mm/s)")

@@ -60,6 +60,7 @@ import numpy as np
 from damper_fmu.fmu import ensure_fmu
 from damper_fmu.models import ConvergenceError
 from damper_fmu.parameters import MODEL_PARAMETERS
+from tuner.identification.damper_scale import REFERENCE_SCALE, DamperScale
 from tuner.identification.engine import (IDENTIFICATION_STEP, IDENTIFICATION_TOLERANCE, Signals,
                                          simulate_signals)
 from tuner.identification.parametrization import Parametrization
@@ -129,8 +130,8 @@ class LocalCovariance:
     ordinate's coordinate is its increment from the neighbour nearer zero); u: the fitted point (each
     coordinate in [0, 1] across its bounds); resolved: the coordinates with a finite variance, in
     ``coordinates``' order; matrix: their covariance [coordinate units^2]; scheme, force_limit_n [N],
-    spring_reference_n_per_m [N/m]: the Parametrization the coordinates belong to (with the fitted
-    model's fixed values it is rebuilt by ``parametrization``); shift: the representation shift in u
+    spring_reference_n_per_m [N/m], scale (the damper's, ``DamperScale``: the other bounds): the Parametrization
+    the coordinates belong to (with the fitted model's fixed values it is rebuilt by ``parametrization``); shift: the representation shift in u
     [coordinate units], one entry per coordinate of ``coordinates`` (0 where held at a bound or without
     finite variance; the parameters' ``systematic`` is G shift, G = d theta / d u), None when it was not
     computed or the file predates it. The draws add it as a rank-one term shift shift^T to ``matrix``, and
@@ -144,13 +145,14 @@ class LocalCovariance:
     force_limit_n: float
     spring_reference_n_per_m: float
     shift: np.ndarray | None = None
+    scale: DamperScale = REFERENCE_SCALE
 
     def parametrization(self, model: str, values: dict) -> Parametrization:
         """The Parametrization of ``model`` these coordinates belong to, its fixed values (the abscissae)
         taken from the fitted ``values`` (SI)."""
         tunable = {p.name for p in MODEL_PARAMETERS[model] if p.tunable}
         return Parametrization(model, self.scheme, force_limit=self.force_limit_n,
-                               spring_reference=self.spring_reference_n_per_m,
+                               spring_reference=self.spring_reference_n_per_m, scale=self.scale,
                                fixed={k: v for k, v in values.items() if k not in tunable})
 
     def to_dict(self) -> dict:
@@ -158,18 +160,21 @@ class LocalCovariance:
                 "resolved": list(self.resolved), "matrix": np.asarray(self.matrix, dtype=float).tolist(),
                 "scheme": self.scheme, "force_limit_n": self.force_limit_n,
                 "spring_reference_n_per_m": self.spring_reference_n_per_m,
-                "shift": None if self.shift is None else np.asarray(self.shift, dtype=float).tolist()}
+                "shift": None if self.shift is None else np.asarray(self.shift, dtype=float).tolist(),
+                "scale": self.scale.to_dict()}
 
     @classmethod
     def from_dict(cls, d: dict) -> "LocalCovariance":
-        """From ``to_dict``'s form; a file written before the shift was stored has none (shift None)."""
+        """From ``to_dict``'s form; a file written before the shift was stored has none (shift None), one before the
+        damper's scale was stored the reference's (its bounds were the reference damper's)."""
         k = len(d["resolved"])
         shift = d.get("shift")
         return cls(coordinates=list(d["coordinates"]), u=np.asarray(d["u"], dtype=float), resolved=list(d["resolved"]),
                    matrix=np.asarray(d["matrix"], dtype=float).reshape(k, k), scheme=d["scheme"],
                    force_limit_n=float(d["force_limit_n"]),
                    spring_reference_n_per_m=float(d["spring_reference_n_per_m"]),
-                   shift=None if shift is None else np.asarray(shift, dtype=float).reshape(len(d["coordinates"])))
+                   shift=None if shift is None else np.asarray(shift, dtype=float).reshape(len(d["coordinates"])),
+                   scale=DamperScale.from_dict(d.get("scale")))
 
 
 @dataclass(frozen=True)
@@ -487,7 +492,7 @@ def parameter_intervals(engine, par: Parametrization, params: dict, *, reached: 
         out.append(_with_offset(iv, None if infinite[i] else float(offset[i])))
     local = LocalCovariance(coordinates=list(space.names), u=u, resolved=[space.names[i] for i in keep],
                             matrix=cov_u, scheme=par.scheme, force_limit_n=par.force_limit,
-                            spring_reference_n_per_m=par.spring_reference, shift=shift_u)
+                            spring_reference_n_per_m=par.spring_reference, shift=shift_u, scale=par.scale)
     return ModelIntervals(model=par.model, parameters=out, covariance_names=[names[i] for i in finite],
                           covariance=cov, method=method, blocks=blocks, block_length_s=block / rate,
                           correlation_time_s=tau / rate, samples=int(r.size),

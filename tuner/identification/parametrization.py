@@ -24,8 +24,10 @@ Two schemes:
 table ordinates by their increments (linear), the rest as above. The force is nearly linear in
 the ordinates, and far from linear in log-slopes, so Gauss-Newton steps go much further there.
 
-The force limit F_max [N] and the reference spring k_ref [N/m] come from the caller (the tuner
-derives F_max from the measured forces; the paper used 3e4 N and 1.5e7 N/m for its yaw damper).
+The force limit F_max [N], the reference spring k_ref [N/m] and the damper's scale (``DamperScale``: the
+other bounds and the fixed constants, ``tuner.identification.damper_scale``) come from the caller (the tuner
+derives them from the measured forces, strokes and velocities; the paper used 3e4 N and 1.5e7 N/m for its yaw
+damper, and the bounds of ``damper_fmu.parameters``, the default scale ``REFERENCE_SCALE``).
 """
 from __future__ import annotations
 
@@ -36,6 +38,8 @@ import numpy as np
 
 from damper_fmu.parameters import MODEL_PARAMETERS, check_values
 
+from tuner.identification.damper_scale import REFERENCE_SCALE, DamperScale, scaled_bounds, scaled_preset, widened
+
 __all__ = ["Parametrization", "LocalSpace", "SCHEMES"]
 
 SCHEMES = ("paper", "improved")
@@ -45,11 +49,15 @@ _K_LOW, _K_HIGH = 0.2, 3.0
 class Parametrization:
     """Scaled design vector <-> parameters of ``model`` (a kind of ``damper_fmu.parameters.MODEL_KINDS``).
 
-    fixed: parameter values kept constant (abscissae and anything not identified), SI units.
+    fixed: parameter values kept constant (abscissae and anything not identified), SI units; scale: the damper's
+    (``DamperScale``): the bounds of the parameters that are no table ordinate and the Fk,O stiffnesses are the
+    reference's mapped to it and widened to hold the reference's, the fixed constants the reference's mapped to it
+    (``damper_scale.scaled_bounds``, ``scaled_preset``); ``preset``: the model's preset mapped to it with
+    ``fixed`` (the search's start; ``fixed`` holds it too, completed as every parameter set).
     """
 
     def __init__(self, model: str, scheme: str = "improved", *, force_limit: float = 3.0e4,
-                 spring_reference: float = 1.5e7, fixed: dict | None = None):
+                 spring_reference: float = 1.5e7, fixed: dict | None = None, scale: DamperScale = REFERENCE_SCALE):
         if scheme not in SCHEMES:
             raise ValueError(f"unknown parametrization '{scheme}', expected one of {SCHEMES}")
         if model not in MODEL_PARAMETERS:
@@ -58,18 +66,22 @@ class Parametrization:
             raise ValueError("force_limit [N] and spring_reference [N/m] must be positive")
         self.model, self.scheme = model, scheme
         self.force_limit, self.spring_reference = float(force_limit), float(spring_reference)
-        self.fixed = check_values(model, fixed or {})
+        self.scale = scale
+        self.fixed = check_values(model, {**scaled_preset(model, scale), **(fixed or {})})
+        self.preset = dict(self.fixed)
         specs = [p for p in MODEL_PARAMETERS[model] if p.tunable]
         self.names = [p.name for p in specs]
         self.units = {p.name: p.unit for p in MODEL_PARAMETERS[model]}
         self.bounds = {}
+        scaled = scaled_bounds(model, scale)
         for p in specs:
-            lo, hi = p.low, p.high
+            lo, hi = scaled.get(p.name, (p.low, p.high))
             if p.name.startswith("Fc_"):
                 lo, hi = (0.0, self.force_limit) if hi > 0 else (-self.force_limit, 0.0)
             elif p.name.startswith("Fk_"):
                 x = self.fixed[p.name.replace("Fk_", "Fk_x")]
-                a, b = _K_LOW * self.spring_reference * x, _K_HIGH * self.spring_reference * x
+                k_low, k_high = self._fk_stiffness()
+                a, b = k_low * x, k_high * x
                 lo, hi = min(a, b), max(a, b)
             self.bounds[p.name] = (lo, hi)
         self.log_scale = {p.name: p.log_scale for p in specs}
@@ -163,19 +175,26 @@ class Parametrization:
         top = self.force_limit / v1
         return math.log(1e-4 * top), math.log(top)
 
+    def _fk_stiffness(self) -> tuple[float, float]:
+        """Bounds [N/m] of the Fk,O piece stiffnesses: 0.2-3 x the reference spring, widened to the reference
+        damper's (the spring divided by the scale's stiffness factor, ``damper_scale.widened``)."""
+        f = self.scale.factor("N/m")
+        return widened(_K_LOW * self.spring_reference / f, _K_HIGH * self.spring_reference / f, f)
+
     def _fk_slopes(self) -> tuple[float, float]:
         """log bounds of the Fk,O piece stiffnesses [N/m] (improved scheme)."""
-        return math.log(_K_LOW * self.spring_reference), math.log(_K_HIGH * self.spring_reference)
+        return tuple(math.log(k) for k in self._fk_stiffness())
 
     def describe(self) -> str:
         if self.scheme == "paper":
             return ("paper: every parameter scaled linearly between its bounds "
-                    f"(Fc,O limit {self.force_limit:.3g} N, Fk,O around {self.spring_reference:.3g} N/m)")
+                    f"(Fc,O limit {self.force_limit:.3g} N, Fk,O around {self.spring_reference:.3g} N/m); "
+                    + self.scale.describe())
         lo, hi = self._fc_slopes() if any(n.startswith("Fc_") for n in self.names) else (0.0, 0.0)
         return ("improved: log-scaled stiffness/damping; monotone tables parametrised by piece slopes: "
                 f"Fc,O slopes log-uniform in {math.exp(lo):.3g}-{math.exp(hi):.3g} N s/m, capped at "
-                f"{self.force_limit:.3g} N; Fk,O stiffnesses log-uniform in {_K_LOW:g}-{_K_HIGH:g} x "
-                f"{self.spring_reference:.3g} N/m")
+                f"{self.force_limit:.3g} N; Fk,O stiffnesses log-uniform in "
+                + "-".join(f"{k:.3g}" for k in self._fk_stiffness()) + " N/m; " + self.scale.describe())
 
 
 

@@ -3,9 +3,10 @@
 ``Problem.build(identification, validation, DataSettings(...))`` resamples and differentiates every
 test (``prepared_signals``, over ``tuner.data.preprocess.prepare``), turns them into engine signals, and
 derives what the fit, the diagnosis, the batch runner and the benchmarks all need from the data: the peak
-force [N], the stroke range [m], the force noise in the fit band [N rms], the table abscissae, the Fc,O force
-limit [N] and a digest for resuming. ``problem.parametrization(kind)`` gives the design space of a
-model on it. One place, so that the stages cannot disagree about the data (before: the fit and the
+force [N], the stroke range [m], the damper's scale (``tuner.identification.damper_scale``: every bound and fixed
+constant of the models follows it), the force noise in the fit band [N rms], the table abscissae, the Fc,O force
+limit [N], the Fk,O reference spring [N/m] and a digest for resuming. ``problem.parametrization(kind)`` gives the
+design space of a model on it. One place, so that the stages cannot disagree about the data (before: the fit and the
 diagnosis each prepared the tests, and the diagnosis ignored ``--force-limit``).
 """
 from __future__ import annotations
@@ -21,6 +22,7 @@ from tuner.data.noise import pooled_noise
 from tuner.data.prefilter import parse_prefilter
 from tuner.data.preprocess import prepare
 from tuner.data.reading import RigTest
+from tuner.identification.damper_scale import DamperScale, spring_reference
 from tuner.identification.engine import IDENTIFICATION_STEP, Signals, oversampling
 from tuner.identification.floor import ResidualFloor, stroke_sigmas
 from tuner.identification.parametrization import Parametrization
@@ -40,7 +42,9 @@ class DataSettings:
     before time[0] + warmup_s do not count; diff_band_hz: band [Hz] within which the stroke
     differentiator is accurate to 0.5 % (None: from each test's stroke spectrum); damping/elastic
     abscissae: the Fc,O rates [m/s] (14) and Fk,O elongations [m] (10), None: from the data;
-    force_limit_n: cap on the Fc,O ordinates (None: ``default_force_limit``); parametrization:
+    force_limit_n: cap on the Fc,O ordinates (None: ``default_force_limit``); spring_reference_n_per_m: the
+    Fk,O ordinates' reference spring (None: the paper's 1.5e7 N/m mapped to the damper's scale,
+    ``damper_scale.spring_reference``); parametrization:
     'improved' (monotone tables, needed by the local solver) or 'paper'; sim_step_s: the grid [s] the model is
     simulated on (fixed sub-steps of that size, its force low-passed to the fit rate): 1 ms integrates a smooth
     damper to a fraction of a newton, but a gap closing on stiff silent blocks only to tens of newtons (a
@@ -53,7 +57,7 @@ class DataSettings:
     damping_abscissae_m_s: tuple | None = None
     elastic_abscissae_m: tuple | None = None
     force_limit_n: float | None = None
-    spring_reference_n_per_m: float = FK_REFERENCE_STIFFNESS
+    spring_reference_n_per_m: float | None = None
     parametrization: str = "improved"
     sim_step_s: float = IDENTIFICATION_STEP
 
@@ -190,6 +194,19 @@ def model_abscissae(model: str, axes: dict) -> dict:
     return {k: v for k, v in axes.items() if k in names}
 
 
+def _scale_and_axes(sig_id: list[Signals], peak: float, stroke_range: float,
+                    settings: DataSettings) -> tuple[DamperScale, float, dict]:
+    """(the damper's scale, the Fk,O reference spring [N/m], the :func:`table_abscissae`) of the identification
+    signals of peak |force| ``peak`` [N] and stroke range ``stroke_range`` [m]: the scale's velocity span is the
+    damping table's (its rates do not depend on the spring), the spring the settings' or the scale's, and the
+    elastic abscissae follow that spring."""
+    rates = table_abscissae(sig_id, peak, damping=settings.damping_abscissae_m_s)
+    scale = DamperScale.of(peak, stroke_range, rates)
+    spring = settings.spring_reference_n_per_m or spring_reference(scale)
+    axes = table_abscissae(sig_id, peak, spring, settings.damping_abscissae_m_s, settings.elastic_abscissae_m)
+    return scale, spring, axes
+
+
 def data_digest(tests: list[RigTest]) -> str:
     h = hashlib.sha256()
     for t in tests:
@@ -212,8 +229,10 @@ class Problem:
     the fit band [N rms] of the identification tests; noise: how it was estimated, whether it is
     credible and why (``tuner.data.noise.pooled_noise``: per test the estimate used, cycle scatter or
     quiet band, and every estimate made); axes: the table abscissae (``table_abscissae``);
-    force_limit_n: the Fc,O ordinate cap [N] (the settings' or ``default_force_limit``); digest: of
-    the identification data (resume keys)."""
+    force_limit_n: the Fc,O ordinate cap [N] (the settings' or ``default_force_limit``); scale: the damper's
+    (``DamperScale``: peak force, stroke range, the damping table's rate span), which every bound and fixed
+    constant of the models follows; spring_reference_n_per_m: the Fk,O ordinates' reference spring [N/m] (the
+    settings' or the scale's); digest: of the identification data (resume keys)."""
 
     settings: DataSettings
     identification: list
@@ -228,6 +247,8 @@ class Problem:
     axes: dict
     force_limit_n: float
     digest: str
+    scale: DamperScale
+    spring_reference_n_per_m: float
     noise: dict = field(default_factory=dict, repr=False)
 
     @classmethod
@@ -240,15 +261,14 @@ class Problem:
         prep, sig = prepared_signals([*identification, *validation], settings)
         prep_id, prep_val, sig_id, sig_val = prep[:n], prep[n:], sig[:n], sig[n:]
         peak = max(float(np.abs(s.force[s.mask]).max()) for s in sig_id)
-        axes = table_abscissae(sig_id, peak, settings.spring_reference_n_per_m, settings.damping_abscissae_m_s,
-                               settings.elastic_abscissae_m)
+        stroke_range = max(float(np.ptp(s.stroke[s.mask])) for s in sig_id)
+        scale, spring, axes = _scale_and_axes(sig_id, peak, stroke_range, settings)
         noise = pooled_noise(identification, settings.fit_rate_hz, settings.warmup_s)
         return cls(settings=settings, identification=list(identification), validation=list(validation),
                    prep_id=prep_id, prep_val=prep_val, sig_id=sig_id, sig_val=sig_val, peak_n=peak,
-                   stroke_range_m=max(float(np.ptp(s.stroke[s.mask])) for s in sig_id),
-                   noise_n=noise["in_band_n"], noise=noise, axes=axes,
+                   stroke_range_m=stroke_range, noise_n=noise["in_band_n"], noise=noise, axes=axes,
                    force_limit_n=settings.force_limit_n or default_force_limit(sig_id, axes),
-                   digest=data_digest(identification))
+                   digest=data_digest(identification), scale=scale, spring_reference_n_per_m=spring)
 
     def parametrization(self, kind: str, fixed_from: dict | None = None, scheme: str | None = None) -> Parametrization:
         """The design space of model ``kind`` on this data: the table abscissae fixed (those of
@@ -258,7 +278,7 @@ class Problem:
         if fixed_from is not None:
             fixed = {k: fixed_from.get(k, v) for k, v in fixed.items()}
         return Parametrization(kind, scheme or self.settings.parametrization, force_limit=self.force_limit_n,
-                               spring_reference=self.settings.spring_reference_n_per_m, fixed=fixed)
+                               spring_reference=self.spring_reference_n_per_m, fixed=fixed, scale=self.scale)
 
     def on_grid(self, step_s: float) -> "Problem":
         """This problem with the model simulated on a grid of ``step_s`` [s] (``DataSettings.sim_step_s``): the same
