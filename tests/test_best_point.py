@@ -89,4 +89,3 @@ def test_the_job_rewrites_the_fit_and_its_fmu_at_the_best_point(short_fit, tmp_p
               if child.get("start") is not None and v.get("causality") == "parameter"}
     for name in ("k_B", "c_B", "M_P"):
         assert starts[name] == pytest.approx(new[name], rel=1e-9)
-    assert "full_rate" in json.loads((out / "metrics.json").read_text())

@@ -8,7 +8,7 @@ import re
 
 from damper_fmu.effect_catalogue import ALL_EFFECTS
 
-__all__ = ["eng", "sig", "unit_html", "fmt_quantity", "effect_value"]
+__all__ = ["eng", "sig", "unit_html", "fmt_quantity", "effect_value", "pct_change"]
 
 _PREFIX = {-15: "f", -12: "p", -9: "n", -6: "µ", -3: "m", 0: "", 3: "k", 6: "M", 9: "G", 12: "T"}
 _SUPER = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
@@ -26,6 +26,12 @@ def sig(x: float, digits: int) -> str:
     """x with ``digits`` significant figures, fixed-point (x already in [1, 1000))."""
     mag = int(math.floor(math.log10(abs(x)))) if x != 0 else 0
     return f"{x:.{max(digits - 1 - mag, 0)}f}"
+
+
+def pct_change(x: float) -> str:
+    """A signed change in percent with at most four significant figures and one decimal: '+5.2', '-99.0', '+1927'
+    (the unit is the caller's: ``f"{pct_change(x)} %"``)."""
+    return f"{x:+.1f}" if abs(x) < 999.95 else f"{x:+.0f}"
 
 
 def eng(x, unit: str = "", digits: int = 3) -> str:

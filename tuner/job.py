@@ -5,7 +5,7 @@
 what ``python -m tuner diagnose`` does. The stages hand their results on in memory (the prepared
 ``Problem``, the ``FitResult``, the ``Diagnosis``); the fit and the diagnosis write nothing but their
 checkpoints, the job writes their files; each output file is written once (metrics.json a second time with
-the full-rate check, which runs after the results are safe on disk):
+the full-rate check, which runs after the results are safe on disk and the diagnosis, at the final point):
 
     parameters.json, metrics.json, history_<model>.json, simulations.npz   the fit (FitResult.write); metrics.json's
                                                                             "warnings": the reading's, each once
@@ -148,19 +148,17 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
     section(log, "export of the tuned FMUs")
     log("exporting tuned FMUs ...")
     export_fmus(result, out)
-    # after the results are written: a failure here (an exception, never a number) loses nothing
-    section(log, "full-rate check")
-    result.metrics["full_rate"] = full_rate_checks([*identification, *validation], result.params, settings, log)
-    result.write_metrics(out)
     diagnosis = None
     if diagnose_after and wants_diagnosis(settings, validation):
         try:
             diagnosis = _diagnose(identification, validation, out, diagnosis_settings(settings),
                                   FittedBases.from_fit(result), log)
         except DiagnosisFailed:
+            _full_rate(result, out, settings, log)
             make_report(out, figures=figures)  # the fit's report with the failure said: the fit and its FMUs are safe
             raise
         _at_the_best_point(result, diagnosis, out, settings, log)
+    _full_rate(result, out, settings, log)  # once, at the final point
     if options.vehicle:
         vehicle_consequences(sorted((out / "fmu").glob("*_tuned.fmu")), out, settings.seed, log,
                              draws=options.vehicle_draws, scheduler=options.vehicle_scheduler,
@@ -174,9 +172,9 @@ def run(identification: list[RigTest], validation: list[RigTest], out: Path, set
 
 def _at_the_best_point(result: FitResult, diagnosis: Diagnosis, out: Path, settings: FitSettings, log) -> None:
     """Where the diagnosis's base refit ended more than one standard error below the fit of a model
-    (``tuner.identification.best_point``), that model's fit is continued from there and the fit's files, the tuned
-    FMUs and the full-rate check are written again at the final point (the log and ``history_<model>.json``'s
-    ``best_point`` say which stage found it); nothing when every fit was its minimum."""
+    (``tuner.identification.best_point``), that model's fit is continued from there and the fit's files and the tuned
+    FMUs are written again at the final point (the log and ``history_<model>.json``'s ``best_point`` say which stage
+    found it; the full-rate check follows, ``_full_rate``); nothing when every fit was its minimum."""
     lower = lower_points(diagnosis.get("base_refits") or {}, result.params)
     if not lower:
         return
@@ -185,6 +183,12 @@ def _at_the_best_point(result: FitResult, diagnosis: Diagnosis, out: Path, setti
     result.write(out)
     section(log, "export of the tuned FMUs at the best point")
     export_fmus(result, out)
+
+
+def _full_rate(result: FitResult, out: Path, settings: FitSettings, log) -> None:
+    """The full-rate check of every fitted model at its final values into ``metrics.json`` (after the results are
+    written: a failure here, an exception, never a number, loses nothing)."""
+    section(log, "full-rate check")
     result.metrics["full_rate"] = full_rate_checks([*result.problem.identification, *result.problem.validation],
                                                    result.params, settings, log)
     result.write_metrics(out)

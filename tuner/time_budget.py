@@ -89,7 +89,7 @@ class TimeBudget:
         seconds [s] up to now (the running section counted so far), shares of the total [0-1], stages in the
         order they ran, sections too; spans shorter than 0.05 s are left out of the sections."""
         self._close()
-        total = max(self.total_s(), 1e-9)
+        total = max(self._since - self.t0, 1e-9)  # up to the close: the spans add up to it
         stages: dict[str, list[BudgetSection]] = {}
         for s in self.spans:
             stages.setdefault(s.stage, []).append(s)

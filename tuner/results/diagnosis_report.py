@@ -6,7 +6,7 @@ import html
 import math
 from pathlib import Path
 
-from tuner.formatting import effect_value, fmt_quantity
+from tuner.formatting import effect_value, fmt_quantity, pct_change
 from tuner.diagnosis.residual_map import MIN_BIN_SAMPLES
 from tuner.diagnosis.rules import untold
 from tuner.results.html import MODEL_LABEL, esc, figure_html, table, write_page
@@ -108,7 +108,7 @@ def _ranking_rows(ranking: list[dict], winner: str | None) -> str:
         if r.get("excess_explained") is not None:  # a form: how much of the residual above the floor it removes
             ci += f"; removes {100 * r['excess_explained']:.0f} % of the held-out residual above the floor"
         out.append(f"<tr{cls}><td>{e(r['effect'])}</td><td>{e(fitted)}</td><td>{e(ci or '-')}</td>"
-                   f"<td>{r['validation_mse_change_pct']:+.1f} %</td><td>{r['score']:+.3f}</td>"
+                   f"<td>{pct_change(r['validation_mse_change_pct'])} %</td><td>{r['score']:+.3f}</td>"
                    f"<td>{e(size)}</td></tr>")
     return "".join(out)
 
@@ -146,7 +146,7 @@ def _tables_html(d: dict) -> tuple[str, str]:
     """(validation before/after rows, effect parameters vs plausible ranges rows)."""
     e = html.escape
     val = "".join(f"<tr><td>{e(n)}</td><td>{v['mse_before']:.3e}</td><td>{v['mse_after']:.3e}</td>"
-                  f"<td>{v['mse_change_pct']:+.1f} %</td><td>{v['ame_before']:.0f}</td><td>{v['ame_after']:.0f}</td></tr>"
+                  f"<td>{pct_change(v['mse_change_pct'])} %</td><td>{v['ame_before']:.0f}</td><td>{v['ame_after']:.0f}</td></tr>"
                   for n, v in d["validation"].items())
     eff = "".join(f"<tr><td>{e(n)}</td><td>{e(fmt_quantity(p['value'], p['unit']))}</td><td>"
                   + (f"{e(fmt_quantity(p['plausible_range'][0], p['unit']))} - "
@@ -263,7 +263,7 @@ def _failure_html(d: dict) -> str:
     no verdict, the stage, the error, the stages finished and the candidates refitted so far."""
     rows = [[esc(r["effect"]), esc(", ".join(f"{n} = {effect_value(n, v, r['units'][n])}"
                                              for n, v in r["parameters"].items()) or "-"),
-             f"{r['validation_mse_change_pct']:+.1f} %", f"{r['score']:+.3f}"] for r in d.get("ranking") or []]
+             f"{pct_change(r['validation_mse_change_pct'])} %", f"{r['score']:+.3f}"] for r in d.get("ranking") or []]
     return ("<section id='diagnosis'><h2>Diagnosis: FAILED, no verdict</h2>"
             f"<p class='verdict'>The diagnosis failed in its stage <b>{esc(d['failed_stage'])}</b>: "
             f"{esc(d['error'])}.</p>"
