@@ -48,15 +48,23 @@ def _own_range(model: str, problem: Problem) -> dict[str, tuple[float, float]]:
 
 
 @pytest.mark.parametrize("model", MODELS)
-@pytest.mark.parametrize("s", FACTORS)
-def test_the_fixed_constants_of_a_scaled_damper_are_s_times_the_full_scale_ones(problems, model, s):
-    full, small = problems[1.0].parametrization(model), problems[s].parametrization(model)
-    assert small.names == full.names
-    for n, v in full.fixed.items():  # the fixed constants (check valves' slope), the abscissae, the start (preset)
-        k = s if _carries_force(model, n) else 1.0
-        assert small.fixed[n] == pytest.approx(k * v, rel=1e-12, abs=0.0), n
-    assert small.force_limit == pytest.approx(s * full.force_limit, rel=1e-12)
-    assert small.spring_reference == pytest.approx(s * full.spring_reference, rel=1e-12)
+def test_the_fixed_constants_follow_a_damper_beyond_the_class_span_and_stay_within_it(problems, model):
+    """Between the bundled damper scaled by 1e-3 and by 10 (both beyond ``CLASS_SPAN`` of the reference) every fixed
+    constant and start carrying force is 1e4 times as large, the others equal (consistent scaling: an identity);
+    the bundled damper itself (1.34 x the reference, within the span) keeps the reference's own preset."""
+    weak, strong = problems[1e-3].parametrization(model), problems[10.0].parametrization(model)
+    assert weak.names == strong.names
+    for n, v in weak.fixed.items():  # the fixed constants (check valves' slope), the abscissae, the start (preset)
+        k = 1e4 if _carries_force(model, n) else 1.0
+        assert strong.fixed[n] == pytest.approx(k * v, rel=1e-9, abs=0.0), n
+    assert strong.force_limit == pytest.approx(1e4 * weak.force_limit, rel=1e-12)
+    assert strong.spring_reference == pytest.approx(1e4 * weak.spring_reference, rel=1e-12)
+    full = problems[1.0].parametrization(model)
+    preset = defaults(model)
+    for n in full.names:
+        if not n.startswith(("Fc_", "Fk_")):
+            assert full.fixed[n] == pytest.approx(preset[n], rel=1e-12), n
+    assert full.spring_reference == 1.5e7
 
 
 @pytest.mark.parametrize("model", MODELS)
@@ -75,11 +83,12 @@ def test_the_bounds_of_a_scaled_damper_hold_s_times_the_full_scale_ones_and_the_
             continue
         if n.startswith("Fk_"):
             x = full.fixed[n.replace("Fk_", "Fk_x")]
-            inner = tuple(sorted((0.2 * s * full.spring_reference * x, 3.0 * s * full.spring_reference * x)))
+            own_spring = 1.5e7 * problems[1.0].scale.factor("N/m")  # the full-scale damper's own, mapped whole
+            inner = tuple(sorted((0.2 * s * own_spring * x, 3.0 * s * own_spring * x)))
         else:
             inner = tuple(s * b for b in own[n]) if _carries_force(model, n) else own[n]
-        if reference.bounds[n][0] == 0.0:  # a range from zero (the gas spring) is mapped alone: s times
-            assert small.bounds[n] == pytest.approx(inner, rel=1e-12), n
+        if reference.bounds[n][0] == 0.0:  # a range from zero (the gas spring) is mapped alone: it holds s times
+            assert _holds(small.bounds[n], inner), (n, small.bounds[n], inner)
             continue
         assert _holds(small.bounds[n], inner), (n, small.bounds[n], inner)
         assert _holds(small.bounds[n], reference.bounds[n]), (n, small.bounds[n], reference.bounds[n])
@@ -115,10 +124,10 @@ def test_every_full_scale_point_scaled_is_a_point_of_the_scaled_damper_s_space(p
         for z in rng.uniform(0.0, 1.0, (5, full.dimension)):
             point = full.to_params(z)
             point.update({n: min(max(point[n], lo), hi) for n, (lo, hi) in own.items()})
-            point.update(_elastic_table(rng, point, 1.0 * problems[1.0].spring_reference_n_per_m))
+            point.update(_elastic_table(rng, point, 1.5e7 * problems[1.0].scale.factor("N/m")))
             point = scaled(model, point, s)
             back = small.to_params(small.from_params(point))
-            for n in point:
+            for n in small.names:  # the identified parameters (the fixed constants: the test above)
                 assert back[n] == pytest.approx(point[n], rel=1e-9, abs=1e-12 * s), (space, n)
 
 
@@ -152,9 +161,12 @@ def test_the_scale_maps_units_as_force_over_length_and_over_velocity():
     assert long.factor("m") == 1.0 and long.factor("N/m") == 1.0
     with pytest.raises(ValueError, match="peak_force_n"):
         DamperScale(0.0, 0.04, 0.1)
-    preset = scaled_preset("twochamber", scale)  # the thermal balance's capacity as a mass, a length as one
-    assert preset["thermal_capacity"] == pytest.approx(2 * defaults("twochamber")["thermal_capacity"])
-    assert preset["L_R"] == pytest.approx(0.5 * defaults("twochamber")["L_R"])
+    preset = scaled_preset("twochamber", scale)  # within the class span: the reference's own preset
+    assert preset["thermal_capacity"] == defaults("twochamber")["thermal_capacity"]
+    far = DamperScale(5 * ref.peak_force_n, 0.2 * ref.stroke_range_m, ref.rate_span_m_s)  # beyond it: mapped whole
+    preset = scaled_preset("twochamber", far)  # the thermal balance's capacity as a mass, a length as one
+    assert preset["thermal_capacity"] == pytest.approx(5 * defaults("twochamber")["thermal_capacity"])
+    assert preset["L_R"] == pytest.approx(0.2 * defaults("twochamber")["L_R"])
 
 
 def test_a_gas_spring_of_a_strong_damper_is_accepted_and_a_negative_one_refused():

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 from damper_fmu.parameters import FC_ABSCISSAE, FK_REFERENCE_STIFFNESS, MODEL_PARAMETERS
 
 __all__ = ["DamperScale", "REFERENCE_SCALE", "UNIT_FACTORS", "widened", "scaled_bounds", "scaled_preset",
-           "spring_reference"]
+           "spring_reference", "class_factor", "CLASS_SPAN"]
 
 #: how each unit of a base parameter scales: the product of the factors' powers (force, length, velocity)
 UNIT_FACTORS: dict[str, tuple[int, int, int]] = {
@@ -142,13 +142,30 @@ def scaled_bounds(model: str, scale: DamperScale) -> dict[str, tuple[float, floa
     """Bounds (SI) of the identified parameters of ``model`` that are no table ordinate, for a damper of
     ``scale``: the reference's mapped by the factor of the parameter's unit, never narrower than the reference's
     (``widened``; module docstring)."""
-    return {p.name: widened(p.low, p.high, scale.factor(p.unit))
+    return {p.name: widened(p.low, p.high, class_factor(scale, p.unit))
             for p in MODEL_PARAMETERS[model] if p.tunable and not _is_table(p.name)}
+
+
+#: within this factor of the reference (either way) a damper's bounds, start and fixed constants are the reference's
+#: own: a test programme's peak force is no exact measure of a damper's parts (the class's yaw dampers peak at 8-38
+#: kN with the same masses and blocks, 0.4-1.9 x the reference's); beyond it they follow the damper by the whole
+#: factor (``class_factor``). Mapped by the peak force inside the span, the bounds of a 28 kN lumped damper (x 1.42)
+#: moved its diagnosis off the path that names its friction, preload and hysteresis (``tests/test_forms.py``: the
+#: friction came out as a hysteresis at its Coulomb edge, the hysteresis not named)
+CLASS_SPAN = 3.0
+
+
+def class_factor(scale: DamperScale, unit: str) -> float:
+    """The factor [-] on the reference's bound, start or fixed constant of SI ``unit`` for a damper of ``scale``:
+    1 while the unit's factor (``DamperScale.factor``) lies within ``CLASS_SPAN`` of the reference's, else that
+    factor (a damper 1000 x weaker or 10 x stronger than the reference yaw damper is mapped whole)."""
+    f = scale.factor(unit)
+    return 1.0 if 1.0 / CLASS_SPAN <= f <= CLASS_SPAN else f
 
 
 def scaled_preset(model: str, scale: DamperScale) -> dict[str, float]:
     """The preset of ``model`` mapped to a damper of ``scale`` (SI): every base parameter but the tables' abscissae
-    times the factor of its unit (the damping ordinates as forces, the elastic ones as a spring's forces at their
+    times ``class_factor`` of its unit (the damping ordinates as forces, the elastic ones as a spring's forces at their
     elongations: by the stiffness factor), the fixed constants (the thermal balance's capacity and loss, a
     ``check_damping`` given; its default 0 derives it from the table in the model) included; the effect elements
     otherwise at their defaults (off). The start of the fit's search and its fixed constants."""
@@ -157,9 +174,9 @@ def scaled_preset(model: str, scale: DamperScale) -> dict[str, float]:
         if (p.effect is not None and p.unit not in SCALED_EFFECT_UNITS) or (not p.tunable and _is_table(p.name)):
             out[p.name] = p.default
         elif p.name.startswith("Fk_"):
-            out[p.name] = p.default * scale.factor("N/m")
+            out[p.name] = p.default * class_factor(scale, "N/m")
         else:
-            out[p.name] = p.default * scale.factor(p.unit)
+            out[p.name] = p.default * class_factor(scale, p.unit)
     return out
 
 
@@ -167,4 +184,4 @@ def spring_reference(scale: DamperScale) -> float:
     """The elastic table's reference spring [N/m] for a damper of ``scale``: the paper's 1.5e7 N/m times the
     stiffness factor (the Fk,O pieces' stiffness bounds are 0.2-3 times it, widened to the reference damper's
     as every bound: ``Parametrization``)."""
-    return FK_REFERENCE_STIFFNESS * scale.factor("N/m")
+    return FK_REFERENCE_STIFFNESS * class_factor(scale, "N/m")
