@@ -41,7 +41,6 @@ diagnosis log (``logs/<case>-<seed>.log``) there.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import tempfile
@@ -53,15 +52,14 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.blind_common import (BROAD_NOISE_N, BROAD_RATES_HZ, MAGNITUDE_OF, PAIRS, blind_diagnosis,  # noqa: E402
-                                     case_counts, confounded, done_rows, expected, failed_row, row_line, run_rows,
+from benchmarks.blind_common import (Campaign, run_campaign, BROAD_NOISE_N, BROAD_RATES_HZ, MAGNITUDE_OF, PAIRS, blind_diagnosis,  # noqa: E402
+                                     case_counts, confounded, done_rows, expected, failed_row, row_line,
                                      typical_draw)
 from campaign.damper_class import class_tests, random_damper, write_class_dataset  # noqa: E402
 from tuner.diagnosis.effect_sizes import DamperSize  # noqa: E402
 from tuner.executors import FleetExecutor  # noqa: E402
 from tuner.identification.engine import IDENTIFICATION_STEP as DEFAULT_STEP  # noqa: E402
 from tuner.identification.problem import DataSettings  # noqa: E402
-from tuner.results.fleet_summary import write_atomic  # noqa: E402
 
 __all__ = ["SINGLES", "PAIRS", "CASES", "MAGNITUDE_OF", "expected", "case_seed", "broad_data", "hidden_parameters",
            "run_case", "confounded", "failed_row", "done_rows", "run_key", "main"]
@@ -196,21 +194,12 @@ def _table(rows: list[dict], names: list[str], model: str) -> None:
 
 def main(argv=None) -> int:
     a = _arguments(argv)
-    (a.out / "logs").mkdir(parents=True, exist_ok=True)
-    rows_file = a.out / "rows.jsonl"
-    rows = done_rows(rows_file)
-    done = {run_key(r) for r in rows}
     # seed by seed across the cases, so that a run stopped early leaves every case with as many seeds
     cases = [_case(c, k, a) for k in range(a.seed_offset, a.seed_offset + a.seeds) for c in a.case_names]
-    todo = [c for c in cases if run_key(c) not in done]
-    with FleetExecutor(a.scheduler) as ex:
-        print(f"{len(todo)} blind diagnoses of random {a.model} dampers on a {ex.description}"
-              + (f" ({len(cases) - len(todo)} done before, in {rows_file})" if len(todo) < len(cases) else ""),
-              flush=True)
-        run_rows(ex, run_case, todo, rows, rows_file, row_line)
-    write_atomic(a.out / "blind_class.json", json.dumps({"rows": rows}, indent=1, allow_nan=False))
-    keys = {run_key(c) for c in cases}
-    _table([r for r in rows if run_key(r) in keys], a.case_names, a.model)
+    rows = run_campaign(Campaign(cases, f"random {a.model} dampers", run_case, row_line, a.out, "blind_class.json",
+                                 FleetExecutor),
+                        a.scheduler, run_key)
+    _table(rows, a.case_names, a.model)
     return 0
 
 

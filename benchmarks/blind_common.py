@@ -146,6 +146,43 @@ def run_rows(ex, run_case, todo: list[dict], rows: list[dict], rows_file: Path, 
             print(line(row), flush=True)
 
 
+@dataclass(frozen=True)
+class Campaign:
+    """One blind benchmark's command-line run: its ``cases`` (the inputs of every run asked for), what each is called
+    in the log (``what``: 'random lumped dampers'), the runner ``run_case`` and the line printer ``line``, the
+    ``out`` folder (``rows.jsonl`` there resumes), the JSON file of all rows written there (``json_name``) and the
+    executor class the runs go to (``executor``: ``tuner.executors.FleetExecutor``'s interface)."""
+
+    cases: list
+    what: str
+    run_case: object
+    line: object
+    out: Path
+    json_name: str
+    executor: object
+
+
+def run_campaign(c: Campaign, scheduler: str | None, run_key) -> list[dict]:
+    """The runs of ``c`` not in its ``rows.jsonl`` yet (``run_key``: what makes a run the same run), on
+    ``scheduler`` (``c.executor``), seed by seed as listed; every row appended as it ends, then all rows in
+    ``json_name``. Returns the rows of the cases asked for (a resumed file may hold others)."""
+    from tuner.results.fleet_summary import write_atomic
+
+    (c.out / "logs").mkdir(parents=True, exist_ok=True)
+    rows_file = c.out / "rows.jsonl"
+    rows = done_rows(rows_file)
+    done = {run_key(r) for r in rows}
+    todo = [case for case in c.cases if run_key(case) not in done]
+    with c.executor(scheduler) as ex:
+        print(f"{len(todo)} blind diagnoses of {c.what} on a {ex.description}"
+              + (f" ({len(c.cases) - len(todo)} done before, in {rows_file})" if len(todo) < len(c.cases) else ""),
+              flush=True)
+        run_rows(ex, c.run_case, todo, rows, rows_file, c.line)
+    write_atomic(c.out / c.json_name, json.dumps({"rows": rows}, indent=1, allow_nan=False))
+    keys = {run_key(case) for case in c.cases}
+    return [r for r in rows if run_key(r) in keys]
+
+
 def row_line(row: dict) -> str:
     """One run in a line: case, seed, rate, noise, what was hidden, the causes named, the base, the fitted values,
     the time."""

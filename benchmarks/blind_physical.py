@@ -39,7 +39,6 @@ run's row to ``rows.jsonl`` in ``--out`` as it ends, so that the same command re
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import tempfile
@@ -52,8 +51,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.blind_common import (MAGNITUDE_OF, PAIRS, CaseCounts, acquisition_draw, blind_diagnosis,  # noqa: E402
-                                     case_counts, done_rows, expected, preferred_base, row_line, run_rows,
+from benchmarks.blind_common import (Campaign, run_campaign, MAGNITUDE_OF, PAIRS, CaseCounts, acquisition_draw, blind_diagnosis,  # noqa: E402
+                                     case_counts, done_rows, expected, preferred_base, row_line,
                                      typical_draw)
 from campaign.rig_class import (RigFaults, damper_summary, random_rig_damper, rig_class_tests,  # noqa: E402
                                 write_rig_class_dataset)
@@ -61,7 +60,6 @@ from tuner.diagnosis.effect_sizes import DamperSize  # noqa: E402
 from tuner.executors import FleetExecutor  # noqa: E402
 from tuner.identification.engine import IDENTIFICATION_STEP as DEFAULT_STEP  # noqa: E402
 from tuner.identification.problem import DataSettings  # noqa: E402
-from tuner.results.fleet_summary import write_atomic  # noqa: E402
 
 SINGLES = ("free_play_soft", "free_play_stiff", "friction", "preload", "valve_lag", "time_delay", "none")
 CASES = SINGLES + PAIRS
@@ -200,22 +198,13 @@ def table_lines(rows: list[dict], names: list[str], class_rows: list[dict] | Non
 
 def main(argv=None) -> int:
     a = _arguments(argv)
-    (a.out / "logs").mkdir(parents=True, exist_ok=True)
-    rows_file = a.out / "rows.jsonl"
-    rows = done_rows(rows_file)
-    done = {run_key(r) for r in rows}
     # seed by seed across the cases, so that a run stopped early leaves every case with as many seeds
     cases = [_case(c, k, a) for k in range(a.seed_offset, a.seed_offset + a.seeds) for c in a.case_names]
-    todo = [c for c in cases if run_key(c) not in done]
-    with FleetExecutor(a.scheduler) as ex:
-        print(f"{len(todo)} blind diagnoses of random physical dampers on a {ex.description}"
-              + (f" ({len(cases) - len(todo)} done before, in {rows_file})" if len(todo) < len(cases) else ""),
-              flush=True)
-        run_rows(ex, run_case, todo, rows, rows_file, _line)
-    write_atomic(a.out / "blind_physical.json", json.dumps({"rows": rows}, indent=1, allow_nan=False))
-    keys = {run_key(c) for c in cases}
+    rows = run_campaign(Campaign(cases, "random physical dampers", run_case, _line, a.out, "blind_physical.json",
+                                 FleetExecutor),
+                        a.scheduler, run_key)
     class_rows = done_rows(a.compare_class / "rows.jsonl") if a.compare_class is not None else None
-    print("\n" + "\n".join(table_lines([r for r in rows if run_key(r) in keys], a.case_names, class_rows)))
+    print("\n" + "\n".join(table_lines(rows, a.case_names, class_rows)))
     return 0
 
 
