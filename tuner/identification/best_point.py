@@ -62,7 +62,7 @@ def continue_fit(result: FitResult, lower: LowerPoint, settings: FitSettings, lo
     """``result`` with the fit of ``lower.model`` continued from ``lower``'s point (module docstring): its values,
     intervals and history (``best_point``: the stage that found the point, the RMSEs [N] of the fit, the point and
     the continued fit, the refinement's rule) and every test's validation metrics, Table 3 and quality gate taken
-    again. The continued fit is kept only where it ends at least as low as the fit (it starts lower, and the
+    again. The continued fit is kept only where it ends below the fit (it starts lower, and the
     refinement never returns a point worse than its start). Changes ``result`` in place and returns it."""
     model, problem = lower.model, result.problem
     section(log, f"{model}: fit continued from a lower point")
