@@ -61,18 +61,22 @@ class CoarserGrid:
     """What the diagnosis on a coarser grid hands the same diagnosis run again on a finer one
     (``diagnose._on_a_fine_enough_grid``): ``found``, the values [SI] of its final model, a start for the model of
     the causes found (``search.selection.restarted``); ``idle_ladders``, the nonsmooth effects whose series ladder
-    (``search.nonsmooth.series_ladder``) it ran without a better fit: not run again. The ladder looks for a gap a
+    (``search.nonsmooth.series_ladder``) it ran without a better fit: not run again; ``kept_ladders``, {effect: the
+    series stiffness [N/m] held whose release its ladder kept}: the finer grid's ladder holds that value alone. The ladder looks for a gap a
     stiff mount hides (another basin of the fit), which a finer grid does not create; on the class damper of
     ``tests/test_diagnose.py``'s worn-damper case it took 38 of the 83 s of the rerun to end no better again."""
 
     found: dict
     idle_ladders: tuple[str, ...] = ()
+    kept_ladders: dict = field(default_factory=dict)
 
     @classmethod
     def of(cls, run: dict) -> "CoarserGrid":
         """From the run record of the diagnosis on the coarser grid (its ``after_params`` and ``ranking``)."""
-        return cls(dict(run["after_params"]), tuple(r["effect"] for r in run.get("ranking") or []
-                                                    if r.get("series_element_released") is False))
+        ranking = run.get("ranking") or []
+        return cls(dict(run["after_params"]), tuple(r["effect"] for r in ranking
+                                                    if r.get("series_element_released") is False),
+                   {r["effect"]: r["series_element_kept_from"] for r in ranking if r.get("series_element_kept_from")})
 
 
 @dataclass(frozen=True)

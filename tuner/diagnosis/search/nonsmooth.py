@@ -48,7 +48,8 @@ def series_ladder(s: SearchState, effect: str, ext: ExtendedParametrization, row
               f"fitted no better on the coarser grid: not profiled again")
         return {**row, "series_element_released": False}
     k, c = names
-    held = [{k: value, c: s.guess[c]} for value in series_values(s, k)]
+    kept = s.coarser.kept_ladders.get(effect) if s.coarser is not None else None
+    held = [{k: value, c: s.guess[c]} for value in ([kept] if kept else series_values(s, k))]
     i = ext.extra.index(ALL_EFFECTS[effect].magnitude)
     lo, hi = ext.extra_bounds[i]
     values = [(v - lo) / (hi - lo) for v in grid(lo, hi, s.settings.grid_points, ext.floors[i]) if v > lo]
@@ -79,7 +80,10 @@ def series_ladder(s: SearchState, effect: str, ext: ExtendedParametrization, row
         return {**row, "evaluations": evals, "series_element_held": held, "series_element_released": False}
     s.refits[effect] = Fit(ext, pol.z, evals)
     new = held_out(s, effect, ext.to_params(pol.z), ext.extra, pol.fitness, evals, s.mse_none)
-    return {**new, "series_element_held": held, "series_element_released": True}
+    # the held value the kept refit came from: the one nearest (in decades) to where its release went
+    start_k = ext.to_params(prof.points[int(np.argmin(prof.sse))])[k]
+    source = min((h[k] for h in held), key=lambda v: abs(math.log(v / start_k)))
+    return {**new, "series_element_held": held, "series_element_released": True, "series_element_kept_from": source}
 
 
 def unearned_nonsmooth(effect: str, row: dict) -> bool:

@@ -99,8 +99,8 @@ def continue_lead(s: SearchState) -> None:
     s.converged[lead["effect"]] = s.settled(pol, g)
     row = held_out(s, lead["effect"], fit.params(), fit.ext.extra, g, fit.evaluations, s.mse_none)
     # how the refit was reached stays with its continuation (``series_ladder``'s record)
-    row.update({k: lead[k] for k in ("refitted", "screen", "series_element_held", "series_element_released")
-                if k in lead})
+    row.update({k: lead[k] for k in ("refitted", "screen", "series_element_held", "series_element_released",
+                                     "series_element_kept_from") if k in lead})
     s.ranking[s.ranking.index(lead)] = row
     s.log(f"  {lead['effect']:14s} refined (base refit continued alike): " + ", ".join(
         f"{k} = {v:.4g} {UNITS[k]}" for k, v in row["parameters"].items())
