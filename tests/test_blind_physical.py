@@ -120,23 +120,7 @@ def test_faults_refuse_bad_values_by_name():
         RigFaults.of({"mount_stiffness": 1e9})
 
 
-class SerialExecutor:
-    """The executor's interface (``tuner.executors.FleetExecutor``), in this process."""
-
-    description = "serial stand-in"
-
-    def __init__(self, scheduler):
-        pass
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
-
-    def run(self, fn, tasks):
-        for i, task in enumerate(tasks):
-            yield i, fn(task), None
+from test_blind_benchmark import SerialExecutor  # noqa: E402  (the executor's interface, in this process)
 
 
 def _fake_run(calls):
