@@ -434,7 +434,8 @@ def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result
     """The local refinements from the Firefly best and the restarts (the data-driven start ``guess_p`` and its
     ``RESTART_LADDER`` variants): the Firefly population often collapses into one basin, on random dampers
     sometimes a degenerate one (silent blocks as pure dashpots, 2.2x the floor) that the data-driven start
-    avoids; the best refinement wins (benchmarks/convergence.py). A form ``RACE_RATIO`` x worse than its
+    avoids; the best refinement wins (benchmarks/convergence.py); a restart stops once it cannot end below the
+    best so far (``polish``'s ``beat``). A form ``RACE_RATIO`` x worse than its
     ``options.rival`` after the first gets no restart, nor one whose first refinement reaches the residual
     ``options.floor`` (``_at_floor``). The progress ``log`` is told the seconds the refinements still to run will
     take, at the measured time of those done."""
@@ -467,7 +468,8 @@ def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result
             expect(log, (len(starts) - k) * (time.perf_counter() - t0) / k)
         log(f"[{model}] local refinement from the {label} (projected Levenberg-Marquardt until converged, "
             f"at most {settings.polish_jacobians} Jacobians of {par.dimension} parallel simulations)")
-        pol = polish(eng, par, z0, max_jacobians=settings.polish_jacobians, log=log)
+        beat = eng.n_samples / ref.g if ref.runs and ref.g > 0.0 else None  # a restart matters only below the best
+        pol = polish(eng, par, z0, max_jacobians=settings.polish_jacobians, log=log, beat=beat)
         ref.evaluations += pol.evaluations
         g = pol.fitness
         ref.runs.append({"start": label, "rmse_n": rmse_of_fitness(g),

@@ -42,6 +42,15 @@ two-chamber classes, ``benchmarks/convergence.py``, docs/identification.md, "Con
   at the point where the fine step stalled at 46.6 N: from there the coarse step reached 37.1 N, the
   truth scoring 37.2 N, in 11 Jacobians). A secant over 1e-3 of each range sees through that
   roughness; the fine step is kept where it works (it is more accurate on smooth objectives).
+* a refinement that only matters if it ends below an SSE (``beat``: a restart against the fit's point) stops,
+  as 'cannot beat' (not converged), when ``BEAT_PATIENCE`` Jacobians running its Gauss-Newton step predicts an
+  end above it and that prediction has settled (``cannot_beat``: it moved by less than one standard error of the
+  RMSE between them): the step is the local model's whole reachable gain where the model holds. Not while the
+  prediction still moves: from a start far off, the linear model promises far less than the valley gives (a
+  random lumped damper's data-driven start at 1141 N rms: 639 N predicted after two Jacobians, 8.8 N reached; a
+  rule on the prediction alone stopped it there and the fit ended at 2.4 x the truth's RMSE). On the real MR
+  currents the restarts of the two-chamber fit's check took 38-61 s of 220-277 s jobs and none ended lower
+  (docs/measurements.md).
 
 Each Jacobian is one batch of d simulations (forward differences) through the engine, i.e. in
 parallel through the FMU; each damping trial evaluates two damping values at once. The best point
@@ -58,7 +67,8 @@ from tuner.metrics import rmse_standard_error
 from tuner.progress import advance
 
 __all__ = ["polish", "PolishResult", "resolution_stop", "resolvable_gain", "stalled_text", "small_progress",
-           "RTOL", "STALL_RTOL", "STEP", "COARSE_STEP", "FTOL", "RESOLUTION_WINDOW", "RESOLUTION_FRACTION"]
+           "cannot_beat", "BEAT_PATIENCE", "RTOL", "STALL_RTOL", "STEP", "COARSE_STEP", "FTOL", "RESOLUTION_WINDOW",
+           "RESOLUTION_FRACTION"]
 
 #: Converged when the Gauss-Newton step predicts less than this share of the SSE.
 RTOL = 1e-4
@@ -72,6 +82,9 @@ RESOLUTION_FRACTION = 0.25
 #: Jacobians a refinement typically takes to converge (for the progress display only): 3-7 on the bundled data,
 #: median 7-13 on the benchmarks' random dampers (docs/measurements.md)
 TYPICAL_JACOBIANS = 10
+#: Jacobians running whose Gauss-Newton step predicts an end above ``beat``, settled, before a refinement stops
+#: (module docstring, ``cannot_beat``)
+BEAT_PATIENCE = 2
 #: forward-difference step in the local coordinates (each spans its parameter's bounds)
 STEP = 1e-5
 #: ... and the step once the fine one stalls (module docstring)
@@ -93,7 +106,8 @@ class PolishResult:
     #: whether it met a convergence rule (module docstring)
     converged: bool
     #: what ended it: 'first-order', 'data resolution', 'stationary' (no damped step helps), 'stalled' (the
-    #: steps achieve far less than the Gauss-Newton step predicts: not converged), 'budget', 'not started'
+    #: steps achieve far less than the Gauss-Newton step predicts: not converged), 'cannot beat' (its step
+    #: predicted an end above ``beat``, settled, BEAT_PATIENCE times running: not converged), 'budget', 'not started'
     rule: str
     #: Jacobians computed
     jacobians: int
@@ -106,13 +120,14 @@ class PolishResult:
     history: list = field(default_factory=list)
 
 
-def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print) -> PolishResult:
+def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print,
+           beat: float | None = None) -> PolishResult:
     """Refine the search-space point z0 of ``par``: a ``PolishResult`` (the best point seen, its fitness
     G = N / SSE [1/N^2], the simulations used, why it stopped).
 
     engine: tuner.identification.engine.Engine; par: a tuner.identification.parametrization.Parametrization
-    (or the diagnosis' extension of one), refined in the coordinates of its ``local_space()``.
-    """
+    (or the diagnosis' extension of one), refined in the coordinates of its ``local_space()``; beat: an SSE
+    [N^2] the refinement matters only below (None: none; module docstring)."""
     space = par.local_space()
     n = engine.n_samples
     used = {"evals": 0}
@@ -129,6 +144,7 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print) -
     cost = float(r @ r)
     fitness = [n / cost]
     lam, jacobians, step, predicted, since = 1e-3, 0, STEP, 1.0, 0  # since: the resolution window's first step
+    ends = []  # the RMSE [N] each Jacobian's Gauss-Newton step predicts at its end
     stop, converged, rule = f"budget of {max_jacobians} Jacobians spent while still improving", False, "budget"
     while jacobians < max_jacobians:
         h = np.where(u + step <= 1.0, step, -step)
@@ -150,6 +166,10 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print) -
         if predicted < RTOL:
             stop, converged, rule = f"converged: the Gauss-Newton step predicts {predicted:.1e} of the SSE", True, \
                 "first-order"
+            break
+        ends.append(math.sqrt(max(cost * (1.0 - predicted), 0.0) / n))
+        if beat is not None and cannot_beat(ends, math.sqrt(beat / n), rmse_standard_error(r)):
+            stop, rule = beat_text(ends, math.sqrt(beat / n)), "cannot beat"
             break
         accepted = _damped_step(residuals, u, free, Jf, g[free], cost, lam)
         if accepted is None and step < COARSE_STEP:
@@ -180,6 +200,21 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print) -
     z = par.from_params(space.to_params(u))
     return PolishResult(z, n / cost, used["evals"], stop=stop, converged=converged, rule=rule, jacobians=jacobians,
                         predicted=predicted, budget_spent=stop.startswith("budget"), history=fitness)
+
+
+def cannot_beat(ends: list[float], target: float, se: float) -> bool:
+    """Whether a refinement cannot end below the RMSE ``target`` [N]: the ends its Gauss-Newton steps predicted
+    (``ends`` [N], one per Jacobian) are above it for the last ``BEAT_PATIENCE`` Jacobians, each within ``se`` [N]
+    (the RMSE's standard error) of the one before: the local model's prediction has settled."""
+    last = ends[-BEAT_PATIENCE:]
+    return (len(last) == BEAT_PATIENCE and min(last) > target
+            and all(abs(a - b) <= se for a, b in zip(last, last[1:])))
+
+
+def beat_text(ends: list[float], target: float) -> str:
+    """Why a refinement stopped short of the RMSE ``target`` [N] (``polish``), its predicted ``ends`` [N]."""
+    return (f"cannot end below {target:.2f} N: its Gauss-Newton step predicts "
+            + ", ".join(f"{e:.2f}" for e in ends[-BEAT_PATIENCE:]) + " N at best, settled")
 
 
 def _free(u: np.ndarray, g: np.ndarray) -> np.ndarray:

@@ -23,7 +23,9 @@ So the check restarts the refinement from (``restart_starts``):
 
 A restart that ends lower by more than one standard error of the RMSE (``tuner.metrics.rmse_standard_error``:
 a difference the data can show) replaces the fit's point and the check runs again from there (at most
-``ROUNDS`` times); the fit is converged only when a round finds nothing lower by that much. The record
+``ROUNDS`` times); the fit is converged only when a round finds nothing lower by that much. A released restart
+stops once its Gauss-Newton step, twice running and settled, predicts no end that low (``polish``'s ``beat``: it
+could not replace the point; the log says 'cannot beat'). The record
 (``RestartCheck.to_dict``) goes into ``history_<model>.json`` as ``restart_check``.
 """
 from __future__ import annotations
@@ -135,9 +137,10 @@ def restart_starts(par: Parametrization, z: np.ndarray, population: np.ndarray |
     return starts
 
 
-def _run(eng, par: Parametrization, start: tuple, jacobians: int) -> tuple[PolishResult, int]:
-    """One restart: held first when ``start`` names a coordinate, then free. Returns the last refinement (its
-    ``z`` in ``par``'s coordinates) and the simulations of both."""
+def _run(eng, par: Parametrization, start: tuple, jacobians: int, beat: float) -> tuple[PolishResult, int]:
+    """One restart: held first when ``start`` names a coordinate, then free, stopped once it cannot end below the
+    SSE ``beat`` [N^2] (``polish``'s rule; the held refinement is not stopped: its release can still go lower).
+    Returns the last refinement (its ``z`` in ``par``'s coordinates) and the simulations of both."""
     label, z0, held_name = start
     evaluations = 0
     if held_name is not None:
@@ -145,7 +148,7 @@ def _run(eng, par: Parametrization, start: tuple, jacobians: int) -> tuple[Polis
         first = polish(eng, held, held.from_params(par.to_params(z0)), max_jacobians=jacobians, log=lambda m: None)
         evaluations += first.evaluations
         z0 = par.from_params(held.to_params(first.z))
-    pol = polish(eng, par, z0, max_jacobians=jacobians, log=lambda m: None)
+    pol = polish(eng, par, z0, max_jacobians=jacobians, log=lambda m: None, beat=beat)
     return pol, evaluations + pol.evaluations
 
 
@@ -162,8 +165,9 @@ def restart_check(eng, par: Parametrization, z: np.ndarray, g: float, population
         check.rounds = round_
         starts = restart_starts(par, check.z, population if round_ == 1 else None, series)
         best = None
+        beat = eng.n_samples * max(rmse_of_fitness(check.g) - se, 0.0) ** 2  # lower by one standard error
         for start in starts:
-            pol, evaluations = _run(eng, par, start, jacobians)
+            pol, evaluations = _run(eng, par, start, jacobians, beat)
             check.evaluations += evaluations
             row = {"round": round_, "start": start[0], "rmse_n": rmse_of_fitness(pol.fitness), "rule": pol.rule,
                    "jacobians": pol.jacobians}
