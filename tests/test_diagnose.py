@@ -222,8 +222,8 @@ def test_a_free_play_no_screen_passed_is_refitted_before_a_residual_above_the_fl
     """The profile screen re-balances the base linearly, which cannot give back a gap the base absorbed (a 0.54 mm
     gap in stiff two-chamber mounts screened at 1.3 %: 'unexplained' at 24 x the floor; refitted, named at the
     floor): with the base refit above UNEXPLAINED_RATIO x the floor, every nonsmooth candidate not refitted yet is
-    laddered (the series element held) and, only when that leaves a residual above the floor or no cause's score,
-    refitted in full, the better fit kept; a smooth one screened out, or any candidate once the base is near the
+    laddered (the series element held) and, only when that leaves a residual above the floor or no cause's score
+    and its profile found a gap that fits better, refitted in full, the better fit kept; a smooth one screened out, or any candidate once the base is near the
     floor, is not. ``benchmarks/blind_class.py --cases free_play_stiff`` runs the whole diagnosis on such dampers."""
     from tuner.diagnosis.cost_model import DiagnosisCost
     from tuner.diagnosis.rules import UNEXPLAINED_RATIO
@@ -232,10 +232,11 @@ def test_a_free_play_no_screen_passed_is_refitted_before_a_residual_above_the_fl
 
     search = SearchState.__new__(SearchState)
     search.credible, search.floor, search.log = True, 20.0, lambda m: None
+    search.kind, search.record = "lumped", {}
     search.par, search.settings = Parametrization("lumped", force_limit=4e4), DiagnosisSettings()
     search.cost = DiagnosisCost(reference=0.0, screen=0.0, refits=0.0, forms=0.0, detection=0.0)
     search.forecast = lambda: None
-    calls, ladder_rmse = [], [0.0]
+    calls, ladder_rmse, profile_better = [], [0.0], [True]
 
     def refit_candidate(s, effect, ext):
         calls.append(("refit", effect))
@@ -245,18 +246,20 @@ def test_a_free_play_no_screen_passed_is_refitted_before_a_residual_above_the_fl
     def series_ladder(s, effect, ext, row):
         calls.append(("ladder", effect))
         search.refits[effect] = Fit(None, np.full(1, 2.0), 50)
-        return {**_row(effect, 1.2, 300.0), "validation_mse_change_pct": -70.0, "identification_rmse_n": ladder_rmse[0]}
+        return {**_row(effect, 1.2, 300.0), "validation_mse_change_pct": -70.0, "identification_rmse_n": ladder_rmse[0],
+                **({} if profile_better[0] else {"gap_fits_better": False})}
 
     monkeypatch.setattr(nonsmooth, "refit_candidate", refit_candidate)
     monkeypatch.setattr(nonsmooth, "series_ladder", series_ladder)
     above = UNEXPLAINED_RATIO * 20.0 * 1.5
-    for rmse_none, rmse_ladder, expected, steps, kept in (
-            (above, 35.0, ["free_play"], ("ladder",), 2.0),  # the ladder within 2 x the floor: no full refit
-            (above, 45.0, ["free_play"], ("ladder", "refit"), 2.0),  # above: refitted, the ladder's fit better
-            (above, 90.0, ["free_play"], ("ladder", "refit"), 1.0),  # ... the full refit's better
-            (UNEXPLAINED_RATIO * 20.0 * 0.9, 19.0, [], (), 0.0)):  # the base near the floor: nothing
+    for rmse_none, rmse_ladder, expected, steps, kept, better in (
+            (above, 35.0, ["free_play"], ("ladder",), 2.0, True),  # the ladder within 2 x the floor: no full refit
+            (above, 45.0, ["free_play"], ("ladder", "refit"), 2.0, True),  # above: refitted, the ladder's fit better
+            (above, 90.0, ["free_play"], ("ladder", "refit"), 1.0, True),  # ... the full refit's better
+            (above, 90.0, ["free_play"], ("ladder",), 2.0, False),  # the ladder's profile found no better gap
+            (UNEXPLAINED_RATIO * 20.0 * 0.9, 19.0, [], (), 0.0, True)):  # the base near the floor: nothing
         calls.clear()
-        ladder_rmse[0] = rmse_ladder
+        ladder_rmse[0], profile_better[0] = rmse_ladder, better
         search.none_row = {**_row("none", 0.0, 0.0), "identification_rmse_n": rmse_none}
         search.ranking = [{**_row(e, -0.02, 0.0), "refitted": refitted, "screen": None} for e, refitted in
                           (("friction", False), ("free_play", False), ("inertia", True))] + [search.none_row]
