@@ -16,6 +16,7 @@ class NamedPar:
     def __init__(self, names, fixed=None):
         self.names, self.fixed = list(names), dict(fixed or {})
         self.dimension = len(self.names)
+        self.bounds = {n: (1e-3, 1.0) for n in self.names}  # search limits, none the absence of an element
 
     def to_params(self, z):
         return {**self.fixed, **{n: float(v) for n, v in zip(self.names, np.clip(np.asarray(z, float), 0.0, 1.0))}}
@@ -158,3 +159,20 @@ def test_the_series_element_on_a_bound_is_held_at_the_decades_the_diagnosis_hold
     assert [par.to_params(s[1])["k_M"] for s in mounts] == pytest.approx([3e8, 3e9])
     (mid,) = [s for s in starts if s[2] == par.names[other]]
     assert mid[1][other] == 0.5
+
+
+def test_a_coordinate_on_a_zero_lower_bound_is_not_restarted_but_one_on_its_upper_bound_is():
+    """The entrained air at 0 (no air: the element absent, a value the model takes exactly) is no search limit to
+    restart from; the same coordinate on its upper bound, and a coordinate on a non-zero lower bound, are."""
+    from tuner.identification.parametrization import Parametrization
+    from tuner.identification.restart_check import restart_starts
+
+    par = Parametrization("twochamber", "improved")
+    assert par.bounds["air"][0] == 0.0 and par.bounds["L_R"][0] > 0.0
+    z = np.full(par.dimension, 0.4)
+    a, lr = par.names.index("air"), par.names.index("L_R")
+    z[a], z[lr] = 0.0, 0.0
+    held = {s[2] for s in restart_starts(par, z, None)}
+    assert "air" not in held and "L_R" in held
+    z[a] = 1.0
+    assert "air" in {s[2] for s in restart_starts(par, z, None)}
