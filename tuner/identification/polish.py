@@ -147,19 +147,9 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print,
     ends = []  # the RMSE [N] each Jacobian's Gauss-Newton step predicts at its end
     stop, converged, rule = f"budget of {max_jacobians} Jacobians spent while still improving", False, "budget"
     while jacobians < max_jacobians:
-        h = np.where(u + step <= 1.0, step, -step)
-        cols = residuals([u + np.eye(u.size)[i] * h[i] for i in range(u.size)])
-        jacobians += 1
-        failed = sum(c is None for c in cols)
-        if failed:  # a neighbour cannot be simulated: hold that variable for this step
-            cols = [r if c is None else c for c in cols]
-            log(f"    polish: {failed} finite-difference neighbours could not be simulated; held this step")
-        J = np.column_stack([(c - r) / hi for c, hi in zip(cols, h)])
-        g = J.T @ r
-        free = _free(u, g)
-        Jf = J[:, free]
-        step_gn = np.linalg.lstsq(Jf, -r, rcond=1e-10)[0]
-        predicted = float(cost - np.sum((r + Jf @ step_gn) ** 2)) / cost
+        lin = _linearised(residuals, u, r, step, log)
+        jacobians, free, Jf, gf = jacobians + 1, lin.free, lin.Jf, lin.gf
+        predicted = float(cost - np.sum((r + Jf @ np.linalg.lstsq(Jf, -r, rcond=1e-10)[0]) ** 2)) / cost
         log(f"    polish: Jacobian {jacobians}/{max_jacobians}, RMSE {math.sqrt(cost / n):.2f} N, "
             f"Gauss-Newton step predicts {100 * predicted:.2g} % of the SSE")
         advance(log, 0.85 + 0.15 * min(1.0, jacobians / TYPICAL_JACOBIANS))
@@ -171,7 +161,7 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print,
         if beat is not None and cannot_beat(ends, math.sqrt(beat / n), rmse_standard_error(r)):
             stop, rule = beat_text(ends, math.sqrt(beat / n)), "cannot beat"
             break
-        accepted = _damped_step(residuals, u, free, Jf, g[free], cost, lam)
+        accepted = _damped_step(residuals, u, free, Jf, gf, cost, lam)
         if accepted is None and step < COARSE_STEP:
             log(f"    polish: no damped step lowers the SSE with finite differences of {step:g}; "
                 f"differences of {COARSE_STEP:g} from here (the objective is rough on the fine scale)")
@@ -200,6 +190,31 @@ def polish(engine, par, z0: np.ndarray, *, max_jacobians: int = 60, log=print,
     z = par.from_params(space.to_params(u))
     return PolishResult(z, n / cost, used["evals"], stop=stop, converged=converged, rule=rule, jacobians=jacobians,
                         predicted=predicted, budget_spent=stop.startswith("budget"), history=fitness)
+
+
+@dataclass(frozen=True)
+class _Linearisation:
+    """The residual's forward-difference Jacobian at a point, on the variables left free (``_free``): the free mask,
+    their columns ``Jf`` [N per unit of the local coordinate] and gradient ``gf`` = Jf^T r [N^2]."""
+
+    free: np.ndarray
+    Jf: np.ndarray
+    gf: np.ndarray
+
+
+def _linearised(residuals, u: np.ndarray, r: np.ndarray, step: float, log) -> _Linearisation:
+    """One Jacobian of ``polish`` at the local point ``u`` (residual ``r`` [N]) by forward differences of ``step``
+    (backward at the upper bound); a neighbour that cannot be simulated holds its variable for this step."""
+    h = np.where(u + step <= 1.0, step, -step)
+    cols = residuals([u + np.eye(u.size)[i] * h[i] for i in range(u.size)])
+    failed = sum(c is None for c in cols)
+    if failed:
+        cols = [r if c is None else c for c in cols]
+        log(f"    polish: {failed} finite-difference neighbours could not be simulated; held this step")
+    J = np.column_stack([(c - r) / hi for c, hi in zip(cols, h)])
+    g = J.T @ r
+    free = _free(u, g)
+    return _Linearisation(free, J[:, free], g[free])
 
 
 def cannot_beat(ends: list[float], target: float, se: float) -> bool:
