@@ -8,6 +8,7 @@
 - ``engine``: simulation engines (FMU, C kernel, Python) and the worker pool;
 - ``reference``: the converged ODE reference (scipy's LSODA);
 - ``firefly``: the Firefly algorithm;
+- ``search_window``: the start of each test the Firefly search runs on (its range covered twice);
 - ``polish``: the local solver (projected Levenberg-Marquardt);
 - ``restart_check``: whether a refined fit is the minimum or only its basin's (restarts from elsewhere);
 - ``intervals``: 95 % intervals and identifiability flags of every identified parameter at the fit;

@@ -41,6 +41,7 @@ from damper_fmu.parameters import EFFECT_MODELS, SERIES_ELEMENT, defaults
 from tuner.data.reading import RigTest
 from tuner.identification import firefly
 from tuner.identification.engine import Engine, Signals
+from tuner.identification.search_window import search_windows
 from tuner.identification.floor import ResidualFloor
 from tuner.identification.full_rate import MIN_RATE_RATIO, comparison_rate, full_rate_check
 from tuner.identification.intervals import parameter_intervals, reached_ranges
@@ -224,7 +225,9 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
 
     search_stop = {}
     section(log, "Firefly search")
-    with Engine(model, signals, engine=settings.engine, workers=settings.workers, fmu_path=engine_path,
+    windows = search_windows(signals)
+    log(f"[{model}] {windows.text()}")
+    with Engine(model, windows.tests, engine=settings.engine, workers=settings.workers, fmu_path=engine_path,
                 max_internal_step=settings.data.internal_step_s) as eng:
         def evaluate(Z):
             return eng.fitness_batch([par.to_params(z) for z in Z])
@@ -260,6 +263,8 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         result = firefly.run(evaluate, par.dimension, options=opts, seed=settings.seed, state=state,
                              callback=callback, initial=initial)
         last_failure = eng.last_failure
+    with Engine(model, signals, engine=settings.engine, workers=settings.workers, fmu_path=engine_path,
+                max_internal_step=settings.data.internal_step_s) as eng:
         ref = _refine(eng, model, par, settings, result, guess_p, log, options)
         elapsed = time.perf_counter() - t_start
         section(log, "intervals")
@@ -269,8 +274,9 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
         raise ValueError(f"[{model}] no candidate could be simulated; the last failure: {last_failure or 'none'}. "
                          f"Check the units of the input files (a stroke in mm read as m exceeds the FMU's "
                          f"stroke_limit) or use --parametrization improved")
-    history = _history(result, ref, par, first_population, search_stop, elapsed)
-    log(f"[{model}] done: Firefly {history['stop_reason']} after {result.iterations} iterations "
+    history = {**_history(result, ref, par, first_population, search_stop, elapsed),
+               "search_window": windows.to_dict()}
+    log(f"[{model}] done: Firefly {history['stop_reason']} after {result.iterations} iterations on its windows "
         f"(RMSE {rmse_of_fitness(result.fitness_best):.1f} N), {result.evaluations + ref.evaluations} evaluations, "
         f"{elapsed:.0f} s; identification RMSE {rmse_of_fitness(ref.g):.1f} N")
     return Identified(par.to_params(ref.z), history, ivs)
@@ -440,9 +446,10 @@ def _refine(eng, model: str, par: Parametrization, settings: FitSettings, result
     ``options.floor`` (``_at_floor``). The progress ``log`` is told the seconds the refinements still to run will
     take, at the measured time of those done."""
     rival, floor, guess = options.rival, options.floor, par.from_params(guess_p)
-    none = PolishResult(result.x_best, result.fitness_best, 0, stop="no local refinement (--polish 0)",
+    g_best = float(eng.fitness_batch([par.to_params(result.x_best)])[0])  # on every sample (the search: its windows)
+    none = PolishResult(result.x_best, g_best, 0, stop="no local refinement (--polish 0)",
                         converged=False, rule="not started", jacobians=0, predicted=1.0, budget_spent=False)
-    ref = Refinement(result.x_best, result.fitness_best, 0, none, [], None)
+    ref = Refinement(result.x_best, g_best, 1, none, [], None)
     if settings.polish_jacobians <= 0:
         return ref
     section(log, "local refinements")

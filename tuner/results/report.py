@@ -267,14 +267,24 @@ def _fitness_section(run: FitFolder, drawn: dict) -> str:
         rows.append([model_label(m), esc(h.get("iterations", max(len(mean) - 1, 0))), esc(ev[-1]),
                      eng(mean[-1] if mean else math.nan, "1/N^2"), eng(b, "1/N^2"),
                      eng(1 / math.sqrt(b) if b and b > 0 and math.isfinite(b) else math.nan, "N"),
-                     esc(h.get("stop_reason", ""))])
+                     esc(h.get("stop_reason", "")), esc(_window_text(h.get("search_window")))])
     note = (f'<p class="skip">No history file for: {", ".join(model_label(m) for m in missing)} (not shown).</p>'
             if missing else "")
     return ("<section id='fitness'><h2>4. Convergence of the Firefly search (Fig. 6)</h2>"
             + figure_html(src, "Mean fitness of the population per iteration (solid) and best fitness ever "
-                             "seen (dashed), log scale.", "no history_<model>.json file found")
+                             "seen (dashed), log scale; on the search's windows of the identification tests where "
+                             "they are shorter (the start of each test that covers its range twice; the "
+                             "refinements then use every sample).", "no history_<model>.json file found")
             + note + (table(["Model", "Iterations", "Evaluations", "Final mean G", "Best G",
-                              "Best RMSE = 1/√G", "Stop reason"], rows) if rows else "") + "</section>")
+                              "Best RMSE = 1/√G", "Stop reason", "Searched on"], rows) if rows else "")
+            + "</section>")
+
+
+def _window_text(window: dict | None) -> str:
+    """'20.3 s of 75.8 s' of a history's search windows (``tuner.identification.search_window``), '' if none."""
+    if not window:
+        return ""
+    return f"{window['window_s']:.3g} s of {window['whole_s']:.3g} s"
 
 
 def _population_sections(run: FitFolder, drawn: dict) -> str:
