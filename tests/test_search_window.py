@@ -47,3 +47,11 @@ def test_the_new_end_counts_only_samples_the_low_pass_covers():
     assert not cut.mask[k0 + n:].any() and not cut.mask[:k0].any()
     assert cut.mask[k0:k0 + n].all()
     assert s.mask.all()  # the whole test's mask is not touched
+
+
+def test_a_search_on_windows_resumes_only_on_the_same_windows():
+    whole = search_windows([_sine(1.0)])
+    cut = search_windows([_sine(12)])
+    assert whole.window_s == whole.whole_s and whole.keyed("abc") == "abc"  # as before the windows
+    assert cut.keyed("abc") != "abc" and cut.keyed("abc") == search_windows([_sine(12)]).keyed("abc")
+    assert cut.keyed("abc") != search_windows([_sine(10)]).keyed("abc")

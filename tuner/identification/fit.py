@@ -211,7 +211,8 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
     rival, rival_at_floor = options.rival, options.rival_at_floor
     opts = firefly.FireflyOptions(population=settings.population, max_iterations=settings.iterations,
                                   stop_tol=settings.stop_tol)
-    key = _settings_hash(settings, digest, model)
+    windows = search_windows(signals)
+    key = _settings_hash(settings, windows.keyed(digest), model)
     state = _resumed_state(ckpt, key, model, log)
     guess_p = initial_guess(model, signals, par)  # seeds the first population and restarts the refinement
     guess = par.from_params(guess_p)
@@ -225,7 +226,6 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
 
     search_stop = {}
     section(log, "Firefly search")
-    windows = search_windows(signals)
     log(f"[{model}] {windows.text()}")
     with Engine(model, windows.tests, engine=settings.engine, workers=settings.workers, fmu_path=engine_path,
                 max_internal_step=settings.data.internal_step_s) as eng:

@@ -42,6 +42,13 @@ class SearchWindows:
         return {"whole_s": self.whole_s, "window_s": self.window_s,
                 "tests": {s.name: _duration(s) for s in self.tests}}
 
+    def keyed(self, data_digest: str) -> str:
+        """The data's digest for the search's resume key: itself when nothing is cut (a search on whole tests
+        resumes as before), else with the windows' length (a state searched on other windows is not resumed)."""
+        if self.window_s == self.whole_s:
+            return data_digest
+        return f"{data_digest}/search on {self.window_s:.9g} of {self.whole_s:.9g} s"
+
     def text(self) -> str:
         """What the log says."""
         return (f"global search on each test's first {self.window_s:.3g} s of {self.whole_s:.3g} s (the start of each "
