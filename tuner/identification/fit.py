@@ -41,7 +41,6 @@ from damper_fmu.parameters import EFFECT_MODELS, SERIES_ELEMENT, defaults
 from tuner.data.reading import RigTest
 from tuner.identification import firefly
 from tuner.identification.engine import Engine, Signals
-from tuner.identification.search_window import search_windows
 from tuner.identification.floor import ResidualFloor
 from tuner.identification.full_rate import MIN_RATE_RATIO, comparison_rate, full_rate_check
 from tuner.identification.intervals import parameter_intervals, reached_ranges
@@ -51,6 +50,7 @@ from tuner.identification.problem import DataSettings, Problem, prepared_signals
 from tuner.identification.restart_check import (ROUNDS, SOFTEST_SERIES, TYPICAL_RESTARTS, RestartCheck, SeriesHold,
                                                restart_check, series_decades)
 from tuner.identification.runner import SimulationError
+from tuner.identification.search_window import search_windows
 from tuner.identification.validation import validation_run
 from tuner.metrics import noise_std, rmse_of_fitness
 from tuner.progress import advance, expect, stage

@@ -160,12 +160,13 @@ def refit_unseen(s: SearchState, effect: str, ext: ExtendedParametrization, scre
     after it 211 s to reach 21 N. When the ladder's profile finds no gap that fits better than the base refit at
     any held stiffness by more than the data resolve (one standard error of the RMSE, ``resolvable_n``;
     ``gap_fits_better`` False), it is not released and the full refit is not run: the screen (the base
-    re-balanced) and the profile (the element held decades apart) both found none the data can show. On the
-    0.25 A MR current a profile below that was released and refitted in full, 157 s of a 348 s job, to end at
-    0.185 mm with 2.2 N of force, below the noise; no unseen free play of the class or physical benchmarks'
-    logs was released at all, and the 0.54 mm gap above ended at 21 N rms against 528 N without it. Where that happened (the MR currents, the
-    physical benchmark's clean damper) the full refit took 37 s of a 191 s job on the two-chamber base and ended
-    below the noise every time (docs/measurements.md)."""
+    re-balanced) and the profile (the element held decades apart) both found none the data can show. Where no
+    gap fitted better at all (the MR currents, the physical benchmark's clean damper) the full refit took 37 s of
+    a 191 s job on the two-chamber base and ended below the noise every time; on the 0.25 A MR current a profile
+    0.003 N better (one standard error 0.81 N) was released and refitted in full, 157 s of a 348 s job, to end at
+    0.185 mm with 2.2 N of force, below the noise. No unseen free play in the class or physical benchmarks' logs
+    was released at all, and the 0.54 mm gap above ended at 21 N rms against 528 N without it
+    (docs/measurements.md)."""
     ladder = series_ladder(s, effect, ext, screened, s.resolvable_n)
     if scores(ladder) and not s.above_floor(ladder["identification_rmse_n"]):
         return ladder
