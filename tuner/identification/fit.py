@@ -24,6 +24,7 @@ lumped-model data), which no damper parameter can fix.
 from __future__ import annotations
 
 import collections
+import contextlib
 import hashlib
 import json
 import math
@@ -227,13 +228,16 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
     search_stop = {}
     section(log, "Firefly search")
     log(f"[{model}] {windows.text()}")
-    with Engine(model, windows.tests, engine=settings.engine, workers=settings.workers, fmu_path=engine_path,
-                max_internal_step=settings.data.internal_step_s) as eng:
+    with Engine(model, signals, engine=settings.engine, workers=settings.workers, fmu_path=engine_path,
+                max_internal_step=settings.data.internal_step_s) as eng, (
+            Engine(model, windows.tests, engine=settings.engine, workers=settings.workers, fmu_path=engine_path,
+                   max_internal_step=settings.data.internal_step_s) if windows.cut
+            else contextlib.nullcontext(eng)) as search_eng:  # one engine when nothing is cut
         def evaluate(Z):
-            return eng.fitness_batch([par.to_params(z) for z in Z])
+            return search_eng.fitness_batch([par.to_params(z) for z in Z])
 
         def at_resolution(st: firefly.FireflyState) -> bool:
-            search_stop.update(search_stop_now(st, opts, eng, par, rival if rival_at_floor else None))
+            search_stop.update(search_stop_now(st, opts, search_eng, par, rival if rival_at_floor else None))
             if search_stop:
                 log(f"[{model}] Firefly {search_stop['text']}: the local refinement takes over"
                     + (" (and its restart check)" if search_stop["reason"] == "stall" else ""))
@@ -262,9 +266,7 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
             first_population["pop"] = np.array(strict_json.loads(ckpt.read_text()).get("initial_population"))
         result = firefly.run(evaluate, par.dimension, options=opts, seed=settings.seed, state=state,
                              callback=callback, initial=initial)
-        last_failure = eng.last_failure
-    with Engine(model, signals, engine=settings.engine, workers=settings.workers, fmu_path=engine_path,
-                max_internal_step=settings.data.internal_step_s) as eng:
+        last_failure = search_eng.last_failure
         ref = _refine(eng, model, par, settings, result, guess_p, log, options)
         elapsed = time.perf_counter() - t_start
         section(log, "intervals")

@@ -36,6 +36,11 @@ class SearchWindows:
     whole_s: float
     window_s: float
 
+    @property
+    def cut(self) -> bool:
+        """Whether any test is shorter than its whole length."""
+        return self.window_s < self.whole_s
+
     def to_dict(self) -> dict:
         """The record in ``history_<model>.json``: the tests' and the windows' durations [s] (the search's fitness
         G, its Fig. 6, is on the windows)."""
@@ -45,7 +50,7 @@ class SearchWindows:
     def keyed(self, data_digest: str) -> str:
         """The data's digest for the search's resume key: itself when nothing is cut (a search on whole tests
         resumes as before), else with the windows' length (a state searched on other windows is not resumed)."""
-        if self.window_s == self.whole_s:
+        if not self.cut:
             return data_digest
         return f"{data_digest}/search on {self.window_s:.9g} of {self.whole_s:.9g} s"
 
