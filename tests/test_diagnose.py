@@ -833,10 +833,12 @@ def test_the_series_ladder_releases_only_a_gap_the_data_can_show(monkeypatch):
     n, sse_none = 1000, 1000 * 20.0 ** 2  # the base refit at 20 N rms
     released, beat = [], []
 
-    def series_profiles(eid, ext, z0, i, values, sse_off, held, enough):
-        beat.append(sse_off)  # the profile releases and sweeps a held value only below this SSE [N^2]
-        return SimpleNamespace(sse=[n * 19.5 ** 2, n * 25.0 ** 2], points=[np.zeros(2), np.ones(2)],
-                               evaluations=7)  # its best 0.5 N better than the base refit
+    def series_profiles(eid, ext, z0, i, values, held, targets):
+        assert targets.coarse is None  # no windows: the coarse passes judged on every sample
+        beat.append(targets.sse_off)  # the profile releases and sweeps a held value only below this SSE [N^2]
+        best = n * 19.5 ** 2  # its best 0.5 N better than the base refit
+        return SimpleNamespace(sse=[best, n * 25.0 ** 2], points=[np.zeros(2), np.ones(2)], evaluations=7,
+                               coarse_best=best, released=best < targets.coarse_sse_off)
 
     monkeypatch.setattr(nonsmooth, "series_profiles", series_profiles)
     monkeypatch.setattr(nonsmooth, "grid", lambda lo, hi, points, floor: [lo, hi])
@@ -851,7 +853,7 @@ def test_the_series_ladder_releases_only_a_gap_the_data_can_show(monkeypatch):
         kind="lumped", credible=True, floor=1.0, coarser=None, settings=DiagnosisSettings(), log=lambda m: None,
         par=Parametrization("lumped", force_limit=4e4), guess={"k_B": 1e7, "c_B": 1e4}, peak=1e3, stroke_range=0.05,
         cost=DiagnosisCost(reference=0.0, screen=0.0, refits=0.0, forms=0.0, detection=0.0), forecast=lambda: None,
-        base={}, z_none=np.zeros(1), eid=SimpleNamespace(n_samples=n), g_none=n / sse_none, share=2,
+        base={}, z_none=np.zeros(1), eid=SimpleNamespace(n_samples=n), ew=None, g_none=n / sse_none, share=2,
         refits={"free_play": Fit(ext, np.zeros(2), 10)}, polish_quietly=polish_quietly)
     s.par.to_params = lambda z: {}
     s.above_floor = lambda rmse, floor=None: rmse > 2.0
@@ -861,3 +863,37 @@ def test_the_series_ladder_releases_only_a_gap_the_data_can_show(monkeypatch):
     released_row = nonsmooth.series_ladder(s, "free_play", ext, row, gain_n=0.0)
     assert len(released) == 1 and "gap_fits_better" not in released_row
     assert np.allclose(beat, [n * 19.0 ** 2, sse_none])
+
+
+def test_the_ladders_gate_on_the_windows_is_the_base_refitted_there_not_the_base_point():
+    """On the search's windows the base point fitted on every sample is not a minimum: a coarse pass that only
+    re-fits the base there would beat it by its whole misfit. ``coarse_gate`` re-fits the base on the windows (the
+    gap held at zero) and asks a gap to beat that by one standard error of its RMSE (``gain_n`` > 0; none with
+    ``gain_n`` 0); without windows it asks the base refit's RMSE less ``gain_n`` on every sample."""
+    from types import SimpleNamespace
+
+    from tuner.diagnosis.search.nonsmooth import coarse_gate
+    from tuner.metrics import rmse_standard_error
+
+    ext = ExtendedParametrization(Parametrization("maxwell", force_limit=4e4), "free_play", peak_force=2e4)
+    noise = np.random.default_rng(3).normal(scale=4.0, size=600)
+
+    class Windows:  # the windows' residual [N]: noise and a misfit of the first base coordinate (best at 0.7)
+        n_samples = noise.size
+
+        def residuals_batch(self, points):
+            return [noise + 60.0 * (float(ext.base.from_params(p)[0]) - 0.7) for p in points]
+
+    none = np.full(ext.dimension, 0.5)
+    none[-1] = 0.0  # the gap off
+    at_none = Windows().residuals_batch([ext.to_params(none)])[0]
+    s = SimpleNamespace(ew=Windows(), eid=SimpleNamespace(n_samples=2000), g_none=1.0 / 10.0 ** 2)
+    gate = coarse_gate(s, ext, none, "free_play", gain_n=1.0)
+    assert gate.engine is s.ew and gate.n_samples == noise.size
+    assert gate.rmse_n == pytest.approx(math.sqrt(np.mean((noise - noise.mean()) ** 2)), rel=0.01)
+    assert gate.rmse_n < 0.5 * math.sqrt(np.mean(at_none ** 2))  # the base point's misfit is not a gap's gain
+    assert gate.gain_n == pytest.approx(rmse_standard_error(noise - noise.mean()), rel=0.05)
+    assert gate.sse_beat == pytest.approx(noise.size * (gate.rmse_n - gate.gain_n) ** 2)
+    assert coarse_gate(s, ext, none, "free_play", gain_n=0.0).gain_n == 0.0
+    whole = coarse_gate(SimpleNamespace(ew=s.eid, eid=s.eid, g_none=s.g_none), ext, none, "free_play", 1.0)
+    assert whole.engine is None and whole.sse_beat == pytest.approx(2000 * 9.0 ** 2)

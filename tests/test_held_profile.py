@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from tuner.diagnosis.extended_parametrization import ExtendedParametrization
-from tuner.diagnosis.held_profiles import (FAR_WORSE, HELD_PATIENCE, HeldSweep, held_profile, nonsmooth_profiles,
-                                           series_profiles)
+from tuner.diagnosis.held_profiles import (FAR_WORSE, HELD_PATIENCE, HeldSweep, SeriesTargets, held_profile,
+                                           nonsmooth_profiles, series_profiles)
 from tuner.identification.parametrization import Parametrization
 
 N = 50
@@ -185,13 +185,38 @@ def test_the_series_element_held_a_decade_up_lets_the_gap_profile_reach_what_a_r
     values = coordinates(ext, np.geomspace(0.1e-3, 1.5e-3, 8))
     from_base = held_profile(eng, ext, z0, 0, coordinates(ext, [GAP]), sse_off)
     assert from_base.sse[0] > 0.1 * sse_off
-    near = series_profiles(eng, ext, z0, 0, values, sse_off, [{"k_s": 6.0e7}])
+    near = series_profiles(eng, ext, z0, 0, values, [{"k_s": 6.0e7}], SeriesTargets(sse_off))
     k = int(np.argmin(near.sse))
     assert ext.to_params(near.points[k])["k_s"] == pytest.approx(SeriesEngine.K_STAR, rel=0.01)
     assert ext.to_params(near.points[k])["free_play"] == pytest.approx(GAP, rel=0.05)
     assert near.sse[k] < 1e-3 * from_base.sse[0]
-    far = series_profiles(eng, ext, z0, 0, values, sse_off, [{"k_s": 6.0e6}])
+    far = series_profiles(eng, ext, z0, 0, values, [{"k_s": 6.0e6}], SeriesTargets(sse_off))
     assert min(far.sse) > 0.1 * from_base.sse[0]
+
+
+def test_the_coarse_passes_on_the_windows_decide_the_release_and_the_releases_run_on_every_sample():
+    """With the coarse passes on another engine (the search's windows of the tests), the release is judged by its
+    own SSE there (``coarse_sse_off``): a bar no gap clears there releases nothing, whatever the tests would show;
+    a bar it clears releases, and the release on the tests' engine ends on K_STAR and GAP. The coarse points are
+    not among the profile's (their SSE is not on the tests' samples)."""
+    ext, z0 = ext_and_start()
+    eng, windows = SeriesEngine(ext), SeriesEngine(ext)
+    z0[0] = eng.u_star - 0.4
+    sse_off = float(np.sum(eng.residuals_batch([ext.to_params(np.r_[z0[:2], 0.0])])[0] ** 2))
+    values = coordinates(ext, np.geomspace(0.1e-3, 1.5e-3, 8))
+    held = [{"k_s": 6.0e7}]
+    unreachable = series_profiles(eng, ext, z0, 0, values, held, SeriesTargets(sse_off, coarse=windows,
+                                                                               coarse_sse_off=0.0))
+    assert not unreachable.released and unreachable.points == [] and unreachable.evaluations > 0
+    assert 0.0 < unreachable.coarse_best < sse_off  # on the tests it would have been released
+    released = series_profiles(eng, ext, z0, 0, values, held, SeriesTargets(sse_off, coarse=windows,
+                                                                            coarse_sse_off=sse_off))
+    assert released.released
+    k = int(np.argmin(released.sse))
+    assert ext.to_params(released.points[k])["k_s"] == pytest.approx(SeriesEngine.K_STAR, rel=0.01)
+    assert ext.to_params(released.points[k])["free_play"] == pytest.approx(GAP, rel=0.05)
+    alone = series_profiles(eng, ext, z0, 0, values, held, SeriesTargets(sse_off))
+    assert len(released.points) < len(alone.points)  # the coarse points are the tests' only without windows
 
 
 def test_the_series_ladder_holds_decades_across_the_range_never_one_value():

@@ -95,12 +95,13 @@ def refit_cost(d: int, extra: int, settings, nonsmooth: bool = False) -> float:
     return profile + held + _joint_polish(settings) * (d + extra + 1)
 
 
-def series_cost(d: int, settings, held: int) -> float:
+def series_cost(d: int, settings, held: int, coarse_share: float = 1.0) -> float:
     """Simulations of ``tuner.diagnosis.held_profiles.series_profiles`` with the series element held at ``held``
     values and the joint polish after: per held value, the coarse pass (the grid's values, each SERIES_HELD_JACOBIANS
-    Jacobians, counted at d + 1 simulations: an upper bound, as the series element and the magnitude are held) and
-    the chained sweep from its release (about the grid's values again, HELD_PROFILE_JACOBIANS each)."""
-    per_value = SERIES_HELD_JACOBIANS * (d + 1) + HELD_PROFILE_JACOBIANS * (d + 3)
+    Jacobians, counted at d + 1 simulations: an upper bound, as the series element and the magnitude are held; each
+    ``coarse_share`` of a simulation of the tests: the search's windows' samples per sample) and the chained sweep
+    from its release (about the grid's values again, HELD_PROFILE_JACOBIANS each)."""
+    per_value = coarse_share * SERIES_HELD_JACOBIANS * (d + 1) + HELD_PROFILE_JACOBIANS * (d + 3)
     return held * settings.grid_points * per_value + _joint_polish(settings) * (d + 2)
 
 

@@ -16,7 +16,8 @@ from tuner.diagnosis.extended_parametrization import ExtendedParametrization
 from tuner.identification.engine import Engine
 from tuner.identification.polish import polish
 
-__all__ = ["HeldProfile", "HeldSweep", "held_profile", "nonsmooth_profiles", "series_profiles", "PROBE_JACOBIANS",
+__all__ = ["HeldProfile", "HeldSweep", "SeriesProfile", "SeriesTargets", "held_profile", "nonsmooth_profiles",
+           "series_profiles", "PROBE_JACOBIANS",
            "HELD_PROFILE_JACOBIANS", "COARSE_HELD_JACOBIANS", "HELD_PATIENCE", "FAR_WORSE", "SERIES_HELD_JACOBIANS"]
 
 #: Jacobians of the joint polish that must win ``tuner.diagnosis.refit.PROFILE_SHARE`` when the profile did not, for
@@ -69,6 +70,34 @@ class HeldProfile:
         return HeldProfile(self.points + other.points, self.sse + other.sse, self.evaluations + other.evaluations)
 
 
+@dataclass(frozen=True)
+class SeriesTargets:
+    """What ``series_profiles`` measures against: ``sse_off`` [N^2] on the identification tests (the model without
+    the effect: what the released and swept profiles must beat), ``enough`` [N^2] (a profile that reaches it ends
+    the ladder; 0: never), and where the coarse passes with the element held run: ``coarse``, an engine of the
+    search's windows of the tests (``tuner.identification.search_window``; None: the tests themselves), on which a
+    coarse pass must fit below ``coarse_sse_off`` [N^2] for its held value to be released."""
+
+    sse_off: float
+    enough: float = 0.0
+    coarse: Engine | None = None
+    coarse_sse_off: float = math.inf
+
+
+@dataclass(frozen=True)
+class SeriesProfile:
+    """``series_profiles``' result: the ``points`` (search coordinates) and their identification ``sse`` [N^2] on
+    every sample (the released and swept profiles, and the coarse passes when they ran on the tests themselves),
+    the simulations of all, the coarse passes' best SSE [N^2] on their own engine (``coarse_best``) and whether a
+    held value was ``released``."""
+
+    points: list
+    sse: list
+    evaluations: int
+    coarse_best: float
+    released: bool
+
+
 def nonsmooth_profiles(eid: Engine, ext: ExtendedParametrization, starts: list, pts: list, sse: list,
                        profile=None, sse_off: float = math.inf) -> HeldProfile:
     """The ``held_profile`` of every nonsmooth effect's magnitude among the extra parameters profiled (``profile``:
@@ -118,18 +147,21 @@ def _swept_profile(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, i:
 
 
 def series_profiles(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, i: int, values: list,
-                    sse_off: float, held: list[dict], enough: float = 0.0) -> HeldProfile:
+                    held: list[dict], targets: SeriesTargets) -> SeriesProfile:
     """The held profile of the nonsmooth magnitude ``i`` of ``ext`` (a free play) from ``z0`` (search coordinates)
     with the element in series with it held at each of ``held`` (``{stiffness: N/m, damping: N s/m}``,
     ``damper_fmu.parameters.SERIES_ELEMENT``): at every value of ``values`` (search coordinates, ascending) the
     rest re-fitted with ``SERIES_HELD_JACOBIANS`` (stopping ``HELD_PATIENCE`` values past its best), then the
     series element released at the best value (``HELD_PROFILE_JACOBIANS``) and the chained profile swept from
-    there (``_swept_profile``; ``sse_off`` [N^2]: the model without the effect); the held values after one whose
-    profile reaches ``enough`` [N^2] are not tried; with ``enough`` given, a short joint polish from each release
-    (``_probe``) that reaches it ends the profile there. A held value whose coarse profile fits no better than the
-    model without the effect (``sse_off``) anywhere shows no gap the element hid: it is not released nor swept (on
-    a real MR damper, whose fit wants a soft mount, the release and sweeps of two held values took three of a
-    diagnosis's four minutes to end 0.2 N above the base). Points in ``ext``'s coordinates.
+    there (``_swept_profile``; ``targets.sse_off`` [N^2]: the model without the effect); the held values after one
+    whose profile reaches ``targets.enough`` [N^2] are not tried; with it given, a short joint polish from each
+    release (``_probe``) that reaches it ends the profile there. A held value whose coarse profile fits no better
+    than the model without the effect anywhere shows no gap the element hid: it is not released nor swept (on a real
+    MR damper, whose fit wants a soft mount, the release and sweeps of two held values took three of a diagnosis's
+    four minutes to end 0.2 N above the base). The coarse passes run on ``targets.coarse`` when given (the search's
+    windows: they only say which held value to release, and a periodic rig test repeats what its window holds),
+    judged against ``targets.coarse_sse_off``; the releases and sweeps on every sample. Points in ``ext``'s
+    coordinates.
 
     Why: a base fitted without the gap may have made its mount a dashpot, which carries a gap's lost motion as
     well as a gap can, and a refit with the gap from there keeps it. A two-chamber damper with a 0.114 mm gap in
@@ -138,16 +170,21 @@ def series_profiles(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, i
     125-242 N. With the mount held at 3e8 N/m and 5.1e4 N s/m, two Jacobians per gap value: 121, 87, 161 and
     576 N at 0.03, 0.06, 0.12 and 0.24 mm; released at 0.06 mm, 74 N with the mount at 1.8e8 N/m; at 3e9 N/m the
     best was 0.12 mm (77 N, released 63 N); at the preset's 3e7 N/m, 408 N and more."""
-    out = HeldProfile([], [], 0)
+    sse_off, enough = targets.sse_off, targets.enough
+    coarse_eng, coarse_off = (targets.coarse, targets.coarse_sse_off) if targets.coarse is not None else (eid, sse_off)
+    out, coarse_best, any_released = HeldProfile([], [], 0), math.inf, False
     for values_held in held:
         space = ext.holding_base(values_held)
-        coarse = held_profile(eid, space, space.from_params(ext.to_params(z0)), i, values,
+        coarse = held_profile(coarse_eng, space, space.from_params(ext.to_params(z0)), i, values,
                               sweep=HeldSweep(jacobians=SERIES_HELD_JACOBIANS))
         points = [ext.from_params(space.to_params(z)) for z in coarse.points]
-        out = out.joined(HeldProfile(points, coarse.sse, coarse.evaluations))
+        on_tests = targets.coarse is None  # its SSE comparable with the releases'
+        out = out.joined(HeldProfile(points if on_tests else [], coarse.sse if on_tests else [], coarse.evaluations))
         b = int(np.argmin(coarse.sse))
-        if not (coarse.sse[b] < sse_off):  # no gap fits better than none with the element held: nothing to release
+        coarse_best = min(coarse_best, coarse.sse[b])
+        if not (coarse.sse[b] < coarse_off):  # no gap fits better than none with the element held: nothing to release
             continue
+        any_released = True
         released = held_profile(eid, ext, points[b], i, [values[b]])
         out = out.joined(released)
         if enough > 0.0 and math.isfinite(released.sse[0]):
@@ -157,7 +194,7 @@ def series_profiles(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, i
         out = out.joined(_swept_profile(eid, ext, released.points[0], i, values, values[b], sse_off))
         if min(out.sse) <= enough:
             break
-    return out
+    return SeriesProfile(out.points, out.sse, out.evaluations, coarse_best, any_released)
 
 
 def _probe(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray) -> HeldProfile:

@@ -5,6 +5,7 @@ floor is left without a cause (``refit_unseen_nonsmooth``). SI units; forces in 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -13,12 +14,14 @@ from damper_fmu.parameters import SERIES_ELEMENT
 
 from tuner.diagnosis.cost_model import refit_cost, series_cost
 from tuner.diagnosis.extended_parametrization import ExtendedParametrization, grid
-from tuner.diagnosis.held_profiles import series_profiles
+from tuner.diagnosis.held_profiles import SERIES_HELD_JACOBIANS, SeriesTargets, series_profiles
 from tuner.diagnosis.rules import UNEXPLAINED_RATIO, scores
 from tuner.diagnosis.search.refits import refit_candidate
 from tuner.diagnosis.search.rows import held_out, log_row
 from tuner.diagnosis.search.state import Fit, SearchState
+from tuner.identification.polish import polish
 from tuner.identification.restart_check import SOFTEST_SERIES, series_decades
+from tuner.metrics import rmse_standard_error
 
 __all__ = ["series_ladder", "unearned_nonsmooth", "shows_gain", "signalled_nonsmooth", "refit_unseen_nonsmooth",
            "refit_unseen"]
@@ -40,9 +43,12 @@ def series_ladder(s: SearchState, effect: str, ext: ExtendedParametrization, row
     dashpot carries a gap's lost motion; the next value only while the residual stays above the floor), then
     polished jointly, when the profile's best fits better than the base refit by more than ``gain_n`` [N of
     identification RMSE] (the profile itself releases and sweeps only such a held value); the better refit of the
-    effect is kept. Returns its ranking row (``series_element_held``: the
-    values held [SI]; ``series_element_released``: whether the ladder's refit was kept). Not run again in a
-    diagnosis on a finer grid when the coarser grid's ladder kept nothing (``CoarserGrid.idle_ladders``)."""
+    effect is kept. The coarse passes with the element held run on the search's windows of the tests where they
+    cut them (``coarse_gate``: judged against the base re-fitted there); the releases on every sample. On the
+    0.25 A MR current that took the ladder from 45 to 13 s (docs/measurements.md). Returns its ranking row
+    (``series_element_held``: the values held [SI]; ``series_element_released``: whether the ladder's refit was
+    kept). Not run again in a diagnosis on a finer grid when the coarser grid's ladder kept nothing
+    (``CoarserGrid.idle_ladders``)."""
     names = SERIES_ELEMENT.get(s.kind)
     if names is None or not s.above_floor(row["identification_rmse_n"]):
         return row
@@ -56,7 +62,8 @@ def series_ladder(s: SearchState, effect: str, ext: ExtendedParametrization, row
     i = ext.extra.index(ALL_EFFECTS[effect].magnitude)
     lo, hi = ext.extra_bounds[i]
     values = [(v - lo) / (hi - lo) for v in grid(lo, hi, s.settings.grid_points, ext.floors[i]) if v > lo]
-    cost = series_cost(s.par.dimension, s.settings, len(held))
+    windows = s.ew.n_samples / s.eid.n_samples if s.ew is not None else 1.0
+    cost = series_cost(s.par.dimension, s.settings, len(held), windows)
     s.cost.refits += cost
     s.forecast()
     s.log(f"  {effect:14s} at {row['identification_rmse_n']:.1f} N, above the floor: profiled "
@@ -66,15 +73,18 @@ def series_ladder(s: SearchState, effect: str, ext: ExtendedParametrization, row
     enough = s.eid.n_samples * (UNEXPLAINED_RATIO * s.floor) ** 2 if s.credible else 0.0
     rmse_none = math.sqrt(1.0 / s.g_none)
     sse_beat = s.eid.n_samples * max(rmse_none - gain_n, 0.0) ** 2  # what a gap must fit better than [N^2]
-    prof = series_profiles(s.eid, ext, start, i, values, sse_beat, held, enough)
+    coarse = coarse_gate(s, ext, start, ALL_EFFECTS[effect].magnitude, gain_n)
+    prof = series_profiles(s.eid, ext, start, i, values, held,
+                           SeriesTargets(sse_beat, enough, coarse.engine, coarse.sse_beat))
     fit = s.refits[effect]
-    gain = rmse_none - math.sqrt(min(prof.sse) / s.eid.n_samples)  # [N]
-    if not min(prof.sse) < sse_beat:  # no gap value fits better with the element held (``series_profiles``)
+    if not prof.released:  # no gap value fits better with the element held (``series_profiles``)
         s.cost.refits = max(0.0, s.cost.refits - cost)
         s.refits[effect] = Fit(fit.ext, fit.z, fit.evaluations + prof.evaluations)
+        gain = coarse.rmse_n - math.sqrt(prof.coarse_best / coarse.n_samples)  # [N]
         s.log(f"  {effect:14s} no gap fits better than the base refit with the series element held"
-              + (f" by more than the data resolve ({gain:.2g} N, one standard error {gain_n:.2g} N)" if gain_n > 0
-                 else "") + ": not released")
+              + (f" by more than the data resolve ({gain:.2g} N, one standard error {coarse.gain_n:.2g} N"
+                 + (f", on the search's windows of the tests)" if coarse.engine is not None else ")")
+                 if gain_n > 0 else "") + ": not released")
         return {**row, "evaluations": fit.evaluations + prof.evaluations, "series_element_held": held,
                 "series_element_released": False, "gap_fits_better": False}
     pol = s.polish_quietly(ext, prof.points[int(np.argmin(prof.sse))], s.share)
@@ -90,6 +100,44 @@ def series_ladder(s: SearchState, effect: str, ext: ExtendedParametrization, row
     start_k = ext.to_params(prof.points[int(np.argmin(prof.sse))])[k]
     source = min((h[k] for h in held), key=lambda v: abs(math.log(v / start_k)))
     return {**new, "series_element_held": held, "series_element_released": True, "series_element_kept_from": source}
+
+
+@dataclass(frozen=True)
+class CoarseGate:
+    """Where the ladder's coarse passes run and what they must beat (``coarse_gate``): ``engine`` (the search's
+    windows of the identification tests; None: the tests themselves), its ``n_samples``, the base refit's RMSE
+    ``rmse_n`` [N] on it, the gain ``gain_n`` [N] a gap must show there and the SSE ``sse_beat`` [N^2] that is."""
+
+    engine: object
+    n_samples: int
+    rmse_n: float
+    gain_n: float
+    sse_beat: float
+
+
+def coarse_gate(s: SearchState, ext: ExtendedParametrization, none: np.ndarray, magnitude: str,
+                gain_n: float) -> CoarseGate:
+    """The coarse passes' gate of ``series_ladder``. Where the search's windows cut the identification tests
+    (``SearchState.ew``; ``tuner.identification.search_window``): the base refit at ``none`` (``ext``'s search
+    coordinates, the effect off) re-fitted on the windows as each coarse value is (``SERIES_HELD_JACOBIANS``, the
+    ``magnitude`` held at zero, the series element free), and a gap must fit better than that by one standard error
+    of its RMSE when ``gain_n`` > 0 (the data's resolution, as ``gain_n`` [N] is on every sample), else at all. Not the
+    base point itself: fitted on every sample, it is not a minimum on the windows, and any re-fit there gains (on
+    the 0.25 A MR current the coarse passes beat it by more than a standard error, and the release and full refit
+    took 132 s for a 2.2 N gap force). Where the windows cut nothing (or the re-fit cannot be simulated on them):
+    on every sample, the base refit's RMSE less ``gain_n``."""
+    r = None
+    if s.ew is not None and s.ew is not s.eid:
+        held = ext.holding({magnitude: 0.0})
+        pol = polish(s.ew, held, held.from_params(ext.to_params(none)), max_jacobians=SERIES_HELD_JACOBIANS,
+                     log=lambda m: None)
+        r = s.ew.residuals_batch([held.to_params(pol.z)])[0] if pol.fitness > 0 else None
+    if r is None:
+        rmse = math.sqrt(1.0 / s.g_none)
+        return CoarseGate(None, s.eid.n_samples, rmse, gain_n, s.eid.n_samples * max(rmse - gain_n, 0.0) ** 2)
+    rmse = math.sqrt(float(r @ r) / s.ew.n_samples)
+    gain = rmse_standard_error(r) if gain_n > 0 else 0.0
+    return CoarseGate(s.ew, s.ew.n_samples, rmse, gain, s.ew.n_samples * max(rmse - gain, 0.0) ** 2)
 
 
 def unearned_nonsmooth(effect: str, row: dict) -> bool:

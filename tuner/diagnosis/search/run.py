@@ -2,6 +2,7 @@
 that hold them), and its detection limits (``detection``). SI units; forces in N."""
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import dataclass
 
@@ -23,6 +24,7 @@ from tuner.diagnosis.settings import DiagnosisSettings
 from tuner.diagnosis.verdict import UNITS, limit_text
 from tuner.identification.engine import Engine
 from tuner.identification.problem import Problem
+from tuner.identification.search_window import search_windows
 from tuner.progress import advance
 
 __all__ = ["BaseRun", "diagnose_on", "run", "detection", "absorbing_groups"]
@@ -58,8 +60,10 @@ def run(s: SearchState) -> dict:
     residual_evidence(s)
     kw = dict(engine=s.settings.engine, workers=s.settings.workers, max_internal_step=s.data.settings.internal_step_s,
               fmu_path=ensure_fmu(s.kind) if s.settings.engine == "fmu" else None)
-    with Engine(s.kind, s.data.sig_id, **kw) as s.eid, Engine(s.kind, s.data.sig_val, **kw) as s.ev:
-        s.eid.after_batch = s.ev.after_batch = s.tick
+    windows = search_windows(s.data.sig_id)
+    with Engine(s.kind, s.data.sig_id, **kw) as s.eid, Engine(s.kind, s.data.sig_val, **kw) as s.ev, (
+            Engine(s.kind, windows.tests, **kw) if windows.cut else contextlib.nullcontext(s.eid)) as s.ew:
+        s.eid.after_batch = s.ev.after_batch = s.ew.after_batch = s.tick
         s.at("candidate refits")
         s.record["partial"]["ranking"] = s.ranking
         s.t_engines = time.perf_counter()

@@ -95,6 +95,9 @@ class SearchState:
     t_engines: float = field(default_factory=time.perf_counter)  # when the engines opened: the live cost per simulation
     eid: Engine | None = None  # the identification tests' engine (``run``)
     ev: Engine | None = None  # the held-out tests' engine (``run``)
+    #: the search's windows of the identification tests (``run``; ``tuner.identification.search_window``; ``eid``
+    #: itself when they cut nothing): where the free-play ladder's coarse passes run (``nonsmooth.series_ladder``)
+    ew: Engine | None = None
     # the residual floor and evidence (``reference.residual_floor``, ``reference.residual_evidence``)
     stroke_noise_n: float = math.nan  # [N rms] the stroke channel's noise through the base model
     floor: float = math.nan  # [N] the residual floor
@@ -148,6 +151,8 @@ class SearchState:
             return
         share = sum(self.lengths) / self.eid.n_samples
         evaluations = self.eid.evaluations + share * self.ev.evaluations
+        if self.ew is not None and self.ew is not self.eid:  # the windows' simulations, as shares of the tests'
+            evaluations += self.ew.n_samples / self.eid.n_samples * self.ew.evaluations
         spent = time.perf_counter() - self.t_engines
         if self.rate_prior is not None:  # the fit's, worth PRIOR_EVALUATIONS (the first batch starts the workers)
             evaluations, spent = evaluations + PRIOR_EVALUATIONS, spent + PRIOR_EVALUATIONS * self.rate_prior
