@@ -872,7 +872,7 @@ def test_the_ladders_gate_on_the_windows_is_the_base_refitted_there_not_the_base
     ``gain_n`` 0); without windows it asks the base refit's RMSE less ``gain_n`` on every sample."""
     from types import SimpleNamespace
 
-    from tuner.diagnosis.search.nonsmooth import coarse_gate
+    from tuner.diagnosis.search.nonsmooth import CoarseGate, coarse_gate
     from tuner.metrics import rmse_standard_error
 
     ext = ExtendedParametrization(Parametrization("maxwell", force_limit=4e4), "free_play", peak_force=2e4)
@@ -888,12 +888,16 @@ def test_the_ladders_gate_on_the_windows_is_the_base_refitted_there_not_the_base
     none[-1] = 0.0  # the gap off
     at_none = Windows().residuals_batch([ext.to_params(none)])[0]
     s = SimpleNamespace(ew=Windows(), eid=SimpleNamespace(n_samples=2000), g_none=1.0 / 10.0 ** 2)
-    gate = coarse_gate(s, ext, none, "free_play", gain_n=1.0)
+
+    def whole(gain_n):  # the gate on every sample: the base refit at 10 N rms on 2000 samples
+        return CoarseGate.of(None, 2000, 10.0, gain_n)
+
+    gate = coarse_gate(s, ext, none, "free_play", whole(1.0))
     assert gate.engine is s.ew and gate.n_samples == noise.size
     assert gate.rmse_n == pytest.approx(math.sqrt(np.mean((noise - noise.mean()) ** 2)), rel=0.01)
     assert gate.rmse_n < 0.5 * math.sqrt(np.mean(at_none ** 2))  # the base point's misfit is not a gap's gain
     assert gate.gain_n == pytest.approx(rmse_standard_error(noise - noise.mean()), rel=0.05)
     assert gate.sse_beat == pytest.approx(noise.size * (gate.rmse_n - gate.gain_n) ** 2)
-    assert coarse_gate(s, ext, none, "free_play", gain_n=0.0).gain_n == 0.0
-    whole = coarse_gate(SimpleNamespace(ew=s.eid, eid=s.eid, g_none=s.g_none), ext, none, "free_play", 1.0)
-    assert whole.engine is None and whole.sse_beat == pytest.approx(2000 * 9.0 ** 2)
+    assert coarse_gate(s, ext, none, "free_play", whole(0.0)).gain_n == 0.0
+    uncut = coarse_gate(SimpleNamespace(ew=s.eid, eid=s.eid, g_none=s.g_none), ext, none, "free_play", whole(1.0))
+    assert uncut.engine is None and uncut.sse_beat == pytest.approx(2000 * 9.0 ** 2)

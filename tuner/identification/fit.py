@@ -24,7 +24,6 @@ lumped-model data), which no damper parameter can fix.
 from __future__ import annotations
 
 import collections
-import contextlib
 import hashlib
 import json
 import math
@@ -228,11 +227,9 @@ def identify(model: str, signals: list[Signals], settings: FitSettings, par: Par
     search_stop = {}
     section(log, "Firefly search")
     log(f"[{model}] {windows.text()}")
-    with Engine(model, signals, engine=settings.engine, workers=settings.workers, fmu_path=engine_path,
-                max_internal_step=settings.data.internal_step_s) as eng, (
-            Engine(model, windows.tests, engine=settings.engine, workers=settings.workers, fmu_path=engine_path,
-                   max_internal_step=settings.data.internal_step_s) if windows.cut
-            else contextlib.nullcontext(eng)) as search_eng:  # one engine when nothing is cut
+    kw = dict(engine=settings.engine, workers=settings.workers, fmu_path=engine_path,
+              max_internal_step=settings.data.internal_step_s)
+    with Engine(model, signals, **kw) as eng, windows.engine(eng, model, **kw) as search_eng:
         def evaluate(Z):
             return search_eng.fitness_batch([par.to_params(z) for z in Z])
 

@@ -15,11 +15,12 @@ is cut to about two cycles. The samples the low-pass cannot cover at the window'
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 
 import numpy as np
 
-from tuner.identification.engine import Signals
+from tuner.identification.engine import Engine, Signals
 
 __all__ = ["search_window", "REACH", "SearchWindows", "search_windows"]
 
@@ -53,6 +54,11 @@ class SearchWindows:
         if not self.cut:
             return data_digest
         return f"{data_digest}/search on {self.window_s:.9g} of {self.whole_s:.9g} s"
+
+    def engine(self, whole, model: str, **kw):
+        """A context manager giving an engine of ``model`` on the windows (``Engine`` keyword arguments ``kw``), or
+        the engine ``whole`` of the whole tests itself when nothing is cut (one engine, no second worker pool)."""
+        return Engine(model, self.tests, **kw) if self.cut else contextlib.nullcontext(whole)
 
     def text(self) -> str:
         """What the log says."""

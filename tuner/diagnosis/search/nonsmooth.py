@@ -71,11 +71,10 @@ def series_ladder(s: SearchState, effect: str, ext: ExtendedParametrization, row
           f"N s/m), released where a gap fits better")
     start = ext.from_params({**s.base, **s.par.to_params(s.z_none)})
     enough = s.eid.n_samples * (UNEXPLAINED_RATIO * s.floor) ** 2 if s.credible else 0.0
-    rmse_none = math.sqrt(1.0 / s.g_none)
-    sse_beat = s.eid.n_samples * max(rmse_none - gain_n, 0.0) ** 2  # what a gap must fit better than [N^2]
-    coarse = coarse_gate(s, ext, start, ALL_EFFECTS[effect].magnitude, gain_n)
+    whole = CoarseGate.of(None, s.eid.n_samples, math.sqrt(1.0 / s.g_none), gain_n)  # on every sample
+    coarse = coarse_gate(s, ext, start, ALL_EFFECTS[effect].magnitude, whole)
     prof = series_profiles(s.eid, ext, start, i, values, held,
-                           SeriesTargets(sse_beat, enough, coarse.engine, coarse.sse_beat))
+                           SeriesTargets(whole.sse_beat, enough, coarse.engine, coarse.sse_beat))
     fit = s.refits[effect]
     if not prof.released:  # no gap value fits better with the element held (``series_profiles``)
         s.cost.refits = max(0.0, s.cost.refits - cost)
@@ -114,18 +113,23 @@ class CoarseGate:
     gain_n: float
     sse_beat: float
 
+    @classmethod
+    def of(cls, engine, n_samples: int, rmse_n: float, gain_n: float) -> "CoarseGate":
+        """The gate whose SSE to beat is that of an RMSE ``gain_n`` [N] below ``rmse_n`` [N] on ``n_samples``."""
+        return cls(engine, n_samples, rmse_n, gain_n, n_samples * max(rmse_n - gain_n, 0.0) ** 2)
+
 
 def coarse_gate(s: SearchState, ext: ExtendedParametrization, none: np.ndarray, magnitude: str,
-                gain_n: float) -> CoarseGate:
+                whole: CoarseGate) -> CoarseGate:
     """The coarse passes' gate of ``series_ladder``. Where the search's windows cut the identification tests
     (``SearchState.ew``; ``tuner.identification.search_window``): the base refit at ``none`` (``ext``'s search
     coordinates, the effect off) re-fitted on the windows as each coarse value is (``SERIES_HELD_JACOBIANS``, the
     ``magnitude`` held at zero, the series element free), and a gap must fit better than that by one standard error
-    of its RMSE when ``gain_n`` > 0 (the data's resolution, as ``gain_n`` [N] is on every sample), else at all. Not the
+    of its RMSE when ``whole.gain_n`` > 0 (the data's resolution, as it is on every sample), else at all. Not the
     base point itself: fitted on every sample, it is not a minimum on the windows, and any re-fit there gains (on
     the 0.25 A MR current the coarse passes beat it by more than a standard error, and the release and full refit
     took 132 s for a 2.2 N gap force). Where the windows cut nothing (or the re-fit cannot be simulated on them):
-    on every sample, the base refit's RMSE less ``gain_n``."""
+    ``whole``, the gate on every sample."""
     r = None
     if s.ew is not None and s.ew is not s.eid:
         held = ext.holding({magnitude: 0.0})
@@ -133,11 +137,9 @@ def coarse_gate(s: SearchState, ext: ExtendedParametrization, none: np.ndarray, 
                      log=lambda m: None)
         r = s.ew.residuals_batch([held.to_params(pol.z)])[0] if pol.fitness > 0 else None
     if r is None:
-        rmse = math.sqrt(1.0 / s.g_none)
-        return CoarseGate(None, s.eid.n_samples, rmse, gain_n, s.eid.n_samples * max(rmse - gain_n, 0.0) ** 2)
-    rmse = math.sqrt(float(r @ r) / s.ew.n_samples)
-    gain = rmse_standard_error(r) if gain_n > 0 else 0.0
-    return CoarseGate(s.ew, s.ew.n_samples, rmse, gain, s.ew.n_samples * max(rmse - gain, 0.0) ** 2)
+        return whole
+    gain = rmse_standard_error(r) if whole.gain_n > 0 else 0.0
+    return CoarseGate.of(s.ew, s.ew.n_samples, math.sqrt(float(r @ r) / s.ew.n_samples), gain)
 
 
 def unearned_nonsmooth(effect: str, row: dict) -> bool:

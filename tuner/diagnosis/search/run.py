@@ -2,7 +2,6 @@
 that hold them), and its detection limits (``detection``). SI units; forces in N."""
 from __future__ import annotations
 
-import contextlib
 import time
 from dataclasses import dataclass
 
@@ -61,8 +60,8 @@ def run(s: SearchState) -> dict:
     kw = dict(engine=s.settings.engine, workers=s.settings.workers, max_internal_step=s.data.settings.internal_step_s,
               fmu_path=ensure_fmu(s.kind) if s.settings.engine == "fmu" else None)
     windows = search_windows(s.data.sig_id)
-    with Engine(s.kind, s.data.sig_id, **kw) as s.eid, Engine(s.kind, s.data.sig_val, **kw) as s.ev, (
-            Engine(s.kind, windows.tests, **kw) if windows.cut else contextlib.nullcontext(s.eid)) as s.ew:
+    with Engine(s.kind, s.data.sig_id, **kw) as s.eid, Engine(s.kind, s.data.sig_val, **kw) as s.ev, \
+            windows.engine(s.eid, s.kind, **kw) as s.ew:
         s.eid.after_batch = s.ev.after_batch = s.ew.after_batch = s.tick
         s.at("candidate refits")
         s.record["partial"]["ranking"] = s.ranking
