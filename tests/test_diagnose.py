@@ -854,6 +854,7 @@ def test_the_series_ladder_releases_only_a_gap_the_data_can_show(monkeypatch):
         par=Parametrization("lumped", force_limit=4e4), guess={"k_B": 1e7, "c_B": 1e4}, peak=1e3, stroke_range=0.05,
         cost=DiagnosisCost(reference=0.0, screen=0.0, refits=0.0, forms=0.0, detection=0.0), forecast=lambda: None,
         base={}, z_none=np.zeros(1), eid=SimpleNamespace(n_samples=n), ew=None, g_none=n / sse_none, share=2,
+        resolvable_n=1.0,
         refits={"free_play": Fit(ext, np.zeros(2), 10)}, polish_quietly=polish_quietly)
     s.par.to_params = lambda z: {}
     s.above_floor = lambda rmse, floor=None: rmse > 2.0
@@ -901,3 +902,33 @@ def test_the_ladders_gate_on_the_windows_is_the_base_refitted_there_not_the_base
     assert coarse_gate(s, ext, none, "free_play", whole(0.0)).gain_n == 0.0
     uncut = coarse_gate(SimpleNamespace(ew=s.eid, eid=s.eid, g_none=s.g_none), ext, none, "free_play", whole(1.0))
     assert uncut.engine is None and uncut.sse_beat == pytest.approx(2000 * 9.0 ** 2)
+
+
+def test_a_refit_whose_held_out_tests_cannot_be_simulated_says_why_and_is_no_cause():
+    """A refit point at which the held-out engine fails (None, its reason in ``last_failure``): the row's held-out
+    MSE is infinite (no score: it cannot be named), it keeps the engine's reason, and the log says the held-out
+    tests cannot be simulated with that reason instead of a change of '+inf %'."""
+    from types import SimpleNamespace
+
+    from tuner.diagnosis.effect_sizes import REFERENCE
+    from tuner.diagnosis.search.rows import held_out, log_row
+
+    class Eng:
+        def __init__(self, residuals, failure=""):
+            self.residuals, self.last_failure = residuals, failure
+
+        def residuals_batch(self, points):
+            return [self.residuals(p) for p in points]
+
+    said = []
+    s = SimpleNamespace(ev=Eng(lambda p: None, "stage Newton did not converge at t = 1.2 s"),
+                        eid=Eng(lambda p: np.full(20, 3.0 + 1e3 * p["free_play"])), lengths=[10, 10], noise=0.5,
+                        size=REFERENCE, peak=2e4, stroke_range=0.05, stroke_limits=None,
+                        data=SimpleNamespace(sig_val=[SimpleNamespace(name="a"), SimpleNamespace(name="b")]),
+                        log=said.append)
+    row = held_out(s, "free_play", {"free_play": 2e-3}, ["free_play"], 1.0 / 9.0, 10, 100.0)
+    row["refitted"] = True
+    assert math.isinf(row["validation_mse"]) and row["score"] == -math.inf
+    assert row["validation_failure"] == "stage Newton did not converge at t = 1.2 s"
+    log_row(s, row)
+    assert "cannot be simulated" in said[0] and "stage Newton did not converge" in said[0] and "inf" not in said[0]

@@ -19,7 +19,8 @@ from tuner.data.reading import load_dataset
 from tuner.diagnosis.bases import FittedBases
 from tuner.diagnosis.diagnose import DiagnosisSettings, diagnose
 from tuner.diagnosis.forms import shape_grid
-from tuner.diagnosis.search.form_steps import COULOMB_EDGE
+from tuner.diagnosis.rules import FORM_EXCESS_SHARE
+from tuner.diagnosis.search.form_steps import COULOMB_EDGE, continuation_target
 from tuner.identification.engine import fastest_engine
 from tuner.job import write_diagnosis
 
@@ -266,3 +267,18 @@ def test_a_late_stage_that_fails_leaves_its_record_and_report_and_the_run_resume
     assert res["effect_parameters"]["friction_force"]["value"] == pytest.approx(200.0, rel=0.2)
     assert "failed_stage" not in json.loads((out / "diagnosis.json").read_text())
     assert "FAILED" not in (out / "report.html").read_text()
+
+
+def test_a_forms_continuation_must_be_able_to_remove_the_naming_share_of_the_residual_above_the_floor():
+    """``continuation_target``: the identification SSE [N^2] at which a form has removed FORM_EXCESS_SHARE of the
+    current model's power above the residual floor (N x floor^2), the share the naming rule asks on the held-out
+    tests; a current model at or below the floor leaves nothing to remove (its own SSE)."""
+    from types import SimpleNamespace
+
+    n, floor = 400, 3.0
+    s = SimpleNamespace(eid=SimpleNamespace(n_samples=n), floor=floor)
+    sse_cur = n * 15.0 ** 2
+    target = continuation_target(s, sse_cur)
+    assert (sse_cur - target) / (sse_cur - n * floor ** 2) == pytest.approx(FORM_EXCESS_SHARE)
+    assert n * floor ** 2 < target < sse_cur
+    assert continuation_target(s, n * 2.0 ** 2) == n * 2.0 ** 2

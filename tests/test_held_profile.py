@@ -11,7 +11,7 @@ import pytest
 
 from tuner.diagnosis.extended_parametrization import ExtendedParametrization
 from tuner.diagnosis.held_profiles import (FAR_WORSE, HELD_PATIENCE, HeldSweep, SeriesTargets, held_profile,
-                                           nonsmooth_profiles, series_profiles)
+                                           nonsmooth_profiles, series_profiles, sweep_gain)
 from tuner.identification.parametrization import Parametrization
 
 N = 50
@@ -95,6 +95,34 @@ def test_a_profile_that_beats_the_model_without_the_effect_is_swept_past_its_min
     out = nonsmooth_profiles(eng, ext, [z0], pts, sse, None, sse_off)
     k = int(np.argmin(out.sse))
     assert ext.to_params(out.points[k])["free_play"] == pytest.approx(GAP, rel=0.05)
+
+
+def test_a_sweep_that_creeps_below_the_datas_resolution_stops_after_the_patience_and_a_real_fall_is_followed():
+    """A profile that falls by 0.01 N of RMSE per value (a flat profile on data whose RMSE has a standard error of
+    1 N): counted against the best by any fall, the chained sweep runs through every value; by the data's resolution
+    (``sweep_gain``: a quarter of the standard error), it stops after HELD_PATIENCE values and, its best within the
+    resolution of the model without the effect, tries no vertex. A minimum whose fall from value to value is far
+    above the resolution is swept to it and past it by HELD_PATIENCE values alike."""
+    ext, z0 = ext_and_start()
+    gaps = np.geomspace(0.05e-3, 1.5e-3, 10)
+    values = coordinates(ext, gaps)
+    creep = GapEngine(lambda g: 20.0 - 0.01 * float(np.searchsorted(gaps, g * (1 + 1e-9))) if g > 0 else 20.0)
+    sse_off = N * 20.0 ** 2
+    gain = sweep_gain(1.0)
+    assert 0.01 < gain < 1.0
+    every = held_profile(creep, ext, z0, 0, values, sse_off, sweep=HeldSweep(chained=True))
+    resolved = held_profile(creep, ext, z0, 0, values, sse_off, sweep=HeldSweep(chained=True, gain_n=gain))
+    assert len(every.points) == len(values)
+    assert len(resolved.points) == HELD_PATIENCE
+    pts = [np.r_[z0[:2], v] for v in values]
+    sse = [N * creep.residual_of_gap(ext.to_params(z)["free_play"]) ** 2 for z in pts]
+    out = nonsmooth_profiles(creep, ext, [z0], pts, sse, None, sse_off, gain)
+    assert len(out.points) == HELD_PATIENCE  # no vertex: the best is within the resolution of no gap
+    dip = GapEngine(lambda g: 1.0 + 5.0 * math.log(g / GAP) ** 2 if g > 0 else 1e3)
+    held = held_profile(dip, ext, z0, 0, values, N * 20.0 ** 2, sweep=HeldSweep(chained=True, gain_n=gain))
+    best = int(np.argmin(held.sse))
+    assert abs(math.log(gaps[best] / GAP)) <= 0.5 * math.log(gaps[1] / gaps[0])
+    assert len(held.points) == min(best + 1 + HELD_PATIENCE, len(values))
 
 
 def test_the_start_that_absorbed_nothing_profiles_the_whole_grid_and_finds_a_minimum_beyond_a_flat_stretch():

@@ -14,10 +14,10 @@ from damper_fmu.effect_catalogue import effect_of
 
 from tuner.diagnosis.extended_parametrization import ExtendedParametrization
 from tuner.identification.engine import Engine
-from tuner.identification.polish import polish
+from tuner.identification.polish import RESOLUTION_FRACTION, polish
 
-__all__ = ["HeldProfile", "HeldSweep", "SeriesProfile", "SeriesTargets", "held_profile", "nonsmooth_profiles",
-           "series_profiles", "PROBE_JACOBIANS",
+__all__ = ["HeldProfile", "HeldSweep", "sweep_gain", "SeriesProfile", "SeriesTargets", "held_profile",
+           "nonsmooth_profiles", "series_profiles", "PROBE_JACOBIANS",
            "HELD_PROFILE_JACOBIANS", "COARSE_HELD_JACOBIANS", "HELD_PATIENCE", "FAR_WORSE", "SERIES_HELD_JACOBIANS"]
 
 #: Jacobians of the joint polish that must win ``tuner.diagnosis.refit.PROFILE_SHARE`` when the profile did not, for
@@ -30,7 +30,8 @@ PROBE_JACOBIANS = 2
 HELD_PROFILE_JACOBIANS = 3
 #: ... and at each value of the coarse pass from a start that has absorbed nothing (``_grid_profile``)
 COARSE_HELD_JACOBIANS = 1
-#: values in a row that fit worse than the best so far (at first: the model without the effect) after which the
+#: values in a row that fit no better than the best so far (at first: the model without the effect; better: by the
+#: data's resolution, ``sweep_gain``) after which the
 #: held profile's upward sweep stops
 HELD_PATIENCE = 3
 #: a held value re-fitted from the refit's start that leaves this many times the SSE of the model without the
@@ -46,14 +47,26 @@ SERIES_HELD_JACOBIANS = 2
 @dataclass(frozen=True)
 class HeldSweep:
     """How ``held_profile`` sweeps its values: ``jacobians`` of the local refinement at each value; it stops once
-    ``patience`` values in a row (None: never) fit worse than the best so far; ``chained``: each value re-fitted
-    from the best value's point so far; ``far``: while no value has beaten the model without the effect, one that
-    fits ``far`` x its SSE or worse ends it (None: never)."""
+    ``patience`` values in a row (None: never) fit no better than the best so far, where better is an RMSE lower by
+    more than ``gain_n`` [N] (``sweep_gain``: the data's resolution); ``chained``: each value re-fitted from the
+    best value's point so far; ``far``: while no value has beaten the model without the effect, one that fits
+    ``far`` x its SSE or worse ends it (None: never)."""
 
     patience: int | None = HELD_PATIENCE
     jacobians: int = HELD_PROFILE_JACOBIANS
     chained: bool = False
     far: float | None = None
+    gain_n: float = 0.0
+
+
+def sweep_gain(standard_error_n: float) -> float:
+    """The fall of the identification RMSE [N] a swept held value must show over the best so far to count as
+    progress: ``RESOLUTION_FRACTION`` of the RMSE's standard error ``standard_error_n`` [N], the change below which
+    a refinement has converged to the data's resolution (``tuner.identification.polish``). On the real MR damper at
+    0.75 A (two-chamber base, one standard error 2.6 N) the chained sweep of a free play crept through ten values
+    at 37.48-37.50 N, 0.01 N apart, 44 s to a 0.33 N dip the data cannot show, and its best started the joint
+    polish of a refit whose held-out tests could then not be simulated."""
+    return RESOLUTION_FRACTION * standard_error_n
 
 
 @dataclass(frozen=True)
@@ -76,12 +89,14 @@ class SeriesTargets:
     the effect: what the released and swept profiles must beat), ``enough`` [N^2] (a profile that reaches it ends
     the ladder; 0: never), and where the coarse passes with the element held run: ``coarse``, an engine of the
     search's windows of the tests (``tuner.identification.search_window``; None: the tests themselves), on which a
-    coarse pass must fit below ``coarse_sse_off`` [N^2] for its held value to be released."""
+    coarse pass must fit below ``coarse_sse_off`` [N^2] for its held value to be released; ``sweep_gain_n`` [N]: the
+    fall of the RMSE that counts as progress in the sweeps after a release (``sweep_gain``)."""
 
     sse_off: float
     enough: float = 0.0
     coarse: Engine | None = None
     coarse_sse_off: float = math.inf
+    sweep_gain_n: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -99,12 +114,12 @@ class SeriesProfile:
 
 
 def nonsmooth_profiles(eid: Engine, ext: ExtendedParametrization, starts: list, pts: list, sse: list,
-                       profile=None, sse_off: float = math.inf) -> HeldProfile:
+                       profile=None, sse_off: float = math.inf, gain_n: float = 0.0) -> HeldProfile:
     """The ``held_profile`` of every nonsmooth effect's magnitude among the extra parameters profiled (``profile``:
     their indices, default all) of the refit whose profile points ``pts`` (search coordinates) have the SSE
     ``sse`` [N^2], from each of ``starts`` (search coordinates): the refit's start (``_swept_profile``) and
     possibly one that has absorbed nothing (``_grid_profile``). ``sse_off`` [N^2]: the refit's start, the model
-    without the effect.
+    without the effect; ``gain_n`` [N]: the fall of the RMSE that counts as progress (``sweep_gain``).
 
     Why a second start: a base fitted without the effect may have absorbed it where a few Jacobians cannot
     undo it. A two-chamber damper with a 0.52 mm gap in its mounts (soft contact) was fitted as 24 entrained
@@ -120,30 +135,30 @@ def nonsmooth_profiles(eid: Engine, ext: ExtendedParametrization, starts: list, 
         if not values:
             continue
         best = float(pts[int(np.argmin(sse))][dim + i])
-        out = out.joined(_swept_profile(eid, ext, starts[0], i, values, best, sse_off, far_stop=len(starts) > 1))
+        sweep = HeldSweep(chained=True, far=FAR_WORSE if len(starts) > 1 else None, gain_n=gain_n)
+        out = out.joined(_swept_profile(eid, ext, starts[0], i, values, best, sse_off, sweep))
         for z0 in starts[1:]:
-            out = out.joined(_grid_profile(eid, ext, z0, i, values, sse_off))
+            out = out.joined(_grid_profile(eid, ext, z0, i, values, sse_off, gain_n))
     return out
 
 
 def _swept_profile(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, i: int, values: list, best: float,
-                   sse_off: float, far_stop: bool = False) -> HeldProfile:
+                   sse_off: float, sweep: HeldSweep) -> HeldProfile:
     """The held profile from the refit's start ``z0``: the profile's grid ``values`` (search coordinates) from the
     value below ``best`` (the grid profile's best point) up (the base absorbs a nonsmooth effect as a smaller
     one; the value below brackets the best) with the geometric mean of each two neighbours between them (the
     profile's minimum is narrow: a 0.40 mm gap between the grid values 0.28 and 0.54 mm was missed), swept
-    upward until ``HELD_PATIENCE`` values in a row fit worse than the best so far, the model without the effect
-    (SSE ``sse_off`` [N^2]) counting as the first; each value re-fitted from the best value's point so far
-    (``held_profile``'s ``chained``: a continuation in the magnitude); then ``_with_vertex``. ``far_stop`` (a start
-    that has absorbed nothing follows): a value ``FAR_WORSE`` x ``sse_off`` or worse before any beat it ends the
-    sweep."""
+    upward until ``HELD_PATIENCE`` values in a row fit no better than the best so far by ``sweep.gain_n``, the model
+    without the effect (SSE ``sse_off`` [N^2]) counting as the first; each value re-fitted from the best value's
+    point so far (``sweep.chained``: a continuation in the magnitude); then ``_with_vertex``. ``sweep.far`` (set when
+    a start that has absorbed nothing follows): a value ``FAR_WORSE`` x ``sse_off`` or worse before any beat it ends
+    the sweep."""
     k = max(0, max((j for j, v in enumerate(values) if v <= best), default=0) - 1)
     swept = []
     for lo, hi in zip(values[k:], values[k + 1:]):
         swept += [lo, math.sqrt(lo * hi)]
-    held = held_profile(eid, ext, z0, i, swept + values[-1:], sse_off,
-                        sweep=HeldSweep(chained=True, far=FAR_WORSE if far_stop else None))
-    return _with_vertex(eid, ext, i, held, sse_off)
+    held = held_profile(eid, ext, z0, i, swept + values[-1:], sse_off, sweep=sweep)
+    return _with_vertex(eid, ext, i, held, sse_off, sweep.gain_n)
 
 
 def series_profiles(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, i: int, values: list,
@@ -191,7 +206,8 @@ def series_profiles(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, i
             out = out.joined(_probe(eid, ext, released.points[0]))
             if min(out.sse) <= enough:
                 break
-        out = out.joined(_swept_profile(eid, ext, released.points[0], i, values, values[b], sse_off))
+        out = out.joined(_swept_profile(eid, ext, released.points[0], i, values, values[b], sse_off,
+                                        HeldSweep(chained=True, gain_n=targets.sweep_gain_n)))
         if min(out.sse) <= enough:
             break
     return SeriesProfile(out.points, out.sse, out.evaluations, coarse_best, any_released)
@@ -209,11 +225,11 @@ def _probe(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray) -> HeldPro
 
 
 def _grid_profile(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, i: int, values: list,
-                  sse_off: float) -> HeldProfile:
+                  sse_off: float, gain_n: float = 0.0) -> HeldProfile:
     """The held profile from a start that has absorbed nothing (``z0``, the data-driven guess): coarse at every
     value of the profile's grid ``values`` (search coordinates; ``COARSE_HELD_JACOBIANS`` each, no early stop),
     then fine (``HELD_PROFILE_JACOBIANS``) at the coarse best and the geometric means with its neighbours, then
-    ``_with_vertex`` through the fine values (coarse and fine values are not compared: unequal effort). No sweep
+    ``_with_vertex`` through the fine values (``gain_n`` [N]: ``sweep_gain``) (coarse and fine values are not compared: unequal effort). No sweep
     from the grid profile's best, as from the refit's start: from such a start the profile can be flat over the
     small values and fall only near the magnitude the data hold (a 0.52 mm gap in a two-chamber damper: 818-838 N
     rms at 0.04-0.15 mm, against 819 N without it; 577, 419 and 492 N at 0.28, 0.39 and 0.54 mm), where a sweep
@@ -225,19 +241,29 @@ def _grid_profile(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, i: 
     fine = [math.sqrt(values[b - 1] * values[b])] if b > 0 else []
     fine += [values[b]] + ([math.sqrt(values[b] * values[b + 1])] if b + 1 < len(values) else [])
     held = held_profile(eid, ext, z0, i, fine, sweep=HeldSweep(patience=None))
-    return coarse.joined(_with_vertex(eid, ext, i, held, sse_off))
+    return coarse.joined(_with_vertex(eid, ext, i, held, sse_off, gain_n))
 
 
 def _with_vertex(eid: Engine, ext: ExtendedParametrization, i: int, held: "HeldProfile",
-                 sse_off: float) -> "HeldProfile":
-    """``held`` and, when one of its values beat the model without the effect (SSE ``sse_off`` [N^2]), the held
-    value at the vertex of the parabola through its best value and their neighbours (``_vertex_value``),
-    re-fitted from the best value's point (closer to the vertex than the profile's start)."""
-    vertex = _vertex_value(held, ext.base.dimension + i) if min(held.sse, default=math.inf) < sse_off else None
+                 sse_off: float, gain_n: float = 0.0) -> "HeldProfile":
+    """``held`` and, when one of its values beat the model without the effect (SSE ``sse_off`` [N^2]) by more than
+    ``gain_n`` [N] of RMSE (``sweep_gain``), the held value at the vertex of the parabola through its best value and
+    their neighbours (``_vertex_value``), re-fitted from the best value's point (closer to the vertex than the
+    profile's start)."""
+    beats = _lower(min(held.sse, default=math.inf), sse_off, eid.n_samples, gain_n)
+    vertex = _vertex_value(held, ext.base.dimension + i) if beats else None
     if vertex is None:
         return held
     start = held.points[int(np.argmin(held.sse))]
     return held.joined(held_profile(eid, ext, start, i, [vertex]))
+
+
+def _lower(sse: float, than: float, n_samples: int, gain_n: float) -> bool:
+    """Whether the SSE ``sse`` [N^2] on ``n_samples`` is an RMSE lower than that of ``than`` by more than ``gain_n``
+    [N] (``than`` infinite: any finite ``sse``)."""
+    if not math.isfinite(than):
+        return math.isfinite(sse)
+    return math.sqrt(sse / n_samples) < math.sqrt(than / n_samples) - gain_n
 
 
 def _vertex_value(held: HeldProfile, k: int) -> float | None:
@@ -263,8 +289,9 @@ def held_profile(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, i: i
     search coordinate, swept in their order; ``sweep``: ``HeldSweep``): ``z0`` with each value re-fitted with it held
     (``jacobians`` Jacobians of the local refinement over every other coordinate), so that what the
     base absorbed of the effect (a soft elastic table in place of a dead band) is given back at each value;
-    the sweep stops once ``patience`` values in a row (None: never) fit worse than the best so far, where the model
-    without the effect (identification SSE ``sse_off`` [N^2]) is the first best: a start from which holding the
+    the sweep stops once ``patience`` values in a row (None: never) fit no better than the best so far (by more than
+    ``gain_n`` [N] of RMSE), where the model without the effect (identification SSE ``sse_off`` [N^2]) is the first
+    best: a start from which holding the
     effect only makes the fit worse is left after HELD_PATIENCE values (a two-chamber base that had absorbed a
     0.52 mm gap: 2389-3017 N rms at 0.15-0.54 mm against 847 N without it, 96 s of 284 for the refit).
 
@@ -290,7 +317,7 @@ def held_profile(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, i: i
         point = ext.from_params(held.to_params(pol.z))
         point[dim + i] = v  # exactly the value held
         e = eid.n_samples / pol.fitness if pol.fitness > 0 else math.inf
-        worse = worse + 1 if e >= min([sse_off, *sse]) else 0
+        worse = 0 if _lower(e, min([sse_off, *sse]), eid.n_samples, sweep.gain_n) else worse + 1
         points.append(point)
         sse.append(e)
         if patience is not None and worse >= patience:

@@ -45,10 +45,12 @@ class RefitProfile:
     """What ``refit`` profiles: the extra parameters of ``ext.extra`` at the indices ``indices`` (None: all; the
     others, e.g. effects already selected or a form's shape, are kept at their values in the start), and ``fresh``:
     a second start (search coordinates) for the held profiles of the nonsmooth effects (``nonsmooth_profiles``), one
-    that has absorbed nothing (the data-driven guess; None: none)."""
+    that has absorbed nothing (the data-driven guess; None: none); ``sweep_gain_n`` [N]: the fall of the RMSE a held
+    profile's swept value must show to count as progress (``tuner.diagnosis.held_profiles.sweep_gain``; 0: any)."""
 
     indices: object = None
     fresh: np.ndarray | None = None
+    sweep_gain_n: float = 0.0
 
 
 def refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: float, jac_svd,
@@ -114,7 +116,7 @@ def refit(eid: Engine, ext: ExtendedParametrization, z0: np.ndarray, sse0: float
                 break
     sse = [float(r @ r) if r is not None else math.inf for r in res]
     held = nonsmooth_profiles(eid, ext, [z0] if fresh is None else [z0, fresh], pts, sse, indices,
-                              sse0 if math.isfinite(sse0) else math.inf)
+                              sse0 if math.isfinite(sse0) else math.inf, profile.sweep_gain_n)
     evals += held.evaluations
     pts, sse = pts + held.points, sse + held.sse
     k = int(np.argmin(sse))

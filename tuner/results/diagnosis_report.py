@@ -108,8 +108,10 @@ def _ranking_rows(ranking: list[dict], winner: str | None) -> str:
         if r.get("excess_explained") is not None:  # a form: how much of the residual above the floor it removes
             ci += f"; removes {100 * r['excess_explained']:.0f} % of the held-out residual above the floor"
         out.append(f"<tr{cls}><td>{e(r['effect'])}</td><td>{e(fitted)}</td><td>{e(ci or '-')}</td>"
-                   f"<td>{pct_change(r['validation_mse_change_pct'])} %</td><td>{r['score']:+.3f}</td>"
-                   f"<td>{e(size)}</td></tr>")
+                   + (f"<td colspan='2'>held-out tests not simulable: {e(r['validation_failure'])}</td>"
+                      if r.get("validation_failure") else
+                      f"<td>{pct_change(r['validation_mse_change_pct'])} %</td><td>{r['score']:+.3f}</td>")
+                   + f"<td>{e(size)}</td></tr>")
     return "".join(out)
 
 

@@ -14,7 +14,7 @@ from damper_fmu.parameters import SERIES_ELEMENT
 
 from tuner.diagnosis.cost_model import refit_cost, series_cost
 from tuner.diagnosis.extended_parametrization import ExtendedParametrization, grid
-from tuner.diagnosis.held_profiles import SERIES_HELD_JACOBIANS, SeriesTargets, series_profiles
+from tuner.diagnosis.held_profiles import SERIES_HELD_JACOBIANS, SeriesTargets, series_profiles, sweep_gain
 from tuner.diagnosis.rules import UNEXPLAINED_RATIO, scores
 from tuner.diagnosis.search.refits import refit_candidate
 from tuner.diagnosis.search.rows import held_out, log_row
@@ -74,7 +74,8 @@ def series_ladder(s: SearchState, effect: str, ext: ExtendedParametrization, row
     whole = CoarseGate.of(None, s.eid.n_samples, math.sqrt(1.0 / s.g_none), gain_n)  # on every sample
     coarse = coarse_gate(s, ext, start, ALL_EFFECTS[effect].magnitude, whole)
     prof = series_profiles(s.eid, ext, start, i, values, held,
-                           SeriesTargets(whole.sse_beat, enough, coarse.engine, coarse.sse_beat))
+                           SeriesTargets(whole.sse_beat, enough, coarse.engine, coarse.sse_beat,
+                                         sweep_gain(s.resolvable_n)))
     fit = s.refits[effect]
     if not prof.released:  # no gap value fits better with the element held (``series_profiles``)
         s.cost.refits = max(0.0, s.cost.refits - cost)

@@ -37,7 +37,8 @@ def held_out(s: SearchState, effect: str, params: dict, extra, g: float, evals: 
     the force contribution [N rms] of the ``new`` effect parameters (default all of ``extra``) on the
     identification tests (the fitted model minus the same with them off); ``g``: its identification
     fitness N / SSE. The score is penalised for as many parameters as ``new`` (a form's row is scored again
-    for all of its own: ``form_steps.form_row``)."""
+    for all of its own: ``form_steps.form_row``). When the held-out tests cannot be simulated at its point, its
+    held-out MSE is infinite (no score: it cannot be named) and ``validation_failure`` says why."""
     new = list(extra) if new is None else list(new)
     r_val = s.ev.residuals_batch([params])[0]
     per_test = split_mse(r_val, s.lengths)
@@ -57,7 +58,8 @@ def held_out(s: SearchState, effect: str, params: dict, extra, g: float, evals: 
             "within_bounds": within_bounds({n: params[n] for n in new}, {
                 n: search_bounds(n, s.peak, s.stroke_range, s.stroke_limits) for n in new}),
             "validation": {t.name: {"mse": m, "ame": a} for t, (m, a) in zip(s.data.sig_val, per_test)},
-            "evaluations": int(evals)}
+            "evaluations": int(evals),
+            **({"validation_failure": s.ev.last_failure or "no reason given"} if r_val is None else {})}
 
 
 def attach_interval(row: dict, ci: dict, ext: ExtendedParametrization, new) -> None:
@@ -80,6 +82,8 @@ def attach_interval(row: dict, ci: dict, ext: ExtendedParametrization, new) -> N
 def log_row(s: SearchState, row: dict) -> None:
     """One candidate's ranking row, as the log shows it."""
     s.log(f"  {row['effect']:14s} " + ", ".join(f"{n} = {v:.4g} {UNITS[n]}" for n, v in row["parameters"].items())
-          + f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}"
+          + (f"  the held-out tests cannot be simulated at this point ({row['validation_failure']}): not a cause"
+             if "validation_failure" in row else
+             f"  validation MSE {row['validation_mse_change_pct']:+6.1f} %  score {row['score']:+.3f}")
           + f"  effect {row['effect_rms_n']:.3g} N rms{'' if row['resolved'] else ' (below the noise)'}"
           + ("" if row["refitted"] else "  (screened: not refitted)"))

@@ -208,6 +208,7 @@ class SearchState:
         return bool(pol.converged or (self.credible and not pol.budget_spent
                                           and reachable > UNEXPLAINED_RATIO * self.floor))
 
-    def polish_quietly(self, par, z: np.ndarray, jacobians: int) -> PolishResult:
-        """``polish`` of ``par`` from ``z`` on the identification tests, at most ``jacobians`` Jacobians, unlogged."""
-        return polish(self.eid, par, z, max_jacobians=jacobians, log=lambda m: None)
+    def polish_quietly(self, par, z: np.ndarray, jacobians: int, beat: float | None = None) -> PolishResult:
+        """``polish`` of ``par`` from ``z`` on the identification tests, at most ``jacobians`` Jacobians, unlogged
+        (``beat`` [N^2]: the SSE it matters only below, ``polish``'s)."""
+        return polish(self.eid, par, z, max_jacobians=jacobians, log=lambda m: None, beat=beat)
