@@ -9,8 +9,8 @@ at least ``rules.CONFOUNDED_SHARE`` of its force on the identification tests (th
 (the base refit with it minus without it, on the identification and the held-out tests) is added to the measured
 force, the base is refined on those injected data from its refit (``polish``, at most ``--jacobians``), and printed:
 the share of the injected identification SSE a refit of the effect could win back (the screen refits from 2 %:
-``tuner.diagnosis.screen.SCREEN_SHARE``), the held-out score it would reach (``ln(MSE / MSE of the base refit) -
-penalty``; named above ``rules.ACCEPT_SCORE``) and the effect's force against the noise. Where the check names what
+``tuner.diagnosis.screen.SCREEN_SHARE``), the held-out score it would reach (``rules.score`` of the base refit's MSE
+against the refined base's on the injected data; named above ``rules.ACCEPT_SCORE``) and the effect's force against the noise. Where the check names what
 the linear limit says it names, the limit holds for an effect that arises on the identified base; a fault present
 when the base was identified can still be absorbed more completely (docs/benchmarks.md, friction seed 3224).
 Forces in N, magnitudes in the effect parameter's SI unit.
@@ -31,7 +31,7 @@ sys.path.insert(0, str(ROOT))
 
 import benchmarks.blind_physical as bp  # noqa: E402
 import tuner.diagnosis.search.run as search_run  # noqa: E402
-from tuner.diagnosis.rules import ACCEPT_SCORE, CONFOUNDED_SHARE, PENALTY_PER_PARAMETER  # noqa: E402
+from tuner.diagnosis.rules import ACCEPT_SCORE, CONFOUNDED_SHARE, score  # noqa: E402
 from tuner.diagnosis.screen import SCREEN_SHARE  # noqa: E402
 from tuner.identification.polish import polish  # noqa: E402
 
@@ -73,7 +73,8 @@ def injection_check(s, name: str, magnitude: float, jacobians: int) -> Injection
     r_id, r_val = injected.residuals_batch([point])[0], s.ev.residuals_batch([point])[0] + d_val
     sse, sse0 = float(r_id @ r_id), float(r_id0 @ r_id0)
     mse, mse0 = float(r_val @ r_val) / len(r_val), float(r_val0 @ r_val0) / len(r_val0)
-    return InjectionCheck(magnitude, pol.jacobians, (sse - sse0) / sse, math.log(mse / mse0) - PENALTY_PER_PARAMETER,
+    # the effect refitted would take the held-out MSE back to the base refit's: its score against the refined base
+    return InjectionCheck(magnitude, pol.jacobians, (sse - sse0) / sse, score(mse0, mse, 1),
                           math.sqrt(float(d_id @ d_id) / len(d_id)))
 
 

@@ -854,7 +854,7 @@ def test_the_series_ladder_releases_only_a_gap_the_data_can_show(monkeypatch):
         par=Parametrization("lumped", force_limit=4e4), guess={"k_B": 1e7, "c_B": 1e4}, peak=1e3, stroke_range=0.05,
         cost=DiagnosisCost(reference=0.0, screen=0.0, refits=0.0, forms=0.0, detection=0.0), forecast=lambda: None,
         base={}, z_none=np.zeros(1), eid=SimpleNamespace(n_samples=n), ew=None, g_none=n / sse_none, share=2,
-        resolvable_n=1.0,
+        resolvable_n=1.0, sweep_gain_n=0.25,
         refits={"free_play": Fit(ext, np.zeros(2), 10)}, polish_quietly=polish_quietly)
     s.par.to_params = lambda z: {}
     s.above_floor = lambda rmse, floor=None: rmse > 2.0

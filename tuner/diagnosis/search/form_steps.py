@@ -20,7 +20,7 @@ from tuner.diagnosis.verdict import UNITS, interval_text
 from tuner.formatting import fmt_quantity
 
 __all__ = ["FORM_REFIT_EXCESS", "COULOMB_EDGE", "fit_form", "forms", "form_row", "name_form", "continuation_target",
-           "at_coulomb_edge",
+           "power_above_floor", "at_coulomb_edge",
            "as_friction", "weigh_forms", "forms_on_top"]
 
 #: a form's shape is refitted only when the screen predicts it to win at least this share of the identification
@@ -59,7 +59,7 @@ def fit_form(s: SearchState, form: str, ext: ExtendedParametrization, jac, curre
         cand["refitted"] = False
     best, g = None, -math.inf
     evals = len(shape_grid(form, dict(zip(ext.extra, ext.extra_bounds)), knee)) + 1
-    excess = sse_cur - s.eid.n_samples * s.floor ** 2  # the identification residual power above the floor
+    excess = power_above_floor(s, sse_cur)
     to_refit = [c for c in shapes if c["predicted_share"] >= SCREEN_SHARE
                 and c["gain_n2"] >= FORM_REFIT_EXCESS * max(excess, 0.0)]
     for cand in to_refit or shapes[:1]:  # the shape's settings (direction, fade speed) are fixed in its model
@@ -171,12 +171,17 @@ def name_form(s: SearchState, rows: list[dict], fits: dict, current_row: dict, s
 
 def continuation_target(s: SearchState, sse_cur: float) -> float:
     """The identification SSE [N^2] a form's continuation must be able to reach to matter: the current model's
-    ``sse_cur`` [N^2] less FORM_EXCESS_SHARE of its power above the residual floor (``SearchState.floor``, as the
+    ``sse_cur`` [N^2] less FORM_EXCESS_SHARE of its power above the residual floor (``power_above_floor``, as the
     naming share counts it on the held-out tests). On the real MR damper at 0.25 A a bypass groove that removes 16 %
     of the held-out residual above the floor was continued for 15 s of a three-minute job, then refused by that
     share."""
-    floor_sse = s.eid.n_samples * s.floor ** 2 if math.isfinite(s.floor) else 0.0
-    return sse_cur - FORM_EXCESS_SHARE * max(sse_cur - floor_sse, 0.0)
+    return sse_cur - FORM_EXCESS_SHARE * max(power_above_floor(s, sse_cur), 0.0)
+
+
+def power_above_floor(s: SearchState, sse: float) -> float:
+    """The part [N^2] of the identification SSE ``sse`` [N^2] above the residual floor (``SearchState.floor`` on every
+    sample): what a form must remove a share of."""
+    return sse - s.eid.n_samples * s.floor ** 2
 
 
 def at_coulomb_edge(fit: Fit) -> bool:

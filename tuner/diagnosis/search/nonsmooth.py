@@ -14,7 +14,7 @@ from damper_fmu.parameters import SERIES_ELEMENT
 
 from tuner.diagnosis.cost_model import refit_cost, series_cost
 from tuner.diagnosis.extended_parametrization import ExtendedParametrization, grid
-from tuner.diagnosis.held_profiles import SERIES_HELD_JACOBIANS, SeriesTargets, series_profiles, sweep_gain
+from tuner.diagnosis.held_profiles import SERIES_HELD_JACOBIANS, SeriesTargets, series_profiles
 from tuner.diagnosis.rules import UNEXPLAINED_RATIO, scores
 from tuner.diagnosis.search.refits import refit_candidate
 from tuner.diagnosis.search.rows import held_out, log_row
@@ -75,7 +75,7 @@ def series_ladder(s: SearchState, effect: str, ext: ExtendedParametrization, row
     coarse = coarse_gate(s, ext, start, ALL_EFFECTS[effect].magnitude, whole)
     prof = series_profiles(s.eid, ext, start, i, values, held,
                            SeriesTargets(whole.sse_beat, enough, coarse.engine, coarse.sse_beat,
-                                         sweep_gain(s.resolvable_n)))
+                                         s.sweep_gain_n))
     fit = s.refits[effect]
     if not prof.released:  # no gap value fits better with the element held (``series_profiles``)
         s.cost.refits = max(0.0, s.cost.refits - cost)

@@ -8,7 +8,6 @@ from dataclasses import replace
 import numpy as np
 
 from tuner.diagnosis.extended_parametrization import ExtendedParametrization, base_jacobian
-from tuner.diagnosis.held_profiles import sweep_gain
 from tuner.diagnosis.refit import RefitProfile, refit
 from tuner.diagnosis.screen import SCREEN_SHARE, profile_screen
 from tuner.diagnosis.search.rows import held_out
@@ -47,7 +46,7 @@ def refit_candidate(s: SearchState, effect: str, ext: ExtendedParametrization) -
     fresh = ext.from_params(s.guess) if s.one_start else None
     for start, sse_start, svd in s.starts:
         fit = refit(s.eid, ext, ext.from_params(start), sse_start, svd, s.settings, s.share,
-                    profile=RefitProfile(fresh=fresh, sweep_gain_n=sweep_gain(s.resolvable_n)))
+                    profile=RefitProfile(fresh=fresh, sweep_gain_n=s.sweep_gain_n))
         evals += fit.evaluations
         if fit.fitness > g:
             best_z, g = fit.z, fit.fitness

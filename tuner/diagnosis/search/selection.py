@@ -12,7 +12,6 @@ from damper_fmu.effect_catalogue import ALL_EFFECTS
 from tuner.diagnosis.cost_model import after_ranking
 from tuner.diagnosis.detection import absorption
 from tuner.diagnosis.extended_parametrization import ExtendedParametrization, base_jacobian
-from tuner.diagnosis.held_profiles import sweep_gain
 from tuner.diagnosis.refit import RefitProfile, effect_intervals, refit
 from tuner.diagnosis.rules import (ACCEPT_SCORE, CONFOUNDED_SHARE, cross_check, decide, earned,
                                     expected_residual_delay, residual_delay, scores)
@@ -291,7 +290,7 @@ def next_cause(s: SearchState, current: Fit, current_row: dict) -> dict:
         z0 = ext.from_params({**params_cur, **{n: 0.0 for n in ALL_EFFECTS[e].identified}})
         fit = refit(s.eid, ext, z0, sse_cur, jac, s.settings, s.share,
                     profile=RefitProfile(indices=range(len(current.ext.extra), len(ext.extra)),
-                                        sweep_gain_n=sweep_gain(s.resolvable_n)))
+                                        sweep_gain_n=s.sweep_gain_n))
         fits[ext.effect] = Fit(ext, fit.z, fit.evaluations)
         row = held_out(s, ext.effect, ext.to_params(fit.z), ext.extra, fit.fitness, fit.evaluations,
                        current_row["validation_mse"], new=ALL_EFFECTS[e].identified)

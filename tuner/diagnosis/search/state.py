@@ -15,6 +15,7 @@ from damper_fmu.parameters import defaults
 from tuner.diagnosis.bases import Base, CoarserGrid
 from tuner.diagnosis.cost_model import EXTENDED_COST, DiagnosisCost
 from tuner.diagnosis.effect_sizes import DamperSize
+from tuner.diagnosis.held_profiles import sweep_gain
 from tuner.diagnosis.residual_tests import TestResidual
 from tuner.diagnosis.rules import UNEXPLAINED_RATIO
 from tuner.diagnosis.settings import DiagnosisSettings
@@ -207,6 +208,12 @@ class SearchState:
         reachable = math.sqrt(max(0.0, 1.0 - pol.predicted) / g) if g > 0 else math.inf
         return bool(pol.converged or (self.credible and not pol.budget_spent
                                           and reachable > UNEXPLAINED_RATIO * self.floor))
+
+    @property
+    def sweep_gain_n(self) -> float:
+        """The fall of the identification RMSE [N] a held profile's swept value must show to count as progress
+        (``tuner.diagnosis.held_profiles.sweep_gain`` of ``resolvable_n``)."""
+        return sweep_gain(self.resolvable_n)
 
     def polish_quietly(self, par, z: np.ndarray, jacobians: int, beat: float | None = None) -> PolishResult:
         """``polish`` of ``par`` from ``z`` on the identification tests, at most ``jacobians`` Jacobians, unlogged
